@@ -1,0 +1,73 @@
+"""The `cortex` command: one argparse tree, filled in by each package's `cli`.
+
+Each package's `cli.register(subparsers)` adds its sub-commands and sets
+`handler="module:function"` on them; the handler module is imported only when
+the command runs, so `cortex --help` and `cortex geometry` stay fast and never
+load MPI or HDF5.
+
+Errors from bad input (`solver.errors.InputError`, missing or unreadable files)
+become one line on stderr and exit status 2.
+"""
+
+import argparse
+import importlib
+import sys
+
+from cortex import __version__
+from solver.errors import InputError
+
+REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "cortex.doctor")
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (and exit status 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def build_parser():
+    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".")
+    parser.description = (
+        "Simulate compressed cortical shells, run campaigns of them under MPI, "
+        "calibrate the laws that link the effective area modulus to the Poisson "
+        "ratio, and invert AFM recordings. Units: um, mN/m, nN, s."
+    )
+    parser.add_argument("--version", action="version", version=f"cortex {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in REGISTRARS:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as err:  # a package not built yet
+            if err.name not in (name, name.partition(".")[0]):
+                raise
+            continue
+        module.register(sub)
+    return parser
+
+
+def _handler(spec):
+    module, _, func = spec.partition(":")
+    return getattr(importlib.import_module(module), func)
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    where = " ".join(a for a in (args.command, getattr(args, "subcommand", None)) if a)
+    try:
+        status = _handler(args.handler)(args)
+    except InputError as err:
+        print(f"cortex {where}: error: {err}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
+        print(f"cortex {where}: error: {err.strerror or err}: {err.filename}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"cortex {where}: interrupted", file=sys.stderr)
+        return 130
+    return int(status or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,226 @@
+"""The droplet shape: a cell of volume V between parallel plates a gap h apart,
+with no elastic stress (SPEC section 1).
+
+The free surface has constant mean curvature H and meets both plates
+tangentially on contact discs of radius R_c; its widest radius R_eq is at
+mid-height. Force balance at the equator gives
+
+    H = R_eq / (R_eq² - R_c²),
+
+and along the free surface (ψ the tangent angle to the plate, 0 at the contact
+line, π/2 at the equator) the first integral is r sin ψ = H (r² - R_c²), so
+
+    r(ψ)    = (sin ψ + q) / (2H),              q = sqrt(sin² ψ + β²),  β = 2 H R_c,
+    dr/dψ   = cos ψ (1 + sin ψ / q) / (2H),
+    dz/dψ   = sin ψ (1 + sin ψ / q) / (2H),
+    ds/dψ   = (1 + sin ψ / q) / (2H).
+
+Parametrising by ψ instead of r removes the square-root singularity at the
+equator: every integrand is smooth. Half the height, half the volume and half
+the free area are
+
+    h/2 = ∫ dz,   V/2 = ∫ π r² dz,   A_free/2 = ∫ 2π r ds    (ψ from 0 to π/2),
+
+evaluated by composite Gauss-Legendre quadrature on intervals graded
+geometrically towards ψ = 0, where sin ψ / q turns over on the scale β (tiny
+near the free sphere). The arc length has a closed form,
+s(ψ) = [ψ + asin(1/√(1+β²)) - asin(cos ψ/√(1+β²))] / (2H).
+
+With R_eq = 1 the shape depends on k = R_c / R_eq alone, so the normalised
+height h̃ = h / (2 R_cell), R_cell = (3V/4π)^(1/3), is a function of k. Given
+(V, h), k solves h̃(k) = h / (2 R_cell): a tabulated inverse gives the start,
+two Newton steps finish it; then R_eq = h / η(k) with η = h/R_eq.
+
+Total area A = A_free + 2π R_c² (the cortex covers both contact discs);
+contact area A_c = π R_c²; the force of a tension-only cell on each plate
+F_a = 2 γ_a H A_c, so `force_per_tension_um` = 2 H A_c (µm; × mN/m gives nN).
+
+Everything is vectorised over arrays of volumes and heights (broadcast).
+Units: µm, µm², µm³, 1/µm.
+"""
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from solver.errors import InputError
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(12)
+_INTERVALS = 24          # geometric intervals from β/8 to the upper limit
+_K_MAX = 0.995           # h̃ ≈ 0.07: far flatter than any cell is squeezed
+
+
+def cell_radius(volume):
+    """R_cell = (3V / 4π)^(1/3), µm."""
+    return np.cbrt(3.0 * np.asarray(volume, float) / (4.0 * np.pi))
+
+
+def sphere_height(volume):
+    """The free sphere's diameter 2 R_cell, the largest possible gap, µm."""
+    return 2.0 * cell_radius(volume)
+
+
+def _nodes(beta, psi_end):
+    """Quadrature nodes ψ and weights, shape (..., n), graded towards ψ = 0."""
+    lo = np.minimum(np.clip(beta, 1e-14, None) / 8.0, psi_end / 2.0)
+    edges = lo[..., None] * (psi_end / lo)[..., None] ** np.linspace(0.0, 1.0, _INTERVALS + 1)
+    edges = np.concatenate([np.zeros_like(lo)[..., None], edges], axis=-1)
+    a, b = edges[..., :-1, None], edges[..., 1:, None]
+    psi = 0.5 * (a + b) + 0.5 * (b - a) * _GL_X
+    w = 0.5 * (b - a) * _GL_W
+    shape = psi.shape[:-2] + (-1,)
+    return psi.reshape(shape), w.reshape(shape)
+
+
+def _half_integrals(k, psi_end=None):
+    """For R_eq = 1 and R_c = k: height, volume and free area from the contact
+    line (ψ = 0) up to ψ_end (default the equator), each for one half."""
+    k = np.asarray(k, float)
+    H = 1.0 / (1.0 - k * k)
+    beta = 2.0 * H * k
+    psi_end = np.full_like(k, np.pi / 2) if psi_end is None else np.asarray(psi_end, float)
+    psi, w = _nodes(beta, psi_end)
+    H_, beta_ = H[..., None], beta[..., None]
+    s = np.sin(psi)
+    q = np.sqrt(s * s + beta_ * beta_)
+    g = (1.0 + s / q) / (2.0 * H_)           # ds/dψ
+    r = (s + q) / (2.0 * H_)
+    dz = s * g
+    z = np.sum(w * dz, axis=-1)
+    vol = np.pi * np.sum(w * r * r * dz, axis=-1)
+    area = 2.0 * np.pi * np.sum(w * r * g, axis=-1)
+    return z, vol, area
+
+
+def _h_tilde_of_k(k):
+    """h̃ as a function of k = R_c/R_eq (shape only, scale free)."""
+    z, vol, _ = _half_integrals(k)
+    return (2.0 * z) / (2.0 * np.cbrt(3.0 * (2.0 * vol) / (4.0 * np.pi)))
+
+
+@lru_cache(maxsize=1)
+def _inverse_table():
+    """Cubic spline k(u) with u = sqrt(1 - h̃): smooth at the sphere, where k ∝ u."""
+    t = np.linspace(0.0, 1.0, 801)
+    k = _K_MAX * np.sin(0.5 * np.pi * t) ** 1.5  # dense near both ends
+    u = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k), 0.0, None))
+    return CubicSpline(u, k), u[-1]
+
+
+def _solve_k(h_tilde):
+    """k with h̃(k) = h_tilde: spline start, then Newton steps on u = sqrt(1 - h̃)."""
+    spline, u_max = _inverse_table()
+    u = np.sqrt(np.clip(1.0 - h_tilde, 0.0, None))
+    k = spline(u)
+    dk_du = spline(u, 1)
+    for _ in range(2):
+        uk = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k), 0.0, None))
+        k = np.clip(k + (u - uk) * dk_du, 0.0, _K_MAX)
+    return k, u_max
+
+
+def _check(volume, height):
+    volume = np.asarray(volume, float)
+    height = np.asarray(height, float)
+    if not (np.all(np.isfinite(volume)) and np.all(np.isfinite(height))):
+        raise InputError("volume and height must be finite numbers (got NaN or inf)")
+    if np.any(volume <= 0):
+        raise InputError(f"volume must be > 0 um^3 (got {volume.min():g})")
+    if np.any(height <= 0):
+        raise InputError(f"height must be > 0 um (got {height.min():g})")
+    top = sphere_height(volume)
+    over = height > top * (1.0 + 1e-12)
+    if np.any(over):
+        i = np.flatnonzero(np.broadcast_to(over, np.broadcast(volume, height).shape).ravel())[0]
+        hb, vb = np.broadcast_arrays(height, volume)
+        raise InputError(
+            f"height {hb.ravel()[i]:g} um exceeds the free sphere's diameter "
+            f"{sphere_height(vb.ravel()[i]):.6g} um for volume {vb.ravel()[i]:g} um^3")
+    return np.broadcast_arrays(volume, np.minimum(height, top))
+
+
+@dataclass(frozen=True)
+class Droplet:
+    """The droplet shape's numbers (arrays broadcast over volume and height)."""
+
+    height_um: np.ndarray
+    volume_um3: np.ndarray
+    contact_radius_um: np.ndarray        # R_c
+    equator_radius_um: np.ndarray        # R_eq
+    mean_curvature_per_um: np.ndarray    # H
+    surface_area_um2: np.ndarray         # A = A_free + 2 π R_c²
+    contact_area_um2: np.ndarray         # A_c = π R_c²
+    force_per_tension_um: np.ndarray     # F_a / γ_a = 2 H A_c
+    free_area_um2: np.ndarray            # A_free
+    cell_radius_um: np.ndarray           # R_cell
+    h_tilde: np.ndarray                  # h / (2 R_cell)
+
+    JSON_KEYS = ("height_um", "volume_um3", "contact_radius_um", "equator_radius_um",
+                 "mean_curvature_per_um", "surface_area_um2", "contact_area_um2",
+                 "force_per_tension_um")
+
+    def row(self, i=()):
+        """One shape as a dict of floats with the interface's JSON keys."""
+        return {key: float(np.asarray(getattr(self, key))[i]) for key in self.JSON_KEYS}
+
+
+def droplet(volume, height):
+    """Solve the droplet shape for volume V (µm³) and plate gap h (µm).
+
+    Raises InputError for V ≤ 0, h ≤ 0, h above the free sphere's diameter
+    2 R_cell, NaN or inf. Heights below h̃ ≈ 0.07 are refused too (the cell
+    would be a thin pancake, far outside the model's range)."""
+    volume, height = _check(volume, height)
+    R_cell = cell_radius(volume)
+    h_tilde = height / (2.0 * R_cell)
+    k, _ = _solve_k(h_tilde)
+    if np.any(k >= _K_MAX):
+        raise InputError(f"height too small: h/(2 R_cell) = {h_tilde.min():.3g} is below "
+                         f"{_h_tilde_of_k(np.array(_K_MAX)):.3g}, the flattest shape supported")
+    z, vol, area = _half_integrals(k)
+    R_eq = height / (2.0 * z)
+    R_c = k * R_eq
+    H = 1.0 / (R_eq * (1.0 - k * k))
+    A_c = np.pi * R_c**2
+    A_free = 2.0 * area * R_eq**2
+    return Droplet(height_um=height, volume_um3=volume, contact_radius_um=R_c,
+                   equator_radius_um=R_eq, mean_curvature_per_um=H,
+                   surface_area_um2=A_free + 2.0 * A_c, contact_area_um2=A_c,
+                   force_per_tension_um=2.0 * H * A_c, free_area_um2=A_free,
+                   cell_radius_um=R_cell, h_tilde=h_tilde)
+
+
+def meridian(volume, height, psi):
+    """The upper free surface at tangent angles ψ (0 at the contact line, π/2 at
+    the equator) of the shape for one (V, h): returns (r, z, s) in µm with z
+    measured from the mid-plane (h/2 at the plate, 0 at the equator) and s the
+    arc length from the contact line. The lower half is its mirror image."""
+    d = droplet(float(volume), float(height))
+    R_eq, H = float(d.equator_radius_um), float(d.mean_curvature_per_um)
+    k = float(d.contact_radius_um) / R_eq
+    psi = np.asarray(psi, float)
+    if np.any((psi < 0) | (psi > np.pi / 2 + 1e-15)):
+        raise InputError("tangent angles must lie in [0, pi/2]")
+    beta = 2.0 * H * float(d.contact_radius_um)
+    s_ = np.sin(psi)
+    q = np.sqrt(s_ * s_ + beta * beta)
+    r = (s_ + q) / (2.0 * H)
+    rise, _, _ = _half_integrals(np.full(psi.shape, k), np.clip(psi, 1e-300, None))
+    z = float(height) / 2.0 - rise * R_eq
+    m = np.sqrt(1.0 + beta * beta)
+    s = (psi + np.arcsin(1.0 / m) - np.arcsin(np.cos(psi) / m)) / (2.0 * H)
+    return r, z, s
+
+
+def profile(volume, height, n=201):
+    """The whole free surface r(z) from the lower plate (z = 0) to the upper
+    plate (z = h), n points (odd n puts one at the equator), µm."""
+    half = (n + 1) // 2
+    psi = np.linspace(0.0, np.pi / 2, half)
+    r, z, _ = meridian(volume, height, psi)
+    z_up = float(height) / 2.0 + z            # from the lower plate
+    r_all = np.concatenate([r, r[::-1][1:] if n % 2 else r[::-1]])
+    z_all = np.concatenate([float(height) - z_up, z_up[::-1][1:] if n % 2 else z_up[::-1]])
+    return r_all, z_all

@@ -1,0 +1,91 @@
+"""One compression of the elastic cortical shell (SPEC section 2), as data.
+
+Isotropic material of thickness t_c: K_B = t E / (2(1-ν)), K_S = t E / (2(1+ν)),
+so ν = (K_B - K_S)/(K_B + K_S). Bending stiffness B = t_c² (K_B + K_S) / 24
+for the `standard` variant, 2B for `double`, 0 for `none`, or given explicitly.
+
+Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
+"""
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from solver.errors import InputError
+from solver.geometry import sphere_height
+
+BENDING_VARIANTS = {"standard": 1.0, "double": 2.0, "none": 0.0}
+PN_UM_PER_MN_PER_M_UM2 = 1000.0   # 1 mN/m·µm² = 1000 pN·µm
+
+
+@dataclass(frozen=True)
+class Shell:
+    """Everything that defines one compression h0 -> h1 = h0 - Δh.
+
+    volume_um3, h0_um, dh_um: cell volume V, initial gap h0, compression Δh.
+    bulk_mN_per_m, shear_mN_per_m: area bulk and shear moduli K_B, K_S (0 allowed).
+    tension_mN_per_m: active tension γ_a (> 0).
+    bending: `standard`, `double` or `none`; bending_pN_um, if given, overrides it.
+    thickness_um: t_c.  resolution: mesh refinement factor (1 = default, the
+    resolution at which K is converged to 0.1 %; 2 halves every element)."""
+
+    volume_um3: float
+    h0_um: float
+    bulk_mN_per_m: float
+    shear_mN_per_m: float
+    tension_mN_per_m: float
+    dh_um: float = 0.5
+    bending: str = "standard"
+    bending_pN_um: float | None = None
+    thickness_um: float = 0.2
+    resolution: float = 1.0
+
+    def __post_init__(self):
+        for name in ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
+                     "tension_mN_per_m", "thickness_um", "resolution"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
+                raise InputError(f"{name} must be a finite number (got {value!r})")
+        if self.volume_um3 <= 0:
+            raise InputError(f"volume must be > 0 um^3 (got {self.volume_um3:g})")
+        if self.h0_um <= 0 or self.dh_um <= 0:
+            raise InputError(f"h0 and dh must be > 0 um (got h0={self.h0_um:g}, dh={self.dh_um:g})")
+        if self.dh_um >= self.h0_um:
+            raise InputError(f"dh = {self.dh_um:g} um must be smaller than h0 = {self.h0_um:g} um")
+        top = float(sphere_height(self.volume_um3))
+        if self.h0_um > top:
+            raise InputError(f"h0 = {self.h0_um:g} um exceeds the free sphere's diameter "
+                             f"{top:.4g} um for V = {self.volume_um3:g} um^3")
+        if self.bulk_mN_per_m < 0 or self.shear_mN_per_m < 0:
+            raise InputError("moduli K_B and K_S must be >= 0 mN/m")
+        if self.tension_mN_per_m <= 0:
+            raise InputError(f"active tension must be > 0 mN/m (got {self.tension_mN_per_m:g})")
+        if self.bending not in BENDING_VARIANTS:
+            raise InputError(f"bending must be one of {', '.join(BENDING_VARIANTS)} "
+                             f"(got {self.bending!r})")
+        if self.bending_pN_um is not None and not (np.isfinite(self.bending_pN_um)
+                                                   and self.bending_pN_um >= 0):
+            raise InputError("bending stiffness must be >= 0 pN um")
+        if self.thickness_um <= 0 or self.resolution <= 0:
+            raise InputError("thickness and resolution must be > 0")
+
+    @property
+    def h1_um(self):
+        return self.h0_um - self.dh_um
+
+    @property
+    def bending_stiffness(self):
+        """B in mN/m·µm²: t_c² (K_B + K_S)/24 times the variant's factor."""
+        if self.bending_pN_um is not None:
+            return self.bending_pN_um / PN_UM_PER_MN_PER_M_UM2
+        base = self.thickness_um**2 * (self.bulk_mN_per_m + self.shear_mN_per_m) / 24.0
+        return BENDING_VARIANTS[self.bending] * base
+
+    @property
+    def poisson_ratio(self):
+        """ν = (K_B - K_S)/(K_B + K_S); NaN for a tension-only cell."""
+        total = self.bulk_mN_per_m + self.shear_mN_per_m
+        return (self.bulk_mN_per_m - self.shear_mN_per_m) / total if total > 0 else float("nan")
+
+    def to_dict(self):
+        return asdict(self)
