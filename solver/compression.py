@@ -1,0 +1,82 @@
+"""One compression h0 -> h1 of the cortical shell, whichever solver computes it.
+
+A solver (`solver.fast`, `solver.explicit`) returns a `Solution`: the plate
+force and the final shape. `compress` turns that into a `Compression`, adding
+the effective modulus of SPEC section 3 (from the droplet geometry, via
+`solver.modulus`), the volume error |V - V0| / V0, the simulated shell's area
+increase next to the droplet estimate, and the equator's shear-to-dilation
+ratio |e1 - e2| / (e1 + e2) with e_i = λ_i - 1.
+"""
+
+import importlib
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from solver.errors import InputError
+from solver.model import Shell
+from solver.modulus import effective_modulus
+
+METHODS = {"fast": "solver.fast", "explicit": "solver.explicit"}
+
+
+@dataclass
+class Solution:
+    """What a solver computes. Arrays run along the upper half meridian from the
+    pole on the plate (r = 0) to the equator; z is measured from the mid-plane."""
+
+    force_nN: float           # F_tot, force on one plate
+    volume_um3: float         # enclosed volume of the final shape
+    area_um2: float           # total area of the final shape (both halves, contact discs included)
+    area0_um2: float          # total area of the reference shape at h0, same mesh
+    r_um: np.ndarray
+    z_um: np.ndarray
+    lambda1: np.ndarray       # meridional stretch ds/ds0 at the nodes
+    lambda2: np.ndarray       # circumferential stretch r/r0 at the nodes
+    converged: bool
+    iterations: int
+    message: str = ""
+
+
+@dataclass
+class Compression:
+    """A finished compression: the model, its solution and the derived numbers."""
+
+    shell: Shell
+    method: str
+    solution: Solution
+    wall_s: float
+    derived: dict = field(default_factory=dict)
+
+    def to_dict(self):
+        """Scalars with the interface's JSON keys (units in the names)."""
+        s = self.solution
+        out = {"method": self.method, "force_nN": float(s.force_nN)}
+        out.update({k: float(v) for k, v in self.derived.items()})
+        out.update(converged=bool(s.converged), iterations=int(s.iterations),
+                   wall_s=float(self.wall_s))
+        return out
+
+
+def equator_shear_ratio(lambda1, lambda2):
+    """|e1 - e2| / (e1 + e2) at the equator (the last node)."""
+    e1, e2 = lambda1[-1] - 1.0, lambda2[-1] - 1.0
+    return abs(e1 - e2) / (e1 + e2) if e1 + e2 != 0 else float("nan")
+
+
+def compress(shell: Shell, method: str = "fast") -> Compression:
+    """Solve one compression with `method` (`fast` or `explicit`)."""
+    if method not in METHODS:
+        raise InputError(f"solver must be one of {', '.join(METHODS)} (got {method!r})")
+    solve = importlib.import_module(METHODS[method]).solve
+    start = time.perf_counter()
+    sol = solve(shell)
+    wall = time.perf_counter() - start
+    derived = effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um,
+                                shell.tension_mN_per_m, sol.force_nN)
+    derived = {k: float(v) for k, v in derived.items()}
+    derived["area_strain_shell"] = (sol.area_um2 - sol.area0_um2) / sol.area0_um2
+    derived["volume_error"] = abs(sol.volume_um3 - shell.volume_um3) / shell.volume_um3
+    derived["equator_shear_ratio"] = equator_shear_ratio(sol.lambda1, sol.lambda2)
+    return Compression(shell=shell, method=method, solution=sol, wall_s=wall, derived=derived)
