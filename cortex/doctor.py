@@ -1,6 +1,15 @@
-"""`cortex doctor`: which MPI and HDF5 stack is active, for users and bug reports."""
+"""`cortex doctor`: which MPI and HDF5 stack is active, for users and bug reports.
+
+Two stacks are supported (README, "MPI stacks"): the default one (mpi4py on
+the PyPI `mpich` wheel, serial h5py: rank 0 writes the store) and the
+parallel-HDF5 one (Debian's MPICH, h5py built with MPI: every rank writes its
+own rows of a collective `mpio` file). The files behind each library are read
+from /proc/self/maps, so the report says which MPI library is really loaded,
+and whether mpi4py and HDF5 share it.
+"""
 
 import json
+import os
 import platform
 import sys
 
@@ -12,6 +21,26 @@ def register(sub):
                                    "parallel store write path).")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler="cortex.doctor:run")
+
+
+def loaded_libraries(*stems):
+    """Real paths of the shared libraries mapped in this process whose file
+    name starts with one of `stems` (e.g. "libmpi", "libhdf5"); [] off Linux."""
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split()[-1] for line in maps if "/" in line}
+    except OSError:
+        return []
+    return sorted({os.path.realpath(p) for p in paths
+                   if os.path.basename(p).startswith(stems) and ".so" in p})
+
+
+def _hint(err):
+    """What to do when mpi4py cannot load its MPI library."""
+    wrapper = os.path.join(os.path.dirname(sys.executable), "with-mpi")
+    if "libmpi" in str(err) and os.path.exists(wrapper):
+        return f"; run through {wrapper}"
+    return ""
 
 
 def report():
@@ -26,11 +55,13 @@ def report():
         import mpi4py
         from mpi4py import MPI
         out["mpi4py"] = mpi4py.__version__
-        out["mpi_library"] = MPI.Get_library_version().strip().splitlines()[0]
+        out["mpi_library"] = " ".join(MPI.Get_library_version().strip().splitlines()[0].split())
         out["mpi_standard"] = "%d.%d" % MPI.Get_version()
         out["mpi_size"] = MPI.COMM_WORLD.Get_size()
     except Exception as err:  # MPI missing or broken: that is what doctor is for
-        out["mpi_library"] = f"unavailable ({type(err).__name__}: {err})"
+        out["mpi_library"] = f"unavailable ({type(err).__name__}: {err}{_hint(err)})"
+    out["mpi_library_files"] = loaded_libraries("libmpi")
+    out["hdf5_library_files"] = loaded_libraries("libhdf5")
     out["stack"] = "parallel-hdf5 (mpio)" if out["h5py_mpi"] else "default (serial h5py, rank-0 writer)"
     return out
 
