@@ -49,7 +49,7 @@ from solver.errors import InputError
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(12)
 _INTERVALS = 24          # geometric intervals from β/8 to the upper limit
-_K_MAX = 0.995           # h̃ ≈ 0.07: far flatter than any cell is squeezed
+_K_MAX = 0.995           # h̃ ≈ 0.026: far flatter than any cell is squeezed
 
 
 def cell_radius(volume):
@@ -170,7 +170,7 @@ def droplet(volume, height):
     """Solve the droplet shape for volume V (µm³) and plate gap h (µm).
 
     Raises InputError for V ≤ 0, h ≤ 0, h above the free sphere's diameter
-    2 R_cell, NaN or inf. Heights below h̃ ≈ 0.07 are refused too (the cell
+    2 R_cell, NaN or inf. Heights below h̃ ≈ 0.026 are refused too (the cell
     would be a thin pancake, far outside the model's range)."""
     volume, height = _check(volume, height)
     R_cell = cell_radius(volume)
