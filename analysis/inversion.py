@@ -95,7 +95,8 @@ def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
             lambda i: f"R^2 = {r2[i]:.2f} is not above {R2_MIN} (and nu = {nu[i]:.2f} <= {NU_FLAT})")
     return pd.DataFrame({"nu": nu, "ks_tilde": ks, "bulk_mN_per_m": bulk, "alpha": alpha, "r2": r2,
                          "gamma_tilde": gamma_tilde, "n_heights": n,
-                         "h_tilde_max": np.where(n > 0, top, np.nan), "excluded_reason": reasons})
+                         "h_tilde_max": np.where(n > 0, top, np.nan),
+                         "excluded_reason": pd.Series(reasons, dtype=object)})
 
 
 def invert_cell(h_tilde, modulus, tension, calibration, bending="standard"):
@@ -111,7 +112,7 @@ def invert_cell(h_tilde, modulus, tension, calibration, bending="standard"):
                          bulk_mN_per_m=float(row.bulk_mN_per_m), alpha=float(row.alpha),
                          r2=float(row.r2), gamma_tilde=float(row.gamma_tilde),
                          n_heights=int(row.n_heights), h_tilde_max=float(row.h_tilde_max),
-                         excluded_reason=row.excluded_reason)
+                         excluded_reason=None if pd.isna(row.excluded_reason) else str(row.excluded_reason))
 
 
 def to_curves(frame, by, columns=("h_tilde", "modulus_mN_per_m")):

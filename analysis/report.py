@@ -72,8 +72,7 @@ def run(store, out, partial=False, progress=None):
         raise InputError(f"{store}: no such store")
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
-    say(f"reading {store}")
-    results, trials = read_store(store)
+    results, trials = read_store(store)      # no output before the input is checked
     missing_cols = [c for c in cal_mod.NEEDED + ("state",) if c not in results.columns]
     if missing_cols:
         raise InputError(f"{store}: results lack column(s) {', '.join(missing_cols)}")
@@ -93,7 +92,10 @@ def run(store, out, partial=False, progress=None):
     if not len(done):
         raise InputError(f"{store}: no finished compression with a finite modulus to calibrate")
 
-    calibration, fits, loglaw = cal_mod.calibrate(done, progress=say)
+    calibration, fits, loglaw = cal_mod.calibrate(done)   # bad data is refused before any output
+    say(f"read {store}: {len(done)} finished compressions"
+        + (f", {trials['trial_id'].nunique()} Monte-Carlo trials" if has_trials else "")
+        + f"; calibrated bending variant(s) {', '.join(calibration.laws)}")
     for bending, group in done.groupby("bending"):
         used = fits.loc[fits["bending"] == bending, "n_heights"].sum()
         if used < len(group):
