@@ -66,6 +66,15 @@ test-mpi-parallel:
 	  $(PVENV)/bin/with-mpi $(PVENV)/bin/python -m pytest -q -p no:cacheprovider tests/test_stack.py && \
 	  $(call mpi_pytest,$(PVENV)/bin/with-mpi mpiexec,$(PVENV)/bin/python); fi
 
+# Calibration laws, reconstruction check, Monte-Carlo study and report of a
+# finished store: make analysis [STORE=results/paper.h5] [OUT=results/analysis]
+# [DATA=experiment.h5] (DATA: also the measured cells, with this calibration).
+.PHONY: analysis
+analysis: setup
+	$(BIN)/cortex analysis calibrate $(or $(STORE),results/paper.h5) --out $(or $(OUT),results/analysis)
+	$(if $(DATA),$(BIN)/cortex afm analyze $(DATA) --calibration $(or $(OUT),results/analysis)/calibration.json --out $(or $(OUT),results/analysis)/afm)
+	@echo "report: $(or $(OUT),results/analysis)/report.md"
+
 bench: setup
 	@for b in bench/*.py; do $(BIN)/python $$b; done
 
