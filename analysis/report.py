@@ -72,7 +72,9 @@ def run(store, out, partial=False, progress=None):
         raise InputError(f"{store}: no such store")
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {out}: exists and is not a directory")
+    marks = [("start", time.perf_counter())]
     results, trials = read_store(store)      # no output before the input is checked
+    marks.append(("read_s", time.perf_counter()))
     missing_cols = [c for c in cal_mod.NEEDED + ("state",) if c not in results.columns]
     if missing_cols:
         raise InputError(f"{store}: results lack column(s) {', '.join(missing_cols)}")
@@ -93,6 +95,7 @@ def run(store, out, partial=False, progress=None):
         raise InputError(f"{store}: no finished compression with a finite modulus to calibrate")
 
     calibration, fits, loglaw = cal_mod.calibrate(done)   # bad data is refused before any output
+    marks.append(("calibrate_s", time.perf_counter()))
     say(f"read {store}: {len(done)} finished compressions"
         + (f", {trials['trial_id'].nunique()} Monte-Carlo trials" if has_trials else "")
         + f"; calibrated bending variant(s) {', '.join(calibration.laws)}")
@@ -114,6 +117,7 @@ def run(store, out, partial=False, progress=None):
             say(f"Monte-Carlo study: inverting {usable['trial_id'].nunique()} trial curves")
             mc_records, studies, cells = mc_mod.montecarlo(usable, calibration)
 
+    marks.append(("reconstruction_montecarlo_s", time.perf_counter()))
     say(f"writing {out}/")
     out.mkdir(parents=True, exist_ok=True)
     calibration.save(out / "calibration.json")
@@ -136,10 +140,12 @@ def run(store, out, partial=False, progress=None):
     checks = _checks(done)
     text = render(store, calibration, recon_summary, mc_records, checks, left_out, figs, len(done))
     (out / "report.md").write_text(text)
+    marks.append(("figures_report_s", time.perf_counter()))
     wall = time.perf_counter() - start
+    timings = {name: round(t - t0, 3) for (_, t0), (name, t) in zip(marks, marks[1:])}
     say(f"done: {out / 'report.md'}" + (f" (partial: {'; '.join(left_out)})" if left_out else ""))
     return {"calibration": calibration, "reconstruction": recon_summary, "montecarlo": mc_records,
-            "left_out": left_out, "wall_s": wall, "report": out / "report.md"}
+            "left_out": left_out, "wall_s": wall, "timings_s": timings, "report": out / "report.md"}
 
 
 def _checks(done):
