@@ -195,6 +195,13 @@ def render(store, calibration, recon_summary, mc_records, checks, left_out, figs
         rows.append([v, _fmt(law.lam, 6), _fmt(g["step1_free_c"]["c_sd_over_grid"], 3),
                      ", ".join(_fmt(c, 5) for c in law.C), ", ".join(_fmt(c, 5) for c in law.D)])
     L += [_table(["bending", "lambda", "SD of free c over grid", "C coefficients", "D coefficients"], rows), ""]
+    for v in variants:
+        g = calibration.laws[v].goodness["step1_free_c"]
+        lam = calibration.laws[v].lam
+        if not abs(g["c_sd_over_grid"]) <= 0.2 * abs(lam):
+            L += [f"**Warning ({v}):** the free fits' c vary by more than 20 % of lambda over the grid "
+                  f"(SD {_fmt(g['c_sd_over_grid'], 3)}, range {_fmt(g['c_min'], 4)} to {_fmt(g['c_max'], 4)}): "
+                  "a single lambda describes these curves poorly.", ""]
     L += ["Goodness of fit at every stage (lowest R², largest residual):", ""]
     rows = []
     for v in variants:
@@ -223,6 +230,8 @@ def render(store, calibration, recon_summary, mc_records, checks, left_out, figs
           "Every simulated K(h~) curve inverted as a measured cell (heights 0.5 <= h~ <= 0.75, K_B and alpha "
           "fitted with lambda fixed, the published filters) with gamma_a known (the simulation's). "
           "'law only': the step-2 alpha (K_B known, all heights) inverted.", ""]
+    recon_summary = sorted(recon_summary, key=lambda r: variants.index(r["bending"])
+                           if r["bending"] in variants else len(variants))
     L += [_table(["bending", "curves", "excluded", "max abs nu error", "RMS nu error", "worst at K_S, gamma_a (mN/m)",
                   "law only: max abs nu error"],
                  [[r["bending"], r["n_curves"], r["n_excluded"], _fmt(r["max_abs_nu_error"], 3),

@@ -113,3 +113,23 @@ def trials_table(law, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_heigh
         "modulus_mN_per_m": seen["modulus_mN_per_m"].ravel(),
         "gamma_eff_mN_per_m": seen["gamma_eff_mN_per_m"].ravel(),
         "tension_seen_mN_per_m": tension_seen.ravel()})
+
+
+def solver_results(variants=("standard",), grid=PAPER_GRID, method="fast", progress=None):
+    """Rows of `read_results` computed directly with the solver
+    (`solver.compression.compress`), no campaign: for tests and checks where
+    no store exists. Slow: one solve per grid point and variant."""
+    from solver.compression import compress
+    from solver.model import Shell
+    keys = ("volume_um3", "bulk_mN_per_m", "shear_mN_per_m", "h0_um", "tension_mN_per_m", "dh_um")
+    rows = []
+    for i, (bending, *values) in enumerate(itertools.product(variants, *(grid[k] for k in keys))):
+        params = dict(zip(keys, values))
+        shell = Shell(bending=bending, **params)
+        row = {"task_id": f"s{i:05d}", "state": "done", "bending": bending, **params,
+               "thickness_um": shell.thickness_um}
+        row.update(compress(shell, method).to_dict())
+        rows.append(row)
+        if progress and (i + 1) % 50 == 0:
+            progress(f"{i + 1} solves")
+    return pd.DataFrame(rows)
