@@ -138,7 +138,11 @@ def run(store, out, partial=False, progress=None):
     if mc_records is not None:
         figs.append(figures.montecarlo_boxes(cells, studies, out)[0])
     checks = _checks(done)
-    text = render(store, calibration, recon_summary, mc_records, checks, left_out, figs, len(done))
+    notes = []
+    unconverged = int((done["converged"].astype(str).str.lower() == "false").sum()) if "converged" in done else 0
+    if unconverged:
+        notes.append(f"{unconverged} finished simulation(s) report converged = False; they were used")
+    text = render(store, calibration, recon_summary, mc_records, checks, left_out, figs, len(done), notes)
     (out / "report.md").write_text(text)
     marks.append(("figures_report_s", time.perf_counter()))
     wall = time.perf_counter() - start
@@ -175,7 +179,7 @@ def _table(header, rows):
     return "\n".join(lines)
 
 
-def render(store, calibration, recon_summary, mc_records, checks, left_out, figs, n_done):
+def render(store, calibration, recon_summary, mc_records, checks, left_out, figs, n_done, notes=()):
     """report.md as text."""
     from cortex import __version__
     from analysis.figures import ORDER
@@ -184,6 +188,8 @@ def render(store, calibration, recon_summary, mc_records, checks, left_out, figs
          f"{n_done} finished compressions used.", ""]
     if left_out:
         L += ["**Partial analysis.** Left out: " + "; ".join(left_out) + ".", ""]
+    if notes:
+        L += ["Notes: " + "; ".join(notes) + ".", ""]
     variants = [v for v in ORDER if v in calibration.laws] + [v for v in calibration.laws if v not in ORDER]
     L += ["## Calibration (SPEC 4)", "",
           "K(h~) = K_B (1 + alpha exp(h~/lambda)); alpha = C(g) ln(K_S/K_B) + D(g), g = gamma_a/K_B; "
