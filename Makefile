@@ -45,6 +45,7 @@ demo: setup
 test: test-serial test-mpi test-mpi-parallel
 
 test-serial: setup
+	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS) tests
 
 # MPI runs: each rank runs pytest; exit status 5 ("no tests collected": no
