@@ -141,6 +141,8 @@ start() {
 stop() {
     local d pid i
     for d in slurmd slurmctld; do
+        [[ -f $dir/run/$d.pid ]] || continue
+        need_root "stop $d"
         alive "$dir/run/$d.pid" || continue
         pid=$(cat "$dir/run/$d.pid")
         kill -TERM "$pid"
