@@ -1,0 +1,133 @@
+"""The SLURM batch jobs (jobs/*.sbatch, jobs/submit.sh) on a real single-node SLURM.
+
+A session fixture starts munge, slurmctld and slurmd on this machine with
+scripts/setup-slurm.sh (installing the Debian packages first; skipped, saying
+why, where that cannot be done) and stops them at the end. The tests submit
+the real scripts running the real `cortex campaign run` / `cortex analysis
+calibrate`, wait for the jobs (bounded) and check what they left:
+
+- a tiny campaign and its chained analysis: every task of the store done, the
+  analysis started only after the campaign ended (afterok) and wrote
+  calibration.json;
+- a campaign whose one-minute time limit stops it (SIGTERM from
+  `--signal=B:TERM@...`, passed on to the ranks): the job exits 75, its chained
+  analysis is cancelled, the store keeps the finished tasks; submitting again
+  resumes it, and the store ends complete with the same results as an
+  uninterrupted run of the same grid.
+"""
+
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).parent / "data"
+SETUP = ROOT / "scripts" / "setup-slurm.sh"
+SUBMIT = ROOT / "jobs" / "submit.sh"
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("campaign") is None,
+                                reason="the campaign engine (package `campaign`) is not in this tree")
+FINAL = {"COMPLETED", "FAILED", "CANCELLED", "TIMEOUT", "NODE_FAIL", "OUT_OF_MEMORY", "PREEMPTED", "BOOT_FAIL", "DEADLINE"}
+
+
+@pytest.fixture(scope="session")
+def slurm():
+    """A running single-node SLURM; yields the environment for its client commands."""
+    if shutil.which("bash") is None:
+        pytest.skip("no bash")
+    env = dict(os.environ, SLURM_CONF="/var/lib/cortex-slurm/slurm.conf")
+    env.update(line.removeprefix("export ").split("=", 1) for line in _setup("env").stdout.splitlines())
+    was_up = _setup("status").returncode == 0
+    run = _setup("start")
+    if run.returncode == 77:
+        pytest.skip(f"no SLURM here: {run.stdout.strip()}")
+    assert run.returncode == 0, f"setup-slurm.sh start failed:\n{run.stdout}\n{run.stderr}"
+    yield env
+    if not was_up:
+        _setup("stop")
+
+
+def _setup(action):
+    return subprocess.run(["bash", str(SETUP), action], capture_output=True, text=True, timeout=900)
+
+
+def submit(env, cwd, *args):
+    """jobs/submit.sh ARGS in cwd; returns {"campaign": id, "analysis": id}."""
+    run = subprocess.run([str(SUBMIT), *map(str, args)], cwd=cwd, env=env, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, f"submit.sh failed: {run.stderr}"
+    ids = dict(line.split() for line in run.stdout.splitlines())
+    assert set(ids) == {"campaign", "analysis"} and all(v.isdigit() for v in ids.values()), run.stdout
+    return ids
+
+
+def job(env, jobid):
+    """scontrol's record of a job as a dict (JobState, ExitCode, StartTime, EndTime, ...)."""
+    out = subprocess.run(["scontrol", "show", "job", "-o", jobid], env=env, capture_output=True, text=True, check=True).stdout
+    return dict(field.split("=", 1) for field in out.split() if "=" in field)
+
+
+def wait(env, jobids, timeout_s):
+    """Poll until every job is in a final state; returns their records."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        records = {j: job(env, j) for j in jobids}
+        if all(r["JobState"] in FINAL for r in records.values()):
+            return records
+        if time.monotonic() > deadline:
+            subprocess.run(["scancel", *jobids], env=env)
+            pytest.fail(f"jobs not finished after {timeout_s} s: { {j: r['JobState'] for j, r in records.items()} }")
+        time.sleep(1)
+
+
+def logs(cwd):
+    return "\n".join(f"--- {p.name}\n{p.read_text()}" for p in sorted(Path(cwd).glob("cortex-*.out")))
+
+
+def states(store):
+    from campaign.store import read_results
+
+    return read_results(store)
+
+
+def test_campaign_then_analysis(slurm, tmp_path):
+    ids = submit(slurm, tmp_path, DATA / "slurm-tiny.toml", "tiny.h5", "analysis")
+    rec = wait(slurm, ids.values(), 150)
+    camp, ana = rec[ids["campaign"]], rec[ids["analysis"]]
+    assert (camp["JobState"], camp["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
+    assert (ana["JobState"], ana["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
+    assert f"afterok:{ids['campaign']}" in ana["Dependency"] or ana["Dependency"] == "(null)"
+    assert ana["StartTime"] >= camp["EndTime"], (camp["EndTime"], ana["StartTime"])  # ISO times sort as text
+
+    results = states(tmp_path / "tiny.h5")
+    assert len(results) > 0 and (results["state"] == "done").all(), results
+    calibration = json.loads((tmp_path / "analysis" / "calibration.json").read_text())
+    assert calibration, "empty calibration.json"
+
+
+def test_time_limit_then_resume(slurm, tmp_path):
+    config = DATA / "slurm-timelimit.toml"
+    first = submit(slurm, tmp_path, config, "cut.h5", "analysis", "--", "--time=1", "--signal=B:TERM@1")
+    rec = wait(slurm, first.values(), 150)
+    camp, ana = rec[first["campaign"]], rec[first["analysis"]]
+    out = logs(tmp_path)
+    assert (camp["JobState"], camp["ExitCode"]) == ("FAILED", "75:0"), out  # stopped cleanly, before the limit
+    assert "asking the campaign to stop cleanly" in out
+    assert ana["JobState"] == "CANCELLED", out  # afterok never satisfied
+    assert not (tmp_path / "analysis").exists()
+    partial = states(tmp_path / "cut.h5")
+    done = (partial["state"] == "done").sum()
+    assert 0 < done < len(partial), f"{done} of {len(partial)} tasks done after the time limit\n{out}"
+
+    second = submit(slurm, tmp_path, config, "cut.h5", "analysis")
+    rec = wait(slurm, second.values(), 150)
+    assert all((r["JobState"], r["ExitCode"]) == ("COMPLETED", "0:0") for r in rec.values()), logs(tmp_path)
+    results = states(tmp_path / "cut.h5")
+    assert (results["state"] == "done").all()
+    assert len(results) == len(partial)
+    assert (tmp_path / "analysis" / "calibration.json").exists()
