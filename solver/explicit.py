@@ -1,0 +1,127 @@
+"""The published explicit scheme as reference solver: gradient flow of the shell's
+surface forces on a 1D axisymmetric mesh of the upper half meridian (SPEC section 2).
+
+Reference state: the droplet at h0 (`solver.geometry.meridian`), stress free;
+H0 of each node is the discrete mean curvature of the reference mesh (so the
+droplet's free surface carries H0 = H(h0), the contact disc H0 = 0, and the
+reference mesh has no bending force). The mesh is graded in reference arc
+length S from the pole: element size `ds_min` over the band around the contact
+line that the compression rolls onto the plate plus 3 bending lengths
+ℓ_b = sqrt(B/γ_a) on each side, growing linearly with slope `GROWTH` to
+`ds_max` away from it.
+
+Time stepping (`solver.surface_forces.flow`): v = μ f / A (force density), μ = 1
+µm²/(s·mN/m) (only μ t matters for the equilibrium), volume held by a Lagrange
+multiplier (the pressure p), time step below both explicit limits,
+
+    dt = C_DT / (2 (K_B + K_S + γ_a)/ds_min² + 8 B/ds_min⁴),
+
+plate moved as h(t) = h0 - (Δh/2)(1 - cos(π t / t_c)) over t_c = τ, then held
+until the plate force settles: |ΔF_tot|/F_tot per relaxation time
+τ = R_cell² / (4 μ (γ_a + K_B + K_S)) below `TOL`. F_tot is the sum of the
+plate's normal reactions on the nodes it holds (exact for the discrete energy).
+"""
+
+import numpy as np
+
+from solver import surface_forces as sf
+from solver.compression import Solution
+from solver.errors import SolverError
+from solver.geometry import droplet, meridian
+from solver.model import Shell
+
+MU = 1.0              # µm² / (s · mN/m)
+C_DT = 0.8            # fraction of the explicit stability limit
+TOL = 1e-7            # relative change of F_tot per relaxation time
+GROWTH = 0.12         # element size growth per unit arc length away from the contact band
+MAX_TIMES = 80.0      # step budget: this many relaxation times after the compression
+
+
+def _psi_of_s(V, h, s):
+    """Invert the free surface's closed-form arc length s(ψ) (Newton from a table)."""
+    d = droplet(V, h)
+    H, Rc = float(d.mean_curvature_per_um), float(d.contact_radius_um)
+    beta = 2.0 * H * Rc
+    m = np.sqrt(1.0 + beta * beta)
+    table = np.linspace(0.0, np.pi / 2, 4001)
+    s_of = lambda p: (p + np.arcsin(1.0 / m) - np.arcsin(np.cos(p) / m)) / (2.0 * H)
+    psi = np.interp(s, s_of(table), table)
+    for _ in range(4):
+        q = np.sqrt(np.sin(psi) ** 2 + beta * beta)
+        psi = np.clip(psi - (s_of(psi) - s) * 2.0 * H / (1.0 + np.sin(psi) / q), 0.0, np.pi / 2)
+    return psi
+
+
+def _graded(a, b, size):
+    """Nodes from a to b with local element size size(S) (equidistributed 1/size)."""
+    S = np.linspace(a, b, 4001)
+    dens = np.concatenate([[0.0], np.cumsum(0.5 * (1 / size(S[1:]) + 1 / size(S[:-1])) * np.diff(S))])
+    n = max(2, int(np.ceil(dens[-1])))
+    return np.interp(np.linspace(0.0, dens[-1], n + 1), dens, S)
+
+
+def mesh(shell: Shell):
+    """Reference nodes (r0, z0), node kinds and the sizes used: returns
+    r0, z0, kind, ds_min."""
+    V, h0, h1 = shell.volume_um3, shell.h0_um, shell.h1_um
+    d0, d1 = droplet(V, h0), droplet(V, h1)
+    Rc = float(d0.contact_radius_um)
+    s_free = float(meridian(V, h0, np.array([np.pi / 2]))[2][0])
+    B, gamma = shell.bending_stiffness, shell.tension_mN_per_m
+    lb = np.sqrt(B / gamma) if B > 0 else 0.0
+    ds_min = (min(0.05, lb / 4.0) if B > 0 else 0.05) / shell.resolution
+    ds_max = 0.15 / shell.resolution
+    roll = 1.5 * (float(d1.contact_radius_um) - Rc) + 3.0 * lb + 5 * ds_min
+    lo, hi = Rc - 3.0 * lb - 5 * ds_min, Rc + roll
+    size = lambda S: np.minimum(ds_max, ds_min + GROWTH * np.maximum(0.0, np.maximum(lo - S, S - hi)))
+    S_disc = _graded(0.0, Rc, size)
+    S_free = _graded(Rc, Rc + s_free, size)
+    r_f, z_f, _ = meridian(V, h0, _psi_of_s(V, h0, S_free[1:] - Rc))
+    r0 = np.concatenate([S_disc, r_f])
+    z0 = np.concatenate([np.full(S_disc.size, h0 / 2.0), z_f])
+    z0[-1] = 0.0
+    kind = np.full(r0.size, sf.FREE, dtype=np.int64)
+    kind[: S_disc.size] = sf.PLATE
+    kind[0] = sf.POLE
+    kind[-1] = sf.EQUATOR
+    return r0, z0, kind, ds_min
+
+
+def solve(shell: Shell) -> Solution:
+    """Compress `shell` from h0 to h1 by the explicit gradient flow; raise
+    SolverError if the plate force does not settle within the step budget."""
+    r0, z0, kind, ds_min = mesh(shell)
+    l0, _ = sf._elements(r0, z0)
+    rb0 = 0.5 * (r0[1:] + r0[:-1])
+    H0 = sf.mean_curvature(r0, z0)
+    gamma, KB, KS = shell.tension_mN_per_m, shell.bulk_mN_per_m, shell.shear_mN_per_m
+    B = shell.bending_stiffness
+    dt = C_DT / (2.0 * (KB + KS + gamma) / ds_min**2 + 8.0 * B / ds_min**4) / MU
+    R_cell = float(droplet(shell.volume_um3, shell.h0_um).cell_radius_um)
+    tau = R_cell**2 / (4.0 * MU * (gamma + KB + KS))
+    check_every = max(1, int(0.1 * tau / dt))
+    max_steps = int((1.0 + MAX_TIMES) * tau / dt)
+    r, z = r0.copy(), z0.copy()
+    V0half = 0.5 * shell.volume_um3
+    F, p, steps, settled, res = sf.flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, MU, dt,
+                                        V0half, shell.h0_um, shell.dh_um, tau, check_every,
+                                        tau, TOL, max_steps)
+    if not np.isfinite(F) or not np.all(np.isfinite(r)):
+        raise SolverError(f"explicit scheme went unstable (dt = {dt:.3g} s, ds_min = {ds_min:.3g} um)")
+    if not settled:
+        raise SolverError(f"plate force did not settle to {TOL:g} per relaxation time within "
+                          f"{max_steps} steps ({MAX_TIMES:g} relaxation times); F = {F:.6g} nN")
+    l, _ = sf._elements(r, z)
+    lam1_e = l / l0
+    lam1 = np.concatenate([[lam1_e[0]], 0.5 * (lam1_e[1:] + lam1_e[:-1]), [lam1_e[-1]]])
+    lam2 = np.empty_like(r)
+    lam2[1:] = r[1:] / r0[1:]
+    lam2[0] = lam2[1]
+    volume = 2.0 * sf.half_volume(r, z)
+    msg = (f"settled after {steps} steps (dt = {dt:.3g} s, {r.size} nodes, ds_min = {ds_min:.3g} um); "
+           f"pressure {p:.6g} mN/m/um, residual force density {res:.3g} mN/m/um")
+    return Solution(force_nN=float(F), volume_um3=float(volume),
+                    area_um2=float(2.0 * sf.half_area(r, z)),
+                    area0_um2=float(2.0 * sf.half_area(r0, z0)),
+                    r_um=r, z_um=z, lambda1=lam1, lambda2=lam2,
+                    converged=True, iterations=int(steps), message=msg)

@@ -1,0 +1,259 @@
+"""Surface forces of the axisymmetric shell on its meridian mesh (SPEC section 2),
+numba-compiled, and the explicit time loop that uses them.
+
+Mesh: nodes i = 0..N along the upper half meridian, pole (r = 0, on the plate)
+to equator (z = 0, mirror plane). Element j joins nodes j, j+1 and is a frustum:
+
+    l_j = |x_{j+1} - x_j|,   r̄_j = (r_j + r_{j+1})/2,   a_j = 2π r̄_j l_j,
+    ψ_j = atan2(-(z_{j+1} - z_j), r_{j+1} - r_j)      (tangent angle to the plate).
+
+Discrete energy of the upper half (mirror symmetry gives the rest):
+
+    E = γ_a Σ a_j + Σ w(λ1_j, λ2_j) a0_j + 2B Σ_i (H_i - H0_i)² A_i,
+    λ1_j = l_j / l0_j,  λ2_j = r̄_j / r̄0_j,
+    w = (K_B/2)(e1+e2)² + (K_S/2)(e1-e2)²,   e = λ - 1,
+    H_i = (κ1 + κ2)/2,  κ1 = (ψ_i - ψ_{i-1}) / L_i,  κ2 = sin ψ̄_i / r_i,
+    ψ̄_i = (ψ_{i-1} + ψ_i)/2,  L_i = (l_{i-1} + l_i)/2,  A_i = 2π r_i L_i.
+
+At the equator the mirror element has angle π - ψ_{N-1}, so ψ̄_N = π/2,
+κ1 = (π - 2ψ_{N-1}) / l_{N-1}, κ2 = 1/r_N and the half node has A_N = π r_N l_{N-1}.
+The pole lies on the plate, where the surface is flat (no bending term).
+Half volume V/2 = Σ_j (π/3)(z_j - z_{j+1})(r_j² + r_j r_{j+1} + r_{j+1}²).
+
+The nodal forces are f = -∂E/∂x + p ∂V/∂x, the exact gradient of the
+discrete energy; divided by the nodal area they are the discretisation of
+SPEC's force densities: tension -2γ_a H n; stretching
+-(2H n - ∇_Γ)τ1 + (τ1 - τ2)/r e_r with Cauchy tensions (see `spec_force_density`);
+bending B (2Δ_Γ(H-H0) + 4(2H² - K_G)(H-H0) - 4H(H-H0)²) n; pressure p n.
+Because they are exact gradients, the plate's reaction on the contact nodes
+sums to ∂E/∂h at fixed volume: the force on the plate is consistent with the
+energy to round-off.
+
+Units: µm, mN/m, nN (mN/m·µm), mN/m/µm for pressures and force densities, s.
+"""
+
+import numpy as np
+from numba import njit
+
+FREE, PLATE, EQUATOR, POLE = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def _elements(r, z):
+    n = r.size - 1
+    l = np.empty(n)
+    psi = np.empty(n)
+    for j in range(n):
+        dr = r[j + 1] - r[j]
+        dz = z[j + 1] - z[j]
+        l[j] = np.sqrt(dr * dr + dz * dz)
+        psi[j] = np.arctan2(-dz, dr)
+    return l, psi
+
+
+@njit(cache=True)
+def mean_curvature(r, z):
+    """Discrete H_i at the nodes (0 at the pole, which lies on the plate)."""
+    l, psi = _elements(r, z)
+    n = r.size - 1
+    H = np.zeros(n + 1)
+    for i in range(1, n):
+        L = 0.5 * (l[i - 1] + l[i])
+        k1 = (psi[i] - psi[i - 1]) / L
+        k2 = np.sin(0.5 * (psi[i] + psi[i - 1])) / r[i]
+        H[i] = 0.5 * (k1 + k2)
+    H[n] = 0.5 * ((np.pi - 2.0 * psi[n - 1]) / l[n - 1] + 1.0 / r[n])
+    return H
+
+
+@njit(cache=True)
+def energy(r, z, l0, rb0, H0, gamma, KB, KS, B):
+    """Discrete energy E of the upper half (see module docstring), in mN/m·µm²."""
+    l, psi = _elements(r, z)
+    n = r.size - 1
+    H = mean_curvature(r, z)
+    E = 0.0
+    for j in range(n):
+        rb = 0.5 * (r[j] + r[j + 1])
+        e1 = l[j] / l0[j] - 1.0
+        e2 = rb / rb0[j] - 1.0
+        w = 0.5 * KB * (e1 + e2) ** 2 + 0.5 * KS * (e1 - e2) ** 2
+        E += gamma * 2.0 * np.pi * rb * l[j] + w * 2.0 * np.pi * rb0[j] * l0[j]
+    if B > 0.0:
+        for i in range(1, n):
+            E += 2.0 * B * (H[i] - H0[i]) ** 2 * 2.0 * np.pi * r[i] * 0.5 * (l[i - 1] + l[i])
+        E += 2.0 * B * (H[n] - H0[n]) ** 2 * np.pi * r[n] * l[n - 1]
+    return E
+
+
+@njit(cache=True)
+def half_volume(r, z):
+    v = 0.0
+    for j in range(r.size - 1):
+        v += np.pi / 3.0 * (z[j] - z[j + 1]) * (r[j] ** 2 + r[j] * r[j + 1] + r[j + 1] ** 2)
+    return v
+
+
+@njit(cache=True)
+def half_area(r, z):
+    a = 0.0
+    for j in range(r.size - 1):
+        a += np.pi * (r[j] + r[j + 1]) * np.hypot(r[j + 1] - r[j], z[j + 1] - z[j])
+    return a
+
+
+@njit(cache=True)
+def gradients(r, z, l0, rb0, H0, gamma, KB, KS, B, gE, gV):
+    """Fill gE (N+1, 2) with ∂E/∂(r, z) and gV with ∂(V/2)/∂(r, z); returns the
+    nodal areas A_i (half node at the equator, π (l_0/2)² at the pole)."""
+    n = r.size - 1
+    l, psi = _elements(r, z)
+    gE[:, :] = 0.0
+    gV[:, :] = 0.0
+    gl = np.zeros(n)      # ∂E/∂l_j
+    gp = np.zeros(n)      # ∂E/∂ψ_j
+    A = np.empty(n + 1)
+    A[0] = np.pi * (0.5 * l[0]) ** 2
+    for j in range(n):
+        rb = 0.5 * (r[j] + r[j + 1])
+        e1 = l[j] / l0[j] - 1.0
+        e2 = rb / rb0[j] - 1.0
+        t1 = (KB + KS) * e1 + (KB - KS) * e2
+        t2 = (KB - KS) * e1 + (KB + KS) * e2
+        a0 = 2.0 * np.pi * rb0[j] * l0[j]
+        gl[j] += gamma * 2.0 * np.pi * rb + a0 * t1 / l0[j]
+        dEdrb = gamma * 2.0 * np.pi * l[j] + a0 * t2 / rb0[j]
+        gE[j, 0] += 0.5 * dEdrb
+        gE[j + 1, 0] += 0.5 * dEdrb
+        S = r[j] ** 2 + r[j] * r[j + 1] + r[j + 1] ** 2
+        dz = z[j] - z[j + 1]
+        c = np.pi / 3.0
+        gV[j, 1] += c * S
+        gV[j + 1, 1] -= c * S
+        gV[j, 0] += c * dz * (2.0 * r[j] + r[j + 1])
+        gV[j + 1, 0] += c * dz * (r[j] + 2.0 * r[j + 1])
+    for i in range(1, n):
+        L = 0.5 * (l[i - 1] + l[i])
+        A[i] = 2.0 * np.pi * r[i] * L
+        if B > 0.0:
+            pb = 0.5 * (psi[i] + psi[i - 1])
+            k1 = (psi[i] - psi[i - 1]) / L
+            k2 = np.sin(pb) / r[i]
+            d = 0.5 * (k1 + k2) - H0[i]
+            q = 2.0 * B * 2.0 * d * A[i] * 0.5          # ∂e_i/∂(κ1 + κ2)
+            cb = np.cos(pb) * 0.5 / r[i]
+            gp[i] += q * (1.0 / L + cb)
+            gp[i - 1] += q * (-1.0 / L + cb)
+            dl = q * (-k1 * 0.5 / L) + 2.0 * B * d * d * np.pi * r[i]
+            gl[i] += dl
+            gl[i - 1] += dl
+            gE[i, 0] += q * (-k2 / r[i]) + 2.0 * B * d * d * 2.0 * np.pi * L
+    A[n] = np.pi * r[n] * l[n - 1]
+    if B > 0.0:
+        L = l[n - 1]
+        k1 = (np.pi - 2.0 * psi[n - 1]) / L
+        k2 = 1.0 / r[n]
+        d = 0.5 * (k1 + k2) - H0[n]
+        q = 2.0 * B * 2.0 * d * A[n] * 0.5
+        gp[n - 1] += q * (-2.0 / L)
+        gl[n - 1] += q * (-k1 / L) + 2.0 * B * d * d * np.pi * r[n]
+        gE[n, 0] += q * (-k2 / r[n]) + 2.0 * B * d * d * np.pi * L
+    for j in range(n):
+        dr = r[j + 1] - r[j]
+        dzz = z[j + 1] - z[j]
+        ll = l[j] * l[j]
+        fr = gl[j] * dr / l[j] + gp[j] * dzz / ll
+        fz = gl[j] * dzz / l[j] - gp[j] * dr / ll
+        gE[j + 1, 0] += fr
+        gE[j + 1, 1] += fz
+        gE[j, 0] -= fr
+        gE[j, 1] -= fz
+    return A
+
+
+@njit(cache=True)
+def plate_force(kind, gE, gV, p):
+    """F_tot: the z-forces -∂E/∂z + p ∂V/∂z on the nodes held by the plate, which
+    the plate balances (nN, pushing the plate outward when positive)."""
+    F = 0.0
+    for i in range(kind.size):
+        if kind[i] == PLATE or kind[i] == POLE:
+            F += -gE[i, 1] + p * gV[i, 1]
+    return F
+
+
+@njit(cache=True)
+def flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, mu, dt, V0half,
+         h0, dh, t_comp, check_every, tau_relax, tol, max_steps):
+    """Explicit gradient flow v_i = μ f_i / A_i with f = -∂E/∂x + p ∂V/∂x.
+
+    p is the Lagrange multiplier that keeps dV/dt = (V0 - V)/(10 dt) (volume
+    drift corrected every step). The plate (upper half: z = h(t)/2) moves as
+    h(t) = h0 - (Δh/2)(1 - cos(π t / t_comp)) until t_comp, then stays at
+    h1 = h0 - Δh. Nodes crossing it are put on it and then move only in r
+    (frictionless); the pole moves with the plate; the equator only in r.
+    After t_comp, every `check_every` steps the plate force F is compared with
+    its previous value: settled when |ΔF|/|F| per relaxation time `tau_relax`
+    is below `tol`. Modifies r, z, kind in place.
+    Returns (F, p, steps, settled, residual = max |f|/A over the free nodes)."""
+    n = r.size
+    gE = np.zeros((n, 2))
+    gV = np.zeros((n, 2))
+    F_prev = np.nan
+    F = 0.0
+    p = 0.0
+    t = 0.0
+    step = 0
+    settled = False
+    while step < max_steps:
+        A = gradients(r, z, l0, rb0, H0, gamma, KB, KS, B, gE, gV)
+        num = 0.0
+        den = 0.0
+        for i in range(n):
+            if kind[i] != POLE:
+                num += gV[i, 0] * gE[i, 0] / A[i]
+                den += gV[i, 0] * gV[i, 0] / A[i]
+            if kind[i] == FREE:
+                num += gV[i, 1] * gE[i, 1] / A[i]
+                den += gV[i, 1] * gV[i, 1] / A[i]
+        h_old = h0 - 0.5 * dh * (1.0 - np.cos(np.pi * min(t, t_comp) / t_comp))
+        t += dt
+        h_new = h0 - 0.5 * dh * (1.0 - np.cos(np.pi * min(t, t_comp) / t_comp))
+        V = half_volume(r, z)
+        # plate motion changes V by the plate nodes' z motion
+        dVplate = 0.0
+        for i in range(n):
+            if kind[i] == PLATE or kind[i] == POLE:
+                dVplate += gV[i, 1] * 0.5 * (h_new - h_old)
+        target = (V0half - V) / 10.0 - dVplate
+        p = (target / (mu * dt) + num) / den
+        for i in range(n):
+            if kind[i] == POLE:
+                z[i] = 0.5 * h_new
+                continue
+            r[i] += dt * mu * (-gE[i, 0] + p * gV[i, 0]) / A[i]
+            if kind[i] == FREE:
+                z[i] += dt * mu * (-gE[i, 1] + p * gV[i, 1]) / A[i]
+                if z[i] >= 0.5 * h_new:
+                    z[i] = 0.5 * h_new
+                    kind[i] = PLATE
+            elif kind[i] == PLATE:
+                z[i] = 0.5 * h_new
+        step += 1
+        if t > t_comp and step % check_every == 0:
+            F = plate_force(kind, gE, gV, p)
+            if F_prev == F_prev:
+                rate = abs(F - F_prev) / abs(F) * tau_relax / (check_every * dt)
+                if rate < tol:
+                    settled = True
+                    break
+            F_prev = F
+    A = gradients(r, z, l0, rb0, H0, gamma, KB, KS, B, gE, gV)
+    F = plate_force(kind, gE, gV, p)
+    res = 0.0
+    for i in range(n):
+        if kind[i] == FREE:
+            fr = (-gE[i, 0] + p * gV[i, 0]) / A[i]
+            fz = (-gE[i, 1] + p * gV[i, 1]) / A[i]
+            res = max(res, np.sqrt(fr * fr + fz * fz))
+    return F, p, step, settled, res
