@@ -90,6 +90,12 @@ def mesh(shell: Shell):
 def solve(shell: Shell) -> Solution:
     """Compress `shell` from h0 to h1 by the explicit gradient flow; raise
     SolverError if the plate force does not settle within the step budget."""
+    return relax(shell)[0]
+
+
+def relax(shell: Shell):
+    """`solve`, also returning the final pressure p (mN/m/µm, the volume's
+    Lagrange multiplier) and the reference nodes (r0, z0) in µm."""
     r0, z0, kind, ds_min = mesh(shell)
     l0, _ = sf._elements(r0, z0)
     rb0 = 0.5 * (r0[1:] + r0[:-1])
@@ -124,4 +130,4 @@ def solve(shell: Shell) -> Solution:
                     area_um2=float(2.0 * sf.half_area(r, z)),
                     area0_um2=float(2.0 * sf.half_area(r0, z0)),
                     r_um=r, z_um=z, lambda1=lam1, lambda2=lam2,
-                    converged=True, iterations=int(steps), message=msg)
+                    converged=True, iterations=int(steps), message=msg), float(p), (r0, z0)
