@@ -4,7 +4,8 @@ surface forces on a 1D axisymmetric mesh of the upper half meridian (SPEC sectio
 Reference state: the droplet at h0 (`solver.geometry.meridian`), stress free;
 H0 of each node is the discrete mean curvature of the reference mesh (so the
 droplet's free surface carries H0 = H(h0), the contact disc H0 = 0, and the
-reference mesh has no bending force). The mesh is graded in reference arc
+reference mesh has no bending force); its radii are scaled by 1 + O(ds²) so
+that it encloses exactly V, and it is stress free at that volume. The mesh is graded in reference arc
 length S from the pole: element size `ds_min` over the band around the contact
 line that the compression rolls onto the plate plus 3 bending lengths
 ℓ_b = sqrt(B/γ_a) on each side, growing linearly with slope `GROWTH` to
@@ -80,6 +81,7 @@ def mesh(shell: Shell):
     r0 = np.concatenate([S_disc, r_f])
     z0 = np.concatenate([np.full(S_disc.size, h0 / 2.0), z_f])
     z0[-1] = 0.0
+    r0 *= np.sqrt(0.5 * V / sf.half_volume(r0, z0))     # chords enclose exactly V
     kind = np.full(r0.size, sf.FREE, dtype=np.int64)
     kind[: S_disc.size] = sf.PLATE
     kind[0] = sf.POLE
