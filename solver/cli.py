@@ -1,6 +1,7 @@
 """Command-line entry points of the physics: `cortex geometry`, `cortex compress`."""
 
 import json
+import sys
 
 
 def register(sub):
@@ -14,6 +15,29 @@ def register(sub):
                    help="plate gap h, um (several give one line each)")
     p.add_argument("--json", action="store_true", help="one JSON object per height")
     p.set_defaults(handler="solver.cli:geometry")
+
+    p = sub.add_parser(
+        "compress", help="one compression h0 -> h0 - dh of the elastic cortical shell",
+        description="Compress the elastic cortex shell (SPEC section 2) from gap h0 to h0 - dh at "
+                    "constant volume and report the plate force and the effective area modulus "
+                    "K = delta_gamma_eff / eps_A of SPEC section 3. Moduli of 0 are valid "
+                    "(a tension-only cell).")
+    p.add_argument("--volume", type=float, default=4300.0, metavar="UM3", help="cell volume V, um^3 (4300)")
+    p.add_argument("--h0", type=float, required=True, metavar="UM", help="initial plate gap, um")
+    p.add_argument("--dh", type=float, default=0.5, metavar="UM", help="compression, um (0.5)")
+    p.add_argument("--bulk", type=float, required=True, metavar="MN_PER_M", help="area bulk modulus K_B, mN/m")
+    p.add_argument("--shear", type=float, required=True, metavar="MN_PER_M", help="area shear modulus K_S, mN/m")
+    p.add_argument("--tension", type=float, required=True, metavar="MN_PER_M", help="active tension gamma_a, mN/m")
+    p.add_argument("--bending", choices=("standard", "double", "none"), default="standard",
+                   help="bending variant: B = t^2 (K_B + K_S)/24, twice that, or 0 (standard)")
+    p.add_argument("--bending-pN-um", type=float, default=None, metavar="B",
+                   help="explicit bending stiffness, pN um (overrides --bending)")
+    p.add_argument("--thickness", type=float, default=0.2, metavar="UM", help="cortex thickness t_c, um (0.2)")
+    p.add_argument("--solver", choices=("fast", "explicit"), default="fast",
+                   help="fast: direct equilibrium (default); explicit: the published gradient flow")
+    p.add_argument("--resolution", type=float, default=1.0, help="mesh refinement factor (1)")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(handler="solver.cli:compress")
 
 
 def geometry(args):
@@ -34,4 +58,27 @@ def geometry(args):
     print("  ".join(f"{label:>16}" for _, label in cols))
     for row in rows:
         print("  ".join(f"{row[key]:16.6g}" for key, _ in cols))
+    return 0
+
+
+def compress(args):
+    from solver.compression import compress as run
+    from solver.errors import SolverError
+    from solver.model import Shell
+    shell = Shell(volume_um3=args.volume, h0_um=args.h0, dh_um=args.dh,
+                  bulk_mN_per_m=args.bulk, shear_mN_per_m=args.shear,
+                  tension_mN_per_m=args.tension, bending=args.bending,
+                  bending_pN_um=args.bending_pN_um, thickness_um=args.thickness,
+                  resolution=args.resolution)
+    try:
+        result = run(shell, args.solver).to_dict()
+    except SolverError as err:
+        print(f"cortex compress: the {args.solver} solver failed: {err}", file=sys.stderr)
+        return 3
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    width = max(map(len, result))
+    for key, value in result.items():
+        print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
     return 0

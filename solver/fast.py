@@ -53,6 +53,7 @@ from solver.errors import SolverError
 from solver.geometry import droplet, meridian
 
 _STEP = 1e-30          # complex-step size
+_LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
 _REG = 1e-3            # in-plane regularisation, relative to γ_a
 
 
@@ -135,7 +136,7 @@ class _Problem:
         self.V0 = V0
         # natural size of a nodal force: tension times a typical element length
         self.force_scale = (self.gamma + self.KB + self.KS) * ref.a0 * 0.1
-        self.gauge = shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0
+        self.elastic = shell.bulk_mN_per_m + shell.shear_mN_per_m > 0.0
 
     # -- unknowns <-> nodes ------------------------------------------------
     def nodes(self, u, zp):
@@ -145,7 +146,7 @@ class _Problem:
         z[: kc + 1] = zp
         z[kc + 1: N] = u[N: N + self.nz]
         z[N] = 0.0
-        return r, z, u[-2], u[-1]
+        return r, z, np.exp(u[-2]), u[-1]
 
     def material(self, psic):
         ref = self.ref
@@ -251,7 +252,7 @@ class _Problem:
                     owner[np.abs(node - node[j]) <= 2] = j
                 hit = owner >= 0
                 Hm[rows[hit], owner[hit]] = dg[:nloc][hit]
-        for j, h in ((n - 2, 1e-7), (n - 1, 1e-3)):
+        for j, h in ((n - 2, 1e-6), (n - 1, 1e-3)):
             up, um = u.copy(), u.copy()
             up[j] += h
             um[j] -= h
@@ -267,37 +268,45 @@ class _Problem:
 
 
 def _newton(prob, u, zp, tol=1e-4, maxit=30):
-    """Newton's method on ∇L = 0, keeping the contact label inside (0, π/2) and
-    damping only steps that make the residual explode. For a shell without
-    in-plane elasticity the contact label is a gauge (any material may sit at
-    the contact line): it is then held fixed."""
+    """Newton's method on ∇L = 0, damping only steps that make the residual
+    explode. The contact label ψ_c is held fixed (its equation dropped) for a
+    shell without in-plane elasticity, where it is a gauge (any material may
+    sit at the contact line), and while it rests on its lower bound (the
+    contact line may not recede on the material), an active set that is
+    released when ∂L/∂ψ_c < 0 says the contact wants to grow."""
+    clamped = False
     g = prob.gradient(u, zp)
     for it in range(1, maxit + 1):
+        if clamped and g[-2] < 0.0:
+            clamped = False
+        fixed = clamped or not prob.elastic
         Hm = prob.hessian(u, zp, g)
-        if prob.gauge:
-            Hm[-2, :], Hm[:, -2], Hm[-2, -2], g[-2] = 0.0, 0.0, 1.0, 0.0
+        rhs = -g.copy()
+        if fixed:
+            Hm[-2, :], Hm[:, -2], Hm[-2, -2], rhs[-2] = 0.0, 0.0, 1.0, 0.0
         try:
-            step = np.linalg.solve(Hm, -g)
+            step = np.linalg.solve(Hm, rhs)
         except np.linalg.LinAlgError as err:
             raise SolverError(f"singular Newton system at iteration {it}: {err}") from None
         t = 1.0
-        while not 0.0 < u[-2] + t * step[-2] < np.pi / 2:
+        while u[-2] + t * step[-2] > np.log(np.pi / 2):
             t *= 0.5
-        norm0 = np.linalg.norm(g)
+        if not fixed and u[-2] + t * step[-2] < _LOG_PSI_MIN:
+            clamped, step[-2] = True, _LOG_PSI_MIN - u[-2]
+        norm0 = np.linalg.norm(g[:-2])
         while True:
             gt = prob.gradient(u + t * step, zp)
-            if (np.all(np.isfinite(gt)) and np.linalg.norm(gt) < 100.0 * norm0) or t < 1e-3:
+            if (np.all(np.isfinite(gt)) and np.linalg.norm(gt[:-2]) < 100.0 * norm0) or t < 1e-3:
                 break
             t *= 0.5
         u, g = u + t * step, gt
-        if prob.gauge:
-            g[-2] = 0.0
         if not np.all(np.isfinite(g)):
             raise SolverError(f"non-finite residual at Newton iteration {it}")
-        if np.abs(g[:-1]).max() < tol * prob.force_scale and abs(g[-1]) < 1e-7 * prob.V0:
+        free = g[:-2] if (clamped and g[-2] >= 0) or not prob.elastic else g[:-1]
+        if np.abs(free).max() < tol * prob.force_scale and abs(g[-1]) < 1e-7 * prob.V0:
             return u, it
-    raise SolverError(f"Newton did not converge in {maxit} iterations (volume residual {g[-1]:.3g} um3) "
-                      f"(largest residual force {np.abs(g[:-1]).max():.3g} nN)")
+    raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
+                      f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
 
 
 def _reference_state(prob, volume, h0):
@@ -306,7 +315,7 @@ def _reference_state(prob, volume, h0):
     _, r0 = prob.material(psic)
     psi_free = psic + (np.pi / 2 - psic) * prob.ref.xi
     _, zf, _ = meridian(volume, h0, psi_free)
-    u = np.concatenate([r0[1:], zf[:-1], [psic, 0.0]])
+    u = np.concatenate([r0[1:], zf[:-1], [np.log(psic), 0.0]])
     return prob.volume(u, 0.5 * h0), prob.area(u, 0.5 * h0)
 
 
@@ -319,27 +328,28 @@ def _droplet_guess(prob, volume, h):
     S, _ = prob.material(psic)
     r_plate = Rc * S[1: prob.kc + 1] / S[prob.kc]
     rf, zf, _ = meridian(volume, h, 0.5 * np.pi * ref.xi)
-    return np.concatenate([r_plate, rf, zf[:-1], [psic, 2.0 * prob.gamma * float(d.mean_curvature_per_um)]])
+    return np.concatenate([r_plate, rf, zf[:-1], [np.log(psic), 2.0 * prob.gamma * float(d.mean_curvature_per_um)]])
 
 
-def _squeezed_reference(prob, shell, h):
+def _squeezed_reference(prob, shell, h, widen=1.0):
     """Start for an elastic shell: the reference nodes, heights scaled to the gap h."""
-    psic = 1e-3
+    dR = float(droplet(shell.volume_um3, h).contact_radius_um) - prob.ref.a0
+    psic = min(max(widen * dR * 2.0 * prob.ref.H, 2e-3), 0.5)
     _, r0 = prob.material(psic)
     psi_free = psic + (np.pi / 2 - psic) * prob.ref.xi
     _, zf, _ = meridian(shell.volume_um3, shell.h0_um, psi_free)
     p = 2.0 * prob.gamma * prob.ref.H
-    return np.concatenate([r0[1:], zf[:-1] * h / shell.h0_um, [psic, p]])
+    return np.concatenate([r0[1:], zf[:-1] * h / shell.h0_um, [np.log(psic), p]])
 
 
-def _compress(prob, shell, steps):
+def _compress(prob, shell, steps, widen=1.0):
     """Newton from the droplet guess at the first gap, then from each solution."""
     iterations = 0
     for i in range(1, steps + 1):
         h = shell.h0_um - shell.dh_um * i / steps
         if i == 1:
-            u = (_droplet_guess(prob, shell.volume_um3, h) if prob.gauge
-                 else _squeezed_reference(prob, shell, h))
+            u = (_droplet_guess(prob, shell.volume_um3, h) if not prob.elastic
+                 else _squeezed_reference(prob, shell, h, widen))
         u, it = _newton(prob, u, 0.5 * h)
         iterations += it
     return u, iterations
@@ -354,15 +364,20 @@ def solve(shell):
     prob = _Problem(shell, ref)
     # the reference mesh at h0 defines V0 and the reference area
     prob.V0, area0 = _reference_state(prob, shell.volume_um3, shell.h0_um)
-    failure = None
-    for steps in (1, 3, 8):          # continuation in h when one step is too far
+    # Newton from a start with too little contact can end on a stationary state
+    # whose free surface pokes through the plate: start with more contact then.
+    zp, failure = 0.5 * shell.h1_um, None
+    for steps, widen in ((1, 1.0), (1, 2.0), (3, 1.0), (3, 3.0), (8, 1.5), (8, 4.0)):
         try:
-            u, iterations = _compress(prob, shell, steps)
-            break
+            u, iterations = _compress(prob, shell, steps, widen)
         except SolverError as err:
             failure = err
+            continue
+        if np.max(prob.nodes(u, zp)[1]) <= zp * (1.0 + 1e-9):
+            break
+        failure = SolverError("the free surface crossed the plate")
     else:
-        raise SolverError(f"no equilibrium found with up to 8 continuation steps: {failure}")
+        raise SolverError(f"no admissible equilibrium found (continuation up to 8 steps): {failure}")
     zp = 0.5 * shell.h1_um
     force = prob.force(u, zp)
     r, z, psic, p = prob.nodes(u, zp)
@@ -375,8 +390,6 @@ def solve(shell):
     lam2[0] = lam1[0]
     if not np.isfinite(force):
         raise SolverError("non-finite plate force")
-    if np.max(z) > zp * (1.0 + 1e-9):
-        raise SolverError("the free surface crossed the plate: equilibrium not admissible")
     return Solution(force_nN=float(force), volume_um3=prob.volume(u, zp),
                     area_um2=prob.area(u, zp), area0_um2=area0, r_um=r, z_um=z,
                     lambda1=lam1, lambda2=lam2, converged=True, iterations=iterations,
