@@ -1,0 +1,47 @@
+"""Per cell and frequency: moduli from the oscillations, the tension filter,
+the shared inversion (`analysis.inversion.invert_cell`).
+
+γ_a = mean over the segments at that frequency of <γ_eff>. Tension filter
+(published): the segment means over the whole recording (all frequencies)
+stay within 10 % of their median, max |<γ_eff>_i - median| / median ≤ 0.10;
+a cell failing it (e.g. blebbing) is excluded with that reason. The K(h̃)
+filters and the fit are those of `analysis.inversion`.
+"""
+
+import numpy as np
+import pandas as pd
+
+from analysis.afm.timeseries import segment_moduli
+from analysis.inversion import invert_cell
+
+TENSION_TOLERANCE = 0.10
+
+
+def analyze_cell(cell, calibration, bending="standard"):
+    """Returns (per-frequency rows, per-segment rows) for one cell."""
+    segs = pd.DataFrame(segment_moduli(cell))
+    segs.insert(0, "cell_id", cell.cell_id)
+    med = float(np.median(segs["tension_mN_per_m"]))
+    dev = float(np.max(np.abs(segs["tension_mN_per_m"] - med)) / med) if med > 0 else np.inf
+    rows = []
+    for f, g in segs.groupby("frequency_hz", sort=True):
+        tension = float(g["tension_mN_per_m"].mean())
+        inv = invert_cell(g["h_tilde"], g["modulus_mN_per_m"], tension, calibration, bending).to_dict()
+        if dev > TENSION_TOLERANCE:
+            inv["excluded_reason"] = (f"average tension not constant: deviates {100 * dev:.0f} % from its "
+                                      f"median {med:.3g} mN/m (limit {100 * TENSION_TOLERANCE:.0f} %)")
+        rows.append({"cell_id": cell.cell_id, "frequency_hz": float(f), "bending": bending,
+                     "volume_um3": cell.volume_um3, "tension_mN_per_m": tension,
+                     "tension_deviation": dev, "n_segments": len(g),
+                     "loss_angle_rad": float(g["loss_angle_rad"].median()), **inv})
+    return rows, segs
+
+
+def analyze(cells, calibration, bending="standard"):
+    """All cells: (per cell-and-frequency DataFrame, per-segment DataFrame)."""
+    rows, segs = [], []
+    for c in cells:
+        r, s = analyze_cell(c, calibration, bending)
+        rows += r
+        segs.append(s)
+    return pd.DataFrame(rows), pd.concat(segs, ignore_index=True)

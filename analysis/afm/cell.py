@@ -1,0 +1,86 @@
+"""One measured cell: metadata + a time series split into segments.
+
+A cell has an id, its volume V (µm³) and how that was obtained, the cantilever
+spring constant (N/m), a date and the oscillation frequencies (Hz); the
+recording is time (s), force (nN) and cantilever height (µm), sampled at
+(nominally) 100 Hz. Segments are half-open sample ranges [start, stop):
+`approach` (a height step and its wait) or `oscillation` (at one frequency f
+around a mean height). `validate` checks everything the analysis relies on
+and raises InputError with one line naming the cell and what is wrong.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from solver.errors import InputError
+
+KINDS = ("approach", "oscillation")
+
+
+@dataclass
+class Segment:
+    kind: str                      # approach | oscillation
+    start: int                     # first sample
+    stop: int                      # one past the last sample
+    frequency_hz: float = float("nan")
+
+
+@dataclass
+class Cell:
+    cell_id: str
+    volume_um3: float
+    time_s: np.ndarray
+    force_nN: np.ndarray
+    height_um: np.ndarray
+    segments: list = field(default_factory=list)
+    volume_source: str = "imaging"
+    spring_constant_N_per_m: float = float("nan")
+    date: str = ""
+
+    @property
+    def frequencies_hz(self):
+        return sorted({s.frequency_hz for s in self.segments if s.kind == "oscillation"})
+
+    def oscillations(self, frequency_hz=None):
+        return [s for s in self.segments if s.kind == "oscillation"
+                and (frequency_hz is None or s.frequency_hz == frequency_hz)]
+
+    def validate(self, where=""):
+        """Raise InputError (one line) if the cell cannot be analysed."""
+        at = f"{where}cell '{self.cell_id}'"
+        v = self.volume_um3
+        if v is None or not np.isfinite(v) or v <= 0:
+            raise InputError(f"{at}: volume_um3 missing or not a positive number (got {v!r})")
+        n = len(self.time_s)
+        for name in ("time_s", "force_nN", "height_um"):
+            a = np.asarray(getattr(self, name))
+            if a.ndim != 1 or a.size != n:
+                raise InputError(f"{at}: column {name} has {a.size} values, time_s has {n}")
+            if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
+                bad = np.flatnonzero(~np.isfinite(a.astype(float)))[0] if np.issubdtype(a.dtype, np.number) else 0
+                raise InputError(f"{at}: column {name} has a NaN or infinite value at sample {bad}")
+        if n < 2:
+            raise InputError(f"{at}: recording has {n} sample(s)")
+        dt = np.diff(self.time_s)
+        if np.any(dt <= 0):
+            raise InputError(f"{at}: time_s is not increasing at sample {int(np.flatnonzero(dt <= 0)[0]) + 1}")
+        if np.any(self.height_um <= 0):
+            raise InputError(f"{at}: height_um must be > 0 (min {np.min(self.height_um):g}); "
+                             "heights in m instead of um?")
+        if not self.oscillations():
+            raise InputError(f"{at}: no oscillation segment")
+        for i, s in enumerate(self.segments):
+            if s.kind not in KINDS:
+                raise InputError(f"{at}: segment {i} has kind {s.kind!r} (expected {' or '.join(KINDS)})")
+            if not (0 <= s.start < s.stop <= n):
+                raise InputError(f"{at}: segment {i} spans samples [{s.start}, {s.stop}) outside 0..{n}")
+            if s.kind == "oscillation":
+                f = s.frequency_hz
+                if not (np.isfinite(f) and f > 0):
+                    raise InputError(f"{at}: oscillation segment {i} has frequency {f!r} Hz (must be > 0)")
+                span = self.time_s[s.stop - 1] - self.time_s[s.start]
+                if span * f < 1.0:
+                    raise InputError(f"{at}: oscillation segment {i} lasts {span:.3g} s, shorter than "
+                                     f"one period at {f:g} Hz")
+        return self

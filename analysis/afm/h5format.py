@@ -1,0 +1,97 @@
+"""The native experiment file (HDF5, one file, many cells).
+
+Layout (format "cortex-afm", version 1):
+
+    /                          attrs: format="cortex-afm", version=1
+    /cells/<cell_id>/          attrs: volume_um3, volume_source, spring_constant_N_per_m, date
+        time_s, force_nN, height_um      float64 (n,)
+        segments                        compound (m,): kind (str), start, stop (int64,
+                                        samples [start, stop)), frequency_hz (float64, NaN for approach)
+
+Writing goes to `FILE.tmp` and is renamed at the end, so an existing file is
+never left half-written. Reading checks the layout and every cell
+(`Cell.validate`) and raises InputError naming the file and cell.
+"""
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from analysis.afm.cell import Cell, Segment
+from solver.errors import InputError
+
+FORMAT, VERSION = "cortex-afm", 1
+SEG_DTYPE = np.dtype([("kind", h5py.string_dtype()), ("start", "i8"), ("stop", "i8"), ("frequency_hz", "f8")])
+
+
+def write_experiment(path, cells):
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with h5py.File(tmp, "w") as f:
+        f.attrs["format"], f.attrs["version"] = FORMAT, VERSION
+        root = f.create_group("cells")
+        for c in cells:
+            g = root.create_group(c.cell_id)
+            g.attrs.update(volume_um3=float(c.volume_um3), volume_source=c.volume_source,
+                           spring_constant_N_per_m=float(c.spring_constant_N_per_m), date=c.date)
+            for name in ("time_s", "force_nN", "height_um"):
+                g.create_dataset(name, data=np.asarray(getattr(c, name), float))
+            seg = np.array([(s.kind, s.start, s.stop, s.frequency_hz) for s in c.segments], dtype=SEG_DTYPE)
+            g.create_dataset("segments", data=seg)
+    tmp.replace(path)
+    return path
+
+
+def _attr(g, key, where, default=None):
+    if key not in g.attrs:
+        if default is not None:
+            return default
+        raise InputError(f"{where}: attribute '{key}' missing")
+    v = g.attrs[key]
+    return v.decode() if isinstance(v, bytes) else v
+
+
+def read_experiment(path):
+    """All cells of an experiment file, validated."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise InputError(f"{path}: not an HDF5 file (truncated or corrupt?)") from None
+    with f:
+        if f.attrs.get("format") != FORMAT:
+            raise InputError(f"{path}: not a cortex-afm experiment (attribute format != '{FORMAT}')")
+        if int(f.attrs.get("version", -1)) != VERSION:
+            raise InputError(f"{path}: format version {f.attrs.get('version')} (this reader knows {VERSION})")
+        if "cells" not in f or not len(f["cells"]):
+            raise InputError(f"{path}: no cells in /cells")
+        cells = []
+        for cid, g in f["cells"].items():
+            where = f"{path}: cell '{cid}'"
+            try:
+                cols = {}
+                for name in ("time_s", "force_nN", "height_um", "segments"):
+                    if name not in g:
+                        raise InputError(f"{where}: dataset '{name}' missing")
+                    cols[name] = g[name][()]
+            except OSError:
+                raise InputError(f"{where}: data unreadable (truncated or corrupt file)") from None
+            seg = cols.pop("segments")
+            try:
+                segments = [Segment(kind=k.decode() if isinstance(k, bytes) else str(k), start=int(a),
+                                    stop=int(b), frequency_hz=float(fr))
+                            for k, a, b, fr in zip(seg["kind"], seg["start"], seg["stop"], seg["frequency_hz"])]
+            except (ValueError, TypeError, KeyError):
+                raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
+            volume = _attr(g, "volume_um3", where, default=np.nan)
+            cell = Cell(cell_id=cid, volume_um3=float(volume), segments=segments,
+                        volume_source=str(_attr(g, "volume_source", where, "")),
+                        spring_constant_N_per_m=float(_attr(g, "spring_constant_N_per_m", where, np.nan)),
+                        date=str(_attr(g, "date", where, "")),
+                        **{k: np.asarray(v, float) if np.issubdtype(np.asarray(v).dtype, np.number) else np.asarray(v)
+                           for k, v in cols.items()})
+            cells.append(cell.validate(f"{path}: "))
+    return cells

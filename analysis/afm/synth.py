@@ -1,0 +1,156 @@
+"""Synthetic AFM experiments with known truth (SPEC 6 protocol).
+
+Cells: diameter D ~ U(19, 23) µm (V = π D³/6), active tension γ_a ~ U(0.5, 3)
+mN/m, spring constant ~ U(0.3, 0.8) N/m. Subsets as published, scaled to N
+cells: 50/85 at 0.1, 1, 10 Hz; 10/85 at all four; 25/85 at 0.02 Hz only.
+
+Frequency dependence (an assumption, stated in the README): power-law
+(structural-damping) cortex rheology with exponent β = 0.1:
+K_B(f) = K_B(1 Hz) (f / 1 Hz)^β, K_B(1 Hz) = 25 mN/m · lognormal(0, 0.15),
+loss angle δ = β π/2 at every frequency. K̃_S(f) = exp(μ_f + σ_f z) with one
+z ~ N(0, 1) per cell (a stiff cell is stiff at every frequency), (μ_f, σ_f)
+the published populations; K_S = K̃_S K_B(f); true ν = (1 - K̃_S)/(1 + K̃_S).
+
+Protocol: heights from h̃ ~ U(0.70, 0.745) down in steps of 0.5 or 1 µm
+(per cell) to h̃ ≥ 0.49; each step = an `approach` segment (0.2 µm/s, then a
+wait U(50, 150) s; stored at 1 Hz, the analysis does not use it), then one
+`oscillation` segment per frequency: h(t) = h_m - 0.25 sin(2πft) µm, 5
+periods (2 at 0.02 Hz), 100 Hz sampling.
+
+Forward model: `forward(V, heights, K_B, K_S, γ_a) -> |K|` at the mean heights
+(one solve per cell, frequency and height, not per sample). The default is
+the fast solver (`solver_forward`: K of a 0.5 µm compression centred on h_m);
+`law_forward(law)` is a stand-in from a calibration law. The recording is
+γ_eff(t) = γ_a(t) + |K| (A(h(t + δ/ω)) - A_m)/A_m, F = γ_eff 2 H A_c (h(t)).
+
+Measurement errors (off with errors=False): force noise 0.2 nN (SD, white),
+drift ±0.001 nN/s (linear, per cell), recorded height offset N(0, 0.5 µm)
+per cell, recorded volume × (1 + N(0, 0.075)). Blebbing cells (8 %, also
+without errors): γ_a jumps by a factor U(1.25, 1.6) at a random time.
+"""
+
+import numpy as np
+
+from analysis.afm.cell import Cell, Segment
+from analysis.afm.timeseries import shape_of
+from solver.geometry import cell_radius
+
+POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
+SUBSETS = (((0.1, 1.0, 10.0), 50), ((0.02, 0.1, 1.0, 10.0), 10), ((0.02,), 25))
+BETA = 0.1                      # power-law exponent: K_B ∝ f^β, δ = β π/2
+BULK_1HZ = 25.0                 # mN/m
+RATE_HZ, APPROACH_RATE_HZ = 100.0, 1.0
+AMPLITUDE_UM, SPEED_UM_PER_S = 0.25, 0.2
+ERRORS = {"force_noise_nN": 0.2, "drift_nN_per_s": 0.001, "height_offset_sd_um": 0.5,
+          "volume_rel_sd": 0.075, "bleb_fraction": 0.08}
+
+
+def law_forward(law):
+    """Stand-in forward model: K = K_B (1 + α(K̃_S, γ̃_a) exp(h̃/λ)) of a calibration `Law`."""
+    def forward(volume, heights, bulk, shear, tension):
+        h_tilde = np.asarray(heights) / (2.0 * float(cell_radius(volume)))
+        return bulk * (1.0 + law.alpha_of(shear / bulk, tension / bulk) * np.exp(h_tilde / law.lam))
+    return forward
+
+
+def solver_forward(bending="standard", method="fast", dh_um=2 * AMPLITUDE_UM):
+    """Forward model from the solver: |K| of a compression h_m + Δh/2 -> h_m - Δh/2."""
+    from solver.compression import compress
+    from solver.model import Shell
+
+    def forward(volume, heights, bulk, shear, tension):
+        return np.array([compress(Shell(volume_um3=float(volume), h0_um=float(h) + dh_um / 2, dh_um=dh_um,
+                                        bulk_mN_per_m=float(bulk), shear_mN_per_m=float(shear),
+                                        tension_mN_per_m=float(tension), bending=bending), method)
+                         .to_dict()["modulus_mN_per_m"] for h in heights])
+    return forward
+
+
+def subset_sizes(n_cells):
+    total = sum(n for _, n in SUBSETS)
+    sizes = [round(n_cells * n / total) for _, n in SUBSETS]
+    sizes[0] += n_cells - sum(sizes)
+    return [(freqs, n) for (freqs, _), n in zip(SUBSETS, sizes)]
+
+
+def _cell(i, freqs, rng, forward, errors):
+    D = rng.uniform(19.0, 23.0)
+    V = np.pi * D**3 / 6.0
+    tension = rng.uniform(0.5, 3.0)
+    bulk1 = BULK_1HZ * np.exp(0.15 * rng.standard_normal())
+    z = rng.standard_normal()
+    step = rng.choice([0.5, 1.0])
+    h_means = np.arange(rng.uniform(0.70, 0.745) * D, 0.49 * D, -step)
+    blebbing = rng.random() < ERRORS["bleb_fraction"]
+    spring = rng.uniform(0.3, 0.8)
+    truth = {"cell_id": f"cell{i:03d}", "diameter_um": D, "volume_um3": V, "tension_mN_per_m": tension,
+             "step_um": step, "blebbing": bool(blebbing), "frequencies": {}}
+    K = {}
+    for f in freqs:
+        bulk = bulk1 * f**BETA
+        ks = float(np.exp(POPULATIONS[f][0] + POPULATIONS[f][1] * z))
+        K[f] = forward(V, h_means, bulk, ks * bulk, tension)
+        truth["frequencies"][f] = {"nu": (1 - ks) / (1 + ks), "ks_tilde": ks, "bulk_mN_per_m": bulk}
+    delta = BETA * np.pi / 2
+    t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * D
+    for j, h_m in enumerate(h_means):
+        move = (h_prev - h_m) / SPEED_UM_PER_S
+        wait = rng.uniform(50.0, 150.0)
+        t = t0 + np.arange(0.0, move + wait, 1.0 / APPROACH_RATE_HZ)
+        h = np.where(t - t0 < move, h_prev - SPEED_UM_PER_S * (t - t0), h_m)
+        t_chunks.append(t), h_chunks.append(h), g_chunks.append(np.full(t.size, np.nan))
+        segs.append(Segment("approach", n0, n0 + t.size))
+        n0, t0, h_prev = n0 + t.size, t[-1] + 1.0 / APPROACH_RATE_HZ, h_m
+        for f in freqs:
+            periods = 2 if f < 0.05 else 5
+            s = np.arange(0.0, periods / f, 1.0 / RATE_HZ)
+            w = 2 * np.pi * f
+            h = h_m - AMPLITUDE_UM * np.sin(w * s)
+            fpt, area = shape_of(V, np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
+            a_lag, a_mean = area[s.size:2 * s.size], area[-1]
+            g_chunks.append(K[f][j] * (a_lag - a_mean) / a_mean)
+            t_chunks.append(t0 + s), h_chunks.append(h)
+            segs.append(Segment("oscillation", n0, n0 + s.size, f))
+            n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
+    t, h, dg = np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks)
+    gamma_a = np.full(t.size, tension)
+    if blebbing:
+        t_jump = rng.uniform(0.3, 0.7) * t[-1]
+        gamma_a[t >= t_jump] *= rng.uniform(1.25, 1.6)
+        truth["bleb_time_s"] = float(t_jump)
+    fpt, _ = shape_of(V, h)
+    force = (gamma_a + np.nan_to_num(dg)) * fpt
+    V_rec, h_rec = V, h
+    if errors:
+        force = force + ERRORS["force_noise_nN"] * rng.standard_normal(t.size) \
+            + rng.uniform(-1, 1) * ERRORS["drift_nN_per_s"] * t
+        h_rec = h + ERRORS["height_offset_sd_um"] * rng.standard_normal()
+        V_rec = V * (1.0 + ERRORS["volume_rel_sd"] * rng.standard_normal())
+    cell = Cell(cell_id=truth["cell_id"], volume_um3=float(V_rec), time_s=t, force_nN=force, height_um=h_rec,
+                segments=segs, volume_source="synthetic (confocal-like, "
+                                             f"{'with' if errors else 'no'} volume error)",
+                spring_constant_N_per_m=float(spring), date="2026-01-01")
+    return cell, truth
+
+
+def generate(n_cells=85, seed=0, errors=True, forward=None):
+    """Return (cells, truth): truth has per frequency the true median ν of the
+    non-blebbing cells and every cell's true values."""
+    forward = forward or solver_forward()
+    rng = np.random.default_rng(seed)
+    cells, truths, i = [], [], 0
+    for freqs, n in subset_sizes(n_cells):
+        for _ in range(n):
+            c, t = _cell(i, freqs, rng, forward, errors)
+            cells.append(c), truths.append(t)
+            i += 1
+    per_f = {}
+    for f in POPULATIONS:
+        vals = {t["cell_id"]: {**t["frequencies"][f], "blebbing": t["blebbing"]} for t in truths if f in t["frequencies"]}
+        ok = [v["nu"] for v in vals.values() if not v["blebbing"]]
+        per_f[str(f)] = {"frequency_hz": f, "median_nu_true": float(np.median(ok)) if ok else None,
+                         "n_cells": len(vals), "cells": vals}
+    truth = {"seed": seed, "errors": errors, "error_model": ERRORS if errors else None,
+             "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, "populations": {str(k): v for k, v in POPULATIONS.items()},
+             "frequencies": per_f, "cells": truths}
+    return cells, truth
