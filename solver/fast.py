@@ -176,6 +176,7 @@ class _Problem:
             plate = slice(self.nd, self.kc)
             elem[plate] += 2.0 * 2.0 * self.B * Hd**2 * area[plate]
             theta = _catan2(-dz, dr)
+            theta[: self.kc] = 0.0          # plate elements lie flat
             k = np.arange(self.kc, self.N)
             ta, tb = theta[k - 1], theta[k]
             ell = 0.5 * (ds[k - 1] + ds[k])
@@ -342,21 +343,21 @@ def _squeezed_reference(prob, shell, h, widen=1.0):
     return np.concatenate([r0[1:], zf[:-1] * h / shell.h0_um, [np.log(psic), p]])
 
 
-def _compress(prob, shell, steps, widen=1.0):
+def _compress(prob, shell, steps, widen=1.0, start="droplet"):
     """Newton from the droplet guess at the first gap, then from each solution."""
     iterations = 0
     for i in range(1, steps + 1):
         h = shell.h0_um - shell.dh_um * i / steps
         if i == 1:
-            u = (_droplet_guess(prob, shell.volume_um3, h) if not prob.elastic
+            u = (_droplet_guess(prob, shell.volume_um3, h) if start == "droplet"
                  else _squeezed_reference(prob, shell, h, widen))
         u, it = _newton(prob, u, 0.5 * h)
         iterations += it
     return u, iterations
 
 
-def solve(shell):
-    """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
+def _equilibrium(shell):
+    """The solved problem, its unknowns, Newton iterations and the reference area."""
     B = shell.bending_stiffness
     layer = np.sqrt(B / shell.tension_mN_per_m) if B > 0 else 0.2
     ref = reference(float(shell.volume_um3), float(shell.h0_um), float(shell.resolution),
@@ -367,9 +368,12 @@ def solve(shell):
     # Newton from a start with too little contact can end on a stationary state
     # whose free surface pokes through the plate: start with more contact then.
     zp, failure = 0.5 * shell.h1_um, None
-    for steps, widen in ((1, 1.0), (1, 2.0), (3, 1.0), (3, 3.0), (8, 1.5), (8, 4.0)):
+    starts = [(1, 1.0, "droplet"), (3, 1.0, "droplet")]
+    if prob.elastic:
+        starts += [(1, 1.0, "reference"), (1, 2.0, "reference"), (3, 3.0, "reference")]
+    for steps, widen, start in starts:
         try:
-            u, iterations = _compress(prob, shell, steps, widen)
+            u, iterations = _compress(prob, shell, steps, widen, start)
         except SolverError as err:
             failure = err
             continue
@@ -378,6 +382,24 @@ def solve(shell):
         failure = SolverError("the free surface crossed the plate")
     else:
         raise SolverError(f"no admissible equilibrium found (continuation up to 8 steps): {failure}")
+    return prob, u, iterations, area0
+
+
+def energy(shell):
+    """E* = min E at fixed volume and gap h1 (mN/m·µm², = 1e-15 J): the energy
+    whose derivative -dE*/dh1 is the plate force (virtual work)."""
+    prob, u, _, _ = _equilibrium(shell)
+    return _energy(prob, u, 0.5 * shell.h1_um)
+
+
+def _energy(prob, u, zp):
+    """E = L + p (V - V0), the Lagrangian with the constraint term removed."""
+    return prob.lagrangian(u.astype(complex), zp).real + u[-1] * (prob.volume(u, zp) - prob.V0)
+
+
+def solve(shell):
+    """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
+    prob, u, iterations, area0 = _equilibrium(shell)
     zp = 0.5 * shell.h1_um
     force = prob.force(u, zp)
     r, z, psic, p = prob.nodes(u, zp)

@@ -1,0 +1,71 @@
+"""The fast equilibrium solver against the physics it must reproduce (SPEC 2, 3)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from solver.compression import compress
+from solver.geometry import droplet
+from solver.model import Shell
+
+
+def shell(**kw):
+    base = dict(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33,
+                tension_mN_per_m=1.5, bending="standard")
+    base.update(kw)
+    return Shell(**base)
+
+
+def active_force(s, h):
+    return s.tension_mN_per_m * float(droplet(s.volume_um3, h).force_per_tension_um)
+
+
+def test_tension_only_force_is_the_droplets():
+    s = shell(bulk_mN_per_m=0.0, shear_mN_per_m=0.0, bending="none", resolution=2.0)
+    c = compress(s)
+    assert c.solution.converged
+    assert c.to_dict()["force_nN"] == pytest.approx(active_force(s, s.h1_um), rel=1e-4)
+
+
+def test_elastic_shell_pushes_harder_than_tension_alone():
+    c = compress(shell())
+    d = c.to_dict()
+    assert d["force_nN"] > d["active_force_nN"]
+    assert 25.0 < d["modulus_mN_per_m"] < 200.0          # K of order K_B, rising with h~
+    assert d["volume_error"] < 1e-3                       # mesh volume vs the droplet's V
+    assert abs(d["area_strain_shell"] / d["area_strain"] - 1.0) < 0.06   # SPEC 3: within 6 %
+
+
+def test_excess_force_is_linear_in_the_compression():
+    excess = []
+    for dh in (0.125, 0.25, 0.5):
+        s = shell(dh_um=dh)
+        excess.append(compress(s).to_dict()["force_nN"] - active_force(s, s.h1_um))
+    slope = np.array(excess) / np.array([0.125, 0.25, 0.5])
+    assert np.ptp(slope) / slope.mean() < 0.05
+
+
+def test_virtual_work_force_is_minus_energy_derivative():
+    """F_tot = -dE*/dh1: central differences of the constrained minimum energy."""
+    from solver.fast import energy
+    force = compress(shell()).to_dict()["force_nN"]
+    e_lo, e_hi = energy(shell(dh_um=0.51)), energy(shell(dh_um=0.49))   # h1 = 11.49, 11.51
+    assert force == pytest.approx(-(e_hi - e_lo) / 0.02, rel=1e-3)
+
+
+def test_compress_cli_json_and_bad_input():
+    cmd = [sys.executable, "-m", "cortex.cli", "compress", "--h0", "12", "--bulk", "25",
+           "--shear", "8.33", "--tension", "1.5", "--json"]
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    d = json.loads(out.stdout)
+    for key in ("force_nN", "active_force_nN", "delta_gamma_mN_per_m", "area_strain",
+                "modulus_mN_per_m", "h_mean_um", "h_tilde", "volume_error", "converged", "wall_s"):
+        assert key in d
+    assert d["h_mean_um"] == pytest.approx(11.75)
+    bad = subprocess.run(cmd[:4] + ["30", "--bulk", "25", "--shear", "8", "--tension", "1"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+    assert "free sphere" in bad.stderr
