@@ -5,7 +5,7 @@
 #
 #   bash scripts/setup-slurm.sh install   Debian packages (slurmctld slurmd slurm-client munge)
 #   bash scripts/setup-slurm.sh start     install, then start munged, slurmctld, slurmd (default)
-#   bash scripts/setup-slurm.sh stop      stop the daemons this script started
+#   bash scripts/setup-slurm.sh stop      stop the daemons this script started (munged too)
 #   bash scripts/setup-slurm.sh status    exit 0 if the node answers and is usable
 #   bash scripts/setup-slurm.sh env       print `export SLURM_CONF=...` for a shell to eval
 #
@@ -108,7 +108,11 @@ start_munge() {
     runuser -u munge -- /usr/sbin/munged
     local i
     for i in $(seq 50); do
-        munge -n 2>/dev/null | unmunge >/dev/null 2>&1 && return 0
+        if munge -n 2>/dev/null | unmunge >/dev/null 2>&1; then  # ours: `stop` ends it too
+            mkdir -p "$dir/run"
+            cp /run/munge/munged.pid "$dir/run/munged.pid" 2>/dev/null || true
+            return 0
+        fi
         sleep 0.1
     done
     say "munged did not come up"; exit 1
@@ -120,7 +124,7 @@ start() {
     need_root "start the SLURM daemons"
     start_munge
     alive "$dir/run/slurmctld.pid" && alive "$dir/run/slurmd.pid" || {
-        stop quiet
+        stop quiet slurmd slurmctld
         write_conf
         SLURM_CONF=$conf slurmctld -c -f "$conf"   # -c: forget jobs of an earlier run
         SLURM_CONF=$conf slurmd -f "$conf"
@@ -138,9 +142,11 @@ start() {
     exit 1
 }
 
-stop() {
-    local d pid i
-    for d in slurmd slurmctld; do
+stop() {  # stop [quiet] [DAEMON...]: by default all three
+    local quiet=${1:-} d pid i
+    [[ $quiet == quiet ]] && shift || quiet=
+    (($#)) || set -- slurmd slurmctld munged
+    for d in "$@"; do
         [[ -f $dir/run/$d.pid ]] || continue
         need_root "stop $d"
         alive "$dir/run/$d.pid" || continue
@@ -148,7 +154,8 @@ stop() {
         kill -TERM "$pid"
         for i in $(seq 100); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
         kill -0 "$pid" 2>/dev/null && kill -KILL "$pid"
-        [[ ${1:-} == quiet ]] || say "stopped $d ($pid)"
+        rm -f "$dir/run/$d.pid"
+        [[ -n $quiet ]] || say "stopped $d ($pid)"
     done
     return 0
 }
