@@ -1,0 +1,65 @@
+"""Figures of the measured cells: ν histograms with the fitted lognormal's
+induced density, box plots of ν per frequency and variant, normalised K(h̃)
+curves K/K_B of every included cell."""
+
+import numpy as np
+
+from analysis.afm.population import nu_density
+
+
+def figures(tables, sums, segs, out):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    paths = []
+    variants = list(tables)
+    freqs = sorted(tables[variants[0]]["frequency_hz"].unique())
+    fig, axes = plt.subplots(len(variants), len(freqs), figsize=(3 * len(freqs), 2.5 * len(variants)),
+                             squeeze=False)
+    grid = np.linspace(-0.99, 0.99, 400)
+    for i, v in enumerate(variants):
+        ok = tables[v][tables[v]["excluded_reason"].isna()]
+        for j, f in enumerate(freqs):
+            ax = axes[i, j]
+            nu = ok.loc[ok["frequency_hz"] == f, "nu"]
+            ax.hist(nu, bins=np.linspace(-1, 1, 21), density=True, alpha=0.6)
+            r = next(r for r in sums[v]["frequencies"] if r["frequency_hz"] == f)
+            if np.isfinite(r["lognormal_mu"]):
+                ax.plot(grid, nu_density(grid, r["lognormal_mu"], r["lognormal_sigma"]))
+            ax.set_title(f"{v}, {f:g} Hz", fontsize=8)
+            ax.set_xlabel("Poisson ratio nu (1)")
+            ax.set_ylabel("density (1)")
+    fig.tight_layout()
+    paths.append(out / "nu_histograms.png")
+    fig.savefig(paths[-1], dpi=80)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    data, labels = [], []
+    for v in variants:
+        ok = tables[v][tables[v]["excluded_reason"].isna()]
+        for f in freqs:
+            data.append(ok.loc[ok["frequency_hz"] == f, "nu"].to_numpy())
+            labels.append(f"{v}\n{f:g} Hz")
+    ax.boxplot(data, tick_labels=labels)
+    ax.tick_params(labelsize=6)
+    ax.set_ylabel("Poisson ratio nu (1)")
+    fig.tight_layout()
+    paths.append(out / "nu_boxplots.png")
+    fig.savefig(paths[-1], dpi=80)
+    plt.close(fig)
+
+    v = variants[0]
+    ok = tables[v][tables[v]["excluded_reason"].isna()][["cell_id", "frequency_hz", "bulk_mN_per_m"]]
+    curves = segs.merge(ok, on=["cell_id", "frequency_hz"])
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    for (c, f), g in curves.groupby(["cell_id", "frequency_hz"]):
+        ax.plot(g["h_tilde"], g["modulus_mN_per_m"] / g["bulk_mN_per_m"], lw=0.5,
+                color=f"C{freqs.index(f)}")
+    ax.set_xlabel("normalised height h~ (1)")
+    ax.set_ylabel("K / K_B (1)")
+    fig.tight_layout()
+    paths.append(out / "k_curves.png")
+    fig.savefig(paths[-1], dpi=80)
+    plt.close(fig)
+    return paths

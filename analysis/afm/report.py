@@ -1,0 +1,70 @@
+"""`cortex afm analyze`: load recordings, analyse with every bending variant,
+write DIR/cells.csv, DIR/segments.csv, DIR/summary.json (selected variant),
+DIR/summary_<variant>.json, figures and DIR/report.md."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from analysis.afm.analyze import analyze
+from analysis.afm.population import summary
+from solver.errors import InputError
+
+
+def load(path):
+    """Cells from an experiment (.h5/.hdf5) or a single-cell CSV (.csv)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        from analysis.afm.h5format import read_experiment
+        return read_experiment(path)
+    if suffix == ".csv":
+        from analysis.afm.csvformat import read_csv_cell
+        return [read_csv_cell(path)]
+    raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5 or .csv)")
+
+
+def run(data, calibration_path, out, bending="standard"):
+    from analysis.calibration import Calibration
+    cells = load(data)
+    cal = Calibration.load(calibration_path)
+    if bending not in cal.laws:
+        raise InputError(f"{calibration_path}: no bending variant '{bending}' (has {', '.join(cal.laws)})")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    tables, sums = {}, {}
+    for variant in [bending] + [v for v in cal.laws if v != bending]:
+        tab, segs = analyze(cells, cal, variant)
+        tables[variant], sums[variant] = tab, summary(tab)
+        tab.to_csv(out / f"cells_{variant}.csv", index=False)
+        (out / f"summary_{variant}.json").write_text(json.dumps(sums[variant], indent=1) + "\n")
+        if variant == bending:
+            segs.to_csv(out / "segments.csv", index=False)
+            tab.to_csv(out / "cells.csv", index=False)
+    (out / "summary.json").write_text(json.dumps({"bending": bending, **sums[bending]}, indent=1) + "\n")
+    from analysis.afm.figures import figures
+    figs = figures(tables, sums, segs, out)
+    report = out / "report.md"
+    report.write_text(_markdown(data, bending, tables, sums, figs))
+    return {"report": report, "summary": sums[bending], "table": tables[bending]}
+
+
+def _markdown(data, bending, tables, sums, figs):
+    lines = [f"# Measured cells: {Path(data).name}", "",
+             f"Calibration variant: `{bending}`. {tables[bending]['cell_id'].nunique()} cells.", "",
+             "| variant | f (Hz) | cells | excluded | median ν | IQR ν | lognormal μ | lognormal σ |",
+             "|---|---|---|---|---|---|---|---|"]
+    for v, s in sums.items():
+        for r in s["frequencies"]:
+            fmt = lambda x: "–" if x is None or not np.isfinite(x) else f"{x:.3f}"  # noqa: E731
+            lines.append(f"| {v} | {r['frequency_hz']:g} | {r['n_cells']} | {r['n_excluded']} | "
+                         f"{fmt(r['median_nu'])} | {fmt(r['iqr_nu'])} | {fmt(r['lognormal_mu'])} | "
+                         f"{fmt(r['lognormal_sigma'])} |")
+    lines += ["", "Two-sided Mann-Whitney p-values (variant `%s`):" % bending, ""]
+    lines += [f"- {k}: {p:.3g}" for k, p in sums[bending]["mann_whitney_p"].items()]
+    lines += ["", "## Excluded cells", "", "| cell | f (Hz) | reason |", "|---|---|---|"]
+    ex = tables[bending][tables[bending]["excluded_reason"].notna()]
+    lines += [f"| {r.cell_id} | {r.frequency_hz:g} | {r.excluded_reason} |" for r in ex.itertuples()]
+    lines += ["", "## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,134 @@
+"""`cortex afm`: synth and analyze end to end; malformed input -> one line, status 2."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from analysis.afm.csvformat import write_csv_cell
+from analysis.afm.h5format import write_experiment
+from analysis.afm.synth import generate, law_forward
+from analysis.calibration import Calibration
+from analysis.synthetic import reference_law
+from cortex.cli import main
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    d = tmp_path_factory.mktemp("afm")
+    cal = d / "cal.json"
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    cells, _ = generate(4, seed=2, errors=True, forward=law_forward(reference_law()))
+    good = d / "good.h5"
+    write_experiment(good, cells)
+    return d, cal, good, cells
+
+
+def test_synth_and_analyze(setup, tmp_path, capsys):
+    d, cal, _, _ = setup
+    data = tmp_path / "exp.h5"
+    assert main(["afm", "synth", "--cells", "6", "--seed", "1", "--out", str(data), "--forward", "law",
+                 "--calibration", str(cal)]) == 0
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert len(truth["cells"]) == 6
+    assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out")]) == 0
+    s = json.loads((tmp_path / "out/summary.json").read_text())
+    keys = {"frequency_hz", "n_cells", "n_excluded", "median_nu", "iqr_nu", "lognormal_mu", "lognormal_sigma"}
+    assert s["frequencies"] and all(keys <= set(r) for r in s["frequencies"])
+    assert (tmp_path / "out/report.md").read_text().count("|") > 20
+    for name in ("nu_histograms.png", "nu_boxplots.png", "k_curves.png", "cells_double.csv", "cells_none.csv"):
+        assert (tmp_path / "out" / name).is_file()
+    # refuses to overwrite
+    capsys.readouterr()
+    assert main(["afm", "synth", "--cells", "2", "--out", str(data), "--forward", "law",
+                 "--calibration", str(cal)]) == 2
+
+
+def _h5(path, cells, edit):
+    write_experiment(path, cells)
+    with h5py.File(path, "r+") as f:
+        edit(f, f["cells"][cells[0].cell_id])
+    return path
+
+
+def _replace(name, fn):
+    def edit(f, g):
+        data = fn(g[name][()])
+        del g[name]
+        g.create_dataset(name, data=data)
+    return edit
+
+
+def _csv(path, cell, edit):
+    write_csv_cell(path, cell)
+    path.write_text(edit(path.read_text()))
+    return path
+
+
+def _bad_time(t):
+    t = t.copy()
+    t[10] = t[9]
+    return t
+
+
+def _nan(x):
+    x = x.copy()
+    x[5] = np.nan
+    return x
+
+
+BAD = {
+    "missing file": lambda d, c: d / "nope.h5",
+    "unknown suffix": lambda d, c: (d / "x.dat").write_text("1") and d / "x.dat",
+    "truncated h5": lambda d, c: (d / "t.h5").write_bytes(
+        (write_experiment(d / "full.h5", c[:1]) or (d / "full.h5")).read_bytes()[:3000]) and d / "t.h5",
+    "not hdf5": lambda d, c: (d / "txt.h5").write_text("hello") and d / "txt.h5",
+    "wrong format attr": lambda d, c: _h5(d / "f.h5", c, lambda f, g: f.attrs.__setitem__("format", "x")),
+    "wrong version": lambda d, c: _h5(d / "v.h5", c, lambda f, g: f.attrs.__setitem__("version", 9)),
+    "no cells": lambda d, c: _h5(d / "n.h5", c, lambda f, g: [f["cells"].__delitem__(k) for k in list(f["cells"])]),
+    "missing volume": lambda d, c: _h5(d / "mv.h5", c, lambda f, g: g.attrs.__delitem__("volume_um3")),
+    "negative volume": lambda d, c: _h5(d / "nv.h5", c, lambda f, g: g.attrs.__setitem__("volume_um3", -5.0)),
+    "missing force": lambda d, c: _h5(d / "mf.h5", c, lambda f, g: g.__delitem__("force_nN")),
+    "NaN force": lambda d, c: _h5(d / "nan.h5", c, _replace("force_nN", _nan)),
+    "non-monotonic time": lambda d, c: _h5(d / "nm.h5", c, _replace("time_s", _bad_time)),
+    "heights in m": lambda d, c: _h5(d / "m.h5", c, _replace("height_um", lambda h: h * 1e-6 - 1e-9)),
+    "short column": lambda d, c: _h5(d / "sc.h5", c, _replace("height_um", lambda h: h[:-5])),
+    "segment out of range": lambda d, c: _h5(d / "so.h5", c, _replace(
+        "segments", lambda s: np.array([tuple(r) for r in s[:-1]] + [(b"oscillation", 0, 10 ** 9, 1.0)], s.dtype))),
+    "segment too short": lambda d, c: _h5(d / "st.h5", c, _replace(
+        "segments", lambda s: np.array([(b"oscillation", 0, 3, 0.1)], s.dtype))),
+    "zero frequency": lambda d, c: _h5(d / "zf.h5", c, _replace(
+        "segments", lambda s: np.array([(k, a, b, 0.0 if k == b"oscillation" else f) for k, a, b, f in s], s.dtype))),
+    "unknown segment kind": lambda d, c: _h5(d / "uk.h5", c, _replace(
+        "segments", lambda s: np.array([(b"wiggle", a, b, f) for k, a, b, f in s], s.dtype))),
+    "height above sphere": lambda d, c: _h5(d / "hs.h5", c, _replace("height_um", lambda h: h + 30.0)),
+    "csv missing volume": lambda d, c: _csv(d / "a.csv", c[0], lambda t: t.replace("# volume_um3:", "# vol:")),
+    "csv volume not a number": lambda d, c: _csv(d / "b.csv", c[0], lambda t: t.replace(
+        f"# volume_um3: {c[0].volume_um3!r}", "# volume_um3: big")),
+    "csv wrong unit column": lambda d, c: _csv(d / "u.csv", c[0], lambda t: t.replace("force_nN", "force_N")),
+    "csv non-numeric": lambda d, c: _csv(d / "nn.csv", c[0], lambda t: t.replace("\n1.0", "\nabc", 1)),
+    "csv empty": lambda d, c: (d / "e.csv").write_text("") or d / "e.csv",
+    "csv binary": lambda d, c: (d / "bin.csv").write_bytes(b"\xff\xfe\x00\x81" * 50) and d / "bin.csv",
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_malformed_input_one_line_status_2(setup, tmp_path, capsys, case):
+    d, cal, _, cells = setup
+    data = BAD[case](tmp_path, cells)
+    capsys.readouterr()
+    status = main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert len(err.strip().splitlines()) == 1 and "error" in err and "Traceback" not in err
+
+
+def test_bad_calibration_and_variant(setup, tmp_path, capsys):
+    d, cal, good, _ = setup
+    (tmp_path / "c.json").write_text("{")
+    assert main(["afm", "analyze", str(good), "--calibration", str(tmp_path / "c.json"), "--out", str(tmp_path)]) == 2
+    assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--out", str(tmp_path),
+                 "--bending", "triple"]) == 2
+    assert main(["afm", "synth", "--cells", "0", "--out", str(tmp_path / "z.h5")]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 3
