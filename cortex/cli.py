@@ -16,7 +16,7 @@ import sys
 from cortex import __version__
 from solver.errors import InputError
 
-REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "cortex.doctor")
+REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
 
 
 class Parser(argparse.ArgumentParser):
