@@ -1,0 +1,33 @@
+"""Benchmark of `analysis.afm.analyze`: 100 synthetic cells recorded at all
+four frequencies (law forward model), errors on. Prints one JSON object;
+target analyze_wall_s < 10 s."""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+from analysis.afm.analyze import analyze
+from analysis.afm.synth import generate, law_forward
+from analysis.calibration import Calibration
+from analysis.synthetic import reference_law  # noqa: E402
+import analysis.afm.synth as synth  # noqa: E402
+
+
+def main():
+    synth.SUBSETS = (((0.02, 0.1, 1.0, 10.0), 1),)
+    t0 = time.perf_counter()
+    cells, _ = generate(100, seed=0, errors=True, forward=law_forward(reference_law()))
+    t1 = time.perf_counter()
+    table, segs = analyze(cells, Calibration({"standard": reference_law()}))
+    t2 = time.perf_counter()
+    print(json.dumps({"cells": len(cells), "frequencies": 4, "segments": len(segs),
+                      "samples": int(sum(len(c.time_s) for c in cells)),
+                      "synth_wall_s": round(t1 - t0, 3), "analyze_wall_s": round(t2 - t1, 3),
+                      "target_analyze_wall_s": 10.0}))
+
+
+if __name__ == "__main__":
+    main()
