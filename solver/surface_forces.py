@@ -184,7 +184,7 @@ def plate_force(kind, gE, gV, p):
 
 @njit(cache=True)
 def flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, mu, dt, V0half,
-         h0, dh, t_comp, check_every, tau_relax, tol, max_steps):
+         h0, dh, t_comp, check_every, tau_relax, tol, max_steps, release_tol):
     """Explicit gradient flow v_i = μ f_i / A_i with f = -∂E/∂x + p ∂V/∂x.
 
     p is the Lagrange multiplier that keeps dV/dt = (V0 - V)/(10 dt) (volume
@@ -239,6 +239,8 @@ def flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, mu, dt, V0half,
                     kind[i] = PLATE
             elif kind[i] == PLATE:
                 z[i] = 0.5 * h_new
+                if -gE[i, 1] + p * gV[i, 1] < -release_tol * p * A[i]:
+                    kind[i] = FREE      # the plate would have to pull: the node lifts off
         step += 1
         if t > t_comp and step % check_every == 0:
             F = plate_force(kind, gE, gV, p)
