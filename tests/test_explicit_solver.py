@@ -130,3 +130,18 @@ def test_unsettled_run_raises(monkeypatch):
     monkeypatch.setattr(explicit, "MAX_TIMES", 0.5)
     with pytest.raises(SolverError, match="did not settle"):
         explicit.solve(Shell(4300, 12, 0.0, 0.0, 3.0, bending="none"))
+
+
+@pytest.mark.slow
+def test_plate_force_is_minus_the_energy_derivative():
+    """Virtual work: F_tot = dE_total/dΔh at fixed volume, from three compressions."""
+    energies, forces = {}, {}
+    for dh in (0.48, 0.5, 0.52):
+        sol, _, (r0, z0) = explicit.relax(Shell(4300, 15, 25, 25, 3, bending="none", dh_um=dh))
+        l0, _ = sf._elements(r0, z0)
+        energies[dh] = 2 * sf.energy(sol.r_um, sol.z_um, l0, 0.5 * (r0[1:] + r0[:-1]),
+                                     sf.mean_curvature(r0, z0), 3.0, 25.0, 25.0, 0.0)
+        forces[dh] = sol.force_nN
+    assert forces[0.5] == pytest.approx((energies[0.52] - energies[0.48]) / 0.04, rel=1e-3)
+    # and F_tot varies smoothly with the compression (no jumps with the contact position)
+    assert forces[0.52] - forces[0.5] == pytest.approx(forces[0.5] - forces[0.48], rel=0.05)
