@@ -1,0 +1,71 @@
+"""Speed and agreement of the two shell solvers; prints one JSON object.
+
+fast_median_s: median wall time of the fast solver per compression over the
+paper grid (SPEC 4; 540 compressions, or a random sample of --sample of them),
+one core. explicit_median_s: median over --explicit common points (corners of
+the grid, all bending variants). speedup = explicit_median_s / fast_median_s.
+max_rel_diff_K: largest |K_fast / K_explicit - 1| on the common points.
+"""
+
+import argparse
+import itertools
+import json
+import time
+
+import numpy as np
+
+from solver.compression import compress
+from solver.errors import SolverError
+from solver.model import Shell
+
+GRID = dict(shear=(8.33, 10.0, 15.0, 20.0, 25.0), h0=(15.0, 14.0, 13.0, 12.0, 11.0, 10.0),
+            tension=(0.5, 1.0, 1.5, 2.0, 2.5, 3.0), bending=("standard", "double", "none"))
+CORNERS = [(ks, h0, g, b) for b in GRID["bending"] for ks, h0, g in
+           ((8.33, 15.0, 0.5), (25.0, 10.0, 3.0), (8.33, 10.0, 3.0), (25.0, 15.0, 0.5))]
+
+
+def shell(ks, h0, g, b):
+    return Shell(volume_um3=4300.0, h0_um=h0, bulk_mN_per_m=25.0, shear_mN_per_m=ks,
+                 tension_mN_per_m=g, bending=b)
+
+
+def timed(point, method):
+    start = time.perf_counter()
+    try:
+        K = compress(shell(*point), method).to_dict()["modulus_mN_per_m"]
+    except SolverError:
+        K = float("nan")
+    return K, time.perf_counter() - start
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sample", type=int, default=0, help="fast solves on this many random grid points (0: all 540)")
+    ap.add_argument("--explicit", type=int, default=12, help="common points for the explicit solver (0: none)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    points = list(itertools.product(*GRID.values()))
+    if args.sample:
+        rng = np.random.default_rng(args.seed)
+        points = [points[i] for i in rng.choice(len(points), args.sample, replace=False)]
+    fast = [timed(p, "fast") for p in points]
+    failed = sum(not np.isfinite(k) for k, _ in fast)
+    out = {"fast_points": len(points), "fast_failed": failed,
+           "fast_median_s": float(np.median([t for _, t in fast]))}
+    common = CORNERS[: args.explicit]
+    if common:
+        pairs = [(timed(p, "fast")[0], *timed(p, "explicit")) for p in common]
+        kf, ke, te = (np.array(x) for x in zip(*pairs))
+        out["explicit_points"] = len(common)
+        out["explicit_median_s"] = float(np.median(te))
+        out["speedup"] = out["explicit_median_s"] / out["fast_median_s"]
+        out["max_rel_diff_K"] = float(np.nanmax(np.abs(kf / ke - 1.0)))
+        out["K_fast_mN_per_m"] = [round(float(k), 4) for k in kf]
+        out["K_explicit_mN_per_m"] = [round(float(k), 4) for k in ke]
+    else:
+        out.update(explicit_median_s=None, speedup=None, max_rel_diff_K=None)
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
