@@ -10,7 +10,12 @@ max_rel_diff_K: largest |K_fast / K_explicit - 1| on the common points.
 import argparse
 import itertools
 import json
+import pathlib
+import sys
 import time
+
+# run as a script, this file would shadow the `solver` package: put the repository first
+sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 
 import numpy as np
 
