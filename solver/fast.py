@@ -43,7 +43,7 @@ tension-only shell still has a unique node distribution; it changes F_tot by
 ~1e-6 relative.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -72,14 +72,24 @@ class Reference:
     eta: np.ndarray     # disc nodes S = a0 η, η in (0, 1]
     zeta: np.ndarray    # new-contact nodes ψ0 = ψ_c ζ, ζ in (0, 1]
     xi: np.ndarray      # free nodes ψ0 = ψ_c + (π/2 - ψ_c) ξ, ξ in (0, 1]
+    h0: float
+    zcoef: np.ndarray   # Chebyshev series of z0(ψ) on [0, π/2] (from the mid-plane)
+    scale: float = 1.0  # radii scaled so that the reference mesh encloses exactly V
 
     def r0(self, psi):
         s = np.sin(psi)
-        return (s + np.sqrt(s * s + self.beta**2)) / (2.0 * self.H)
+        return self.scale * (s + np.sqrt(s * s + self.beta**2)) / (2.0 * self.H)
 
-    def S(self, psi):
-        m = np.sqrt(1.0 + self.beta**2)
-        return self.a0 + (psi + np.arcsin(1.0 / m) - np.arcsin(np.cos(psi) / m)) / (2.0 * self.H)
+    def z0(self, psi):
+        return np.polynomial.chebyshev.chebval(4.0 * psi / np.pi - 1.0, self.zcoef)
+
+    def positions(self, psic):
+        """Reference positions (r0, z0) of every node for the contact label ψ_c."""
+        psi = np.concatenate([psic * self.zeta, psic + (np.pi / 2 - psic) * self.xi])
+        disc = self.scale * self.a0 * np.concatenate([[0.0], self.eta])
+        r0 = np.concatenate([disc, self.r0(psi)])
+        z0 = np.concatenate([np.full(disc.shape, 0.5 * self.h0), self.z0(psi)])
+        return r0, z0
 
 
 def _graded(n, first, total=1.0):
@@ -114,7 +124,12 @@ def reference(volume, h0, resolution, layer):
     nn = int(np.ceil(4 * res))
     zeta = np.linspace(1.0 / nn, 1.0, nn)
     del free_len
-    return Reference(a0=a0, H=H, beta=2.0 * H * a0, eta=eta, zeta=zeta, xi=xi)
+    zcoef = np.polynomial.chebyshev.chebinterpolate(
+        lambda x: meridian(volume, h0, np.clip((x + 1.0) * np.pi / 4.0, 0.0, np.pi / 2))[1], 60)
+    ref = Reference(a0=a0, H=H, beta=2.0 * H * a0, eta=eta, zeta=zeta, xi=xi, h0=h0, zcoef=zcoef)
+    r, z = ref.positions(0.0)
+    enclosed = 2.0 * np.sum(np.pi * (-np.diff(z)) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3.0)
+    return replace(ref, scale=float(np.sqrt(volume / enclosed)))
 
 
 class _Problem:
@@ -149,21 +164,17 @@ class _Problem:
         return r, z, np.exp(u[-2]), u[-1]
 
     def material(self, psic):
-        ref = self.ref
-        psi_new = psic * ref.zeta
-        psi_free = psic + (np.pi / 2 - psic) * ref.xi
-        S = np.concatenate([[0.0], ref.a0 * ref.eta, ref.S(psi_new), ref.S(psi_free)])
-        r0 = np.concatenate([[0.0], ref.a0 * ref.eta, ref.r0(psi_new), ref.r0(psi_free)])
-        return S, r0
+        """Reference positions (r0, z0) of the nodes' material points."""
+        return self.ref.positions(psic)
 
     # -- local terms -------------------------------------------------------
     def terms(self, u, zp):
         """Element terms (N,) and nodal terms (N+1,) whose sum is L + p V0."""
         r, z, psic, p = self.nodes(u, zp)
-        S, r0 = self.material(psic)
+        r0, z0 = self.material(psic)
         dr, dz = np.diff(r), np.diff(z)
         ds = np.sqrt(dr * dr + dz * dz)
-        dS = np.diff(S)
+        dS = np.sqrt(np.diff(r0) ** 2 + np.diff(z0) ** 2)
         rm, r0m = 0.5 * (r[1:] + r[:-1]), 0.5 * (r0[1:] + r0[:-1])
         e1, e2 = ds / dS - 1.0, rm / r0m - 1.0
         w = 0.5 * self.KB * (e1 + e2) ** 2 + 0.5 * self.KS * (e1 - e2) ** 2
@@ -310,13 +321,16 @@ def _newton(prob, u, zp, tol=1e-4, maxit=30):
                       f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
 
 
-def _reference_state(prob, volume, h0):
-    """Volume and area of the reference mesh (nodes on the droplet at h0)."""
-    psic = 1e-9
-    _, r0 = prob.material(psic)
-    psi_free = psic + (np.pi / 2 - psic) * prob.ref.xi
-    _, zf, _ = meridian(volume, h0, psi_free)
-    u = np.concatenate([r0[1:], zf[:-1], [np.log(psic), 0.0]])
+def _reference_unknowns(prob, psic, h_ratio=1.0):
+    """The unknowns of the reference mesh for label ψ_c, heights scaled by h_ratio."""
+    r0, z0 = prob.material(psic)
+    zfree = z0[prob.kc + 1: prob.N] * h_ratio
+    return np.concatenate([r0[1:], zfree, [np.log(psic), 2.0 * prob.gamma * prob.ref.H]])
+
+
+def _reference_state(prob, h0):
+    """Volume (= V by construction of the scale) and area of the reference mesh."""
+    u = _reference_unknowns(prob, 1e-12)
     return prob.volume(u, 0.5 * h0), prob.area(u, 0.5 * h0)
 
 
@@ -326,21 +340,18 @@ def _droplet_guess(prob, volume, h):
     ref, d = prob.ref, droplet(volume, h)
     Rc = float(d.contact_radius_um)
     psic = min(max((Rc - ref.a0) * 2.0 * ref.H, 1e-3), 0.5)
-    S, _ = prob.material(psic)
-    r_plate = Rc * S[1: prob.kc + 1] / S[prob.kc]
+    r0, _ = prob.material(psic)
+    r_plate = Rc * r0[1: prob.kc + 1] / r0[prob.kc]
     rf, zf, _ = meridian(volume, h, 0.5 * np.pi * ref.xi)
-    return np.concatenate([r_plate, rf, zf[:-1], [np.log(psic), 2.0 * prob.gamma * float(d.mean_curvature_per_um)]])
+    p = 2.0 * prob.gamma * float(d.mean_curvature_per_um)
+    return np.concatenate([r_plate, rf, zf[:-1], [np.log(psic), p]])
 
 
 def _squeezed_reference(prob, shell, h, widen=1.0):
     """Start for an elastic shell: the reference nodes, heights scaled to the gap h."""
     dR = float(droplet(shell.volume_um3, h).contact_radius_um) - prob.ref.a0
     psic = min(max(widen * dR * 2.0 * prob.ref.H, 2e-3), 0.5)
-    _, r0 = prob.material(psic)
-    psi_free = psic + (np.pi / 2 - psic) * prob.ref.xi
-    _, zf, _ = meridian(shell.volume_um3, shell.h0_um, psi_free)
-    p = 2.0 * prob.gamma * prob.ref.H
-    return np.concatenate([r0[1:], zf[:-1] * h / shell.h0_um, [np.log(psic), p]])
+    return _reference_unknowns(prob, psic, h / shell.h0_um)
 
 
 def _compress(prob, shell, steps, widen=1.0, start="droplet"):
@@ -364,7 +375,7 @@ def _equilibrium(shell):
                     round(float(layer), 4))
     prob = _Problem(shell, ref)
     # the reference mesh at h0 defines V0 and the reference area
-    prob.V0, area0 = _reference_state(prob, shell.volume_um3, shell.h0_um)
+    prob.V0, area0 = _reference_state(prob, shell.h0_um)
     # Newton from a start with too little contact can end on a stationary state
     # whose free surface pokes through the plate: start with more contact then.
     zp, failure = 0.5 * shell.h1_um, None
@@ -403,9 +414,9 @@ def solve(shell):
     zp = 0.5 * shell.h1_um
     force = prob.force(u, zp)
     r, z, psic, p = prob.nodes(u, zp)
-    S, r0 = prob.material(psic)
+    r0, z0 = prob.material(psic)
     ds = np.hypot(np.diff(r), np.diff(z))
-    lam_e = ds / np.diff(S)
+    lam_e = ds / np.hypot(np.diff(r0), np.diff(z0))
     lam1 = np.concatenate([[lam_e[0]], 0.5 * (lam_e[1:] + lam_e[:-1]), [lam_e[-1]]])
     with np.errstate(divide="ignore", invalid="ignore"):
         lam2 = np.where(r0 > 0, r / np.where(r0 > 0, r0, 1.0), lam1)
