@@ -120,6 +120,7 @@ def solver_results(variants=("standard",), grid=PAPER_GRID, method="fast", progr
     (`solver.compression.compress`), no campaign: for tests and checks where
     no store exists. Slow: one solve per grid point and variant."""
     from solver.compression import compress
+    from solver.errors import SolverError
     from solver.model import Shell
     keys = ("volume_um3", "bulk_mN_per_m", "shear_mN_per_m", "h0_um", "tension_mN_per_m", "dh_um")
     rows = []
@@ -128,7 +129,10 @@ def solver_results(variants=("standard",), grid=PAPER_GRID, method="fast", progr
         shell = Shell(bending=bending, **params)
         row = {"task_id": f"s{i:05d}", "state": "done", "bending": bending, **params,
                "thickness_um": shell.thickness_um}
-        row.update(compress(shell, method).to_dict())
+        try:
+            row.update(compress(shell, method).to_dict())
+        except SolverError as err:                 # recorded like a failed campaign task
+            row.update(state="failed", error=str(err), h_tilde=np.nan, modulus_mN_per_m=np.nan)
         rows.append(row)
         if progress and (i + 1) % 50 == 0:
             progress(f"{i + 1} solves")
