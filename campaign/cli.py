@@ -1,0 +1,60 @@
+"""`cortex campaign run|status`."""
+
+
+def register(sub):
+    p = sub.add_parser("campaign", help="run, resume and inspect simulation campaigns (MPI)",
+                       description="Run a campaign of shell compressions across MPI ranks into one "
+                                   "HDF5 store (mpiexec -n N cortex campaign run ...), resume it, "
+                                   "and look at its progress.")
+    cs = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    r = cs.add_parser("run", help="run or resume a campaign",
+                      description="Run or resume the campaign of CONFIG into STORE. Rerunning the same "
+                                  "command resumes: done tasks are skipped, interrupted ones redone. "
+                                  "Exit status: 0 all done, 1 some tasks failed, 2 bad input, "
+                                  "3 stopped by SIGTERM/SIGINT (rerun to resume).")
+    r.add_argument("config", metavar="CONFIG.toml", help="campaign file")
+    r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file)")
+    r.add_argument("--new", action="store_true", help="start over; the old store is kept as a backup")
+    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
+    r.add_argument("--quiet", action="store_true", help="no progress output")
+    r.set_defaults(handler="campaign.cli:run")
+    s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
+                      description="Summarise a store (also while its campaign is running).")
+    s.add_argument("store", metavar="STORE.h5")
+    s.add_argument("--json", action="store_true", help="one JSON object")
+    s.set_defaults(handler="campaign.cli:status")
+
+
+def run(args):
+    import os
+    from campaign import config, scheduler
+    from solver.errors import InputError
+    campaign = config.load(args.config)
+    store = args.store or campaign.store
+    if not store:
+        raise InputError(f"{args.config}: no store given (--store, or [campaign] store)")
+    parent = os.path.dirname(os.path.abspath(store))
+    os.makedirs(parent, exist_ok=True)
+    status = scheduler.run(campaign, store, new=args.new, retry_failed=args.retry_failed,
+                           progress=not args.quiet)
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
+        print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
+    return status
+
+
+def status(args):
+    import json
+    from campaign.store import summary
+    info = summary(args.store)
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    print(f"{args.store}: {info['tasks']} tasks: " + ", ".join(
+        f"{info[s]} {s}" for s in ("done", "failed", "running", "pending")))
+    if info["tasks_per_s"]:
+        eta = f", ETA {info['eta_s']:.0f} s" if info["eta_s"] else ""
+        print(f"throughput {info['tasks_per_s']:.2f} task/s{eta}")
+    for tid, err in info["failures"]:
+        print(f"failed {tid}: {err}")
+    return 0
