@@ -1,0 +1,115 @@
+"""The campaign engine: config validation, resume, kill safety, ranks."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from campaign.store import read_results
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+TINY = """
+[campaign]
+name = "tiny"
+[grid]
+h0_um = [12.0, 11.0]
+bulk_mN_per_m = 0.0
+shear_mN_per_m = 0.0
+tension_mN_per_m = [1.0, 2.0]
+bending = "none"
+[solver]
+timeout_s = 120.0
+"""
+RESULT_COLUMNS = ["force_nN", "modulus_mN_per_m", "h_tilde", "volume_error"]
+
+
+def cortex(*args, env=None, mpi=0):
+    cmd = ([str(BIN / "mpiexec"), "-n", str(mpi)] if mpi else []) + [str(BIN / "cortex"), *args]
+    return subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})},
+                          cwd=ROOT, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def reference_store(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ref")
+    (d / "tiny.toml").write_text(TINY)
+    out = cortex("campaign", "run", str(d / "tiny.toml"), "--store", str(d / "s.h5"), "--quiet")
+    assert out.returncode == 0, out.stderr
+    return d / "s.h5"
+
+
+def test_runs_every_task_once_and_status_reads_it(reference_store):
+    frame = read_results(reference_store)
+    assert list(frame["state"]) == ["done"] * 4
+    assert (frame["attempts"] == 1).all()
+    assert np.isfinite(frame["force_nN"]).all()
+    out = cortex("campaign", "status", str(reference_store))
+    assert "4 done" in out.stdout
+
+
+def test_rerun_resumes_without_redoing(reference_store, tmp_path):
+    before = read_results(reference_store)
+    out = cortex("campaign", "run", str(reference_store.parent / "tiny.toml"), "--store",
+                 str(reference_store), "--quiet")
+    assert out.returncode == 0
+    after = read_results(reference_store)
+    assert (after["attempts"] == 1).all()
+    pd.testing.assert_frame_equal(before[RESULT_COLUMNS], after[RESULT_COLUMNS])
+
+
+def test_two_ranks_give_the_same_results(reference_store, tmp_path):
+    (tmp_path / "tiny.toml").write_text(TINY)
+    out = cortex("campaign", "run", str(tmp_path / "tiny.toml"), "--store", str(tmp_path / "s.h5"),
+                 "--quiet", mpi=2)
+    assert out.returncode == 0, out.stderr
+    two = read_results(tmp_path / "s.h5")
+    assert set(two["rank"]) <= {0, 1}
+    pd.testing.assert_frame_equal(read_results(reference_store)[RESULT_COLUMNS], two[RESULT_COLUMNS])
+
+
+@pytest.mark.parametrize("row", [0, 2])
+def test_killed_mid_write_then_rerun_completes(reference_store, tmp_path, row):
+    (tmp_path / "tiny.toml").write_text(TINY)
+    store = tmp_path / "s.h5"
+    args = ("campaign", "run", str(tmp_path / "tiny.toml"), "--store", str(store), "--quiet")
+    killed = cortex(*args, env={"CORTEX_TEST_KILL_MID_WRITE": str(row)})
+    assert killed.returncode == -9
+    rerun = cortex(*args)
+    assert rerun.returncode == 0, rerun.stderr
+    frame = read_results(store)
+    assert list(frame["state"]) == ["done"] * 4
+    assert (frame["attempts"] == 1).all()          # the journalled task is not redone
+    pd.testing.assert_frame_equal(read_results(reference_store)[RESULT_COLUMNS], frame[RESULT_COLUMNS])
+
+
+BAD = {
+    "not toml": "[grid\nh0_um = 12",
+    "unknown section": TINY + "\n[extra]\nx = 1\n",
+    "unknown key": TINY.replace("bending = \"none\"", "bending = \"none\"\nfoo = 1"),
+    "wrong type": TINY.replace("bulk_mN_per_m = 0.0", "bulk_mN_per_m = \"soft\""),
+    "negative modulus": TINY.replace("shear_mN_per_m = 0.0", "shear_mN_per_m = -1.0"),
+    "dh >= h0": TINY.replace("[solver]", "[solver]").replace("h0_um = [12.0, 11.0]", "h0_um = [12.0, 11.0]\ndh_um = 12.0"),
+    "h0 above the sphere": TINY.replace("h0_um = [12.0, 11.0]", "h0_um = [25.0]"),
+    "empty grid": TINY.replace("tension_mN_per_m = [1.0, 2.0]", "tension_mN_per_m = []"),
+    "bad bending": TINY.replace("bending = \"none\"", "bending = \"floppy\""),
+    "bad method": TINY.replace("timeout_s = 120.0", "timeout_s = 120.0\nmethod = \"magic\""),
+    "negative timeout": TINY.replace("timeout_s = 120.0", "timeout_s = -1.0"),
+    "no grid": "[campaign]\nname = \"x\"\n",
+    "missing tension": TINY.replace("tension_mN_per_m = [1.0, 2.0]\n", ""),
+    "other campaign": TINY.replace("tension_mN_per_m = [1.0, 2.0]", "tension_mN_per_m = [1.0, 3.0]"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(BAD))
+def test_bad_campaign_file_one_line_exit_2_store_untouched(reference_store, tmp_path, kind):
+    (tmp_path / "bad.toml").write_text(BAD[kind])
+    before = (reference_store.read_bytes(), reference_store.stat().st_mtime_ns)
+    out = cortex("campaign", "run", str(tmp_path / "bad.toml"), "--store", str(reference_store))
+    assert out.returncode == 2, (kind, out.stderr)
+    assert len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert (reference_store.read_bytes(), reference_store.stat().st_mtime_ns) == before
