@@ -5,6 +5,9 @@
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`
     [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
+    [test]      fault injection for tests only: raise_task, hang_task, nan_task,
+                each a list of grid indices whose task raises, sleeps past its
+                timeout, or returns NaN instead of being solved
 
 The grid is the Cartesian product of the lists. Every compression is checked
 with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
@@ -23,7 +26,8 @@ GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
              "tension_mN_per_m", "thickness_um", "bending")
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 SECTIONS = {"campaign": {"name", "store"}, "grid": set(GRID_KEYS),
-            "solver": {"method", "resolution", "timeout_s"}}
+            "solver": {"method", "resolution", "timeout_s"},
+            "test": {"raise_task", "hang_task", "nan_task"}}
 
 
 @dataclass(frozen=True)
@@ -35,6 +39,7 @@ class Campaign:
     timeout_s: float
     shells: tuple          # every compression, in grid order
     text: str              # the file's text, kept in the store
+    faults: dict = None    # grid index -> "raise" | "hang" | "nan" ([test] section only)
 
     @property
     def fingerprint(self):
@@ -109,6 +114,13 @@ def load(path):
     for key in ("name", "store"):
         if key in meta and not isinstance(meta[key], str):
             raise InputError(f"{path}: [campaign] {key} must be a string")
-    return Campaign(name=meta.get("name", str(path)), store=meta.get("store"), method=method,
+    faults = {}
+    for key, value in data.get("test", {}).items():
+        rows = value if isinstance(value, list) else [value]
+        for row in rows:
+            if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(shells):
+                raise InputError(f"{path}: [test] {key} must be grid indices 0..{len(shells) - 1} (got {row!r})")
+            faults[row] = key.removesuffix("_task")
+    return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
                     text=raw.decode())

@@ -35,14 +35,24 @@ def _alarm(signum, frame):
     raise TaskTimeout()
 
 
-def compute(shell, method, timeout_s):
+def _faulty(fault):
+    """The injected faults of a campaign's [test] section."""
+    if fault == "raise":
+        raise RuntimeError("injected fault: this task raises")
+    if fault == "hang":
+        time.sleep(1e6)
+    from campaign.store import RESULTS
+    return {key: float("nan") for key in RESULTS}
+
+
+def compute(shell, method, timeout_s, fault=None):
     """Run one compression: (state, results, error)."""
     from solver.compression import compress
     started = time.time()
     signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        result = compress(shell, method).to_dict()
+        result = _faulty(fault) if fault else compress(shell, method).to_dict()
         result.pop("method", None)
         if not all(math.isfinite(v) for v in result.values() if isinstance(v, float)):
             return "failed", {}, "non-finite result", started
@@ -91,7 +101,8 @@ def _worker(comm, campaign):
         row = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
         if status.Get_tag() == TAG_STOP:
             return
-        state, results, err, started = compute(campaign.shells[row], campaign.method, campaign.timeout_s)
+        state, results, err, started = compute(campaign.shells[row], campaign.method, campaign.timeout_s,
+                             (campaign.faults or {}).get(row))
         comm.send((row, state, results, err, started), dest=0, tag=TAG_RESULT)
 
 
@@ -136,7 +147,8 @@ def _master(comm, store, campaign, retry_failed, progress):
         if todo and not _stop["flag"]:
             row = todo.pop(0)
             store.mark_running([row])
-            finish(row, *compute(campaign.shells[row], campaign.method, campaign.timeout_s), 0)
+            finish(row, *compute(campaign.shells[row], campaign.method, campaign.timeout_s,
+                             (campaign.faults or {}).get(row)), 0)
         elif any(in_flight.values()):
             time.sleep(0.002)
         if time.time() - last_flush > 2.0:

@@ -113,3 +113,28 @@ def test_bad_campaign_file_one_line_exit_2_store_untouched(reference_store, tmp_
     assert out.returncode == 2, (kind, out.stderr)
     assert len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert (reference_store.read_bytes(), reference_store.stat().st_mtime_ns) == before
+
+
+def test_injected_faults_are_recorded_and_the_rest_completes(tmp_path):
+    """A task that raises, one that hangs past its timeout and one that returns
+    NaN are each failed with their message; the fourth is done; exit status 1."""
+    text = TINY.replace("timeout_s = 120.0", "timeout_s = 2.0") + \
+        "[test]\nraise_task = [0]\nhang_task = [1]\nnan_task = [2]\n"
+    (tmp_path / "f.toml").write_text(text)
+    store = tmp_path / "f.h5"
+    out = cortex("campaign", "run", str(tmp_path / "f.toml"), "--store", str(store), "--quiet")
+    assert out.returncode == 1, out.stderr
+    assert "3 tasks failed" in out.stderr
+    frame = read_results(store)
+    assert list(frame["state"]) == ["failed", "failed", "failed", "done"]
+    assert "injected fault" in frame["error"][0]
+    assert "timed out after 2 s" in frame["error"][1]
+    assert "non-finite" in frame["error"][2]
+    assert np.isnan(frame["force_nN"][:3]).all() and np.isfinite(frame["force_nN"][3])
+    status = cortex("campaign", "status", str(store))
+    assert "3 failed" in status.stdout and "injected fault" in status.stdout
+    # --retry-failed runs the three again (still faulty): attempts become 2, the done one stays 1
+    out = cortex("campaign", "run", str(tmp_path / "f.toml"), "--store", str(store), "--quiet",
+                 "--retry-failed")
+    assert out.returncode == 1
+    assert list(read_results(store)["attempts"]) == [2, 2, 2, 1]
