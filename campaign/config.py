@@ -7,7 +7,8 @@
     [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
     [test]      fault injection for tests only: raise_task, hang_task, nan_task,
                 each a list of grid indices whose task raises, sleeps past its
-                timeout, or returns NaN instead of being solved
+                timeout, or returns NaN instead of being solved; noop = true
+                makes every task return zeros at once (throughput benchmark)
 
 The grid is the Cartesian product of the lists. Every compression is checked
 with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
@@ -27,7 +28,7 @@ GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 SECTIONS = {"campaign": {"name", "store"}, "grid": set(GRID_KEYS),
             "solver": {"method", "resolution", "timeout_s"},
-            "test": {"raise_task", "hang_task", "nan_task"}}
+            "test": {"raise_task", "hang_task", "nan_task", "noop"}}
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,13 @@ def load(path):
         if key in meta and not isinstance(meta[key], str):
             raise InputError(f"{path}: [campaign] {key} must be a string")
     faults = {}
-    for key, value in data.get("test", {}).items():
+    tests = dict(data.get("test", {}))
+    noop = tests.pop("noop", False)
+    if not isinstance(noop, bool):
+        raise InputError(f"{path}: [test] noop must be true or false (got {noop!r})")
+    if noop:
+        faults.update({row: "noop" for row in range(len(shells))})
+    for key, value in tests.items():
         rows = value if isinstance(value, list) else [value]
         for row in rows:
             if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(shells):

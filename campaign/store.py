@@ -90,7 +90,7 @@ class Store:
         self.file["state"][:] = state
         self.file.flush()
         self.journal = open(self.journal_path, "a")
-        self.pending_lines = 0
+        self.buffer, self.running, self.shown_running = [], set(), set()
 
     # -- opening -----------------------------------------------------------
     def _check_same(self, campaign):
@@ -164,22 +164,29 @@ class Store:
             return h5py.File(self.path, "r+")
 
     def _replay(self):
-        for entry in read_journal(self.journal_path):
-            self._write_row(entry)
+        self._write_rows(read_journal(self.journal_path))
 
     # -- writing -----------------------------------------------------------
-    def _write_row(self, entry):
-        i = entry["row"]
+    def _write_rows(self, entries):
+        """Write entries into their rows, one HDF5 write per column (last entry of a row wins)."""
+        by_row = {e["row"]: e for e in entries}
+        if not by_row:
+            return
+        rows = np.array(sorted(by_row))
+        batch = [by_row[i] for i in rows]
         f = self.file
-        f["state"][i] = STATES.index(entry["state"])
-        f["attempts"][i] = entry["attempts"]
-        f["rank"][i] = entry["rank"]
-        f["error"][i] = entry.get("error", "")
-        f["converged"][i] = int(bool(entry.get("results", {}).get("converged", False)))
-        f["started_unix_s"][i] = entry.get("started", np.nan)
-        for key, value in entry.get("results", {}).items():
-            if key in RESULTS:
-                f[key][i] = value
+        results = [e.get("results", {}) for e in batch]
+        columns = {
+            "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
+            "attempts": np.array([e["attempts"] for e in batch], np.int32),
+            "rank": np.array([e["rank"] for e in batch], np.int32),
+            "error": np.array([e.get("error", "") for e in batch], object),
+            "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
+            "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
+        for key in RESULTS:
+            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+        for key, values in columns.items():
+            f[key][rows] = values
 
     def state(self):
         return self.file["state"][:]
@@ -188,27 +195,34 @@ class Store:
         return self.file["attempts"][:]
 
     def mark_running(self, rows):
-        if len(rows):
-            rows = np.sort(np.asarray(rows))
-            st = self.file["state"][:]
-            st[rows] = RUNNING
-            self.file["state"][:] = st
+        """Shown as running from the next flush on (the journal never holds `running`)."""
+        self.running.update(int(r) for r in rows)
 
     def record(self, entry):
-        """Journal first, then the HDF5 row (flushed in batches by `flush`)."""
+        """Journal first; the HDF5 rows follow in batches, after the journal's fsync (`flush`)."""
         self.journal.write(json.dumps(entry) + "\n")
-        self.pending_lines += 1
+        self.buffer.append(entry)
+        self.running.discard(entry["row"])
         if os.environ.get("CORTEX_TEST_KILL_MID_WRITE") == str(entry["row"]):
             self.flush()
             self.file["state"][entry["row"]] = DONE
             os.kill(os.getpid(), 9)
-        self._write_row(entry)
 
     def flush(self):
-        if self.pending_lines:
+        """fsync the journal, then write the buffered rows and the running marks into HDF5."""
+        if self.buffer:
             self.journal.flush()
             os.fsync(self.journal.fileno())
-            self.pending_lines = 0
+            self._write_rows(self.buffer)
+            self.buffer = []
+        if self.running != self.shown_running:
+            state = self.file["state"][:]
+            state[list(self.shown_running - self.running)] = np.where(
+                state[list(self.shown_running - self.running)] == RUNNING, PENDING,
+                state[list(self.shown_running - self.running)])
+            state[list(self.running)] = RUNNING
+            self.file["state"][:] = state
+            self.shown_running = set(self.running)
         self.file.flush()
 
     def close(self):

@@ -1,0 +1,98 @@
+"""Throughput and speed-up of the campaign engine; prints one JSON object.
+
+tasks_per_s: 10,000 no-op tasks ([test] noop = true: each returns zeros at
+once) through `mpiexec -n 2 cortex campaign run`, store and journal included,
+wall time of the whole command (start-up included).
+futures_tasks_per_s: the same 10,000 no-op calls through mpi4py.futures'
+MPIPoolExecutor.map under `mpiexec -n 2 python -m mpi4py.futures`, same run.
+paper_wall_s_1, paper_wall_s_2: campaigns/paper.toml (540 compressions, fast
+solver) under 1 and 2 ranks into a fresh store; speedup_2 = their ratio.
+--no-paper skips the paper runs (null). The machine is shared: timings noisy.
+"""
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+BIN = pathlib.Path(sys.executable).parent
+N_NOOP = 10_000
+NOOP = """
+[campaign]
+name = "noop"
+[grid]
+h0_um = [{h0}]
+bulk_mN_per_m = 25.0
+shear_mN_per_m = [{shear}]
+tension_mN_per_m = [{tension}]
+[test]
+noop = true
+"""
+
+
+def _noop(x):
+    return x
+
+
+def _grid(lo, hi, n):
+    return ", ".join(f"{lo + (hi - lo) * i / (n - 1):.6f}" for i in range(n))
+
+
+def _timed(cmd):
+    started = time.perf_counter()
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    wall = time.perf_counter() - started
+    if out.returncode != 0:
+        raise SystemExit(f"bench: {' '.join(map(str, cmd))} failed: {out.stderr.strip()[-500:]}")
+    return wall, out.stdout
+
+
+def main():
+    if "--futures-child" in sys.argv:     # runs under python -m mpi4py.futures
+        from mpi4py.futures import MPIPoolExecutor
+        with MPIPoolExecutor() as pool:
+            started = time.perf_counter()
+            n = sum(1 for _ in pool.map(_noop, range(N_NOOP)))
+            print(json.dumps({"n": n, "wall_s": time.perf_counter() - started}))
+        return
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--no-paper", action="store_true", help="skip the paper campaign runs")
+    args = parser.parse_args()
+    mpiexec, cortex = str(BIN / "mpiexec"), str(BIN / "cortex")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = pathlib.Path(tmp)
+        cfg = tmp / "noop.toml"
+        cfg.write_text(NOOP.format(h0=_grid(10.0, 15.0, 25), shear=_grid(5.0, 25.0, 20),
+                                   tension=_grid(0.5, 3.0, 20)))
+        wall, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(cfg), "--store",
+                          str(tmp / "noop.h5"), "--quiet"])
+        tasks_per_s = N_NOOP / wall
+        started = time.perf_counter()
+        _, out = _timed([mpiexec, "-n", "2", sys.executable, "-m", "mpi4py.futures",
+                         str(pathlib.Path(__file__).resolve()), "--futures-child"])
+        futures_wall = time.perf_counter() - started
+        futures_tasks_per_s = N_NOOP / futures_wall
+        futures_pool_tasks_per_s = N_NOOP / json.loads(out.strip().splitlines()[-1])["wall_s"]
+        paper = {1: None, 2: None}
+        if not args.no_paper:
+            for n in (1, 2):
+                cmd = ([mpiexec, "-n", "2"] if n == 2 else []) + [
+                    cortex, "campaign", "run", str(ROOT / "campaigns/paper.toml"), "--store",
+                    str(tmp / f"paper{n}.h5"), "--quiet"]
+                paper[n], _ = _timed(cmd)
+    print(json.dumps({
+        "tasks_per_s": round(tasks_per_s, 1),
+        "futures_tasks_per_s": round(futures_tasks_per_s, 1),
+        "futures_map_only_tasks_per_s": round(futures_pool_tasks_per_s, 1),
+        "paper_wall_s_1": paper[1] and round(paper[1], 2),
+        "paper_wall_s_2": paper[2] and round(paper[2], 2),
+        "speedup_2": paper[1] and round(paper[1] / paper[2], 3),
+    }))
+
+
+if __name__ == "__main__":
+    main()
