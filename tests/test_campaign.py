@@ -138,3 +138,35 @@ def test_injected_faults_are_recorded_and_the_rest_completes(tmp_path):
                  "--retry-failed")
     assert out.returncode == 1
     assert list(read_results(store)["attempts"]) == [2, 2, 2, 1]
+
+
+@pytest.mark.parametrize("delay_s", [0.2, 1.0, 2.0, 3.5])
+def test_sigkill_at_a_moment_then_rerun_completes(reference_store, tmp_path, delay_s):
+    """SIGKILL from outside at several moments (start-up, store creation, while
+    solving, between writes; with the two mid-write kills above: six moments),
+    under two ranks; the rerun finishes, every task recorded once, same results."""
+    (tmp_path / "tiny.toml").write_text(TINY)
+    store = tmp_path / "s.h5"
+    args = ("campaign", "run", str(tmp_path / "tiny.toml"), "--store", str(store), "--quiet")
+    proc = subprocess.Popen([str(BIN / "mpiexec"), "-n", "2", str(BIN / "cortex"), *args], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        proc.wait(timeout=delay_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, 9)
+        proc.wait()
+    rerun = cortex(*args)
+    assert rerun.returncode == 0, rerun.stderr
+    frame = read_results(store)
+    assert list(frame["state"]) == ["done"] * 4
+    assert (frame["attempts"] == 1).all()
+    pd.testing.assert_frame_equal(read_results(reference_store)[RESULT_COLUMNS], frame[RESULT_COLUMNS])
+
+
+def test_three_ranks_give_the_same_results(reference_store, tmp_path):
+    (tmp_path / "tiny.toml").write_text(TINY)
+    out = cortex("campaign", "run", str(tmp_path / "tiny.toml"), "--store", str(tmp_path / "s.h5"),
+                 "--quiet", mpi=3)
+    assert out.returncode == 0, out.stderr
+    three = read_results(tmp_path / "s.h5")
+    pd.testing.assert_frame_equal(read_results(reference_store)[RESULT_COLUMNS], three[RESULT_COLUMNS])
