@@ -58,8 +58,11 @@ _REG = 1e-3            # in-plane regularisation, relative to γ_a
 
 
 def _catan2(y, x):
-    """atan2 that accepts complex arguments (for complex-step derivatives)."""
-    return 2.0 * np.arctan(y / (np.sqrt(x * x + y * y) + x))
+    """atan2 that accepts complex arguments (for complex-step derivatives).
+    A degenerate element (x < 0, y = 0) gives NaN, which Newton's step control
+    rejects; no warning is printed for it."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return 2.0 * np.arctan(y / (np.sqrt(x * x + y * y) + x))
 
 
 @dataclass(frozen=True)
