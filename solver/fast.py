@@ -117,16 +117,14 @@ def reference(volume, h0, resolution, layer):
     d = droplet(volume, h0)
     a0, H = float(d.contact_radius_um), float(d.mean_curvature_per_um)
     res = float(resolution)
-    free_len = 0.5 * (float(d.free_area_um2) / (2 * np.pi * float(d.equator_radius_um)))
     first = min(layer / 8.0, 0.05) / res
     nf = int(np.ceil(60 * res))
-    xi = _graded(nf, first * 2.0 * H / (np.pi / 2) / 1.0, 1.0)   # in units of the ψ range
+    xi = _graded(nf, first * 2.0 * H / (np.pi / 2))   # ds/dψ = 1/(2H) at the contact line
     nd = int(np.ceil(20 * res))
     eta = 1.0 - _graded(nd, first / a0, 1.0)[::-1]
     eta = np.append(eta[1:], 1.0)
     nn = int(np.ceil(4 * res))
     zeta = np.linspace(1.0 / nn, 1.0, nn)
-    del free_len
     zcoef = np.polynomial.chebyshev.chebinterpolate(
         lambda x: meridian(volume, h0, np.clip((x + 1.0) * np.pi / 4.0, 0.0, np.pi / 2))[1], 60)
     ref = Reference(a0=a0, H=H, beta=2.0 * H * a0, eta=eta, zeta=zeta, xi=xi, h0=h0, zcoef=zcoef)
