@@ -1,0 +1,135 @@
+"""The fast solver's reference mesh: material points labelled on the droplet at h0.
+
+Material points are labelled by where they sit on the reference droplet at h0
+(SPEC section 1; H_d its mean curvature, a0 = R_c(h0), β = 2 H_d a0): the
+contact disc (reference radius r0 = a0 η, η ∈ (0, 1]) and the free surface,
+labelled by its reference tangent angle ψ0 ∈ [0, π/2] with the closed form
+
+    r0(ψ0) = S (sin ψ0 + sqrt(sin² ψ0 + β²)) / (2 H_d),
+
+and z0(ψ0) a Chebyshev series of the droplet's meridian. S scales the radii so
+that the discrete reference mesh encloses exactly V (S - 1 = O(ds²)).
+
+After compression the material with ψ0 < ψ_c lies on the plate too: with
+l = log ψ_c as unknown, the nodes of the newly touching strip sit at
+ψ0 = ψ_c ζ_j and those of the free part at ψ0 = ψ_c + (π/2 - ψ_c) ξ_j, graded
+towards the contact line, where bending acts in a layer of width sqrt(B/γ_a).
+`Reference.positions(l)` gives (r0, z0) of every node and their first and
+second derivatives in l (needed for the exact Newton matrix):
+
+    ∂ψ0/∂l = ∂²ψ0/∂l² = ψ_c ζ (strip),  ψ_c (1 - ξ) (free part).
+"""
+
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
+import numpy as np
+from numpy.polynomial import chebyshev
+
+from solver.geometry import droplet, meridian
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The reference droplet at h0 and the mesh labels (cached per shell shape)."""
+
+    a0: float           # R_c(h0), µm
+    H: float            # droplet mean curvature H_d, 1/µm
+    beta: float         # 2 H_d a0
+    eta: np.ndarray     # disc nodes r0 = a0 η, η in (0, 1]
+    zeta: np.ndarray    # strip nodes ψ0 = ψ_c ζ, ζ in (0, 1]
+    xi: np.ndarray      # free nodes ψ0 = ψ_c + (π/2 - ψ_c) ξ, ξ in (0, 1]
+    h0: float
+    zcoef: np.ndarray   # Chebyshev series of z0(ψ0) on [0, π/2] (from the mid-plane)
+    scale: float = 1.0  # S
+
+    def r0(self, psi):
+        s = np.sin(psi)
+        return self.scale * (s + np.sqrt(s * s + self.beta**2)) / (2.0 * self.H)
+
+    def _free(self, psi):
+        """r0, z0 and their first and second ψ0-derivatives on the free surface:
+        with q = sqrt(sin² ψ0 + β²), dr0/dψ0 = r0 cos ψ0 / q and, as
+        dz/dr = -tan ψ0 on the droplet, dz0/dψ0 = -(r0/S) sin ψ0 / q."""
+        s, c = np.sin(psi), np.cos(psi)
+        q = np.sqrt(s * s + self.beta**2)
+        r = self.r0(psi)
+        r1 = r * c / q
+        r2 = r * c * c / q**2 - r * s / q - r * c * c * s / q**3
+        z = chebyshev.chebval(4.0 * psi / np.pi - 1.0, self.zcoef)
+        z1 = -r * s / (q * self.scale)
+        z2 = -(r1 * s + r * c - r * s * s * c / q**2) / (q * self.scale)
+        return r, z, r1, z1, r2, z2
+
+    def positions(self, logpsic):
+        """(r0, z0, dr0/dl, dz0/dl, d²r0/dl², d²z0/dl²) of every node, pole first
+        (the last call's result is kept: Newton's inner steps keep l)."""
+        last = self.__dict__.get("_last")
+        if last is not None and last[0] == logpsic:
+            return last[1]
+        out = self._positions(logpsic)
+        object.__setattr__(self, "_last", (logpsic, out))
+        return out
+
+    def _positions(self, logpsic):
+        psic = np.exp(logpsic)
+        psi = np.concatenate([psic * self.zeta, psic + (np.pi / 2 - psic) * self.xi])
+        dpsi = np.concatenate([psic * self.zeta, psic * (1.0 - self.xi)])
+        r, z, r1, z1, r2, z2 = self._free(psi)
+        nd = len(self.eta) + 1
+        disc = self.scale * self.a0 * np.concatenate([[0.0], self.eta])
+        zero = np.zeros(nd)
+        return (np.concatenate([disc, r]),
+                np.concatenate([np.full(nd, 0.5 * self.h0), z]),
+                np.concatenate([zero, r1 * dpsi]), np.concatenate([zero, z1 * dpsi]),
+                np.concatenate([zero, r2 * dpsi**2 + r1 * dpsi]),
+                np.concatenate([zero, z2 * dpsi**2 + z1 * dpsi]))
+
+
+def _graded(n, first, total=1.0):
+    """n increasing points in (0, total], the first step ≈ `first`, growing geometrically."""
+    if first * n >= total:
+        return np.linspace(total / n, total, n)
+    lo, hi = 1.0, 2.0
+    f = lambda g: first * (g**n - 1.0) / (g - 1.0) - total  # noqa: E731
+    while f(hi) < 0:
+        hi *= 2.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+    g = 0.5 * (lo + hi)
+    pts = first * (g ** np.arange(1, n + 1) - 1.0) / (g - 1.0)
+    return pts * (total / pts[-1])
+
+
+@lru_cache(maxsize=16)
+def _meridian_series(volume, h0):
+    """Chebyshev series of the droplet's z0(ψ0) on [0, π/2] (60th degree)."""
+    return chebyshev.chebinterpolate(
+        lambda x: meridian(volume, h0, np.clip((x + 1.0) * np.pi / 4.0, 0.0, np.pi / 2))[1], 60)
+
+
+def enclosed_volume(r, z):
+    """Volume of the closed surface of revolution through the upper-half nodes,
+    mirrored: 2 Σ_e π (z_k - z_k+1)(r_k² + r_k r_k+1 + r_k+1²)/3."""
+    return 2.0 * np.sum(np.pi * (-np.diff(z)) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3.0)
+
+
+@lru_cache(maxsize=256)
+def reference(volume, h0, resolution, layer):
+    """Reference droplet and graded mesh; `layer` is the bending layer width (µm)."""
+    d = droplet(volume, h0)
+    a0, H = float(d.contact_radius_um), float(d.mean_curvature_per_um)
+    res = float(resolution)
+    first = min(layer / 8.0, 0.05) / res
+    nf = int(np.ceil(60 * res))
+    xi = _graded(nf, first * 2.0 * H / (np.pi / 2))   # ds/dψ = 1/(2H) at the contact line
+    nd = int(np.ceil(20 * res))
+    eta = 1.0 - _graded(nd, first / a0, 1.0)[::-1]
+    eta = np.append(eta[1:], 1.0)
+    nn = int(np.ceil(4 * res))
+    zeta = np.linspace(1.0 / nn, 1.0, nn)
+    ref = Reference(a0=a0, H=H, beta=2.0 * H * a0, eta=eta, zeta=zeta, xi=xi, h0=h0,
+                    zcoef=_meridian_series(volume, h0))
+    r, z = ref.positions(np.log(1e-12))[:2]
+    return replace(ref, scale=float(np.sqrt(volume / enclosed_volume(r, z))))
