@@ -3,9 +3,9 @@
 
 def register(sub):
     p = sub.add_parser("campaign", help="run, resume and inspect simulation campaigns (MPI)",
-                       description="Run a campaign of shell compressions across MPI ranks into one "
-                                   "HDF5 store (mpiexec -n N cortex campaign run ...), resume it, "
-                                   "and look at its progress.")
+                       description="Run a campaign of shell compressions and Monte-Carlo error trials "
+                                   "across MPI ranks into one HDF5 store (mpiexec -n N cortex campaign "
+                                   "run ...), resume it, and look at its progress.")
     cs = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     r = cs.add_parser("run", help="run or resume a campaign",
                       description="Run or resume the campaign of CONFIG into STORE. Rerunning the same "
@@ -57,4 +57,10 @@ def status(args):
         print(f"throughput {info['tasks_per_s']:.2f} task/s{eta}")
     for tid, err in info["failures"]:
         print(f"failed {tid}: {err}")
+    if "trials" in info:
+        t = info["trials"]
+        print(f"Monte-Carlo: {t['trials']} trials: " + ", ".join(
+            f"{t[s]} {s}" for s in ("done", "failed", "running", "pending")))
+        for err in t["failures"]:
+            print(f"failed trials: {err}")
     return 0

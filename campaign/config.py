@@ -5,10 +5,21 @@
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`
     [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
+    [montecarlo] the Monte-Carlo error trials (SPEC 5, `campaign.trials`):
+                nu (true Poisson ratios, each mapped to the grid's K_S closest to
+                K_B (1-ν)/(1+ν), within 0.01 in ν), cells (N per study, 55),
+                studies (repetitions, 100), volume_error_rel_sd (0.075),
+                height_error_sd_um (0.5), height_error_mode (`per_cell`,
+                `per_height` or both, default both), tension_mN_per_m (the γ_a
+                values a model cell draws from, default all of the grid's),
+                bending (default all of the grid's), seed (0). The grid must
+                hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
     [test]      fault injection for tests only: raise_task, hang_task, nan_task,
                 each a list of grid indices whose task raises, sleeps past its
                 timeout, or returns NaN instead of being solved; noop = true
-                makes every task return zeros at once (throughput benchmark)
+                makes every task return zeros at once (throughput benchmark);
+                fake_law = true makes every compression return at once the
+                force of a made-up smooth law K(h̃) (tests of trials and analysis)
 
 The grid is the Cartesian product of the lists. Every compression is checked
 with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
@@ -20,6 +31,7 @@ import itertools
 import tomllib
 from dataclasses import dataclass
 
+from campaign.trials import MODES, Study, grid_shear
 from solver.errors import InputError
 from solver.model import BENDING_VARIANTS, Shell
 
@@ -28,7 +40,11 @@ GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 SECTIONS = {"campaign": {"name", "store"}, "grid": set(GRID_KEYS),
             "solver": {"method", "resolution", "timeout_s"},
-            "test": {"raise_task", "hang_task", "nan_task", "noop"}}
+            "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
+                           "height_error_mode", "tension_mN_per_m", "bending", "seed"},
+            "test": {"raise_task", "hang_task", "nan_task", "noop", "fake_law"}}
+MC_DEFAULTS = {"cells": 55, "studies": 100, "volume_error_rel_sd": 0.075, "height_error_sd_um": 0.5,
+               "height_error_mode": list(MODES), "seed": 0}
 
 
 @dataclass(frozen=True)
@@ -40,12 +56,16 @@ class Campaign:
     timeout_s: float
     shells: tuple          # every compression, in grid order
     text: str              # the file's text, kept in the store
-    faults: dict = None    # grid index -> "raise" | "hang" | "nan" ([test] section only)
+    faults: dict = None    # grid index -> "raise" | "hang" | "nan" | "noop" | "fake_law" ([test] only)
+    studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
+    trial_cells: int = 0   # N, cells per study
 
     @property
     def fingerprint(self):
         """What identifies the campaign's tasks: refuses a store made from another grid."""
         key = repr([(s.to_dict()) for s in self.shells]) + self.method + repr(self.resolution)
+        if self.studies:
+            key += repr([s.task_id for s in self.studies])
         return hashlib.sha256(key.encode()).hexdigest()
 
 
@@ -120,14 +140,91 @@ def load(path):
     noop = tests.pop("noop", False)
     if not isinstance(noop, bool):
         raise InputError(f"{path}: [test] noop must be true or false (got {noop!r})")
-    if noop:
-        faults.update({row: "noop" for row in range(len(shells))})
+    fake_law = tests.pop("fake_law", False)
+    if not isinstance(fake_law, bool):
+        raise InputError(f"{path}: [test] fake_law must be true or false (got {fake_law!r})")
+    if noop or fake_law:
+        faults.update({row: "noop" if noop else "fake_law" for row in range(len(shells))})
     for key, value in tests.items():
         rows = value if isinstance(value, list) else [value]
         for row in rows:
             if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(shells):
                 raise InputError(f"{path}: [test] {key} must be grid indices 0..{len(shells) - 1} (got {row!r})")
             faults[row] = key.removesuffix("_task")
+    mc = data.get("montecarlo")
+    studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells) if mc is not None else ()
     return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
-                    text=raw.decode())
+                    text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
+
+
+def _mc_number(path, key, value, low, high=float("inf"), integer=False):
+    kind = int if integer else (int, float)
+    if isinstance(value, bool) or not isinstance(value, kind) or not low <= value < high:
+        what = "an integer" if integer else "a number"
+        raise InputError(f"{path}: [montecarlo] {key} must be {what} in [{low:g}, {high:g}) (got {value!r})")
+    return value
+
+
+def _mc_names(path, key, value, allowed):
+    names = value if isinstance(value, list) else [value]
+    bad = [n for n in names if n not in allowed]
+    if bad or not names or len(set(names)) < len(names):
+        raise InputError(f"{path}: [montecarlo] {key} must be distinct values among "
+                         f"{', '.join(map(str, allowed))} (got {value!r})")
+    return names
+
+
+def _studies(path, mc, axes, shells):
+    """The Monte-Carlo trial tasks: one `Study` per (bending, ν, mode, repetition)."""
+    for key in ("volume_um3", "dh_um", "bulk_mN_per_m", "thickness_um"):
+        if len(axes[key]) != 1:
+            raise InputError(f"{path}: [montecarlo] needs one [grid] {key} (got {len(axes[key])}): "
+                             "a model cell has one")
+    if "nu" not in mc:
+        raise InputError(f"{path}: [montecarlo] needs nu, the true Poisson ratios")
+    nus = mc["nu"] if isinstance(mc["nu"], list) else [mc["nu"]]
+    if not nus:
+        raise InputError(f"{path}: [montecarlo] nu is an empty list")
+    bulk = axes["bulk_mN_per_m"][0]
+    if bulk <= 0:
+        raise InputError(f"{path}: [montecarlo] needs [grid] bulk_mN_per_m > 0 (ν is undefined)")
+    shears = {}
+    for nu in nus:
+        _mc_number(path, "nu", nu, -1.0, 1.0)
+        hit = grid_shear(nu, bulk, axes["shear_mN_per_m"])
+        if hit is None:
+            want = bulk * (1 - nu) / (1 + nu)
+            raise InputError(f"{path}: [montecarlo] nu = {nu:g} has no [grid] shear_mN_per_m within "
+                             f"0.01 in nu; add K_S = {want:.4g} mN/m (K_B (1-nu)/(1+nu)) to the grid")
+        if hit[0] in shears:
+            raise InputError(f"{path}: [montecarlo] nu = {nu:g} and {shears[hit[0]]:g} both map to "
+                             f"K_S = {hit[0]:g} mN/m")
+        shears[hit[0]] = nu
+    cells = _mc_number(path, "cells", mc["cells"], 1, 100_001, integer=True)
+    repeats = _mc_number(path, "studies", mc["studies"], 1, 100_001, integer=True)
+    sd_v = float(_mc_number(path, "volume_error_rel_sd", mc["volume_error_rel_sd"], 0.0, 0.5))
+    top = min(axes["h0_um"]) - axes["dh_um"][0]
+    sd_h = float(_mc_number(path, "height_error_sd_um", mc["height_error_sd_um"], 0.0, top))
+    seed = _mc_number(path, "seed", mc["seed"], 0, 2**63, integer=True)
+    modes = _mc_names(path, "height_error_mode", mc["height_error_mode"], MODES)
+    bendings = _mc_names(path, "bending", mc.get("bending", axes["bending"]), axes["bending"])
+    tensions = mc.get("tension_mN_per_m", axes["tension_mN_per_m"])
+    tensions = tensions if isinstance(tensions, list) else [tensions]
+    if not tensions or any(t not in axes["tension_mN_per_m"] or isinstance(t, bool) for t in tensions) \
+            or len(set(tensions)) < len(tensions):
+        raise InputError(f"{path}: [montecarlo] tension_mN_per_m must be distinct values of [grid] "
+                         f"tension_mN_per_m {axes['tension_mN_per_m']} (got {mc['tension_mN_per_m']!r})")
+    row = {(s.h0_um, s.shear_mN_per_m, s.tension_mN_per_m, s.bending): i for i, s in enumerate(shells)}
+    heights = tuple(axes["h0_um"])
+    studies = []
+    for bending, (shear, nu), mode in itertools.product(bendings, shears.items(), modes):
+        for rep in range(repeats):
+            studies.append(Study(
+                bending=bending, nu_true=(bulk - shear) / (bulk + shear), height_error_mode=mode, study=rep,
+                n_cells=cells, volume_um3=axes["volume_um3"][0], dh_um=axes["dh_um"][0],
+                bulk_mN_per_m=bulk, shear_mN_per_m=shear, heights_um=heights,
+                tensions_mN_per_m=tuple(float(t) for t in tensions), volume_error_rel_sd=sd_v,
+                height_error_sd_um=sd_h, seed=seed,
+                rows=tuple(tuple(row[(h, shear, float(t), bending)] for h in heights) for t in tensions)))
+    return tuple(studies)

@@ -5,8 +5,15 @@ tasks at a time (one computing, one queued), so it never waits for rank 0;
 rank 0 answers finished tasks with new ones and, between messages, computes
 tasks itself. Without `mpiexec` the same code runs in one process.
 
-A task that raises, exceeds the per-task timeout (SIGALRM) or returns a
-non-finite K is recorded as failed with its message; the others go on.
+Tasks are numbered: the compressions 0..n-1 (grid order), then the
+Monte-Carlo trial tasks n..n+m-1 (`campaign.trials.Study`). A trial task is
+handed out only once every compression it uses has finished in this run (or
+before it); it is sent with those compressions' forces and failure messages,
+so workers never read the store.
+
+A task that raises, exceeds the per-task timeout (SIGALRM) or (a compression)
+returns a non-finite result is recorded as failed with its message; the
+others go on.
 SIGTERM or SIGINT on any rank: no new tasks are handed out, the tasks in
 flight finish and are written, and the run stops saying how to resume.
 """
@@ -16,6 +23,7 @@ import signal
 import sys
 import time
 import traceback
+from collections import deque
 
 from campaign.store import DONE, FAILED, PENDING, Store
 
@@ -35,28 +43,74 @@ def _alarm(signum, frame):
     raise TaskTimeout()
 
 
-def _faulty(fault):
-    """The injected faults of a campaign's [test] section."""
+def _fake_law(shell):
+    """[test] fake_law: the result of a made-up smooth law instead of a solve,
+    K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S + D(γ̃_a) with cubic C, D
+    (K̃_S = K_S/K_B, γ̃_a = γ_a/K_B, λ = 0.2), and the force that gives it,
+    F = (γ_a + K ε_A) 2 H(h1) A_c(h1); K and the rest then come from that force
+    exactly as after a solve."""
+    from solver.geometry import droplet
+    from solver.modulus import effective_modulus
+    V, h0, h1, bulk, g = shell.volume_um3, shell.h0_um, shell.h1_um, shell.bulk_mN_per_m, shell.tension_mN_per_m
+    geo = effective_modulus(V, h0, h1, g, 0.0)
+    gt = g / bulk
+    alpha = (-0.012 + 0.03 * gt - 0.2 * gt**2 + 0.6 * gt**3) * math.log(shell.shear_mN_per_m / bulk) \
+        + (-0.018 - 0.04 * gt + 0.3 * gt**2 - 1.0 * gt**3)
+    K = bulk * (1.0 + alpha * math.exp(float(geo["h_tilde"]) / 0.2))
+    force = (g + K * float(geo["area_strain"])) * float(droplet(V, h1).force_per_tension_um)
+    out = {k: float(v) for k, v in effective_modulus(V, h0, h1, g, force).items()}
+    out.update(force_nN=force, area_strain_shell=out["area_strain"], volume_error=0.0,
+               equator_shear_ratio=0.0, iterations=0, wall_s=0.0, converged=True)
+    return out
+
+
+def _faulty(fault, shell):
+    """The injected faults and fakes of a campaign's [test] section."""
     if fault == "raise":
         raise RuntimeError("injected fault: this task raises")
     if fault == "hang":
         time.sleep(1e6)
+    if fault == "fake_law":
+        return _fake_law(shell)
     from campaign.store import RESULTS
     return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
 
 
 def compute(shell, method, timeout_s, fault=None):
-    """Run one compression: (state, results, error)."""
+    """Run one compression: (state, results, error, started)."""
     from solver.compression import compress
+
+    def work():
+        result = _faulty(fault, shell) if fault else compress(shell, method).to_dict()
+        result.pop("method", None)
+        if not all(math.isfinite(v) for v in result.values() if isinstance(v, float)):
+            raise _NonFinite()
+        return result
+    return _guarded(work, timeout_s)
+
+
+def compute_study(study, forces, errors, timeout_s):
+    """Run one Monte-Carlo trial task: (state, per-cell lists, error, started)."""
+    from campaign.trials import run_study
+
+    def work():
+        return {k: v.tolist() for k, v in run_study(study, forces, errors).items()}
+    return _guarded(work, timeout_s)
+
+
+class _NonFinite(Exception):
+    pass
+
+
+def _guarded(work, timeout_s):
+    """work() under the per-task timeout; a failure becomes (failed, {}, message)."""
     started = time.time()
     signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        result = _faulty(fault) if fault else compress(shell, method).to_dict()
-        result.pop("method", None)
-        if not all(math.isfinite(v) for v in result.values() if isinstance(v, float)):
-            return "failed", {}, "non-finite result", started
-        return "done", result, "", started
+        return "done", work(), "", started
+    except _NonFinite:
+        return "failed", {}, "non-finite result", started
     except TaskTimeout:
         return "failed", {}, f"timed out after {timeout_s:g} s", started
     except Exception as err:  # a failed task is recorded, the campaign goes on
@@ -94,61 +148,148 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True):
         store.close()
 
 
+def execute(campaign, task, payload):
+    """Task `task` (a compression row, or n + j for trial task j): (state, results, error, started)."""
+    n = len(campaign.shells)
+    if task < n:
+        return compute(campaign.shells[task], campaign.method, campaign.timeout_s,
+                       (campaign.faults or {}).get(task))
+    return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s)
+
+
 def _worker(comm, campaign):
     from mpi4py import MPI
     status = MPI.Status()
     while True:
-        row = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
+        message = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
         if status.Get_tag() == TAG_STOP:
             return
-        state, results, err, started = compute(campaign.shells[row], campaign.method, campaign.timeout_s,
-                             (campaign.faults or {}).get(row))
-        comm.send((row, state, results, err, started), dest=0, tag=TAG_RESULT)
+        task, payload = message
+        comm.send((task, *execute(campaign, task, payload)), dest=0, tag=TAG_RESULT)
+
+
+class _Trials:
+    """Rank 0's bookkeeping of the trial tasks: which wait for which compressions,
+    and the forces they are sent with."""
+
+    def __init__(self, store, campaign, comp_todo, retry_failed):
+        import numpy as np
+        self.n, self.studies = len(campaign.shells), campaign.studies
+        state = store.trial_state()
+        redo = (state == PENDING) | ((state == FAILED) if retry_failed else False)
+        self.todo = [j for j in range(len(self.studies)) if redo[j].any()]
+        self.done0 = int(np.sum((state == DONE).all(axis=1))) if len(self.studies) else 0
+        self.attempts = store.trial_attempts()
+        self.force, self.state, self.error = store.compressions() if self.studies else (None, None, None)
+        pending = set(comp_todo)
+        self.waiting, self.dependents = {}, {}
+        for j in self.todo:
+            deps = [r for r in self.studies[j].dependencies() if r in pending]
+            self.waiting[j] = len(deps)
+            for r in deps:
+                self.dependents.setdefault(r, []).append(j)
+
+    def take_ready(self):
+        """Trial tasks with nothing left to wait for (task numbers), no longer waiting."""
+        ready = [j for j, w in self.waiting.items() if w == 0]
+        for j in ready:
+            del self.waiting[j]
+        return [self.n + j for j in ready]
+
+    def compression_finished(self, row, state, results, error):
+        """Note a compression's result; returns the trial tasks it made ready."""
+        from campaign.store import STATES
+        if self.studies is None or not len(self.studies):
+            return []
+        self.state[row] = STATES.index(state)
+        self.force[row] = results.get("force_nN", float("nan"))
+        self.error[row] = error
+        for j in self.dependents.pop(row, []):
+            self.waiting[j] -= 1
+        return self.take_ready()
+
+    def payload(self, j):
+        """(forces (tensions, heights) with NaN where not done, per tension the
+        message of its first compression that is not done)."""
+        import numpy as np
+        study = self.studies[j]
+        rows = np.array(study.rows)
+        done = self.state[rows] == DONE
+        forces = np.where(done, self.force[rows], np.nan)
+        errors = []
+        for i, line in enumerate(rows):
+            bad = [r for r in line if self.state[r] != DONE]
+            errors.append("" if not bad else
+                          f"compression {bad[0]} (h0 = {study.heights_um[list(line).index(bad[0])]:g} um, "
+                          f"gamma_a = {study.tensions_mN_per_m[i]:g} mN/m) failed: {self.error[bad[0]]}")
+        return forces, errors
+
+    def left(self):
+        return sum(1 for w in self.waiting.values() if w > 0)
 
 
 def _master(comm, store, campaign, retry_failed, progress):
     from mpi4py import MPI
     import numpy as np
+    n = len(campaign.shells)
     states = store.state()
-    todo = np.flatnonzero((states == PENDING) | ((states == FAILED) if retry_failed else False)).tolist()
+    comp_todo = np.flatnonzero((states == PENDING) | ((states == FAILED) if retry_failed else False)).tolist()
+    trials = _Trials(store, campaign, comp_todo, retry_failed)
+    todo = deque(comp_todo + trials.take_ready())
     attempts = store.attempts()
-    total, n_done0 = len(states), int(np.sum(states == DONE))
-    bar = _Progress(total, n_done0, len(todo), enabled=progress)
+    total = n + len(campaign.studies)
+    bar = _Progress(total, int(np.sum(states == DONE)) + trials.done0, len(todo), enabled=progress)
     in_flight = {w: 0 for w in range(1, comm.Get_size())}
     last_flush, failed = time.time(), 0
 
-    def finish(row, state, results, err, started, worker):
+    def finish(task, state, results, err, started, worker):
         nonlocal failed
-        attempts[row] += 1
-        store.record({"row": int(row), "state": state, "results": results, "error": err,
-                      "attempts": int(attempts[row]), "rank": int(worker), "started": started})
-        failed += state == "failed"
+        if task < n:
+            attempts[task] += 1
+            store.record({"row": int(task), "state": state, "results": results, "error": err,
+                          "attempts": int(attempts[task]), "rank": int(worker), "started": started})
+            todo.extend(trials.compression_finished(task, state, results, err))
+            failed += state == "failed"
+        else:
+            j = task - n
+            trials.attempts[j] += 1
+            store.record({"task": int(j), "state": state, "error": err, "cells": results,
+                          "attempts": int(trials.attempts[j]), "rank": int(worker), "started": started})
+            failed += state == "failed" or "failed" in results.get("state", ())
         bar.update(state)
 
+    def payload(task):
+        return None if task < n else trials.payload(task - n)
+
+    def mark(task):
+        store.mark_running([task if task < n else ("task", task - n)])
+
     def hand_out(worker):
-        row = todo.pop(0)
-        store.mark_running([row])
-        comm.send(row, dest=worker, tag=TAG_TASK)
+        task = todo.popleft()
+        mark(task)
+        comm.send((task, payload(task)), dest=worker, tag=TAG_TASK)
         in_flight[worker] += 1
 
-    for w in in_flight:
-        for _ in range(2):
-            if todo and not _stop["flag"]:
+    def refill():
+        """Every worker two tasks ahead (a finished compression may have made trials ready)."""
+        for w in in_flight:
+            while in_flight[w] < 2 and todo and not _stop["flag"]:
                 hand_out(w)
+
+    refill()
     status = MPI.Status()
     while (todo and not _stop["flag"]) or any(in_flight.values()):
         while comm.Iprobe(source=MPI.ANY_SOURCE, tag=TAG_RESULT, status=status):
             worker = status.Get_source()
-            row, state, results, err, started = comm.recv(source=worker, tag=TAG_RESULT)
+            task, state, results, err, started = comm.recv(source=worker, tag=TAG_RESULT)
             in_flight[worker] -= 1
-            finish(row, state, results, err, started, worker)
-            if todo and not _stop["flag"]:
-                hand_out(worker)
+            finish(task, state, results, err, started, worker)
+            refill()
         if todo and not _stop["flag"]:
-            row = todo.pop(0)
-            store.mark_running([row])
-            finish(row, *compute(campaign.shells[row], campaign.method, campaign.timeout_s,
-                             (campaign.faults or {}).get(row)), 0)
+            task = todo.popleft()
+            mark(task)
+            finish(task, *execute(campaign, task, payload(task)), 0)
+            refill()
         elif any(in_flight.values()):
             time.sleep(0.002)
         if time.time() - last_flush > 2.0:
@@ -158,8 +299,8 @@ def _master(comm, store, campaign, retry_failed, progress):
         comm.send(None, dest=w, tag=TAG_STOP)
     store.flush()
     bar.close()
-    if _stop["flag"] and todo:
-        print(f"campaign: stopped by a signal with {len(todo)} tasks left; rerun the same "
+    if _stop["flag"] and (todo or trials.left()):
+        print(f"campaign: stopped by a signal with {len(todo) + trials.left()} tasks left; rerun the same "
               f"command to resume", file=sys.stderr, flush=True)
         return 3
     if failed:

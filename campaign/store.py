@@ -4,6 +4,10 @@ Every dataset is created up front at its final size; a task's parameters,
 state (pending, running, done, failed), attempts, worker rank, timings, error
 message and results live in its own row. Attributes keep the campaign file's
 text, its fingerprint, the code and library versions, host and ranks.
+Monte-Carlo trials (`campaign.trials`) live in the group `trials`: one row
+per trial (cell) with its study's parameters, its own state, attempts, rank,
+start time, error and draws, and (trial, height) arrays of its curve; a
+study (one trial task) writes its N consecutive rows at once.
 
 Kill safety: each finished task is first appended to `STORE.journal` (one
 JSON line, fsync'd in batches) and then written into the HDF5 rows; the HDF5
@@ -27,6 +31,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from campaign.trials import CELL_KEYS, HEIGHT_KEYS
 from solver.errors import InputError
 
 PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
@@ -40,6 +45,7 @@ TRIAL_COLUMNS = ("trial_id", "state", "nu_true", "bending", "height_error_mode",
                  "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "volume_true_um3",
                  "volume_used_um3", "h0_true_um", "h0_used_um", "h1_used_um", "h_tilde",
                  "modulus_mN_per_m", "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
+TRIAL_PARAMS = ("nu_true", "bulk_mN_per_m", "shear_mN_per_m", "volume_true_um3")
 
 
 def task_id(shell, method):
@@ -85,12 +91,15 @@ class Store:
             self._create(campaign, ranks)
         self.file = self._open_or_rebuild(campaign, ranks)
         self._replay()
-        state = self.file["state"][:]
-        state[state == RUNNING] = PENDING
-        self.file["state"][:] = state
+        for name in ("state", "trials/state"):
+            if name in self.file:
+                state = self.file[name][:]
+                state[state == RUNNING] = PENDING
+                self.file[name][:] = state
         self.file.flush()
         self.journal = open(self.journal_path, "a")
         self.buffer, self.running, self.shown_running = [], set(), set()
+        self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
 
     # -- opening -----------------------------------------------------------
     def _check_same(self, campaign):
@@ -131,8 +140,39 @@ class Store:
             f["rank"] = np.full(n, -1, np.int32)
             f["started_unix_s"] = np.full(n, np.nan)
             f.create_dataset("error", data=np.array([""] * n, object), dtype=str_t)
+            if campaign.studies:
+                self._create_trials(f.create_group("trials"), campaign)
             f.attrs.update(self._provenance(campaign, ranks))
         os.replace(tmp, self.path)
+
+    @staticmethod
+    def _create_trials(g, campaign):
+        """One row per trial: study j's cells are rows j N .. j N + N - 1."""
+        h5py = _h5()
+        studies, N = campaign.studies, campaign.trial_cells
+        n, m = len(studies) * N, len(studies[0].heights_um)
+        per = lambda attr: np.repeat([getattr(s, attr) for s in studies], N)  # noqa: E731
+        str_t = h5py.string_dtype()
+        g.create_dataset("trial_id", data=np.array([t for s in studies for t in s.trial_ids()], object),
+                         dtype=str_t)
+        g["task"] = np.repeat(np.arange(len(studies), dtype=np.int32), N)
+        g["study"] = per("study").astype(np.int32)
+        g["cell"] = np.tile(np.arange(N, dtype=np.int32), len(studies))
+        for key in ("bending", "height_error_mode"):
+            g.create_dataset(key, data=per(key).astype(object), dtype=str_t)
+        for key, attr in zip(TRIAL_PARAMS, ("nu_true", "bulk_mN_per_m", "shear_mN_per_m", "volume_um3")):
+            g[key] = per(attr).astype(float)
+        g["h0_true_um"] = np.repeat(np.array([s.heights_um for s in studies], float), N, axis=0)
+        for key in CELL_KEYS:
+            g.create_dataset(key, data=np.full(n, np.nan))
+        for key in HEIGHT_KEYS:
+            g.create_dataset(key, data=np.full((n, m), np.nan))
+        g["state"] = np.zeros(n, np.int8)
+        g["attempts"] = np.zeros(n, np.int32)
+        g["rank"] = np.full(n, -1, np.int32)
+        g["started_unix_s"] = np.full(n, np.nan)
+        g.create_dataset("error", data=np.array([""] * n, object), dtype=str_t)
+        g.attrs["cells_per_study"] = N
 
     @staticmethod
     def _provenance(campaign, ranks):
@@ -168,8 +208,11 @@ class Store:
 
     # -- writing -----------------------------------------------------------
     def _write_rows(self, entries):
-        """Write entries into their rows, one HDF5 write per column (last entry of a row wins)."""
-        by_row = {e["row"]: e for e in entries}
+        """Write journal entries into their rows (the one place rows are written):
+        compressions (`row`) one HDF5 write per column, trial tasks (`task`) one
+        slice of N rows per column; the last entry of a row wins."""
+        self._write_trials({e["task"]: e for e in entries if "task" in e})
+        by_row = {e["row"]: e for e in entries if "row" in e}
         if not by_row:
             return
         rows = np.array(sorted(by_row))
@@ -188,24 +231,56 @@ class Store:
         for key, values in columns.items():
             f[key][rows] = values
 
+    def _write_trials(self, by_task):
+        """A study's entry: `cells` holds per-cell lists (`state`, `error`, CELL_KEYS)
+        and per-cell lists of per-height values (HEIGHT_KEYS); a task that failed
+        as a whole has no `cells`: all its trials are failed with its error."""
+        g, N = (self.file["trials"], self.cells) if by_task else (None, 0)
+        for task, e in sorted(by_task.items()):
+            rows = slice(task * N, task * N + N)
+            cells = e.get("cells") or {}
+            states = cells.get("state", [e["state"]] * N)
+            g["state"][rows] = np.array([STATES.index(x) for x in states], np.int8)
+            g["error"][rows] = np.array(cells.get("error", [e.get("error", "")] * N), object)
+            g["attempts"][rows] = e["attempts"]
+            g["rank"][rows] = e["rank"]
+            g["started_unix_s"][rows] = e.get("started", np.nan)
+            for key in CELL_KEYS + HEIGHT_KEYS:
+                g[key][rows] = np.array(cells[key], float) if key in cells else np.nan
+
     def state(self):
         return self.file["state"][:]
+
+    def trial_state(self):
+        """Per trial task (study): the states of its N trials, shape (tasks, N)."""
+        return self.file["trials/state"][:].reshape(-1, self.cells) if self.cells else np.zeros((0, 0))
+
+    def trial_attempts(self):
+        """Per trial task: its attempts so far."""
+        return self.file["trials/attempts"][::self.cells] if self.cells else np.zeros(0, np.int32)
+
+    def compressions(self):
+        """(force_nN, state, error) of every compression, for the trials."""
+        return self.file["force_nN"][:], self.file["state"][:], list(self.file["error"].asstr()[:])
 
     def attempts(self):
         return self.file["attempts"][:]
 
     def mark_running(self, rows):
-        """Shown as running from the next flush on (the journal never holds `running`)."""
-        self.running.update(int(r) for r in rows)
+        """Shown as running from the next flush on (the journal never holds `running`).
+        A row is a compression's index, or ("task", j) for trial task j."""
+        self.running.update(r if isinstance(r, tuple) else int(r) for r in rows)
 
     def record(self, entry):
         """Journal first; the HDF5 rows follow in batches, after the journal's fsync (`flush`)."""
         self.journal.write(json.dumps(entry) + "\n")
         self.buffer.append(entry)
-        self.running.discard(entry["row"])
-        if os.environ.get("CORTEX_TEST_KILL_MID_WRITE") == str(entry["row"]):
-            self.flush()
-            self.file["state"][entry["row"]] = DONE
+        self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
+        kill = os.environ.get("CORTEX_TEST_KILL_MID_WRITE")
+        if kill is not None and kill == (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
+            self.flush()                          # written, then killed: the replay must not redo it
+            if "row" in entry:
+                self.file["state"][entry["row"]] = DONE
             os.kill(os.getpid(), 9)
 
     def flush(self):
@@ -216,12 +291,17 @@ class Store:
             self._write_rows(self.buffer)
             self.buffer = []
         if self.running != self.shown_running:
-            state = self.file["state"][:]
-            state[list(self.shown_running - self.running)] = np.where(
-                state[list(self.shown_running - self.running)] == RUNNING, PENDING,
-                state[list(self.shown_running - self.running)])
-            state[list(self.running)] = RUNNING
-            self.file["state"][:] = state
+            for name, pick, expand in (("state", lambda r: not isinstance(r, tuple), lambda r: [r]),
+                                       ("trials/state", lambda r: isinstance(r, tuple),
+                                        lambda r: range(r[1] * self.cells, r[1] * self.cells + self.cells))):
+                stale = [i for r in self.shown_running - self.running if pick(r) for i in expand(r)]
+                now = [i for r in self.running if pick(r) for i in expand(r)]
+                if not stale and not now:
+                    continue
+                state = self.file[name][:]
+                state[stale] = np.where(state[stale] == RUNNING, PENDING, state[stale])
+                state[now] = RUNNING
+                self.file[name][:] = state
             self.shown_running = set(self.running)
         self.file.flush()
 
@@ -259,6 +339,8 @@ def read_results(path):
         converged = f["converged"][:].astype(bool)
         attempts, rank, error = f["attempts"][:], f["rank"][:], list(f["error"].asstr()[:])
     for entry in read_journal(str(path) + ".journal"):
+        if "row" not in entry:
+            continue                      # a trial task's entry
         i = entry["row"]
         state[i], attempts[i], rank[i] = STATES.index(entry["state"]), entry["attempts"], entry["rank"]
         error[i] = entry.get("error", "")
@@ -271,11 +353,49 @@ def read_results(path):
     return frame
 
 
+def _trial_arrays(path):
+    """The trials group as a dict of arrays (None without one), journal overlaid."""
+    with _open_read(path) as f:
+        if "trials" not in f:
+            return None
+        g = f["trials"]
+        a = {key: (g[key].asstr()[:] if g[key].dtype.kind == "O" else g[key][:]) for key in g}
+        N = int(g.attrs["cells_per_study"])
+    a["error"] = a["error"].astype(object)
+    for e in read_journal(str(path) + ".journal"):
+        if "task" not in e:
+            continue
+        rows, cells = slice(e["task"] * N, e["task"] * N + N), e.get("cells") or {}
+        a["state"][rows] = [STATES.index(x) for x in cells.get("state", [e["state"]] * N)]
+        a["error"][rows] = cells.get("error", [e.get("error", "")] * N)
+        a["attempts"][rows], a["rank"][rows] = e["attempts"], e["rank"]
+        a["started_unix_s"][rows] = e.get("started", np.nan)
+        for key in CELL_KEYS + HEIGHT_KEYS:
+            a[key][rows] = np.array(cells[key], float) if key in cells else np.nan
+    return a
+
+
 def read_trials(path):
-    """Monte-Carlo trial curves (long format). The engine does not run
-    Monte-Carlo stages yet: the table is empty, with its columns."""
-    _open_read(path).close()
-    return pd.DataFrame({c: [] for c in TRIAL_COLUMNS})
+    """Monte-Carlo trial curves, long format: one row per trial and height with
+    the columns TRIAL_COLUMNS (then `error`); empty, with those columns, for a
+    store without trials. Values of trials not done are NaN."""
+    a = _trial_arrays(path)
+    if a is None:
+        return pd.DataFrame({c: [] for c in TRIAL_COLUMNS + ("error",)})
+    n, m = a["h0_true_um"].shape
+    rep = lambda x: np.repeat(x, m)  # noqa: E731
+    columns = {"trial_id": rep(a["trial_id"]), "state": rep(np.array(STATES, object)[a["state"]]),
+               "nu_true": rep(a["nu_true"]), "bending": rep(a["bending"]),
+               "height_error_mode": rep(a["height_error_mode"]), "study": rep(a["study"]),
+               "cell": rep(a["cell"]), "bulk_mN_per_m": rep(a["bulk_mN_per_m"]),
+               "shear_mN_per_m": rep(a["shear_mN_per_m"]), "tension_mN_per_m": rep(a["tension_mN_per_m"]),
+               "volume_true_um3": rep(a["volume_true_um3"]), "volume_used_um3": rep(a["volume_used_um3"]),
+               "h0_true_um": a["h0_true_um"].ravel(), "h0_used_um": a["h0_used_um"].ravel(),
+               "h1_used_um": a["h1_used_um"].ravel(), "h_tilde": a["h_tilde"].ravel(),
+               "modulus_mN_per_m": a["modulus_mN_per_m"].ravel(),
+               "gamma_eff_mN_per_m": a["gamma_eff_mN_per_m"].ravel(),
+               "tension_seen_mN_per_m": a["tension_seen_mN_per_m"].ravel(), "error": rep(a["error"])}
+    return pd.DataFrame(columns)
 
 
 def summary(path):
@@ -290,6 +410,13 @@ def summary(path):
         span = time.time() - np.nanmin(started)
         rate = len(done) / span if span > 0 else None
     left = int(len(frame) - counts.get("done", 0) - counts.get("failed", 0))
-    return {"tasks": int(len(frame)), **{s: int(counts.get(s, 0)) for s in STATES},
+    info = {"tasks": int(len(frame)), **{s: int(counts.get(s, 0)) for s in STATES},
             "failures": frame.loc[frame["state"] == "failed", ["task_id", "error"]].values.tolist(),
             "tasks_per_s": rate, "eta_s": (left / rate) if rate else None}
+    a = _trial_arrays(path)
+    if a is not None:
+        failed = a["state"] == FAILED
+        info["trials"] = {"trials": int(a["state"].size),
+                          **{s: int(np.sum(a["state"] == i)) for i, s in enumerate(STATES)},
+                          "failures": sorted({e for e in a["error"][failed]})[:10]}
+    return info

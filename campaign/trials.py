@@ -1,0 +1,159 @@
+"""Monte-Carlo error trials (SPEC section 5): the K(h̃) curve an experimenter
+would have seen of a simulated cell whose volume and heights were measured
+with errors.
+
+A model cell is one grid point except h0: (V, Δh, K_B, K_S, γ_a, bending) at
+every height h0_j of the grid, with the simulated plate forces F_j at
+h1_j = h0_j - Δh (the campaign's compressions). Its true Poisson ratio is
+ν = (K_B - K_S)/(K_B + K_S); a configured ν uses the grid's K_S closest to
+K_B (1 - ν)/(1 + ν) (`grid_shear`).
+
+One trial task is one *study*: N cells of one (bending, ν, height-error
+mode), repetition s. Cell c has its own id (`trial_ids`: a hash of the
+study's parameters, the seed and c) and its own generator
+`default_rng(SeedSequence(int(trial_id, 16)))`, from which it draws, in
+this order:
+
+    i       index of its γ_a among the configured tensions (uniform),
+    ε_V     ~ N(0, 1):  Ṽ = V (1 + σ_V ε_V),
+    ε_h     ~ N(0, 1), one per cell (`per_cell`: one offset at every height,
+            an uneven wedge) or one per height (`per_height`):
+            h̃0_j = h0_j + σ_h ε_h(j),  h̃1_j = h̃0_j - Δh (the piezo's Δh is exact).
+
+The experimenter's numbers (SPEC 3 with Ṽ, h̃0, h̃1 instead of V, h0, h1;
+g(V, h) = 2 H A_c, the force per tension of the droplet shape):
+
+    γ_seen_j = γ_a g(V, h0_j) / g(Ṽ, h̃0_j)    the resting force F_a(h0_j) read as a tension,
+    γ_eff_j  = F_j / g(Ṽ, h̃1_j),
+    ε_A,j    = (A(Ṽ, h̃1_j) - A(Ṽ, h̃0_j)) / A(Ṽ, h̃0_j),
+    K_j      = (γ_eff_j - γ_seen_j) / ε_A,j    at  h̃_j = (h̃0_j + h̃1_j) / 2 / (2 R_cell(Ṽ)).
+
+With σ_V = σ_h = 0 these are the compressions' own K and h̃, bit for bit.
+A draw that makes a height impossible (Ṽ ≤ 0, h̃1 ≤ 0, h̃0 above the free
+sphere of Ṽ) gives NaN at that height; the inversion skips it. A cell whose
+γ_a has a failed compression is failed, with that compression's message.
+Each study is computed as one (N, heights) array, so its numbers depend on
+nothing but its parameters: not on ranks, batches or order.
+"""
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from solver.geometry import droplet, sphere_height
+from solver.modulus import effective_modulus
+
+MODES = ("per_cell", "per_height")
+NU_TOLERANCE = 0.01     # |ν of the grid's K_S - ν asked| allowed
+
+
+def poisson(bulk, shear):
+    """ν = (K_B - K_S) / (K_B + K_S)."""
+    return (bulk - shear) / (bulk + shear)
+
+
+def grid_shear(nu, bulk, shears):
+    """The grid's K_S whose ν is closest to `nu`, and that ν; None if none is
+    within NU_TOLERANCE."""
+    best = min(shears, key=lambda s: abs(poisson(bulk, s) - nu))
+    return (best, poisson(bulk, best)) if abs(poisson(bulk, best) - nu) <= NU_TOLERANCE else None
+
+
+@dataclass(frozen=True)
+class Study:
+    """One trial task: N cells of one (bending, ν, height-error mode), repetition `study`.
+
+    `rows[i][j]`: the campaign's compression row of tensions[i] at heights[j]."""
+
+    bending: str
+    nu_true: float
+    height_error_mode: str
+    study: int
+    n_cells: int
+    volume_um3: float
+    dh_um: float
+    bulk_mN_per_m: float
+    shear_mN_per_m: float
+    heights_um: tuple
+    tensions_mN_per_m: tuple
+    volume_error_rel_sd: float
+    height_error_sd_um: float
+    seed: int
+    rows: tuple
+
+    def _key(self):
+        params = asdict(self)
+        params.pop("rows")
+        return params
+
+    @property
+    def task_id(self):
+        """The study's id: a hash of its parameters and seed."""
+        return hashlib.sha256(json.dumps(self._key(), sort_keys=True).encode()).hexdigest()[:16]
+
+    def trial_ids(self):
+        """One id per cell: a hash of the study's parameters, the seed and the cell."""
+        base = json.dumps(self._key(), sort_keys=True)
+        return [hashlib.sha256(f"{base}|cell={c}".encode()).hexdigest()[:16] for c in range(self.n_cells)]
+
+    def dependencies(self):
+        """Every compression row the study uses."""
+        return sorted({r for line in self.rows for r in line})
+
+
+def draws(study):
+    """(γ_a index (N,), ε_V (N,), ε_h (N, heights)) from each cell's own generator."""
+    m = len(study.heights_um)
+    index, eps_v, eps_h = [], [], []
+    for tid in study.trial_ids():
+        rng = np.random.default_rng(np.random.SeedSequence(int(tid, 16)))
+        index.append(int(rng.integers(len(study.tensions_mN_per_m))))
+        eps_v.append(rng.standard_normal())
+        eps_h.append(np.full(m, rng.standard_normal()) if study.height_error_mode == "per_cell"
+                     else rng.standard_normal(m))
+    return np.array(index), np.array(eps_v), np.array(eps_h).reshape(len(index), m)
+
+
+def run_study(study, forces, errors):
+    """The curves of a study's N cells.
+
+    forces: (tensions, heights) simulated F_tot (nN), NaN where not done;
+    errors: per tension, the message of a failed compression ('' if none).
+    Returns a dict of arrays: per cell `state`, `error`, `tension_mN_per_m`,
+    `volume_used_um3`; per cell and height `h0_used_um`, `h1_used_um`,
+    `h_tilde`, `modulus_mN_per_m`, `gamma_eff_mN_per_m`,
+    `tension_seen_mN_per_m`, `force_nN`."""
+    index, eps_v, eps_h = draws(study)
+    n = len(index)
+    V = study.volume_um3
+    h0 = np.asarray(study.heights_um, float)[None, :]
+    tension = np.asarray(study.tensions_mN_per_m, float)[index]
+    force = np.asarray(forces, float)[index]                      # (N, heights)
+    v_used = V * (1.0 + study.volume_error_rel_sd * eps_v)
+    h0_used = h0 + study.height_error_sd_um * eps_h
+    h1_used = h0_used - study.dh_um
+    vol = np.broadcast_to(v_used[:, None], h0_used.shape)
+    ok = (vol > 0) & (h1_used > 0) & (h0_used < sphere_height(np.where(vol > 0, vol, V)))
+    vol_s, h0_s = np.where(ok, vol, V), np.where(ok, h0_used, h0)   # stand-ins where impossible
+    ratio = droplet(V, h0).force_per_tension_um / droplet(vol_s, h0_s).force_per_tension_um
+    seen = tension[:, None] * ratio
+    em = effective_modulus(vol_s, h0_s, h0_s - study.dh_um, seen, np.where(ok, force, 0.0))
+    nan = lambda x: np.where(ok, x, np.nan)  # noqa: E731
+    failed = np.array([bool(errors[i]) for i in index], bool)
+    out = {"state": np.where(failed, "failed", "done"),
+           "error": np.array([errors[i] for i in index], object),
+           "tension_mN_per_m": tension, "volume_used_um3": v_used,
+           "h0_used_um": h0_used, "h1_used_um": h1_used, "force_nN": force,
+           "h_tilde": nan(em["h_tilde"]), "modulus_mN_per_m": nan(em["modulus_mN_per_m"]),
+           "gamma_eff_mN_per_m": nan(em["gamma_eff_mN_per_m"]), "tension_seen_mN_per_m": nan(seen)}
+    for key in ("h_tilde", "modulus_mN_per_m", "gamma_eff_mN_per_m", "tension_seen_mN_per_m"):
+        out[key][failed] = np.nan
+    assert out["h_tilde"].shape == (n, len(study.heights_um))
+    return out
+
+
+CELL_KEYS = ("tension_mN_per_m", "volume_used_um3")
+HEIGHT_KEYS = ("h0_used_um", "h1_used_um", "force_nN", "h_tilde", "modulus_mN_per_m",
+               "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
