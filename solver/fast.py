@@ -40,7 +40,8 @@ from solver.geometry import droplet, meridian
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
 LOG_PSI_MAX = np.log(np.pi / 2)
 STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
-TRUST_L = 0.1                # largest change of l = log ψ_c in one Newton step
+TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
+TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 
 
 def _admissible(lag, u, zp):
@@ -50,9 +51,14 @@ def _admissible(lag, u, zp):
             and np.all(np.hypot(np.diff(r), np.diff(z)) > 0))
 
 
+def _gap(lag, u, zp):
+    """How far the free surface rises above the plate (µm; > 0: it crosses)."""
+    return np.max(lag.nodes(u, zp)[1][lag.kc + 1:]) - zp * (1.0 + 1e-9)
+
+
 def _crosses(lag, u, zp):
     """Whether the free surface rises above the plate."""
-    return np.max(lag.nodes(u, zp)[1]) > zp * (1.0 + 1e-9)
+    return _gap(lag, u, zp) > 0
 
 
 def _newton(lag, u, zp, tol=1e-4, maxit=30):
@@ -101,29 +107,40 @@ def _contact(lag, u, zp, tol=1e-4, maxit=40):
     the plate, below any l with G > 0. E* is very flat in l (the contact is
     set by bending and stretching near the contact line only), hence the
     bracket. At l = log ψ_min with G > 0 the contact cannot shrink further:
-    that bound is the answer. Returns the solution and the Newton iterations."""
-    lo, hi, iterations = LOG_PSI_MIN, LOG_PSI_MAX, 0
+    that bound is the answer. Where the bracket closes (to TOL_L) between a
+    label whose free surface crosses the plate and one with G > 0, the
+    admissible minimum is the label at which the free surface touches the
+    plate, and that is the answer. Returns the solution and the Newton iterations."""
+    lo, hi, iterations, touching = LOG_PSI_MIN, LOG_PSI_MAX, 0, None
+    gap_lo = gap_hi = None
     for _ in range(maxit):
         u, g, H, it = _newton(lag, u, zp)
         iterations += it
-        l = u[-2]
-        if _crosses(lag, u, zp):
-            lo, step = l, TRUST_L
+        l, gap = u[-2], _gap(lag, u, zp)
+        if gap > 0:
+            lo, gap_lo, step = l, gap, TRUST_L
         else:
             G, k = _reduced(lag, g, H)
             if abs(G) < tol * lag.force_scale or (G > 0 and l <= LOG_PSI_MIN + 1e-12):
                 return u, iterations
             if G > 0:
-                hi = l
+                hi, gap_hi, touching = l, gap, u
             else:
-                lo = l
+                lo, gap_lo = l, None
             step = -G / k if k > 0 else -np.sign(G) * TRUST_L
             step = float(np.clip(step, -TRUST_L, TRUST_L))
+        if hi - lo < TOL_L and touching is not None:
+            # less contact would lift the free surface through the plate: the
+            # energy's minimum over the admissible labels is where it touches
+            return touching, iterations
         target = l + step
+        if gap_lo is not None and gap_hi is not None:
+            # where the free surface touches the plate, by linear interpolation
+            touch = hi - gap_hi * (lo - hi) / (gap_lo - gap_hi)
+            touch = min(max(touch + 0.3 * TOL_L, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
+            target = max(target, touch) if target < hi else touch
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        if hi - lo < 1e-6:
-            break
         u = u.copy()
         u[-2] = max(target, LOG_PSI_MIN)
     raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
