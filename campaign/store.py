@@ -16,8 +16,11 @@ the file (idempotent), rows left `running` become `pending` again, and a file
 that a kill left unreadable is set aside and rebuilt from the campaign and the
 journal. So a rerun finishes the remaining tasks and ends with the same rows as
 an uninterrupted run. A lock file refuses a second run on the same store.
-Readers (`read_results`, `summary`) open the file without HDF5's file locking
-and overlay the journal, so they also work while a campaign is running.
+Readers (`read_results`, `read_trials`, `summary`) open the file without
+HDF5's file locking and overlay the journal, so they also work while a
+campaign is running. The file's attribute `journal_bytes` (set after each
+batch's rows are flushed) says how much of the journal the rows already hold:
+readers and the replay parse only the rest.
 """
 
 import fcntl
@@ -204,7 +207,7 @@ class Store:
             return h5py.File(self.path, "r+")
 
     def _replay(self):
-        self._write_rows(read_journal(self.journal_path))
+        self._write_rows(read_journal(self.journal_path, self.file.attrs.get("journal_bytes", 0)))
 
     # -- writing -----------------------------------------------------------
     def _write_rows(self, entries):
@@ -290,6 +293,8 @@ class Store:
             os.fsync(self.journal.fileno())
             self._write_rows(self.buffer)
             self.buffer = []
+            self.file.flush()                 # the rows first, then the mark that they are in
+            self.file.attrs["journal_bytes"] = self.journal.tell()
         if self.running != self.shown_running:
             for name, pick, expand in (("state", lambda r: not isinstance(r, tuple), lambda r: [r]),
                                        ("trials/state", lambda r: isinstance(r, tuple),
@@ -313,15 +318,17 @@ class Store:
         self.lock.close()
 
 
-def read_journal(path):
-    """Entries of a journal; a last line cut by a kill is ignored."""
+def read_journal(path, start=0):
+    """Entries of a journal from byte `start` on (the file's `journal_bytes`:
+    everything before is in the HDF5 rows); a last line cut by a kill is ignored."""
     entries = []
     if os.path.exists(path):
-        with open(path) as fh:
+        with open(path, "rb") as fh:
+            fh.seek(int(start))
             for line in fh:
                 try:
                     entries.append(json.loads(line))
-                except json.JSONDecodeError:
+                except (json.JSONDecodeError, UnicodeDecodeError):
                     break
     return entries
 
@@ -338,7 +345,8 @@ def read_results(path):
         state = f["state"][:]
         converged = f["converged"][:].astype(bool)
         attempts, rank, error = f["attempts"][:], f["rank"][:], list(f["error"].asstr()[:])
-    for entry in read_journal(str(path) + ".journal"):
+        start = f.attrs.get("journal_bytes", 0)
+    for entry in read_journal(str(path) + ".journal", start):
         if "row" not in entry:
             continue                      # a trial task's entry
         i = entry["row"]
@@ -361,8 +369,9 @@ def _trial_arrays(path):
         g = f["trials"]
         a = {key: (g[key].asstr()[:] if g[key].dtype.kind == "O" else g[key][:]) for key in g}
         N = int(g.attrs["cells_per_study"])
+        start = f.attrs.get("journal_bytes", 0)
     a["error"] = a["error"].astype(object)
-    for e in read_journal(str(path) + ".journal"):
+    for e in read_journal(str(path) + ".journal", start):
         if "task" not in e:
             continue
         rows, cells = slice(e["task"] * N, e["task"] * N + N), e.get("cells") or {}

@@ -43,7 +43,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from solver.geometry import droplet, sphere_height
-from solver.modulus import effective_modulus
 
 MODES = ("per_cell", "per_height")
 NU_TOLERANCE = 0.01     # |ν of the grid's K_S - ν asked| allowed
@@ -137,9 +136,8 @@ def run_study(study, forces, errors):
     vol = np.broadcast_to(v_used[:, None], h0_used.shape)
     ok = (vol > 0) & (h1_used > 0) & (h0_used < sphere_height(np.where(vol > 0, vol, V)))
     vol_s, h0_s = np.where(ok, vol, V), np.where(ok, h0_used, h0)   # stand-ins where impossible
-    ratio = droplet(V, h0).force_per_tension_um / droplet(vol_s, h0_s).force_per_tension_um
-    seen = tension[:, None] * ratio
-    em = effective_modulus(vol_s, h0_s, h0_s - study.dh_um, seen, np.where(ok, force, 0.0))
+    seen, em = _seen(vol_s, h0_s, h0_s - study.dh_um, tension[:, None], droplet(V, h0).force_per_tension_um,
+                     np.where(ok, force, 0.0))
     nan = lambda x: np.where(ok, x, np.nan)  # noqa: E731
     failed = np.array([bool(errors[i]) for i in index], bool)
     out = {"state": np.where(failed, "failed", "done"),
@@ -152,6 +150,21 @@ def run_study(study, forces, errors):
         out[key][failed] = np.nan
     assert out["h_tilde"].shape == (n, len(study.heights_um))
     return out
+
+
+def _seen(volume, h0, h1, tension, g_true, force):
+    """γ_seen = γ_a (g(V, h0) / g(Ṽ, h̃0)) and what
+    `solver.modulus.effective_modulus(Ṽ, h̃0, h̃1, γ_seen, F)` returns, from two
+    droplet solves instead of three (the one at h̃0 gives both g and A(h̃0)):
+    the same operations in the same order, so the same bits (tested)."""
+    d0, d1 = droplet(volume, h0), droplet(volume, h1)
+    seen = tension * (g_true / d0.force_per_tension_um)
+    gamma_eff = force / d1.force_per_tension_um
+    strain = (d1.surface_area_um2 - d0.surface_area_um2) / d0.surface_area_um2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        modulus = (gamma_eff - seen) / strain
+    h_tilde = 0.5 * (h0 + h1) / (2.0 * d0.cell_radius_um)
+    return seen, {"gamma_eff_mN_per_m": gamma_eff, "modulus_mN_per_m": modulus, "h_tilde": h_tilde}
 
 
 CELL_KEYS = ("tension_mN_per_m", "volume_used_um3")
