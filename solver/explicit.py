@@ -40,6 +40,7 @@ MU = 1.0              # µm² / (s · mN/m)
 C_DT = 0.8            # fraction of the explicit stability limit
 TOL = 1e-7            # relative change of F_tot per relaxation time
 GROWTH = 0.12         # element size growth per unit arc length away from the contact band
+DS_MAX = 0.15         # largest element at resolution 1, µm
 RELEASE = 1e-2        # plate nodes lift off where the plate pulls by more than this × p
 MAX_TIMES = 80.0      # step budget: this many relaxation times after the compression
 
@@ -61,7 +62,7 @@ def _psi_of_s(V, h, s):
 
 def _graded(a, b, size):
     """Nodes from a to b with local element size size(S) (equidistributed 1/size)."""
-    S = np.linspace(a, b, 4001)
+    S = np.linspace(a, b, 20001)
     dens = np.concatenate([[0.0], np.cumsum(0.5 * (1 / size(S[1:]) + 1 / size(S[:-1])) * np.diff(S))])
     n = max(2, int(np.ceil(dens[-1])))
     return np.interp(np.linspace(0.0, dens[-1], n + 1), dens, S)
@@ -76,11 +77,13 @@ def mesh(shell: Shell):
     s_free = float(meridian(V, h0, np.array([np.pi / 2]))[2][0])
     B, gamma = shell.bending_stiffness, shell.tension_mN_per_m
     lb = np.sqrt(B / gamma) if B > 0 else 0.0
-    ds_min = (min(0.05, lb / 4.0) if B > 0 else 0.05) / shell.resolution
-    ds_max = 0.15 / shell.resolution
-    roll = 1.5 * (float(d1.contact_radius_um) - Rc) + 3.0 * lb + 5 * ds_min
-    lo, hi = Rc - 3.0 * lb - 5 * ds_min, Rc + roll
-    size = lambda S: np.minimum(ds_max, ds_min + GROWTH * np.maximum(0.0, np.maximum(lo - S, S - hi)))
+    ds1 = min(0.05, lb / 4.0) if B > 0 else 0.05          # ds_min at resolution 1
+    roll = 1.5 * (float(d1.contact_radius_um) - Rc) + 3.0 * lb + 5 * ds1
+    lo, hi = Rc - 3.0 * lb - 5 * ds1, Rc + roll
+    # resolution divides the whole size function: every element is refined alike
+    size = lambda S: np.minimum(DS_MAX, ds1 + GROWTH * np.maximum(0.0, np.maximum(lo - S, S - hi))
+                                ) / shell.resolution
+    ds_min = ds1 / shell.resolution
     S_disc = _graded(0.0, Rc, size)
     S_free = _graded(Rc, Rc + s_free, size)
     r_f, z_f, _ = meridian(V, h0, _psi_of_s(V, h0, S_free[1:] - Rc))

@@ -94,6 +94,30 @@ def test_forces_are_minus_the_energy_gradient_on_a_small_mesh():
             assert gV[i, c] == pytest.approx((vp - vm) / (2 * eps), rel=1e-6, abs=1e-6)
 
 
+@pytest.mark.parametrize("point", [(15, 25, 3, "none"), (10, 8.33, 3, "standard"),
+                                   (12, 8.33, 1.5, "double")])
+def test_resolution_refines_every_element_alike(point):
+    """Resolution r divides the whole element-size function by r (contact band,
+    grading and far field alike), as Richardson extrapolation assumes: at the
+    same reference arc length the elements are 1/r as long as at resolution 1."""
+    h0, ks, g, bending = point
+
+    def elements(res):
+        r0, z0, kind, ds_min = explicit.mesh(Shell(4300, h0, 25, ks, g, bending=bending,
+                                                   resolution=res))
+        l = np.hypot(np.diff(r0), np.diff(z0))
+        S = np.concatenate([[0.0], np.cumsum(l)])
+        return 0.5 * (S[1:] + S[:-1]), l, np.count_nonzero(kind == sf.PLATE), ds_min
+
+    S1, l1, plate1, ds1 = elements(1.0)
+    for res in (2.0, 4.0):
+        S, l, plate, ds = elements(res)
+        ratio = np.interp(S1, S, l) * res / l1
+        assert 0.97 < ratio.min() and ratio.max() < 1.03
+        assert ds == pytest.approx(ds1 / res)
+        assert plate == pytest.approx(res * plate1, abs=res + 1)
+
+
 def test_tension_only_gives_the_droplet_force_and_keeps_the_volume():
     shell = Shell(4300, 12, 0.0, 0.0, 3.0, bending="none")
     sol = explicit.solve(shell)
