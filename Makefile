@@ -41,7 +41,7 @@ setup-parallel:
 
 demo: setup
 	$(BIN)/cortex geometry --volume 4300 --height 15 14 13 12 11 10
-	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/demo.toml --store results/demo.h5 || [ $$? = 1 ]
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/demo.toml --store results/demo.h5 --new || [ $$? = 1 ]
 	$(BIN)/cortex campaign status results/demo.h5
 	$(BIN)/cortex analysis calibrate results/demo.h5 --out results/demo-analysis --partial
 	@echo "demo store: results/demo.h5 (cortex campaign status results/demo.h5); report: results/demo-analysis/report.md"
