@@ -9,7 +9,8 @@ Tasks are numbered: the compressions 0..n-1 (grid order), then the
 Monte-Carlo trial tasks n..n+m-1 (`campaign.trials.Study`). A trial task is
 handed out only once every compression it uses has finished in this run (or
 before it); it is sent with those compressions' forces and failure messages,
-so workers never read the store.
+so workers never read the store. The compressions that trials wait for are
+handed out first, so the trials overlap with the rest of the grid.
 
 A task that raises, exceeds the per-task timeout (SIGALRM) or (a compression)
 returns a non-finite result is recorded as failed with its message; the
@@ -199,7 +200,7 @@ class _Trials:
     def compression_finished(self, row, state, results, error):
         """Note a compression's result; returns the trial tasks it made ready."""
         from campaign.store import STATES
-        if self.studies is None or not len(self.studies):
+        if not self.studies:
             return []
         self.state[row] = STATES.index(state)
         self.force[row] = results.get("force_nN", float("nan"))
@@ -235,6 +236,7 @@ def _master(comm, store, campaign, retry_failed, progress):
     states = store.state()
     comp_todo = np.flatnonzero((states == PENDING) | ((states == FAILED) if retry_failed else False)).tolist()
     trials = _Trials(store, campaign, comp_todo, retry_failed)
+    comp_todo.sort(key=lambda row: row not in trials.dependents)   # what trials wait for first
     todo = deque(comp_todo + trials.take_ready())
     attempts = store.attempts()
     total = n + len(campaign.studies)

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pandas as pd
 import pytest
@@ -96,7 +97,7 @@ def test_two_ranks_and_a_resumed_run_give_the_same_trials(fake_store, tmp_path):
     rerun = run(tmp_path, FAKE, "k.h5", mpi=2)
     assert rerun.returncode == 0, rerun.stderr
     pd.testing.assert_frame_equal(ref, read_trials(tmp_path / "k.h5"))
-    with __import__("h5py").File(tmp_path / "k.h5", "r") as f:
+    with h5py.File(tmp_path / "k.h5", "r") as f:
         assert (f["trials/attempts"][:] == 1).all()        # no trial done twice
 
 
@@ -143,7 +144,6 @@ def test_trials_after_their_compressions_and_without_errors_reproduce_them(tmp_p
     assert out.returncode == 0, out.stderr
     comps = read_results(tmp_path / "s.h5")
     assert (comps["state"] == "done").all()
-    import h5py
     with h5py.File(tmp_path / "s.h5", "r") as f:
         started = f["trials/started_unix_s"][:]
         comp_started = f["started_unix_s"][:]
