@@ -40,6 +40,8 @@ MU = 1.0              # µm² / (s · mN/m)
 C_DT = 0.8            # fraction of the explicit stability limit
 TOL = 1e-7            # relative change of F_tot per relaxation time
 GROWTH = 0.12         # element size growth per unit arc length away from the contact band
+DS_MIN = 0.05         # element size at the contact line at resolution 1, µm
+LAYER_ELEMENTS = 4.0  # ... or at most sqrt(B/γ_a) / LAYER_ELEMENTS
 DS_MAX = 0.15         # largest element at resolution 1, µm
 RELEASE = 1e-2        # plate nodes lift off where the plate pulls by more than this × p
 MAX_TIMES = 80.0      # step budget: this many relaxation times after the compression
@@ -77,7 +79,7 @@ def mesh(shell: Shell):
     s_free = float(meridian(V, h0, np.array([np.pi / 2]))[2][0])
     B, gamma = shell.bending_stiffness, shell.tension_mN_per_m
     lb = np.sqrt(B / gamma) if B > 0 else 0.0
-    ds1 = min(0.05, lb / 4.0) if B > 0 else 0.05          # ds_min at resolution 1
+    ds1 = min(DS_MIN, lb / LAYER_ELEMENTS) if B > 0 else DS_MIN     # ds_min at resolution 1
     roll = 1.5 * (float(d1.contact_radius_um) - Rc) + 3.0 * lb + 5 * ds1
     lo, hi = Rc - 3.0 * lb - 5 * ds1, Rc + roll
     # resolution divides the whole size function: every element is refined alike

@@ -38,7 +38,7 @@ from solver.fast_mesh import enclosed_volume, reference
 from solver.geometry import droplet, meridian
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
-LOG_PSI_MAX = np.log(np.pi / 2)
+LOG_PSI_MAX = np.log(1.0)        # at most a radian of the free surface on the plate
 STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
@@ -56,12 +56,23 @@ def _gap(lag, u, zp):
     return np.max(lag.nodes(u, zp)[1][lag.kc + 1:]) - zp * (1.0 + 1e-9)
 
 
+def _slack(lag, u, zp):
+    """How far a tension-only shell's free surface may rise above the plate:
+    its polygon, free to slide, bulges by a few % of the first free element
+    just outside the contact node (a discretisation error, F is unaffected);
+    an elastic shell may not cross at all."""
+    if lag.elastic:
+        return 0.0
+    r, z = lag.nodes(u, zp)[:2]
+    return 0.1 * np.hypot(r[lag.kc + 1] - r[lag.kc], z[lag.kc + 1] - z[lag.kc])
+
+
 def _crosses(lag, u, zp):
     """Whether the free surface rises above the plate."""
     return _gap(lag, u, zp) > 0
 
 
-def _newton(lag, u, zp, tol=1e-4, maxit=30):
+def _newton(lag, u, zp, tol=1e-6, maxit=30):
     """Newton's method on ∇L = 0 for the node positions and p at fixed l;
     steps are halved while they leave the admissible shapes or multiply the
     residual. Returns the solution, its Newton matrix and the iterations."""
@@ -69,8 +80,8 @@ def _newton(lag, u, zp, tol=1e-4, maxit=30):
     _, g, _, H = lag.evaluate(u, zp)
     for it in range(1, maxit + 1):
         try:
-            dx = np.linalg.solve(H[np.ix_(keep, keep)], -g[keep])
-        except np.linalg.LinAlgError:
+            dx = lag.solve(H, -g[keep])[:, 0]
+        except (np.linalg.LinAlgError, ValueError):
             raise SolverError(f"singular Newton matrix at iteration {it}") from None
         norm0, t = np.linalg.norm(g[:-2]), 1.0
         while True:
@@ -92,14 +103,16 @@ def _newton(lag, u, zp, tol=1e-4, maxit=30):
 
 
 def _reduced(lag, g, H):
-    """dE*/dl and d²E*/dl² of the equilibrium energy at fixed l (Schur complement):
-    G = g_l (g_x = 0 at equilibrium) and k = H_ll - h_xl·H_xx⁻¹ h_xl."""
+    """dE*/dl and d²E*/dl² of the equilibrium energy at fixed l (Schur complement)
+    and the equilibrium's tangent dx/dl: G = g_l (g_x = 0 at equilibrium),
+    dx/dl = -H_xx⁻¹ h_xl, k = H_ll + h_xl·dx/dl."""
     keep = np.r_[0: lag.size - 2, lag.size - 1]
     hxl = H[keep, -2]
-    return g[-2], H[-2, -2] - hxl @ np.linalg.solve(H[np.ix_(keep, keep)], hxl)
+    tangent = -lag.solve(H, hxl)[:, 0]
+    return g[-2], H[-2, -2] + hxl @ tangent, tangent
 
 
-def _contact(lag, u, zp, tol=1e-4, maxit=40):
+def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l. Safeguarded Newton on G(l) = dE*/dl = 0
     with the exact k = dG/dl, steps at most TRUST_L, inside a bracket
@@ -111,38 +124,46 @@ def _contact(lag, u, zp, tol=1e-4, maxit=40):
     label whose free surface crosses the plate and one with G > 0, the
     admissible minimum is the label at which the free surface touches the
     plate, and that is the answer. Returns the solution and the Newton iterations."""
-    lo, hi, iterations, touching = LOG_PSI_MIN, LOG_PSI_MAX, 0, None
-    gap_lo = gap_hi = None
+    lo, hi, iterations, touching = LOG_PSI_MIN, LOG_PSI_MAX, 0, []
+    keep, tangent = np.r_[0: lag.size - 2, lag.size - 1], None
     for _ in range(maxit):
         u, g, H, it = _newton(lag, u, zp)
         iterations += it
         l, gap = u[-2], _gap(lag, u, zp)
         if gap > 0:
-            lo, gap_lo, step = l, gap, TRUST_L
+            lo, step = l, TRUST_L
         else:
-            G, k = _reduced(lag, g, H)
+            G, k, tangent = _reduced(lag, g, H)
             if abs(G) < tol * lag.force_scale or (G > 0 and l <= LOG_PSI_MIN + 1e-12):
                 return u, iterations
             if G > 0:
-                hi, gap_hi, touching = l, gap, u
+                hi = l
+                touching = [(l, gap, u)] + touching[:1]
             else:
-                lo, gap_lo = l, None
+                lo = l
             step = -G / k if k > 0 else -np.sign(G) * TRUST_L
             step = float(np.clip(step, -TRUST_L, TRUST_L))
-        if hi - lo < TOL_L and touching is not None:
-            # less contact would lift the free surface through the plate: the
-            # energy's minimum over the admissible labels is where it touches
-            return touching, iterations
         target = l + step
-        if gap_lo is not None and gap_hi is not None:
-            # where the free surface touches the plate, by linear interpolation
-            touch = hi - gap_hi * (lo - hi) / (gap_lo - gap_hi)
-            touch = min(max(touch + 0.3 * TOL_L, lo + 0.1 * (hi - lo)), hi - 0.1 * (hi - lo))
-            target = max(target, touch) if target < hi else touch
+        if len(touching) == 2 and gap <= 0 and G > 0:
+            # less contact would lift the free surface through the plate: the
+            # minimum over the admissible labels is where it touches, found
+            # by the secant of the gap through the last two labels above it
+            (l1, g1, u1), (l2, g2, _) = touching
+            touch = l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
+            if abs(touch - l1) < TOL_L:
+                return u1, iterations
+            target = max(target, touch + 0.3 * TOL_L)
+        if hi - lo < TOL_L and touching:
+            return touching[0][2], iterations
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
         u = u.copy()
-        u[-2] = max(target, LOG_PSI_MIN)
+        target = max(target, LOG_PSI_MIN)
+        if gap <= 0:                  # predict the equilibrium at the new label
+            u[keep] += tangent * (target - l)
+            if not _admissible(lag, u, zp):
+                u[keep] -= tangent * (target - l)
+        u[-2] = target
     raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
                       f"{maxit} steps)")
 
@@ -219,7 +240,7 @@ def _equilibrium(shell):
         except SolverError as err:
             failure = err
             continue
-        if not _crosses(lag, u, zp):
+        if _gap(lag, u, zp) <= _slack(lag, u, zp):
             return lag, u, iterations
         failure = SolverError("the free surface crossed the plate")
     raise SolverError(f"no admissible equilibrium found (continuation up to {STEPS[-1]} "

@@ -28,8 +28,9 @@ differences in the tests. Energies in mN/m·µm² (= 1e-15 J), forces in nN.
 """
 
 import numpy as np
+from scipy.linalg import solve_banded
 
-R_, Z_ = 0, 1
+BAND = 5    # half-bandwidth of the position block in node order
 
 
 def _length(dx, dy):
@@ -116,9 +117,37 @@ class Lagrangian:
         self.bend_idx = np.stack([self.ridx[kb - 1], self.zidx[kb - 1], self.ridx[kb],
                                   self.zidx[kb], self.ridx[kb + 1], self.zidx[kb + 1]], axis=1)
         self.eq_idx = np.array([self.ridx[N - 1], self.zidx[N - 1], self.ridx[N], self.zidx[N]])
+        # node-by-node order of the position unknowns: the Newton matrix is then banded
+        k = np.arange(1, N + 1)
+        zk = np.where((k > self.kc) & (k < N), N + k - self.kc - 1, -1)
+        order = np.stack([k - 1, zk], axis=1).ravel()
+        self.band_order = o = order[order >= 0]
+        # LAPACK band storage: ab[BAND + i - j, j] = A[i, j]
+        d, j = np.meshgrid(np.arange(-BAND, BAND + 1), np.arange(len(o)), indexing="ij")
+        i = j + d
+        self.band_mask = (i >= 0) & (i < len(o))
+        i = np.clip(i, 0, len(o) - 1)
+        self.band_rows, self.band_cols = o[i], o[j]
         self.elastic = shell.bulk_mN_per_m + shell.shear_mN_per_m > 0.0
         # natural size of a nodal force: tension times a typical element length
         self.force_scale = (self.gamma + self.KB + self.KS) * ref.a0 * 0.1
+
+    def solve(self, H, rhs):
+        """Solve the Newton system for the positions and p at fixed l:
+        [A b; b^T 0] [x; y] = rhs, with A (positions) banded (a node couples
+        to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination."""
+        o, n = self.band_order, self.size
+        ab = np.where(self.band_mask, H[self.band_rows, self.band_cols], 0.0)
+        rhs = np.asarray(rhs, dtype=float).reshape(n - 1, -1)
+        b = H[o, n - 1]
+        X = solve_banded((BAND, BAND), ab, np.column_stack([rhs[o], b]),
+                         overwrite_ab=True, check_finite=False)
+        xf, xb = X[:, :-1], X[:, -1]
+        y = (b @ xf - rhs[-1]) / (b @ xb)
+        out = np.empty_like(rhs)
+        out[o] = xf - np.outer(xb, y)
+        out[-1] = y
+        return out
 
     def nodes(self, u, zp):
         """(r, z) of every node, ψ_c and p from the unknowns."""

@@ -28,6 +28,12 @@ from numpy.polynomial import chebyshev
 
 from solver.geometry import droplet, meridian
 
+FIRST = 0.01      # µm, element size at the contact line (resolution 1)
+LARGEST = 0.1     # µm, largest element of the free surface
+LARGEST_DISC = 0.5   # µm, largest element of the contact disc (evenly stretched)
+GROWTH = 1.15     # size ratio of neighbouring elements
+NEW = 4           # nodes on the strip of material that rolls onto the plate
+
 
 @dataclass(frozen=True)
 class Reference:
@@ -86,19 +92,15 @@ class Reference:
                 np.concatenate([zero, z2 * dpsi**2 + z1 * dpsi]))
 
 
-def _graded(n, first, total=1.0):
-    """n increasing points in (0, total], the first step ≈ `first`, growing geometrically."""
-    if first * n >= total:
-        return np.linspace(total / n, total, n)
-    lo, hi = 1.0, 2.0
-    f = lambda g: first * (g**n - 1.0) / (g - 1.0) - total  # noqa: E731
-    while f(hi) < 0:
-        hi *= 2.0
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
-    g = 0.5 * (lo + hi)
-    pts = first * (g ** np.arange(1, n + 1) - 1.0) / (g - 1.0)
+def _ramp(first, largest, total, growth=1.15):
+    """Points in (0, total]: steps first·growth^i, capped at `largest`, then
+    all scaled by the one factor that makes them end at `total`."""
+    n_ramp = max(int(np.ceil(np.log(max(largest / first, 1.0)) / np.log(growth))), 0)
+    ramp = first * growth ** np.arange(n_ramp)
+    ramp = ramp[np.cumsum(ramp) < total]
+    rest = total - ramp.sum()
+    steps = np.concatenate([ramp, np.full(int(np.ceil(rest / largest)), rest / np.ceil(rest / largest))])
+    pts = np.cumsum(steps)
     return pts * (total / pts[-1])
 
 
@@ -117,17 +119,27 @@ def enclosed_volume(r, z):
 
 @lru_cache(maxsize=256)
 def reference(volume, h0, resolution, layer):
-    """Reference droplet and graded mesh; `layer` is the bending layer width (µm)."""
+    """Reference droplet and graded mesh for `resolution` (1 = default);
+    `layer` is the bending layer width sqrt(B/γ_a) (µm).
+
+    Element sizes along the meridian: FIRST µm (or a tenth of the bending
+    layer) at the contact line, growing by GROWTH per element up to LARGEST µm
+    on the free surface and LARGEST_DISC µm on the contact disc, all divided
+    by the resolution. In label space the free surface has
+    ds/dψ0 = 1/κ1, from 1/(2 H_d) at the contact line to 1/(2 H_d - 1/R_eq) at
+    the equator; the strip has NEW nodes."""
     d = droplet(volume, h0)
     a0, H = float(d.contact_radius_um), float(d.mean_curvature_per_um)
+    Req = float(d.equator_radius_um)
     res = float(resolution)
-    first = min(layer / 8.0, 0.05) / res
-    nf = int(np.ceil(60 * res))
-    xi = _graded(nf, first * 2.0 * H / (np.pi / 2))   # ds/dψ = 1/(2H) at the contact line
-    nd = int(np.ceil(20 * res))
-    eta = 1.0 - _graded(nd, first / a0, 1.0)[::-1]
+    first = min(layer / 10.0, FIRST) / res
+    largest = LARGEST / res
+    growth = GROWTH ** (1.0 / res)
+    span = np.pi / 2
+    xi = _ramp(first * 2.0 * H / span, largest * (2.0 * H - 1.0 / Req) / span, 1.0, growth)
+    eta = 1.0 - _ramp(first / a0, LARGEST_DISC / res / a0, 1.0, growth)[::-1]
     eta = np.append(eta[1:], 1.0)
-    nn = int(np.ceil(4 * res))
+    nn = int(np.ceil(NEW * res))
     zeta = np.linspace(1.0 / nn, 1.0, nn)
     ref = Reference(a0=a0, H=H, beta=2.0 * H * a0, eta=eta, zeta=zeta, xi=xi, h0=h0,
                     zcoef=_meridian_series(volume, h0))
