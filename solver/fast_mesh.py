@@ -29,10 +29,10 @@ from numpy.polynomial import chebyshev
 from solver.geometry import droplet, meridian
 
 FIRST = 0.01      # µm, element size at the contact line (resolution 1)
-LARGEST = 0.1     # µm, largest element of the free surface
+LARGEST = 0.08    # µm, largest element of the free surface
 LARGEST_DISC = 0.5   # µm, largest element of the contact disc (evenly stretched)
 GROWTH = 1.15     # size ratio of neighbouring elements
-NEW = 4           # nodes on the strip of material that rolls onto the plate
+NEW = 12          # nodes on the strip of material that rolls onto the plate
 
 
 @dataclass(frozen=True)
