@@ -62,10 +62,16 @@ class Campaign:
 
     @property
     def fingerprint(self):
-        """What identifies the campaign's tasks: refuses a store made from another grid."""
+        """What identifies the campaign's compressions: refuses a store made from another grid."""
         key = repr([(s.to_dict()) for s in self.shells]) + self.method + repr(self.resolution)
-        if self.studies:
-            key += repr([s.task_id for s in self.studies])
+        return hashlib.sha256(key.encode()).hexdigest()
+
+    @property
+    def trials_fingerprint(self):
+        """What identifies its Monte-Carlo trials ('' without any)."""
+        if not self.studies:
+            return ""
+        key = repr([s.task_id for s in self.studies]) + repr(self.trial_cells)
         return hashlib.sha256(key.encode()).hexdigest()
 
 

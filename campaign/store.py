@@ -7,7 +7,10 @@ text, its fingerprint, the code and library versions, host and ranks.
 Monte-Carlo trials (`campaign.trials`) live in the group `trials`: one row
 per trial (cell) with its study's parameters, its own state, attempts, rank,
 start time, error and draws, and (trial, height) arrays of its curve; a
-study (one trial task) writes its N consecutive rows at once.
+study (one trial task) writes its N consecutive rows at once. The attribute
+`trials_fingerprint` identifies them: a store made without trials gains them
+when the campaign file gets a [montecarlo] section (its compressions kept);
+one with other trials is refused.
 
 Kill safety: each finished task is first appended to `STORE.journal` (one
 JSON line, fsync'd in batches) and then written into the HDF5 rows; the HDF5
@@ -93,6 +96,7 @@ class Store:
         if not os.path.exists(self.path):
             self._create(campaign, ranks)
         self.file = self._open_or_rebuild(campaign, ranks)
+        self._add_trials(campaign)
         self._replay()
         for name in ("state", "trials/state"):
             if name in self.file:
@@ -108,7 +112,7 @@ class Store:
     def _check_same(self, campaign):
         try:
             with _open_read(self.path) as f:
-                fingerprint = f.attrs.get("fingerprint")
+                fingerprint, trials = f.attrs.get("fingerprint"), f.attrs.get("trials_fingerprint", "")
         except InputError:
             return            # unreadable: rebuilt from the journal below
         if fingerprint is None:
@@ -117,6 +121,22 @@ class Store:
         if fingerprint != campaign.fingerprint:
             raise InputError(f"{self.path} was made from a different campaign file; "
                              "use --new to start over (the old store is kept as a backup)")
+        if trials not in ("", campaign.trials_fingerprint):
+            raise InputError(f"{self.path} holds Monte-Carlo trials of a different [montecarlo] section; "
+                             "use --new to start over (the old store is kept as a backup)")
+
+    def _add_trials(self, campaign):
+        """A store made without trials gains the campaign's (its compressions are kept).
+        The fingerprint is set last: a group a kill left half made is made again."""
+        f = self.file
+        if not campaign.studies or f.attrs.get("trials_fingerprint", "") == campaign.trials_fingerprint:
+            return
+        if "trials" in f:
+            del f["trials"]
+        self._create_trials(f.create_group("trials"), campaign)
+        f.flush()
+        f.attrs.update(config_text=campaign.text, trials_fingerprint=campaign.trials_fingerprint)
+        f.flush()
 
     def _backup(self):
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -184,7 +204,8 @@ class Store:
         import numpy
         import scipy
         from cortex import __version__
-        return {"fingerprint": campaign.fingerprint, "config_text": campaign.text,
+        return {"fingerprint": campaign.fingerprint, "trials_fingerprint": campaign.trials_fingerprint,
+                "config_text": campaign.text,
                 "name": campaign.name, "method": campaign.method, "code_version": __version__,
                 "versions": json.dumps({"python": platform.python_version(), "numpy": numpy.__version__,
                                         "scipy": scipy.__version__, "h5py": h5py.version.version,

@@ -117,6 +117,22 @@ def test_sigkill_under_two_ranks_then_rerun_gives_the_same_trials(fake_store, tm
     pd.testing.assert_frame_equal(read_trials(fake_store), read_trials(store))
 
 
+def test_trials_are_added_to_a_store_made_without_them(fake_store, tmp_path):
+    """The grid first, the [montecarlo] section later: the compressions are kept
+    (attempts 1), the trials equal those of a store made in one go; other
+    trials on that store are refused."""
+    grid_only = FAKE.split("[montecarlo]")[0] + "[test]\nfake_law = true\n"
+    assert run(tmp_path, grid_only).returncode == 0
+    assert len(read_trials(tmp_path / "s.h5")) == 0
+    out = run(tmp_path, FAKE)
+    assert out.returncode == 0, out.stderr
+    assert (read_results(tmp_path / "s.h5")["attempts"] == 1).all()
+    pd.testing.assert_frame_equal(read_trials(fake_store), read_trials(tmp_path / "s.h5"))
+    other = run(tmp_path, FAKE.replace("seed = 7", "seed = 9"))
+    assert other.returncode == 2 and "different [montecarlo]" in other.stderr
+    assert run(tmp_path, grid_only).returncode == 2     # trials the file does not define
+
+
 REAL = """
 [campaign]
 name = "mc-real"
