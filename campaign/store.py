@@ -256,21 +256,18 @@ class Store:
             f[key][rows] = values
 
     def _write_trials(self, by_task):
-        """A study's entry: `cells` holds per-cell lists (`state`, `error`, CELL_KEYS)
-        and per-cell lists of per-height values (HEIGHT_KEYS); a task that failed
-        as a whole has no `cells`: all its trials are failed with its error."""
-        g, N = (self.file["trials"], self.cells) if by_task else (None, 0)
-        for task, e in sorted(by_task.items()):
-            rows = slice(task * N, task * N + N)
-            cells = e.get("cells") or {}
-            states = cells.get("state", [e["state"]] * N)
-            g["state"][rows] = np.array([STATES.index(x) for x in states], np.int8)
-            g["error"][rows] = np.array(cells.get("error", [e.get("error", "")] * N), object)
-            g["attempts"][rows] = e["attempts"]
-            g["rank"][rows] = e["rank"]
-            g["started_unix_s"][rows] = e.get("started", np.nan)
-            for key in CELL_KEYS + HEIGHT_KEYS:
-                g[key][rows] = np.array(cells[key], float) if key in cells else np.nan
+        """Trial tasks' entries (`_trial_columns`), one slice write per column
+        for each run of consecutive tasks."""
+        if not by_task:
+            return
+        g, N = self.file["trials"], self.cells
+        tasks = sorted(by_task)
+        runs = np.split(np.array(tasks), np.flatnonzero(np.diff(tasks) != 1) + 1)
+        for run in runs:
+            parts = [_trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in run]
+            rows = slice(int(run[0]) * N, int(run[-1]) * N + N)
+            for key in parts[0]:
+                g[key][rows] = np.concatenate([p[key] for p in parts])
 
     def state(self):
         return self.file["state"][:]
@@ -339,6 +336,23 @@ class Store:
         self.lock.close()
 
 
+def _trial_columns(entry, N, m):
+    """A trial task's journal entry as the columns of its N rows. `cells` holds
+    per-cell lists (`state`, `error`, CELL_KEYS) and per-cell lists of
+    per-height values (HEIGHT_KEYS); a task that failed as a whole has no
+    `cells`: all its trials are failed with its error, their values NaN.
+    m: heights per trial."""
+    cells = entry.get("cells") or {}
+    out = {"state": np.array([STATES.index(x) for x in cells.get("state", [entry["state"]] * N)], np.int8),
+           "error": np.array(cells.get("error", [entry.get("error", "")] * N), object),
+           "attempts": np.full(N, entry["attempts"], np.int32), "rank": np.full(N, entry["rank"], np.int32),
+           "started_unix_s": np.full(N, entry.get("started", np.nan), float)}
+    for key in CELL_KEYS + HEIGHT_KEYS:
+        shape = (N,) if key in CELL_KEYS else (N, m)
+        out[key] = np.array(cells[key], float) if key in cells else np.full(shape, np.nan)
+    return out
+
+
 def read_journal(path, start=0):
     """Entries of a journal from byte `start` on (the file's `journal_bytes`:
     everything before is in the HDF5 rows); a last line cut by a kill is ignored."""
@@ -393,15 +407,9 @@ def _trial_arrays(path):
         start = f.attrs.get("journal_bytes", 0)
     a["error"] = a["error"].astype(object)
     for e in read_journal(str(path) + ".journal", start):
-        if "task" not in e:
-            continue
-        rows, cells = slice(e["task"] * N, e["task"] * N + N), e.get("cells") or {}
-        a["state"][rows] = [STATES.index(x) for x in cells.get("state", [e["state"]] * N)]
-        a["error"][rows] = cells.get("error", [e.get("error", "")] * N)
-        a["attempts"][rows], a["rank"][rows] = e["attempts"], e["rank"]
-        a["started_unix_s"][rows] = e.get("started", np.nan)
-        for key in CELL_KEYS + HEIGHT_KEYS:
-            a[key][rows] = np.array(cells[key], float) if key in cells else np.nan
+        if "task" in e:
+            for key, values in _trial_columns(e, N, a["h0_true_um"].shape[1]).items():
+                a[key][e["task"] * N:e["task"] * N + N] = values
     return a
 
 

@@ -39,6 +39,7 @@ nothing but its parameters: not on ranks, batches or order.
 import hashlib
 import json
 from dataclasses import asdict, dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -82,20 +83,21 @@ class Study:
     seed: int
     rows: tuple
 
+    @cached_property
     def _key(self):
+        """The study's parameters and seed (not `rows`) as canonical JSON."""
         params = asdict(self)
         params.pop("rows")
-        return params
+        return json.dumps(params, sort_keys=True)
 
     @property
     def task_id(self):
         """The study's id: a hash of its parameters and seed."""
-        return hashlib.sha256(json.dumps(self._key(), sort_keys=True).encode()).hexdigest()[:16]
+        return hashlib.sha256(self._key.encode()).hexdigest()[:16]
 
     def trial_ids(self):
         """One id per cell: a hash of the study's parameters, the seed and the cell."""
-        base = json.dumps(self._key(), sort_keys=True)
-        return [hashlib.sha256(f"{base}|cell={c}".encode()).hexdigest()[:16] for c in range(self.n_cells)]
+        return [hashlib.sha256(f"{self._key}|cell={c}".encode()).hexdigest()[:16] for c in range(self.n_cells)]
 
     def dependencies(self):
         """Every compression row the study uses."""
