@@ -45,10 +45,14 @@ TOL_L = 1e-3                 # bracket width at which the touching label is acce
 
 
 def _admissible(lag, u, zp):
-    """Nodes in order along the plate, off the axis, no element of zero length."""
+    """Nodes in order along the plate, off the axis, no element of zero
+    length, and no fold: neighbouring elements turn by less than π/2."""
     r, z = lag.nodes(u, zp)[:2]
-    return (np.all(np.isfinite(u)) and np.all(r[1:] > 0) and np.all(np.diff(r[: lag.kc + 1]) > 0)
-            and np.all(np.hypot(np.diff(r), np.diff(z)) > 0))
+    if not (np.all(np.isfinite(u)) and np.all(r[1:] > 0) and np.all(np.diff(r[: lag.kc + 1]) > 0)):
+        return False
+    dr, dz = np.diff(r), np.diff(z)
+    return bool(np.all(np.hypot(dr, dz) > 0)
+                and np.all(dr[1:] * dr[:-1] + dz[1:] * dz[:-1] > 0))
 
 
 def _gap(lag, u, zp):
@@ -240,7 +244,7 @@ def _equilibrium(shell):
         except SolverError as err:
             failure = err
             continue
-        if _gap(lag, u, zp) <= _slack(lag, u, zp):
+        if _gap(lag, u, zp) <= _slack(lag, u, zp) and _admissible(lag, u, zp):
             return lag, u, iterations
         failure = SolverError("the free surface crossed the plate")
     raise SolverError(f"no admissible equilibrium found (continuation up to {STEPS[-1]} "
