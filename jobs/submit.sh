@@ -8,8 +8,10 @@
 # waits with --dependency=afterok:<campaign> and so starts only when the store
 # is complete. If the campaign hits its time limit it stops cleanly and exits
 # non-zero; its analysis is then cancelled (--kill-on-invalid-dep=yes). To
-# resume, run the same command again: the new campaign job picks up the tasks
-# not yet done and a new analysis is chained to it.
+# resume, run the same command again, or jobs/resume.sh with the same
+# arguments (it first checks the store and says how far it got): the new
+# campaign job picks up the tasks not yet done and a new analysis is chained
+# to it.
 #
 # Prints `campaign JOBID` and `analysis JOBID` on two lines (stdout). Works from
 # any directory: paths are relative to where it is called, and the jobs run
@@ -29,7 +31,7 @@ jobs=$CORTEX_ROOT/jobs
 
 [[ -f $config ]] || { echo "submit.sh: error: no campaign config $config" >&2; exit 2; }
 
-campaign=$(sbatch --parsable "$@" "$jobs/campaign.sbatch" "$config" "$store")
+campaign=$(CORTEX_OUT=$out sbatch --parsable "$@" "$jobs/campaign.sbatch" "$config" "$store")
 campaign=${campaign%%;*}
 analysis=$(sbatch --parsable --dependency="afterok:$campaign" --kill-on-invalid-dep=yes \
     "$jobs/analysis.sbatch" "$store" "$out")

@@ -1,21 +1,24 @@
-"""The SLURM batch jobs (jobs/*.sbatch, jobs/submit.sh) on a real single-node SLURM.
+"""The SLURM batch jobs (jobs/*.sbatch, jobs/submit.sh, jobs/resume.sh) on a
+real single-node SLURM.
 
 A session fixture starts munge, slurmctld and slurmd on this machine with
 scripts/setup-slurm.sh (installing the Debian packages first; skipped, saying
-why, where that cannot be done) and stops them at the end. The tests submit
-the real scripts running the real `cortex campaign run` / `cortex analysis
-calibrate`, wait for the jobs (bounded) and check what they left:
+why, where that cannot be done) and stops them at the end if it started them.
+The tests submit the real scripts running the real `cortex campaign run` /
+`cortex analysis calibrate`, wait for the jobs (bounded) and check what they
+left:
 
-- a tiny campaign and its chained analysis: every task of the store done, the
-  analysis started only after the campaign ended (afterok) and wrote
-  calibration.json;
-- a campaign whose one-minute time limit stops it (SIGTERM from
-  `--signal=B:TERM@...`, passed on to the ranks): the job exits 75, its chained
-  analysis is cancelled, the store keeps the finished tasks; submitting again
-  resumes it, the store ends complete and the new analysis runs.
-
-Both need the campaign engine and the two small configs in tests/data/
-(skipped, saying which is missing, until they exist).
+- tests/data/slurm-tiny.toml and its chained analysis: every task of the store
+  done exactly once, the analysis started only after the campaign ended
+  (afterok) and wrote calibration.json;
+- tests/data/slurm-timelimit.toml (about 2 minutes of Monte-Carlo trials) in
+  a one-rank job with a one-minute time limit: SLURM's warning signal
+  (`--signal=B:TERM@1`, sent 30 to 60 s into the job) reaches the job script,
+  which passes SIGTERM on to the ranks; the engine stops cleanly, the job
+  exits 3 (the engine's "stopped, rerun to resume"), its chained analysis is
+  cancelled, the store keeps the finished tasks; jobs/resume.sh submits it
+  again, the store ends complete with every task done exactly once and the
+  new analysis runs.
 """
 
 import importlib.util
@@ -102,9 +105,22 @@ def states(store):
     return read_results(store)
 
 
+def trial_attempts(store):
+    """Attempts of every Monte-Carlo trial cell (journal included)."""
+    from campaign.store import _trial_arrays
+
+    return _trial_arrays(store)["attempts"]
+
+
+def trials(store):
+    from campaign.store import summary
+
+    return summary(store)["trials"]
+
+
 def test_campaign_then_analysis(slurm, tmp_path):
     ids = submit(slurm, tmp_path, CONFIGS[0], "tiny.h5", "analysis")
-    rec = wait(slurm, ids.values(), 150)
+    rec = wait(slurm, ids.values(), 300)
     camp, ana = rec[ids["campaign"]], rec[ids["analysis"]]
     assert (camp["JobState"], camp["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
     assert (ana["JobState"], ana["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
@@ -112,29 +128,43 @@ def test_campaign_then_analysis(slurm, tmp_path):
     assert ana["StartTime"] >= camp["EndTime"], (camp["EndTime"], ana["StartTime"])  # ISO times sort as text
 
     results = states(tmp_path / "tiny.h5")
-    assert len(results) > 0 and (results["state"] == "done").all(), results
+    assert len(results) == 60 and (results["state"] == "done").all(), results
+    assert (results["attempts"] == 1).all() and (trial_attempts(tmp_path / "tiny.h5") == 1).all()
+    assert trials(tmp_path / "tiny.h5")["done"] == 2 * 2 * 3 * 12  # nu x modes x studies x cells
+    assert np.isfinite(results["modulus_mN_per_m"]).all()
     calibration = json.loads((tmp_path / "analysis" / "calibration.json").read_text())
     assert calibration, "empty calibration.json"
 
 
 def test_time_limit_then_resume(slurm, tmp_path):
-    config = CONFIGS[1]
-    first = submit(slurm, tmp_path, config, "cut.h5", "analysis", "--", "--time=1", "--signal=B:TERM@1")
-    rec = wait(slurm, first.values(), 150)
+    config, store = CONFIGS[1], tmp_path / "cut.h5"
+    first = submit(slurm, tmp_path, config, "cut.h5", "analysis", "--", "--ntasks=1", "--time=1",
+                   "--signal=B:TERM@1")
+    rec = wait(slurm, first.values(), 600)
     camp, ana = rec[first["campaign"]], rec[first["analysis"]]
     out = logs(tmp_path)
-    assert (camp["JobState"], camp["ExitCode"]) == ("FAILED", "75:0"), out  # stopped cleanly, before the limit
-    assert "asking the campaign to stop cleanly" in out
+    assert (camp["JobState"], camp["ExitCode"]) == ("FAILED", "3:0"), out  # stopped cleanly, before the limit
+    assert "asking the campaign to stop cleanly" in out and "rerun the same command to resume" in out, out
+    assert f"jobs/resume.sh {config} cut.h5" in out, out
     assert ana["JobState"] == "CANCELLED", out  # afterok never satisfied
     assert not (tmp_path / "analysis").exists()
-    partial = states(tmp_path / "cut.h5")
-    done = (partial["state"] == "done").sum()
-    assert 0 < done < len(partial), f"{done} of {len(partial)} tasks done after the time limit\n{out}"
+    assert (states(store)["state"] == "done").all()  # the compressions come first, and take no time
+    partial = trials(store)
+    assert 0 < partial["done"] < partial["trials"], f"{partial}\n{out}"
+    assert partial["running"] == 0 and (trial_attempts(store) <= 1).all()
 
-    second = submit(slurm, tmp_path, config, "cut.h5", "analysis")
-    rec = wait(slurm, second.values(), 150)
+    resume = subprocess.run([str(ROOT / "jobs" / "resume.sh"), str(config), "cut.h5", "analysis"], cwd=tmp_path,
+                            env=slurm, capture_output=True, text=True, timeout=60)
+    assert resume.returncode == 0, resume.stderr
+    assert f"{partial['trials']} trials: {partial['done']} done" in resume.stderr, resume.stderr
+    second = dict(line.split() for line in resume.stdout.splitlines())
+    rec = wait(slurm, second.values(), 600)
     assert all((r["JobState"], r["ExitCode"]) == ("COMPLETED", "0:0") for r in rec.values()), logs(tmp_path)
-    results = states(tmp_path / "cut.h5")
-    assert (results["state"] == "done").all()
-    assert len(results) == len(partial)
-    assert (tmp_path / "analysis" / "calibration.json").exists()
+    results = states(store)
+    assert (results["state"] == "done").all() and (results["attempts"] == 1).all()
+    final = trials(store)
+    assert final["done"] == final["trials"] == partial["trials"]
+    assert (trial_attempts(store) == 1).all()  # every task done exactly once over the two jobs
+    assert json.loads((tmp_path / "analysis" / "calibration.json").read_text())
+    for f in tmp_path.glob("cut.h5*"):  # ~200 MB of store and journal: do not keep them around
+        f.unlink()
