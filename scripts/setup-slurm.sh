@@ -16,8 +16,9 @@
 # exist it is made a link to ours, so they also work without it.
 #
 # Idempotent: `start` on a running cluster is a no-op, `stop` on a stopped one
-# too. Exit status 77 means "cannot be done here" (not root, or no apt-get),
-# with the reason on stdout; the tests report that as a skip.
+# too. Exit status 77 means "cannot be done here" (not root, no apt-get, or
+# the packages cannot be installed), with the reason on stdout; the tests
+# report that as a skip.
 #
 # Loopback only: the node, the controller and every client use 127.0.0.1.
 # (slurmctld and slurmd have no bind-address setting; they accept only
@@ -45,8 +46,9 @@ install() {
     command -v apt-get >/dev/null || cannot "needs Debian packages ${missing[*]} but there is no apt-get"
     say "apt-get install ${missing[*]}"
     export DEBIAN_FRONTEND=noninteractive
-    apt-get -o DPkg::Lock::Timeout=600 update -qq
-    apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+    apt-get -o DPkg::Lock::Timeout=600 update -qq || say "apt-get update failed; trying the package lists there are"
+    apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends "${missing[@]}" >/dev/null ||
+        cannot "apt-get could not install ${missing[*]} (no package source or network?); not done"
 }
 
 alive() { [[ -f $1 ]] && kill -0 "$(cat "$1")" 2>/dev/null; }
