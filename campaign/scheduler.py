@@ -10,7 +10,8 @@ Monte-Carlo trial tasks n..n+m-1 (`campaign.trials.Study`). A trial task is
 handed out only once every compression it uses has finished in this run (or
 before it); it is sent with those compressions' forces and failure messages,
 so workers never read the store. The compressions that trials wait for are
-handed out first, so the trials overlap with the rest of the grid.
+handed out first; trials that become ready queue behind the remaining
+compressions, so the short tasks come last and even out the ranks' ends.
 
 A task that raises, exceeds the per-task timeout (SIGALRM) or (a compression)
 returns a non-finite result is recorded as failed with its message; the
