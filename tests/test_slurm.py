@@ -11,7 +11,7 @@ left:
 - tests/data/slurm-tiny.toml and its chained analysis: every task of the store
   done exactly once, the analysis started only after the campaign ended
   (afterok) and wrote calibration.json;
-- tests/data/slurm-timelimit.toml (about 2 minutes of Monte-Carlo trials) in
+- tests/data/slurm-timelimit.toml (2 to 3 minutes of Monte-Carlo trials) in
   a one-rank job with a one-minute time limit: SLURM's warning signal
   (`--signal=B:TERM@1`, sent 30 to 60 s into the job) reaches the job script,
   which passes SIGTERM on to the ranks; the engine stops cleanly, the job
