@@ -84,11 +84,12 @@ def test_trials_table_has_every_trial_and_height(fake_store):
     assert info["done"] == 60 and info["trials"]["trials"] == n and info["trials"]["done"] == n
 
 
-def test_two_ranks_and_a_resumed_run_give_the_same_trials(fake_store, tmp_path):
+def test_two_and_three_ranks_and_a_resumed_run_give_the_same_trials(fake_store, tmp_path):
     ref = read_trials(fake_store)
-    two = run(tmp_path, FAKE, "two.h5", mpi=2)
-    assert two.returncode == 0, two.stderr
-    pd.testing.assert_frame_equal(ref, read_trials(tmp_path / "two.h5"))
+    for ranks in (2, 3):
+        out = run(tmp_path, FAKE, f"r{ranks}.h5", mpi=ranks)
+        assert out.returncode == 0, out.stderr
+        pd.testing.assert_frame_equal(ref, read_trials(tmp_path / f"r{ranks}.h5"))
     # killed right after a trial task's rows were written (before the journal mark), then resumed
     killed = run(tmp_path, FAKE, "k.h5", env={"CORTEX_TEST_KILL_MID_WRITE": "task5"})
     assert killed.returncode == -9
