@@ -136,6 +136,7 @@ def test_campaign_then_analysis(slurm, tmp_path):
     assert calibration, "empty calibration.json"
 
 
+@pytest.mark.slow  # 3 to 4 minutes: a one-minute time limit, then the rest
 def test_time_limit_then_resume(slurm, tmp_path):
     config, store = CONFIGS[1], tmp_path / "cut.h5"
     first = submit(slurm, tmp_path, config, "cut.h5", "analysis", "--", "--ntasks=1", "--time=1",
