@@ -18,18 +18,18 @@ this order:
     ε_V     ~ N(0, 1):  Ṽ = V (1 + σ_V ε_V),
     ε_h     ~ N(0, 1), one per cell (`per_cell`: one offset at every height,
             an uneven wedge) or one per height (`per_height`):
-            h̃0_j = h0_j + σ_h ε_h(j),  h̃1_j = h̃0_j - Δh (the piezo's Δh is exact).
+            ĥ0_j = h0_j + σ_h ε_h(j),  ĥ1_j = ĥ0_j - Δh (the piezo's Δh is exact).
 
-The experimenter's numbers (SPEC 3 with Ṽ, h̃0, h̃1 instead of V, h0, h1;
+The experimenter's numbers (SPEC 3 with Ṽ, ĥ0, ĥ1 instead of V, h0, h1;
 g(V, h) = 2 H A_c, the force per tension of the droplet shape):
 
-    γ_seen_j = γ_a g(V, h0_j) / g(Ṽ, h̃0_j)    the resting force F_a(h0_j) read as a tension,
-    γ_eff_j  = F_j / g(Ṽ, h̃1_j),
-    ε_A,j    = (A(Ṽ, h̃1_j) - A(Ṽ, h̃0_j)) / A(Ṽ, h̃0_j),
-    K_j      = (γ_eff_j - γ_seen_j) / ε_A,j    at  h̃_j = (h̃0_j + h̃1_j) / 2 / (2 R_cell(Ṽ)).
+    γ_seen_j = γ_a g(V, h0_j) / g(Ṽ, ĥ0_j)    the resting force F_a(h0_j) read as a tension,
+    γ_eff_j  = F_j / g(Ṽ, ĥ1_j),
+    ε_A,j    = (A(Ṽ, ĥ1_j) - A(Ṽ, ĥ0_j)) / A(Ṽ, ĥ0_j),
+    K_j      = (γ_eff_j - γ_seen_j) / ε_A,j    at  h̃_j = (ĥ0_j + ĥ1_j) / 2 / (2 R_cell(Ṽ)).
 
 With σ_V = σ_h = 0 these are the compressions' own K and h̃, bit for bit.
-A draw that makes a height impossible (Ṽ ≤ 0, h̃1 ≤ 0, h̃0 above the free
+A draw that makes a height impossible (Ṽ ≤ 0, ĥ1 ≤ 0, ĥ0 above the free
 sphere of Ṽ) gives NaN at that height; the inversion skips it. A cell whose
 γ_a has a failed compression is failed, with that compression's message.
 Each study is computed as one (N, heights) array, so its numbers depend on
@@ -155,9 +155,9 @@ def run_study(study, forces, errors):
 
 
 def _seen(volume, h0, h1, tension, g_true, force):
-    """γ_seen = γ_a (g(V, h0) / g(Ṽ, h̃0)) and what
-    `solver.modulus.effective_modulus(Ṽ, h̃0, h̃1, γ_seen, F)` returns, from two
-    droplet solves instead of three (the one at h̃0 gives both g and A(h̃0)):
+    """γ_seen = γ_a (g(V, h0) / g(Ṽ, ĥ0)) and what
+    `solver.modulus.effective_modulus(Ṽ, ĥ0, ĥ1, γ_seen, F)` returns, from two
+    droplet solves instead of three (the one at ĥ0 gives both g and A(ĥ0)):
     the same operations in the same order, so the same bits (tested)."""
     d0, d1 = droplet(volume, h0), droplet(volume, h1)
     seen = tension * (g_true / d0.force_per_tension_um)
