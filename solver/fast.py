@@ -8,16 +8,22 @@ Lagrangian of the compressed shell (`solver.fast_energy`)
 
 is stationary at the equilibrium: ∇_u L = 0 for the node positions, the
 contact label l = log ψ_c (how much material has rolled onto the plate) and
-the pressure p. Newton's method solves it with the exact Hessian, from the
-reference state followed along h0 → h1 in 1, 2, 4 or 8 steps (each step
-starts from the last solution, the new contact predicted from the droplet),
-or, for a tension-only shell, from the droplet at h1 (its exact answer).
+the pressure p. Newton's method (exact Hessian, banded solves) finds the
+positions and p at fixed l; the reduced energy E*(l) (that equilibrium's
+energy) is very flat in l, and its unconstrained minimum has the free
+surface poking through the plate, so l is found by an outer safeguarded
+Newton search for the admissible local minimum of E*(l) (`_contact`). The
+start is the reference state, followed along h0 → h1 in 1, 2, 4 or 8 steps
+(the contact predicted from the droplet on the way), or, for a tension-only
+shell, the droplet at h1 (its exact answer).
 
 Constraints:
-- contact: material on the plate may not lift off, so l ≥ log ψ_min (active
-  set: l rests on the bound until ∂L/∂l < 0 says the contact wants to grow),
-  and the free surface must stay below the plate (checked; a solution that
-  crosses it is rejected and the next start tried);
+- contact: material on the plate may not lift off, so l ≥ log ψ_min, and the
+  free surface must stay below the plate; where less contact would lower the
+  energy but lift the surface through the plate, the answer is the label at
+  which the free surface touches the plate;
+- no fold: neighbouring elements turn by less than π/2 (without bending a
+  low-tension shell also has folded equilibria of higher energy);
 - for a tension-only shell (K_B = K_S = 0) l is a gauge (any material may sit
   at the contact line): it is held fixed.
 
