@@ -1,6 +1,6 @@
 """Mesh convergence (issue 3): K at the default resolution is within 0.1 % of
 the Richardson-extrapolated K∞ (fast solver, the issue's eight points), and
-the two solvers' extrapolations agree (the explicit scheme as yardstick).
+the explicit scheme (the yardstick) converges to the fast solver's K∞.
 
 Richardson from K at resolutions r, 2r, 4r (error ≈ C r^-p):
 p = log2((K_r - K_2r)/(K_2r - K_4r)), K∞ = K_4r + (K_4r - K_2r)/(2^p - 1).
@@ -63,13 +63,15 @@ def test_fast_default_resolution_within_0p1_percent_of_extrapolated(h0, ks, g):
 
 
 @pytest.mark.slow
-def test_both_solvers_extrapolate_to_the_same_K():
+def test_explicit_scheme_converges_to_the_fast_solvers_limit():
     """h0 = 15 µm, K_S = K_B (ν = 0), γ_a = 3 mN/m, no bending: where the solvers
-    disagreed by 2 % at their default resolutions. The explicit scheme
-    (resolutions 0.5, 1, 2) and the fast solver (2, 4, 8) both converge at
-    order ≈ 2 and their K∞ agree to 0.1 %."""
+    once disagreed by 2 % at their default resolutions. The fast solver
+    converges at order ≈ 2 (resolutions 1, 2, 4); the explicit scheme's K
+    approaches that K∞ as its mesh is refined (resolutions 0.5, 1, 2: 0.1 %,
+    0.03 %, 0.005 % off) and is within 0.05 % of it at resolution 1 and finer."""
     point = (15.0, 25.0, 3.0, "none")
-    K_e, p_e = richardson([modulus(*point, r, "explicit") for r in (0.5, 1.0, 2.0)])
-    K_f, p_f = richardson([modulus(*point, r, "fast") for r in (2.0, 4.0, 8.0)])
-    assert 1.5 < p_e < 3.0 and 1.5 < p_f < 3.5
-    assert K_e == pytest.approx(K_f, rel=1e-3)
+    K_f, p_f = richardson([modulus(*point, r, "fast") for r in (1.0, 2.0, 4.0)])
+    assert 1.5 < p_f < 3.5
+    errors = [abs(modulus(*point, r, "explicit") / K_f - 1.0) for r in (0.5, 1.0, 2.0)]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[1] < 5e-4 and errors[2] < 2e-4
