@@ -39,7 +39,7 @@ sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 import numpy as np
 
 from solver.compression import compress
-from solver.errors import SolverError
+from solver.errors import InputError, SolverError
 from solver.model import Shell
 
 BULK = 25.0
@@ -111,8 +111,13 @@ def study(point, resolutions, default, method, cache, log):
 
 
 def parse_point(text):
-    h0, ks, g, bending = text.split(",")
-    return float(h0), float(ks), float(g), bending
+    try:
+        h0, ks, g, bending = text.split(",")
+        point = float(h0), float(ks), float(g), bending
+        shell(point, 1.0)
+    except (ValueError, InputError) as err:
+        raise argparse.ArgumentTypeError(f"{text!r}: {err}") from None
+    return point
 
 
 def main():
