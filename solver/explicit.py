@@ -12,9 +12,11 @@ line that the compression rolls onto the plate plus 3 bending lengths
 `ds_max` away from it. At resolution 1, ds_min = min(DS_MIN, ℓ_b/LAYER_ELEMENTS)
 and ds_max = DS_MAX; resolution r divides this whole size function by r, so
 the meshes of one shell form a refinement family (Richardson extrapolation,
-`bench/convergence.py`: K converges at order p ≈ 2, and at resolution 1 it
-is within 0.1 % of the extrapolated value; the far-field size DS_MAX limits
-that, not the contact band).
+`bench/convergence.py`). With DS_MAX = 0.15 µm K converged at order p ≈ 2 and
+was 0.12-0.22 % off its limit at resolution 1 on some points, limited by the
+far field, not the contact band; with 0.075 µm it is within 0.07 % of the
+limit (and of the fast solver's), and the observed order varies (0.6-3.4)
+because the far-field and contact-band errors are now of similar size.
 
 Time stepping (`solver.surface_forces.flow`): v = μ f / A (force density), μ = 1
 µm²/(s·mN/m) (only μ t matters for the equilibrium), volume held by a Lagrange
