@@ -16,7 +16,10 @@
 # exist it is made a link to ours, so they also work without it.
 #
 # Idempotent: `start` on a running cluster is a no-op, `stop` on a stopped one
-# too. Exit status 77 means "cannot be done here" (not root, no apt-get, or
+# too; `start` and `stop` wait for each other (a lock in the state directory),
+# so test sessions running at once start one cluster. A program that uses the
+# cluster may hold a shared flock on $dir/sessions.lock; whoever wants to stop
+# it should first take that lock exclusively (tests/test_slurm.py does both). Exit status 77 means "cannot be done here" (not root, no apt-get, or
 # the packages cannot be installed), with the reason on stdout; the tests
 # report that as a skip.
 #
@@ -107,7 +110,7 @@ start_munge() {
     [[ -s /etc/munge/munge.key ]] || runuser -u munge -- mungekey --create --keyfile=/etc/munge/munge.key
     mkdir -p /run/munge /var/log/munge /var/lib/munge
     chown munge:munge /run/munge /var/log/munge /var/lib/munge
-    runuser -u munge -- /usr/sbin/munged
+    runuser -u munge -- /usr/sbin/munged 9>&-   # 9>&-: the daemons must not keep the set-up lock
     local i
     for i in $(seq 50); do
         if munge -n 2>/dev/null | unmunge >/dev/null 2>&1; then  # ours: `stop` ends it too
@@ -128,8 +131,8 @@ start() {
     alive "$dir/run/slurmctld.pid" && alive "$dir/run/slurmd.pid" || {
         stop quiet slurmd slurmctld
         write_conf
-        SLURM_CONF=$conf slurmctld -c -f "$conf"   # -c: forget jobs of an earlier run
-        SLURM_CONF=$conf slurmd -f "$conf"
+        SLURM_CONF=$conf slurmctld -c -f "$conf" 9>&-   # -c: forget jobs of an earlier run
+        SLURM_CONF=$conf slurmd -f "$conf" 9>&-
     }
     local i
     for i in $(seq 60); do
@@ -162,10 +165,17 @@ stop() {  # stop [quiet] [DAEMON...]: by default all three
     return 0
 }
 
+serialised() {  # run "$@" holding $dir/.setup.lock: two `start`s at once start one cluster
+    mkdir -p "$dir" 2>/dev/null || need_root "create $dir"
+    exec 9>"$dir/.setup.lock"
+    flock -w 900 9 || { say "$dir/.setup.lock is held by another set-up"; exit 1; }
+    "$@"
+}
+
 case ${1:-start} in
     install) install ;;
-    start) start ;;
-    stop) stop ;;
+    start) serialised start ;;
+    stop) serialised stop ;;
     status) usable ;;
     env) echo "export SLURM_CONF=$conf" ;;
     *) echo "usage: setup-slurm.sh [install|start|stop|status|env]" >&2; exit 2 ;;

@@ -18,9 +18,14 @@ left:
   exits 3 (the engine's "stopped, rerun to resume"), its chained analysis is
   cancelled, the store keeps the finished tasks; jobs/resume.sh submits it
   again, the store ends complete with every task done exactly once and the
-  new analysis runs.
+  new analysis runs;
+- tests/data/slurm-failing.toml (one compression raises): the job exits 1
+  and its analysis is cancelled; `campaign.sbatch CONFIG STORE
+  --retry-failed` retries only that task, and `analysis.sbatch STORE DIR
+  --partial` (afterany) analyses the rest.
 """
 
+import fcntl
 import importlib.util
 import json
 import os
@@ -36,31 +41,52 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
 SETUP = ROOT / "scripts" / "setup-slurm.sh"
 SUBMIT = ROOT / "jobs" / "submit.sh"
-CONFIGS = (DATA / "slurm-tiny.toml", DATA / "slurm-timelimit.toml")
+CONFIGS = (DATA / "slurm-tiny.toml", DATA / "slurm-timelimit.toml", DATA / "slurm-failing.toml")
 pytestmark = [
     pytest.mark.skipif(importlib.util.find_spec("campaign") is None,
                        reason="the campaign engine (package `campaign`) is not in this tree"),
     pytest.mark.skipif(not all(c.exists() for c in CONFIGS),
-                       reason="tests/data/slurm-tiny.toml and slurm-timelimit.toml not written yet"),
+                       reason="tests/data/slurm-{tiny,timelimit,failing}.toml not written yet"),
 ]
 FINAL = {"COMPLETED", "FAILED", "CANCELLED", "TIMEOUT", "NODE_FAIL", "OUT_OF_MEMORY", "PREEMPTED", "BOOT_FAIL", "DEADLINE"}
 
 
 @pytest.fixture(scope="session")
 def slurm():
-    """A running single-node SLURM; yields the environment for its client commands."""
+    """A running single-node SLURM; yields the environment for its client commands.
+
+    Other test sessions (other clones, other users' `make test`) may use the same
+    cluster at the same time: each holds a shared lock on sessions.lock in its
+    state directory while it runs, and the session that started the cluster
+    stops it at the end only if it can then take that lock exclusively."""
     if shutil.which("bash") is None:
         pytest.skip("no bash")
     env = dict(os.environ, SLURM_CONF="/var/lib/cortex-slurm/slurm.conf")
     env.update(line.removeprefix("export ").split("=", 1) for line in _setup("env").stdout.splitlines())
+    sessions = _sessions_lock(Path(env["SLURM_CONF"]).parent)
     was_up = _setup("status").returncode == 0
     run = _setup("start")
     if run.returncode == 77:
         pytest.skip(f"no SLURM here: {run.stdout.strip()}")
     assert run.returncode == 0, f"setup-slurm.sh start failed:\n{run.stdout}\n{run.stderr}"
     yield env
-    if not was_up:
+    if sessions is not None and not was_up:
+        try:
+            fcntl.flock(sessions, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return  # another session is using the cluster: leave it running
         _setup("stop")
+
+
+def _sessions_lock(state_dir):
+    """The shared lock saying "a test session uses this cluster" (None if it cannot be made)."""
+    try:
+        state_dir.mkdir(parents=True, exist_ok=True)
+        lock = open(state_dir / "sessions.lock", "w")
+    except OSError:
+        return None  # not root: setup-slurm.sh will say why and the tests skip
+    fcntl.flock(lock, fcntl.LOCK_SH)
+    return lock
 
 
 def _setup(action):
@@ -74,6 +100,14 @@ def submit(env, cwd, *args):
     ids = dict(line.split() for line in run.stdout.splitlines())
     assert set(ids) == {"campaign", "analysis"} and all(v.isdigit() for v in ids.values()), run.stdout
     return ids
+
+
+def sbatch(env, cwd, *args):
+    """`sbatch --parsable ARGS` in cwd; returns the job id."""
+    run = subprocess.run(["sbatch", "--parsable", *map(str, args)], cwd=cwd, env=env, capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 0, f"sbatch failed: {run.stderr}"
+    return run.stdout.strip().split(";")[0]
 
 
 def job(env, jobid):
@@ -134,6 +168,28 @@ def test_campaign_then_analysis(slurm, tmp_path):
     assert np.isfinite(results["modulus_mN_per_m"]).all()
     calibration = json.loads((tmp_path / "analysis" / "calibration.json").read_text())
     assert calibration, "empty calibration.json"
+
+
+def test_failed_tasks_then_retry_and_partial_analysis(slurm, tmp_path):
+    ids = submit(slurm, tmp_path, CONFIGS[2], "f.h5", "analysis")
+    rec = wait(slurm, ids.values(), 300)
+    camp, ana = rec[ids["campaign"]], rec[ids["analysis"]]
+    assert (camp["JobState"], camp["ExitCode"]) == ("FAILED", "1:0"), logs(tmp_path)
+    assert ana["JobState"] == "CANCELLED", logs(tmp_path)  # afterok: not on a store with failed tasks
+    results = states(tmp_path / "f.h5")
+    assert list(results.index[results["state"] == "failed"]) == [3], results
+    assert "injected fault" in results.at[3, "error"]
+
+    retry = sbatch(slurm, tmp_path, ROOT / "jobs" / "campaign.sbatch", CONFIGS[2], "f.h5", "--retry-failed")
+    partial = sbatch(slurm, tmp_path, f"--dependency=afterany:{retry}", ROOT / "jobs" / "analysis.sbatch",
+                     "f.h5", "partial", "--partial")
+    rec = wait(slurm, [retry, partial], 300)
+    assert (rec[retry]["JobState"], rec[retry]["ExitCode"]) == ("FAILED", "1:0"), logs(tmp_path)
+    results = states(tmp_path / "f.h5")
+    assert results.at[3, "attempts"] == 2 and (results.drop(index=3)["attempts"] == 1).all()  # only it retried
+    assert (rec[partial]["JobState"], rec[partial]["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
+    assert rec[partial]["StartTime"] >= rec[retry]["EndTime"]
+    assert json.loads((tmp_path / "partial" / "calibration.json").read_text())
 
 
 @pytest.mark.slow  # 3 to 4 minutes: a one-minute time limit, then the rest
