@@ -162,12 +162,18 @@ def execute(campaign, task, payload):
 def _worker(comm, campaign):
     from mpi4py import MPI
     status = MPI.Status()
+    pending = None          # the last result in flight: a large one must not block the next task
     while True:
         message = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
         if status.Get_tag() == TAG_STOP:
+            if pending is not None:
+                pending.wait()
             return
         task, payload = message
-        comm.send((task, *execute(campaign, task, payload)), dest=0, tag=TAG_RESULT)
+        result = (task, *execute(campaign, task, payload))
+        if pending is not None:
+            pending.wait()
+        pending = comm.isend(result, dest=0, tag=TAG_RESULT)
 
 
 class _Trials:
