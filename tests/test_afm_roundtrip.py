@@ -1,8 +1,9 @@
 """Round trip: synthetic experiments of the published size (85 cells) analysed
-back. The forward model here is the calibration law itself (the stand-in used
-until the fast solver is available), so the calibration is exact and any
-error comes from the time-series analysis, the filters and the measurement
-errors."""
+back. The forward model here is the calibration law itself, so the
+calibration is exact and any error comes from the time-series analysis, the
+filters and the measurement errors. The round trip with the fast solver as
+forward model and a solver-built calibration is
+`tests/test_afm_solver_roundtrip.py`."""
 
 import numpy as np
 import pytest

@@ -6,6 +6,10 @@ the shared inversion (`analysis.inversion.invert_cell`).
 stay within 10 % of their median, max |<γ_eff>_i - median| / median ≤ 0.10;
 a cell failing it (e.g. blebbing) is excluded with that reason. The K(h̃)
 filters and the fit are those of `analysis.inversion`.
+
+`outside_calibration` flags a result whose K̃_S or γ̃_a lies outside the
+calibration grid (the law's α-table axes): there ν rests on the log law's
+extrapolation (no flag, None, for a law without a table).
 """
 
 import numpy as np
@@ -30,11 +34,21 @@ def analyze_cell(cell, calibration, bending="standard"):
         if dev > TENSION_TOLERANCE:
             inv["excluded_reason"] = (f"average tension not constant: deviates {100 * dev:.0f} % from its "
                                       f"median {med:.3g} mN/m (limit {100 * TENSION_TOLERANCE:.0f} %)")
+        inv["outside_calibration"] = _outside(calibration[bending], inv.get("ks_tilde"), inv.get("gamma_tilde"))
         rows.append({"cell_id": cell.cell_id, "frequency_hz": float(f), "bending": bending,
                      "volume_um3": cell.volume_um3, "tension_mN_per_m": tension,
                      "tension_deviation": dev, "n_segments": len(g),
                      "loss_angle_rad": float(g["loss_angle_rad"].median()), **inv})
     return rows, segs
+
+
+def _outside(law, ks, gamma):
+    if not law.ks_tilde or not law.gamma_tilde or ks is None or gamma is None:
+        return None
+    if not (np.isfinite(ks) and np.isfinite(gamma)):
+        return None
+    return bool(not min(law.ks_tilde) <= ks <= max(law.ks_tilde)
+                or not min(law.gamma_tilde) <= gamma <= max(law.gamma_tilde))
 
 
 def analyze(cells, calibration, bending="standard"):

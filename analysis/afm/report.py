@@ -63,6 +63,12 @@ def _markdown(data, bending, tables, sums, figs):
                          f"{fmt(r['lognormal_sigma'])} |")
     lines += ["", "Two-sided Mann-Whitney p-values (variant `%s`):" % bending, ""]
     lines += [f"- {k}: {p:.3g}" for k, p in sums[bending]["mann_whitney_p"].items()]
+    tab = tables[bending]
+    ok = tab[tab["excluded_reason"].isna()]
+    if ok["outside_calibration"].notna().any():
+        lines += ["", f"{int((ok['outside_calibration'] == True).sum())} of {len(ok)} included results "  # noqa: E712
+                  "have K̃_S or γ̃_a outside the calibration grid (ν from the log law's extrapolation; "
+                  "`outside_calibration` in cells.csv)."]
     lines += ["", "## Excluded cells", "", "| cell | f (Hz) | reason |", "|---|---|---|"]
     ex = tables[bending][tables[bending]["excluded_reason"].notna()]
     lines += [f"| {r.cell_id} | {r.frequency_hz:g} | {r.excluded_reason} |" for r in ex.itertuples()]
