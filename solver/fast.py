@@ -77,11 +77,6 @@ def _slack(lag, u, zp):
     return 0.1 * np.hypot(r[lag.kc + 1] - r[lag.kc], z[lag.kc + 1] - z[lag.kc])
 
 
-def _crosses(lag, u, zp):
-    """Whether the free surface rises above the plate."""
-    return _gap(lag, u, zp) > 0
-
-
 def _newton(lag, u, zp, tol=1e-6, maxit=30):
     """Newton's method on ∇L = 0 for the node positions and p at fixed l;
     steps are halved while they leave the admissible shapes or multiply the
@@ -178,10 +173,10 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
                       f"{maxit} steps)")
 
 
-def _unknowns(lag, logpsic, h_ratio, p):
-    """Reference nodes for contact label ψ_c, heights scaled by h_ratio."""
-    r0, z0 = lag.ref.positions(logpsic)[:2]
-    return np.concatenate([r0[1:], z0[lag.kc + 1: lag.N] * h_ratio, [logpsic, p]])
+def _reference_state(lag):
+    """The unknowns of the reference droplet at h0: least contact, p = 2 γ_a H_d."""
+    r0, z0 = lag.ref.positions(LOG_PSI_MIN)[:2]
+    return np.concatenate([r0[1:], z0[lag.kc + 1: lag.N], [LOG_PSI_MIN, 2.0 * lag.gamma * lag.ref.H]])
 
 
 def _predicted_label(lag, shell, h):
@@ -208,7 +203,7 @@ def _follow(lag, shell, steps):
     """From the reference state along h0 → h1 in `steps` equal steps, the
     contact label predicted from the droplet on the way, found at h1."""
     h0, iterations = shell.h0_um, 0
-    u = _unknowns(lag, LOG_PSI_MIN, 1.0, 2.0 * lag.gamma * lag.ref.H)
+    u = _reference_state(lag)
     h_last = h0
     for i in range(1, steps + 1):
         h = h0 - shell.dh_um * i / steps
