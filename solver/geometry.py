@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 from scipy.interpolate import CubicSpline
 
 from solver.errors import InputError
@@ -62,36 +63,47 @@ def sphere_height(volume):
     return 2.0 * cell_radius(volume)
 
 
-def _nodes(beta, psi_end):
-    """Quadrature nodes ψ and weights, shape (..., n), graded towards ψ = 0."""
-    lo = np.minimum(np.clip(beta, 1e-14, None) / 8.0, psi_end / 2.0)
-    edges = lo[..., None] * (psi_end / lo)[..., None] ** np.linspace(0.0, 1.0, _INTERVALS + 1)
-    edges = np.concatenate([np.zeros_like(lo)[..., None], edges], axis=-1)
-    a, b = edges[..., :-1, None], edges[..., 1:, None]
-    psi = 0.5 * (a + b) + 0.5 * (b - a) * _GL_X
-    w = 0.5 * (b - a) * _GL_W
-    shape = psi.shape[:-2] + (-1,)
-    return psi.reshape(shape), w.reshape(shape)
+@njit(cache=True)
+def _integrate(k, psi_end, gl_x, gl_w):
+    """The quadrature of `_half_integrals`, one (k, ψ_end) at a time, fused
+    (no (points × nodes) temporaries): on [0, lo] and on _INTERVALS intervals
+    from lo = min(β/8, ψ_end/2) to ψ_end growing geometrically."""
+    n = k.size
+    z, vol, area = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        H = 1.0 / (1.0 - k[i] * k[i])
+        beta = 2.0 * H * k[i]
+        lo = min(max(beta, 1e-14) / 8.0, psi_end[i] / 2.0)
+        ratio = psi_end[i] / lo
+        zi, vi, ai, a = 0.0, 0.0, 0.0, 0.0
+        for j in range(_INTERVALS + 1):
+            b = lo * ratio ** (j / _INTERVALS) if j < _INTERVALS else psi_end[i]
+            mid, half = 0.5 * (a + b), 0.5 * (b - a)
+            for m in range(gl_x.size):
+                psi = mid + half * gl_x[m]
+                w = half * gl_w[m]
+                s = np.sin(psi)
+                q = np.sqrt(s * s + beta * beta)
+                g = (1.0 + s / q) / (2.0 * H)            # ds/dψ
+                r = (s + q) / (2.0 * H)
+                dz = s * g
+                zi += w * dz
+                vi += w * r * r * dz
+                ai += w * r * g
+            a = b
+        z[i], vol[i], area[i] = zi, np.pi * vi, 2.0 * np.pi * ai
+    return z, vol, area
 
 
 def _half_integrals(k, psi_end=None):
     """For R_eq = 1 and R_c = k: height, volume and free area from the contact
-    line (ψ = 0) up to ψ_end (default the equator), each for one half."""
+    line (ψ = 0) up to ψ_end (default the equator), each for one half, by
+    composite Gauss-Legendre quadrature in ψ (`_integrate`)."""
     k = np.asarray(k, float)
-    H = 1.0 / (1.0 - k * k)
-    beta = 2.0 * H * k
     psi_end = np.full_like(k, np.pi / 2) if psi_end is None else np.asarray(psi_end, float)
-    psi, w = _nodes(beta, psi_end)
-    H_, beta_ = H[..., None], beta[..., None]
-    s = np.sin(psi)
-    q = np.sqrt(s * s + beta_ * beta_)
-    g = (1.0 + s / q) / (2.0 * H_)           # ds/dψ
-    r = (s + q) / (2.0 * H_)
-    dz = s * g
-    z = np.sum(w * dz, axis=-1)
-    vol = np.pi * np.sum(w * r * r * dz, axis=-1)
-    area = 2.0 * np.pi * np.sum(w * r * g, axis=-1)
-    return z, vol, area
+    k, psi_end = np.broadcast_arrays(k, psi_end)
+    out = _integrate(np.ascontiguousarray(k).ravel(), np.ascontiguousarray(psi_end).ravel(), _GL_X, _GL_W)
+    return tuple(x.reshape(k.shape) for x in out)
 
 
 def _h_tilde_of_k(k):
