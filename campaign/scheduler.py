@@ -1,9 +1,10 @@
 """Master/worker over MPI with dynamic load balancing; every rank computes.
 
-Rank 0 owns the store and the list of tasks. Each worker holds up to two
-tasks at a time (one computing, one queued), so it never waits for rank 0;
-rank 0 answers finished tasks with new ones and, between messages, computes
-tasks itself. Without `mpiexec` the same code runs in one process.
+Rank 0 owns the store and the list of tasks. Each worker holds up to AHEAD
+tasks at a time (one computing, the others queued) and sends its results
+without waiting for them to be received, so it never waits for rank 0, which
+answers messages only between the tasks it computes itself (30-40 ms each).
+Without `mpiexec` the same code runs in one process.
 
 Tasks are numbered: the compressions 0..n-1 (grid order), then the
 Monte-Carlo trial tasks n..n+m-1 (`campaign.trials.Study`). A trial task is
@@ -30,6 +31,7 @@ from collections import deque
 from campaign.store import DONE, FAILED, PENDING, Store
 
 TAG_TASK, TAG_RESULT, TAG_STOP = 1, 2, 3
+AHEAD = 4               # tasks a worker holds: enough to outlast one of rank 0's own tasks
 _stop = {"flag": False}
 
 
@@ -162,18 +164,15 @@ def execute(campaign, task, payload):
 def _worker(comm, campaign):
     from mpi4py import MPI
     status = MPI.Status()
-    pending = None          # the last result in flight: a large one must not block the next task
+    sent = []               # results in flight: a large one is received only between rank 0's tasks
     while True:
         message = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
         if status.Get_tag() == TAG_STOP:
-            if pending is not None:
-                pending.wait()
+            MPI.Request.waitall(sent)
             return
         task, payload = message
-        result = (task, *execute(campaign, task, payload))
-        if pending is not None:
-            pending.wait()
-        pending = comm.isend(result, dest=0, tag=TAG_RESULT)
+        sent = [r for r in sent if not r.Test()]
+        sent.append(comm.isend((task, *execute(campaign, task, payload)), dest=0, tag=TAG_RESULT))
 
 
 class _Trials:
@@ -280,9 +279,9 @@ def _master(comm, store, campaign, retry_failed, progress):
         in_flight[worker] += 1
 
     def refill():
-        """Every worker two tasks ahead (a finished compression may have made trials ready)."""
+        """Every worker AHEAD tasks ahead (a finished compression may have made trials ready)."""
         for w in in_flight:
-            while in_flight[w] < 2 and todo and not _stop["flag"]:
+            while in_flight[w] < AHEAD and todo and not _stop["flag"]:
                 hand_out(w)
 
     refill()
