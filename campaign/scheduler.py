@@ -98,7 +98,8 @@ def compute_study(study, forces, errors, timeout_s):
     from campaign.trials import run_study
 
     def work():
-        return {k: v.tolist() for k, v in run_study(study, forces, errors).items()}
+        # numbers stay arrays (sent and journalled as raw float64), the strings become lists
+        return {k: v.tolist() if v.dtype.kind in "UO" else v for k, v in run_study(study, forces, errors).items()}
     return _guarded(work, timeout_s)
 
 

@@ -13,7 +13,8 @@ when the campaign file gets a [montecarlo] section (its compressions kept);
 one with other trials is refused.
 
 Kill safety: each finished task is first appended to `STORE.journal` (one
-JSON line, fsync'd in batches) and then written into the HDF5 rows; the HDF5
+JSON line, fsync'd in batches; a trial task's arrays as base64 of their
+float64 bytes, `_encode`) and then written into the HDF5 rows; the HDF5
 file is flushed after each batch. On opening, the journal is replayed into
 the file (idempotent), rows left `running` become `pending` again, and a file
 that a kill left unreadable is set aside and rebuilt from the campaign and the
@@ -26,6 +27,7 @@ batch's rows are flushed) says how much of the journal the rows already hold:
 readers and the replay parse only the rest.
 """
 
+import base64
 import fcntl
 import json
 import os
@@ -35,7 +37,6 @@ import socket
 import time
 
 import numpy as np
-import pandas as pd
 
 from campaign.trials import CELL_KEYS, HEIGHT_KEYS
 from solver.errors import InputError
@@ -294,7 +295,7 @@ class Store:
 
     def record(self, entry):
         """Journal first; the HDF5 rows follow in batches, after the journal's fsync (`flush`)."""
-        self.journal.write(json.dumps(entry) + "\n")
+        self.journal.write(json.dumps(entry, default=_encode) + "\n")
         self.buffer.append(entry)
         self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
         kill = os.environ.get("CORTEX_TEST_KILL_MID_WRITE")
@@ -349,8 +350,24 @@ def _trial_columns(entry, N, m):
            "started_unix_s": np.full(N, entry.get("started", np.nan), float)}
     for key in CELL_KEYS + HEIGHT_KEYS:
         shape = (N,) if key in CELL_KEYS else (N, m)
-        out[key] = np.array(cells[key], float) if key in cells else np.full(shape, np.nan)
+        out[key] = _decode(cells[key]) if key in cells else np.full(shape, np.nan)
     return out
+
+
+def _encode(array):
+    """A float array in a journal line: its float64 bytes in base64 (exact, and
+    ~15 times faster to write and read than a list of decimal numbers)."""
+    if not isinstance(array, np.ndarray):
+        raise TypeError(f"cannot journal {type(array).__name__}")
+    a = np.ascontiguousarray(array, "<f8")
+    return {"f8": base64.b64encode(a.tobytes()).decode("ascii"), "shape": list(a.shape)}
+
+
+def _decode(value):
+    """`_encode`'s inverse; a plain list (journals of earlier versions) too."""
+    if isinstance(value, dict):
+        return np.frombuffer(base64.b64decode(value["f8"]), "<f8").reshape(value["shape"]).copy()
+    return np.array(value, float)
 
 
 def read_journal(path, start=0):
@@ -371,6 +388,7 @@ def read_journal(path, start=0):
 def read_results(path):
     """One row per compression task: parameters, state and results (NaN where
     not done), with the journal of a running campaign overlaid."""
+    import pandas as pd           # here: a campaign run need not load it
     with _open_read(path) as f:
         if "fingerprint" not in f.attrs or "state" not in f:
             raise InputError(f"{path}: not a campaign store")
@@ -417,6 +435,7 @@ def read_trials(path):
     """Monte-Carlo trial curves, long format: one row per trial and height with
     the columns TRIAL_COLUMNS (then `error`); empty, with those columns, for a
     store without trials. Values of trials not done are NaN."""
+    import pandas as pd
     a = _trial_arrays(path)
     if a is None:
         return pd.DataFrame({c: [] for c in TRIAL_COLUMNS + ("error",)})
