@@ -97,11 +97,19 @@ class Study:
 
     def trial_ids(self):
         """One id per cell: a hash of the study's parameters, the seed and the cell."""
-        return [hashlib.sha256(f"{self._key}|cell={c}".encode()).hexdigest()[:16] for c in range(self.n_cells)]
+        base = hashlib.sha256(f"{self._key}|cell=".encode())
+        return [_extended(base, str(c)) for c in range(self.n_cells)]
 
     def dependencies(self):
         """Every compression row the study uses."""
         return sorted({r for line in self.rows for r in line})
+
+
+def _extended(base, tail):
+    """sha256(key + tail)[:16] from the hash of key (the same digest, hashed once)."""
+    h = base.copy()
+    h.update(tail.encode())
+    return h.hexdigest()[:16]
 
 
 def draws(study):
