@@ -63,12 +63,14 @@ mpi_pytest = MPIEXEC_TIMEOUT=$(MPI_TIMEOUT) $(1) -n $(NP) \
 test-mpi: setup
 	$(call mpi_pytest,$(BIN)/mpiexec,$(BIN)/python)
 
-# The same on the parallel-HDF5 stack (and its doctor checked serially); where
-# it cannot be installed, this says SKIPPED and passes.
+# The same on the parallel-HDF5 stack, plus (serially: they start mpiexec
+# themselves) its doctor and the store's two write paths compared; where it
+# cannot be installed, this says SKIPPED and passes.
 test-mpi-parallel:
 	@$(SETUP_PARALLEL); \
 	if [ $$status = 0 ]; then set -x; \
-	  $(PVENV)/bin/with-mpi $(PVENV)/bin/python -m pytest -q -p no:cacheprovider tests/test_stack.py && \
+	  $(PVENV)/bin/with-mpi $(PVENV)/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) \
+	    tests/test_stack.py tests/test_campaign_writepath.py && \
 	  $(call mpi_pytest,$(PVENV)/bin/with-mpi mpiexec,$(PVENV)/bin/python); fi
 
 # Calibration laws, reconstruction check, Monte-Carlo study and report of a

@@ -17,6 +17,11 @@ def register(sub):
     r.add_argument("--new", action="store_true", help="start over; the old store is kept as a backup")
     r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
     r.add_argument("--quiet", action="store_true", help="no progress output")
+    r.add_argument("--write-path", choices=("auto", "mpio", "rank0"), default="auto",
+                   help="how rows reach the store: mpio (every rank writes its own rows by parallel "
+                        "HDF5; needs h5py built with MPI), rank0 (rank 0 writes all), auto (mpio where "
+                        "h5py has MPI and there are 2 or more ranks; the default). Both give the same rows; "
+                        "the one used is printed and kept in the store's `runs` attribute")
     r.set_defaults(handler="campaign.cli:run")
     s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
                       description="Summarise a store (also while its campaign is running).")
@@ -36,7 +41,7 @@ def run(args):
     parent = os.path.dirname(os.path.abspath(store))
     os.makedirs(parent, exist_ok=True)
     status = scheduler.run(campaign, store, new=args.new, retry_failed=args.retry_failed,
-                           progress=not args.quiet)
+                           progress=not args.quiet, writes=args.write_path)
     from mpi4py import MPI
     if MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
         print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")

@@ -19,6 +19,12 @@ returns a non-finite result is recorded as failed with its message; the
 others go on.
 SIGTERM or SIGINT on any rank: no new tasks are handed out, the tasks in
 flight finish and are written, and the run stops saying how to resume.
+
+A finished task travels as its journal entry (`entry`), built where it ran.
+On the mpio write path (`campaign.store`) a worker also keeps it and writes
+its rows when rank 0, after each fsync of the journal, tells it how many of
+its entries the journal holds (TAG_WRITE; the final count comes with
+TAG_STOP, before every rank closes the file together).
 """
 
 import math
@@ -28,9 +34,9 @@ import time
 import traceback
 from collections import deque
 
-from campaign.store import DONE, FAILED, PENDING, Store
+from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 
-TAG_TASK, TAG_RESULT, TAG_STOP = 1, 2, 3
+TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 AHEAD = 4               # tasks a worker holds: enough to outlast one of rank 0's own tasks
 _stop = {"flag": False}
 
@@ -127,26 +133,35 @@ def _guarded(work, timeout_s):
         signal.setitimer(signal.ITIMER_REAL, 0)
 
 
-def run(campaign, store_path, new=False, retry_failed=False, progress=True):
-    """Run or resume `campaign` into `store_path`; returns the exit status:
+def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
+    """Run or resume `campaign` into `store_path` with the write path `writes`
+    (auto, mpio or rank0; `campaign.store.write_path`); returns the exit status:
     0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
     rank, size = comm.Get_rank(), comm.Get_size()
     signal.signal(signal.SIGTERM, _on_signal)
     signal.signal(signal.SIGINT, _on_signal)
-    store, error = None, None
+    store, path, error = None, None, None
     if rank == 0:
         try:
-            store = Store(store_path, campaign, new=new, ranks=size)
+            path = write_path(writes, size)
+            store = Store(store_path, campaign, new=new, ranks=size, parallel=path == "mpio")
         except Exception as err:
             error = err
-    error = comm.bcast(error, root=0)
+    error, path = comm.bcast((error, path), root=0)
     if error is not None:
         raise error
+    parallel_file = open_parallel(store_path, comm) if path == "mpio" else None   # every rank
     if rank != 0:
-        _worker(comm, campaign)
+        _worker(comm, campaign, parallel_file and Writer(parallel_file))
         return 0
+    if parallel_file:
+        store.attach(parallel_file)
+    if progress:
+        print(f"campaign: {size} rank{'s' * (size > 1)}, store writes: {path}"
+              f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
+              file=sys.stderr, flush=True)
     try:
         return _master(comm, store, campaign, retry_failed, progress)
     finally:
@@ -162,18 +177,37 @@ def execute(campaign, task, payload):
     return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s)
 
 
-def _worker(comm, campaign):
+def entry(campaign, task, attempts, rank, state, results, error, started):
+    """Task `task`'s journal entry: a compression's `row` and `results`, or a
+    trial task's `task` and per-cell `cells`."""
+    n = len(campaign.shells)
+    key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
+    return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
+            "started": started}
+
+
+def _worker(comm, campaign, writer=None):
     from mpi4py import MPI
     status = MPI.Status()
     sent = []               # results in flight: a large one is received only between rank 0's tasks
     while True:
         message = comm.recv(source=0, tag=MPI.ANY_TAG, status=status)
-        if status.Get_tag() == TAG_STOP:
+        tag = status.Get_tag()
+        if tag == TAG_WRITE:
+            writer.written_upto(message)
+        elif tag == TAG_STOP:
             MPI.Request.waitall(sent)
+            if writer is not None:
+                writer.written_upto(message)
+                writer.close()
             return
-        task, payload = message
-        sent = [r for r in sent if not r.Test()]
-        sent.append(comm.isend((task, *execute(campaign, task, payload)), dest=0, tag=TAG_RESULT))
+        else:
+            task, payload, attempts = message
+            done = entry(campaign, task, attempts, comm.Get_rank(), *execute(campaign, task, payload))
+            if writer is not None:
+                writer.keep(done)
+            sent = [r for r in sent if not r.Test()]
+            sent.append(comm.isend(done, dest=0, tag=TAG_RESULT))
 
 
 class _Trials:
@@ -249,34 +283,42 @@ def _master(comm, store, campaign, retry_failed, progress):
     total = n + len(campaign.studies)
     bar = _Progress(total, int(np.sum(states == DONE)) + trials.done0, len(todo), enabled=progress)
     in_flight = {w: 0 for w in range(1, comm.Get_size())}
+    received = dict.fromkeys(in_flight, 0)       # entries journalled per worker
     last_flush, failed = time.time(), 0
 
-    def finish(task, state, results, err, started, worker):
+    def finish(done):
         nonlocal failed
-        if task < n:
-            attempts[task] += 1
-            store.record({"row": int(task), "state": state, "results": results, "error": err,
-                          "attempts": int(attempts[task]), "rank": int(worker), "started": started})
-            todo.extend(trials.compression_finished(task, state, results, err))
+        store.record(done)
+        state = done["state"]
+        if "row" in done:
+            todo.extend(trials.compression_finished(done["row"], state, done["results"], done["error"]))
             failed += state == "failed"
         else:
-            j = task - n
-            trials.attempts[j] += 1
-            store.record({"task": int(j), "state": state, "error": err, "cells": results,
-                          "attempts": int(trials.attempts[j]), "rank": int(worker), "started": started})
-            failed += state == "failed" or "failed" in results.get("state", ())
+            failed += state == "failed" or "failed" in done["cells"].get("state", ())
         bar.update(state)
 
     def payload(task):
         return None if task < n else trials.payload(task - n)
 
-    def mark(task):
+    def start(task):
+        """Shown running from the next flush on; returns its attempt number."""
         store.mark_running([task if task < n else ("task", task - n)])
+        count = attempts if task < n else trials.attempts
+        i = task if task < n else task - n
+        count[i] += 1
+        return count[i]
+
+    def flush(tag=TAG_WRITE):
+        """The journal fsync'd and rank 0's rows written; on the mpio path the
+        workers then write theirs."""
+        store.flush()
+        for w in in_flight:
+            if store.parallel or tag == TAG_STOP:
+                comm.send(received[w], dest=w, tag=tag)
 
     def hand_out(worker):
         task = todo.popleft()
-        mark(task)
-        comm.send((task, payload(task)), dest=worker, tag=TAG_TASK)
+        comm.send((task, payload(task), start(task)), dest=worker, tag=TAG_TASK)
         in_flight[worker] += 1
 
     def refill():
@@ -290,23 +332,21 @@ def _master(comm, store, campaign, retry_failed, progress):
     while (todo and not _stop["flag"]) or any(in_flight.values()):
         while comm.Iprobe(source=MPI.ANY_SOURCE, tag=TAG_RESULT, status=status):
             worker = status.Get_source()
-            task, state, results, err, started = comm.recv(source=worker, tag=TAG_RESULT)
+            done = comm.recv(source=worker, tag=TAG_RESULT)
             in_flight[worker] -= 1
-            finish(task, state, results, err, started, worker)
+            received[worker] += 1
+            finish(done)
             refill()
         if todo and not _stop["flag"]:
             task = todo.popleft()
-            mark(task)
-            finish(task, *execute(campaign, task, payload(task)), 0)
+            finish(entry(campaign, task, start(task), 0, *execute(campaign, task, payload(task))))
             refill()
         elif any(in_flight.values()):
             time.sleep(0.002)
         if time.time() - last_flush > 2.0:
-            store.flush()
+            flush()
             last_flush = time.time()
-    for w in in_flight:
-        comm.send(None, dest=w, tag=TAG_STOP)
-    store.flush()
+    flush(TAG_STOP)
     bar.close()
     if _stop["flag"] and (todo or trials.left()):
         print(f"campaign: stopped by a signal with {len(todo) + trials.left()} tasks left; rerun the same "

@@ -20,6 +20,17 @@ the file (idempotent), rows left `running` become `pending` again, and a file
 that a kill left unreadable is set aside and rebuilt from the campaign and the
 journal. So a rerun finishes the remaining tasks and ends with the same rows as
 an uninterrupted run. A lock file refuses a second run on the same store.
+
+Two write paths, one schema and the same rows (`write_path`):
+- rank0: rank 0 alone has the file open and writes every row, as above;
+- mpio (h5py built with MPI, more than one rank): rank 0 prepares the file
+  alone (create, replay, rebuild), then every rank opens it together with
+  `driver="mpio"`, and each rank writes the rows of the tasks it computed,
+  by independent writes of contiguous runs into the preallocated datasets
+  (no metadata changes, so nothing collective happens but open and close).
+  The journal stays the record: a worker keeps its finished entries until
+  rank 0 says how many of them its fsync'd journal holds (`Writer`), so rows
+  still follow the journal. `journal_bytes` is set when the run closes.
 Readers (`read_results`, `read_trials`, `summary`) open the file without
 HDF5's file locking and overlay the journal, so they also work while a
 campaign is running. The file's attribute `journal_bytes` (set after each
@@ -48,6 +59,7 @@ RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_
            "volume_error", "equator_shear_ratio", "iterations", "wall_s")
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
+ERROR_BYTES = 256           # an error message's room in its row
 TRIAL_COLUMNS = ("trial_id", "state", "nu_true", "bending", "height_error_mode", "study", "cell",
                  "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "volume_true_um3",
                  "volume_used_um3", "h0_true_um", "h0_used_um", "h1_used_um", "h_tilde",
@@ -80,10 +92,28 @@ def _open_read(path):
         raise InputError(f"{path}: not a readable HDF5 store ({err})") from None
 
 
-class Store:
-    """The writer's view of a store (rank 0 only)."""
+def write_path(requested, size):
+    """The write path for `size` ranks: 'mpio' or 'rank0' (`requested` 'auto'
+    picks mpio where h5py has MPI and there is more than one rank)."""
+    mpi = bool(_h5().get_config().mpi)
+    if requested == "mpio" and not mpi:
+        raise InputError("--write-path mpio: this h5py was built without MPI "
+                         "(make setup-parallel builds .venv-mpio, which has it)")
+    if requested == "auto":
+        return "mpio" if mpi and size > 1 else "rank0"
+    return requested
 
-    def __init__(self, path, campaign, new=False, ranks=1):
+
+def open_parallel(path, comm):
+    """The store opened by every rank of `comm` together (parallel HDF5)."""
+    return _h5().File(path, "r+", driver="mpio", comm=comm)
+
+
+class Store:
+    """Rank 0's view of a store: the journal, and the rows (all of them on the
+    rank0 path; on the mpio path rank 0's own, through `attach`)."""
+
+    def __init__(self, path, campaign, new=False, ranks=1, parallel=False):
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.lock = open(str(path) + ".lock", "a")
         try:
@@ -98,16 +128,36 @@ class Store:
             self._create(campaign, ranks)
         self.file = self._open_or_rebuild(campaign, ranks)
         self._add_trials(campaign)
+        if parallel and any(name in self.file and self.file[name].dtype.kind == "O"
+                            for name in ("error", "trials/error")):
+            self.file.close()
+            raise InputError(f"{path} was made by an earlier version (variable-length error strings, which "
+                             "parallel HDF5 cannot write): use --write-path rank0, or --new")
+        self.parallel = parallel
+        self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
         self._replay()
         for name in ("state", "trials/state"):
             if name in self.file:
                 state = self.file[name][:]
                 state[state == RUNNING] = PENDING
                 self.file[name][:] = state
-        self.file.flush()
         self.journal = open(self.journal_path, "a")
-        self.buffer, self.running, self.shown_running = [], set(), set()
-        self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
+        self._log_run(ranks)
+        self.buffer, self.running, self.shown_running, self.unsynced = [], set(), set(), False
+        self.file.flush()
+
+    def _log_run(self, ranks):
+        """Provenance of this run (appended to the JSON list `runs`); the rows
+        hold the whole journal now (replayed)."""
+        runs = json.loads(self.file.attrs.get("runs", "[]"))
+        runs.append({"started": time.strftime("%Y-%m-%dT%H:%M:%S"), "ranks": ranks, "host": socket.gethostname(),
+                     "write_path": "mpio" if self.parallel else "rank0", "code_version": _code_version()})
+        self.file.attrs.update(runs=json.dumps(runs), journal_bytes=self.journal.tell())
+
+    def attach(self, parallel_file):
+        """mpio path: swap the file rank 0 prepared alone for the one all ranks opened."""
+        self.file.close()
+        self.file = parallel_file
 
     # -- opening -----------------------------------------------------------
     def _check_same(self, campaign):
@@ -163,7 +213,7 @@ class Store:
             f["attempts"] = np.zeros(n, np.int32)
             f["rank"] = np.full(n, -1, np.int32)
             f["started_unix_s"] = np.full(n, np.nan)
-            f.create_dataset("error", data=np.array([""] * n, object), dtype=str_t)
+            f.create_dataset("error", data=np.zeros(n, _error_dtype()), dtype=_error_dtype())
             if campaign.studies:
                 self._create_trials(f.create_group("trials"), campaign)
             f.attrs.update(self._provenance(campaign, ranks))
@@ -195,7 +245,7 @@ class Store:
         g["attempts"] = np.zeros(n, np.int32)
         g["rank"] = np.full(n, -1, np.int32)
         g["started_unix_s"] = np.full(n, np.nan)
-        g.create_dataset("error", data=np.array([""] * n, object), dtype=str_t)
+        g.create_dataset("error", data=np.zeros(n, _error_dtype()), dtype=_error_dtype())
         g.attrs["cells_per_study"] = N
 
     @staticmethod
@@ -204,10 +254,9 @@ class Store:
         import mpi4py
         import numpy
         import scipy
-        from cortex import __version__
         return {"fingerprint": campaign.fingerprint, "trials_fingerprint": campaign.trials_fingerprint,
                 "config_text": campaign.text,
-                "name": campaign.name, "method": campaign.method, "code_version": __version__,
+                "name": campaign.name, "method": campaign.method, "code_version": _code_version(),
                 "versions": json.dumps({"python": platform.python_version(), "numpy": numpy.__version__,
                                         "scipy": scipy.__version__, "h5py": h5py.version.version,
                                         "hdf5": h5py.version.hdf5_version, "mpi4py": mpi4py.__version__}),
@@ -233,44 +282,10 @@ class Store:
 
     # -- writing -----------------------------------------------------------
     def _write_rows(self, entries):
-        """Write journal entries into their rows (the one place rows are written):
-        compressions (`row`) one HDF5 write per column, trial tasks (`task`) one
-        slice of N rows per column; the last entry of a row wins."""
-        self._write_trials({e["task"]: e for e in entries if "task" in e})
-        by_row = {e["row"]: e for e in entries if "row" in e}
-        if not by_row:
-            return
-        rows = np.array(sorted(by_row))
-        batch = [by_row[i] for i in rows]
-        f = self.file
-        results = [e.get("results", {}) for e in batch]
-        columns = {
-            "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
-            "attempts": np.array([e["attempts"] for e in batch], np.int32),
-            "rank": np.array([e["rank"] for e in batch], np.int32),
-            "error": np.array([e.get("error", "") for e in batch], object),
-            "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
-            "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-        for key in RESULTS:
-            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
-        for key, values in columns.items():
-            f[key][rows] = values
-
-    def _write_trials(self, by_task):
-        """Trial tasks' entries (`_trial_columns`), one slice write per column
-        for each run of consecutive tasks."""
-        if not by_task:
-            return
-        g, N = self.file["trials"], self.cells
-        tasks = sorted(by_task)
-        runs = np.split(np.array(tasks), np.flatnonzero(np.diff(tasks) != 1) + 1)
-        for run in runs:
-            parts = [_trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in run]
-            rows = slice(int(run[0]) * N, int(run[-1]) * N + N)
-            for key in parts[0]:
-                g[key][rows] = np.concatenate([p[key] for p in parts])
+        write_entries(self.file, entries, self.cells, contiguous=self.parallel)
 
     def state(self):
+
         return self.file["state"][:]
 
     def trial_state(self):
@@ -296,7 +311,9 @@ class Store:
     def record(self, entry):
         """Journal first; the HDF5 rows follow in batches, after the journal's fsync (`flush`)."""
         self.journal.write(json.dumps(entry, default=_encode) + "\n")
-        self.buffer.append(entry)
+        self.unsynced = True
+        if not self.parallel or entry["rank"] == 0:
+            self.buffer.append(entry)
         self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
         kill = os.environ.get("CORTEX_TEST_KILL_MID_WRITE")
         if kill is not None and kill == (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
@@ -306,35 +323,136 @@ class Store:
             os.kill(os.getpid(), 9)
 
     def flush(self):
-        """fsync the journal, then write the buffered rows and the running marks into HDF5."""
-        if self.buffer:
+        """fsync the journal, then write the buffered rows and the new running
+        marks into HDF5 (a row that was shown running and is no longer has been
+        finished: its entry is written). On the mpio path the buffer holds only
+        rank 0's own entries, and nothing collective happens."""
+        if self.unsynced:
             self.journal.flush()
             os.fsync(self.journal.fileno())
+            self.unsynced = False
+        if self.buffer:
             self._write_rows(self.buffer)
             self.buffer = []
-            self.file.flush()                 # the rows first, then the mark that they are in
-            self.file.attrs["journal_bytes"] = self.journal.tell()
-        if self.running != self.shown_running:
-            for name, pick, expand in (("state", lambda r: not isinstance(r, tuple), lambda r: [r]),
-                                       ("trials/state", lambda r: isinstance(r, tuple),
-                                        lambda r: range(r[1] * self.cells, r[1] * self.cells + self.cells))):
-                stale = [i for r in self.shown_running - self.running if pick(r) for i in expand(r)]
-                now = [i for r in self.running if pick(r) for i in expand(r)]
-                if not stale and not now:
-                    continue
-                state = self.file[name][:]
-                state[stale] = np.where(state[stale] == RUNNING, PENDING, state[stale])
-                state[now] = RUNNING
-                self.file[name][:] = state
-            self.shown_running = set(self.running)
-        self.file.flush()
+            if not self.parallel:
+                self.file.flush()             # the rows first, then the mark that they are in
+                self.file.attrs["journal_bytes"] = self.journal.tell()
+        new = self.running - self.shown_running
+        rows = sorted(r for r in new if not isinstance(r, tuple))
+        trials = sorted(i for r in new if isinstance(r, tuple)
+                        for i in range(r[1] * self.cells, r[1] * self.cells + self.cells))
+        for name, marks in (("state", rows), ("trials/state", trials)):
+            if marks:
+                _put(self.file[name], np.array(marks), np.full(len(marks), RUNNING, np.int8), self.parallel)
+        self.shown_running = set(self.running)
+        if not self.parallel:
+            self.file.flush()
 
     def close(self):
+        """Write what is left and close; on the mpio path every rank closes the
+        file together, then rank 0 notes that the rows hold the whole journal."""
         self.flush()
         self.file.close()
+        if self.parallel:
+            with _h5().File(self.path, "r+") as f:
+                f.attrs["journal_bytes"] = self.journal.tell()
         self.journal.close()
         fcntl.flock(self.lock, fcntl.LOCK_UN)
         self.lock.close()
+
+
+def write_entries(f, entries, cells, contiguous=False):
+    """Write journal entries into their rows of the open file `f` (the one place
+    rows are written): compressions (`row`) one HDF5 write per column (per run
+    of consecutive rows if `contiguous`: the mpio path writes no scattered
+    selections), trial tasks (`task`) one slice of N = `cells` rows per column
+    and run of consecutive tasks; the last entry of a row wins."""
+    _write_trials(f, {e["task"]: e for e in entries if "task" in e}, cells)
+    by_row = {e["row"]: e for e in entries if "row" in e}
+    if not by_row:
+        return
+    rows = np.array(sorted(by_row))
+    batch = [by_row[i] for i in rows]
+    results = [e.get("results", {}) for e in batch]
+    columns = {
+        "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
+        "attempts": np.array([e["attempts"] for e in batch], np.int32),
+        "rank": np.array([e["rank"] for e in batch], np.int32),
+        "error": np.array([e.get("error", "") for e in batch], object),
+        "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
+        "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
+    for key in RESULTS:
+        columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+    for key, values in columns.items():
+        _put(f[key], rows, values, contiguous)
+
+
+def _runs(rows):
+    """Sorted row numbers as (start, stop, index range) of consecutive runs."""
+    cuts = np.flatnonzero(np.diff(rows) != 1) + 1
+    starts, stops = np.r_[0, cuts], np.r_[cuts, len(rows)]
+    return [(int(rows[a]), int(rows[b - 1]) + 1, slice(a, b)) for a, b in zip(starts, stops)]
+
+
+def _put(dset, rows, values, contiguous):
+    if dset.dtype.kind == "S":
+        values = np.array([_clip(v) for v in values], dset.dtype)
+    if not contiguous:
+        dset[rows] = values
+        return
+    for start, stop, part in _runs(rows):
+        dset[start:stop] = values[part]
+
+
+def _write_trials(f, by_task, N):
+    """Trial tasks' entries (`_trial_columns`), one slice write per column
+    for each run of consecutive tasks."""
+    if not by_task:
+        return
+    g = f["trials"]
+    tasks = np.array(sorted(by_task))
+    for start, stop, _ in _runs(tasks):
+        parts = [_trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in range(start, stop)]
+        for key in parts[0]:
+            _put(g[key], np.arange(start * N, stop * N), np.concatenate([p[key] for p in parts]), True)
+
+
+class Writer:
+    """A worker's side of the mpio path: its finished entries, written into
+    its rows once rank 0's journal holds them (`written_upto`)."""
+
+    def __init__(self, f):
+        self.file, self.entries, self.sent = f, [], 0
+        self.cells = int(f["trials"].attrs["cells_per_study"]) if "trials" in f else 0
+
+    def keep(self, entry):
+        self.entries.append(entry)
+        self.sent += 1
+
+    def written_upto(self, count):
+        """Rank 0's journal holds this worker's first `count` entries: write those not yet written."""
+        ready = len(self.entries) - (self.sent - count)
+        write_entries(self.file, self.entries[:ready], self.cells, contiguous=True)
+        del self.entries[:ready]
+
+    def close(self):
+        self.file.close()
+
+
+def _error_dtype():
+    """Error messages: fixed-length UTF-8 (parallel HDF5 cannot write
+    variable-length strings); the journal keeps them whole."""
+    return _h5().string_dtype("utf-8", ERROR_BYTES)
+
+
+def _clip(text):
+    """`text` as at most ERROR_BYTES bytes of UTF-8, cut between characters."""
+    return text.encode()[:ERROR_BYTES].decode(errors="ignore").encode()
+
+
+def _code_version():
+    from cortex import __version__
+    return __version__
 
 
 def _trial_columns(entry, N, m):
@@ -420,7 +538,7 @@ def _trial_arrays(path):
         if "trials" not in f:
             return None
         g = f["trials"]
-        a = {key: (g[key].asstr()[:] if g[key].dtype.kind == "O" else g[key][:]) for key in g}
+        a = {key: (g[key].asstr()[:] if _h5().check_string_dtype(g[key].dtype) else g[key][:]) for key in g}
         N = int(g.attrs["cells_per_study"])
         start = f.attrs.get("journal_bytes", 0)
     a["error"] = a["error"].astype(object)

@@ -80,11 +80,13 @@ fi
 # 4. The project, editable; h5py and mpi4py are already satisfied and stay.
 "${pip[@]}" install --no-build-isolation -e "$root[test]"
 
-# 5. Check: one MPI library in the process, Debian's, shared by mpi4py and h5py.
-"$venv/bin/with-mpi" "$venv/bin/python" - "$libmpich" <<'EOF'
+# 5. Check: one MPI library in the process, Debian's, shared by mpi4py and h5py;
+# the project's packages importable from anywhere (as the `cortex` script does).
+(cd / && "$venv/bin/with-mpi" "$venv/bin/python" - "$libmpich") <<'EOF'
 import os, sys
 from mpi4py import MPI
 import h5py
+import analysis, campaign, cortex, solver  # noqa: F401
 maps = open("/proc/self/maps").read().split()
 libs = {os.path.realpath(p) for p in maps if "/libmpi" in p}
 want = os.path.realpath(sys.argv[1])
