@@ -11,6 +11,8 @@ fresh temporary store, wall time of the whole command, the best of --repeat
 runs (alternating 1 and 2 ranks; every run's time is printed too, since the
 shared machine's speed drifts by 20-40 % between runs); speedup_2 = their
 ratio.
+paper_wall_s_2_mpio: the 2-rank run on the parallel-HDF5 stack (.venv-mpio,
+`--write-path mpio`), best of --repeat too; null where that stack is not built.
 --no-paper skips the paper runs (null); --paper CONFIG times another campaign
 file instead (e.g. a subset of the paper grid; `paper_config` names it).
 The machine is shared: timings noisy.
@@ -25,6 +27,7 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+MPIO = ROOT / ".venv-mpio" / "bin"
 BIN = pathlib.Path(sys.executable).parent
 N_NOOP = 10_000
 NOOP = """
@@ -87,13 +90,15 @@ def main():
         futures_wall = time.perf_counter() - started
         futures_tasks_per_s = N_NOOP / futures_wall
         futures_pool_tasks_per_s = N_NOOP / json.loads(out.strip().splitlines()[-1])["wall_s"]
-        paper, runs, failed = {1: None, 2: None}, {1: [], 2: []}, None
+        config = str(pathlib.Path(args.paper).resolve())
+        commands = {1: [cortex], 2: [mpiexec, "-n", "2", cortex]}
+        if (MPIO / "with-mpi").exists():
+            commands["mpio"] = [str(MPIO / "with-mpi"), "mpiexec", "-n", "2", str(MPIO / "cortex")]
+        paper, runs, failed = dict.fromkeys(commands), {n: [] for n in commands}, None
         if not args.no_paper:
             for r in range(args.repeat):
-                for n in (1, 2):
-                    cmd = ([mpiexec, "-n", "2"] if n == 2 else []) + [
-                        cortex, "campaign", "run", str(pathlib.Path(args.paper).resolve()), "--store",
-                        str(tmp / f"paper{n}-{r}.h5"), "--quiet"]
+                for n, cmd in commands.items():
+                    cmd = cmd + ["campaign", "run", config, "--store", str(tmp / f"paper{n}-{r}.h5"), "--quiet"]
                     runs[n].append(_timed(cmd, ok=(0, 1))[0])     # 1: some tasks failed (counted below)
             paper = {n: min(runs[n]) for n in runs}
             _, status = _timed([cortex, "campaign", "status", str(tmp / "paper2-0.h5"), "--json"])
@@ -108,6 +113,8 @@ def main():
         "speedup_2": paper[1] and round(paper[1] / paper[2], 3),
         "paper_runs_s_1": [round(t, 2) for t in runs[1]],
         "paper_runs_s_2": [round(t, 2) for t in runs[2]],
+        "paper_wall_s_2_mpio": paper.get("mpio") and round(paper["mpio"], 2),
+        "paper_runs_s_2_mpio": [round(t, 2) for t in runs.get("mpio", [])],
         "paper_config": None if args.no_paper else pathlib.Path(args.paper).name,
         "paper_failed_2": failed,
     }))
