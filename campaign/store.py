@@ -581,10 +581,12 @@ def summary(path):
     rate = None
     with _open_read(path) as f:
         started = f["started_unix_s"][:]
-    if len(done) and np.isfinite(started).any():
-        span = time.time() - np.nanmin(started)
-        rate = len(done) / span if span > 0 else None
     left = int(len(frame) - counts.get("done", 0) - counts.get("failed", 0))
+    if len(done) and np.isfinite(started).any():
+        # a finished campaign's rate over its own span, a running one's up to now
+        span = (time.time() if left else np.nanmax(started + np.nan_to_num(frame["wall_s"].to_numpy()))) \
+            - np.nanmin(started)
+        rate = len(done) / span if span > 0 else None
     info = {"tasks": int(len(frame)), **{s: int(counts.get(s, 0)) for s in STATES},
             "failures": frame.loc[frame["state"] == "failed", ["task_id", "error"]].values.tolist(),
             "tasks_per_s": rate, "eta_s": (left / rate) if rate else None}

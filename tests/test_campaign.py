@@ -52,6 +52,17 @@ def test_runs_every_task_once_and_status_reads_it(reference_store):
     assert "4 done" in out.stdout
 
 
+def test_status_of_a_finished_campaign_keeps_its_throughput(reference_store):
+    """The rate of a finished campaign is over its own span, not up to now."""
+    import json
+    import time
+    first = json.loads(cortex("campaign", "status", str(reference_store), "--json").stdout)
+    time.sleep(1.0)
+    second = json.loads(cortex("campaign", "status", str(reference_store), "--json").stdout)
+    assert first["tasks_per_s"] > 0 and first["eta_s"] == 0
+    assert second["tasks_per_s"] == first["tasks_per_s"]
+
+
 def test_rerun_resumes_without_redoing(reference_store, tmp_path):
     before = read_results(reference_store)
     out = cortex("campaign", "run", str(reference_store.parent / "tiny.toml"), "--store",
