@@ -551,12 +551,13 @@ def _trial_arrays(path):
 
 def read_trials(path):
     """Monte-Carlo trial curves, long format: one row per trial and height with
-    the columns TRIAL_COLUMNS (then `error`); empty, with those columns, for a
-    store without trials. Values of trials not done are NaN."""
+    the columns TRIAL_COLUMNS, then `error` and `attempts` (how often its
+    study ran); empty, with those columns, for a store without trials. Values
+    of trials not done are NaN."""
     import pandas as pd
     a = _trial_arrays(path)
     if a is None:
-        return pd.DataFrame({c: [] for c in TRIAL_COLUMNS + ("error",)})
+        return pd.DataFrame({c: [] for c in TRIAL_COLUMNS + ("error", "attempts")})
     n, m = a["h0_true_um"].shape
     rep = lambda x: np.repeat(x, m)  # noqa: E731
     columns = {"trial_id": rep(a["trial_id"]), "state": rep(np.array(STATES, object)[a["state"]]),
@@ -569,7 +570,8 @@ def read_trials(path):
                "h1_used_um": a["h1_used_um"].ravel(), "h_tilde": a["h_tilde"].ravel(),
                "modulus_mN_per_m": a["modulus_mN_per_m"].ravel(),
                "gamma_eff_mN_per_m": a["gamma_eff_mN_per_m"].ravel(),
-               "tension_seen_mN_per_m": a["tension_seen_mN_per_m"].ravel(), "error": rep(a["error"])}
+               "tension_seen_mN_per_m": a["tension_seen_mN_per_m"].ravel(), "error": rep(a["error"]),
+               "attempts": rep(a["attempts"])}
     return pd.DataFrame(columns)
 
 

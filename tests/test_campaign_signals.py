@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from campaign.store import _trial_arrays, read_results, read_trials, summary
+from campaign.store import read_results, read_trials, summary
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -86,14 +86,14 @@ def test_signal_stops_cleanly_and_rerun_completes(tmp_path, reference, ranks, si
     assert partial["running"] == 0 and partial["trials"]["running"] == 0, partial
     assert partial["done"] == N_TASKS                           # compressions are handed out first
     assert 0 < partial["trials"]["done"] < N_CELLS, partial["trials"]
-    assert (_trial_arrays(store)["attempts"] <= 1).all()
+    assert (read_trials(store)["attempts"] <= 1).all()
 
     rerun = subprocess.run(command(store, ranks), capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0, rerun.stderr
     results, trials = read_results(store), read_trials(store)
     assert len(results) == N_TASKS and (results["state"] == "done").all()
     assert (results["attempts"] == 1).all()                      # each done exactly once
-    attempts = _trial_arrays(store)["attempts"]
+    attempts = read_trials(store).groupby("trial_id")["attempts"].first()
     assert len(attempts) == N_CELLS and (attempts == 1).all()
     assert (trials["state"] == "done").all()
 

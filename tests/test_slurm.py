@@ -141,9 +141,9 @@ def states(store):
 
 def trial_attempts(store):
     """Attempts of every Monte-Carlo trial cell (journal included)."""
-    from campaign.store import _trial_arrays
+    from campaign.store import read_trials
 
-    return _trial_arrays(store)["attempts"]
+    return read_trials(store).groupby("trial_id")["attempts"].first().to_numpy()
 
 
 def trials(store):
