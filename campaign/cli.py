@@ -31,6 +31,8 @@ def register(sub):
 
 
 def run(args):
+    from campaign import signals
+    signals.install()               # first: a signal from here on stops cleanly (exit 3)
     import os
     from campaign import config, scheduler
     from solver.errors import InputError

@@ -34,16 +34,12 @@ import time
 import traceback
 from collections import deque
 
+from campaign.signals import install as install_signal_handlers
+from campaign.signals import stop as _stop
 from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 AHEAD = 4               # tasks a worker holds: enough to outlast one of rank 0's own tasks
-_stop = {"flag": False}
-
-
-def _on_signal(signum, frame):
-    _stop["flag"] = True
-
 
 class TaskTimeout(Exception):
     pass
@@ -140,8 +136,7 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
     rank, size = comm.Get_rank(), comm.Get_size()
-    signal.signal(signal.SIGTERM, _on_signal)
-    signal.signal(signal.SIGINT, _on_signal)
+    install_signal_handlers()
     store, path, error = None, None, None
     if rank == 0:
         try:

@@ -103,3 +103,40 @@ def test_signal_stops_cleanly_and_rerun_completes(tmp_path, reference, ranks, si
     np.testing.assert_array_equal(trials["trial_id"], ref_trials["trial_id"])
     for key in TRIAL_VALUES:   # bitwise, NaN where a drawn height is impossible in both
         np.testing.assert_array_equal(trials[key].to_numpy(), ref_trials[key].to_numpy(), err_msg=key)
+
+
+def _catches_sigterm(pid):
+    """Whether process `pid` has a handler for SIGTERM (Linux: SigCgt in /proc)."""
+    with open(f"/proc/{pid}/status") as fh:
+        mask = next(int(line.split()[1], 16) for line in fh if line.startswith("SigCgt:"))
+    return bool(mask >> (signal.SIGTERM - 1) & 1)
+
+
+def _mpi_loaded(pid):
+    with open(f"/proc/{pid}/maps") as fh:
+        return "libmpi" in fh.read()
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
+def test_sigterm_during_start_up_stops_cleanly(tmp_path, reference):
+    """SIGTERM as soon as `cortex campaign run` catches it: that must be early
+    in its start-up (before it loads MPI, well before the store exists), and
+    the signal then gives exit 3 with the resume line (not 143), and the rerun
+    completes the campaign."""
+    store = tmp_path / "s.h5"
+    proc = subprocess.Popen(command(store, 1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not _catches_sigterm(proc.pid):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.001)
+    early = not _mpi_loaded(proc.pid)       # read after the handler was seen: it came first
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert early, "SIGTERM was caught only once MPI was loaded: a signal before that ends the run with 143"
+    assert proc.returncode == 3, (proc.returncode, err)
+    assert "rerun the same command to resume" in err and "Traceback" not in err, err
+    rerun = subprocess.run(command(store, 1), capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr
+    results = read_results(store)
+    assert (results["attempts"] == 1).all()
+    np.testing.assert_array_equal(results["force_nN"], reference[0]["force_nN"])
