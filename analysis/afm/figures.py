@@ -7,6 +7,15 @@ import numpy as np
 from analysis.afm.population import nu_density
 
 
+def _save(fig, path):
+    """Lay out, write (PNG, 80 dpi) and close a figure; returns its path."""
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
+
+
 def figures(tables, sums, segs, out):
     import matplotlib
     matplotlib.use("Agg")
@@ -29,10 +38,7 @@ def figures(tables, sums, segs, out):
             ax.set_title(f"{v}, {f:g} Hz", fontsize=8)
             ax.set_xlabel("Poisson ratio nu (1)")
             ax.set_ylabel("density (1)")
-    fig.tight_layout()
-    paths.append(out / "nu_histograms.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(_save(fig, out / "nu_histograms.png"))
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data, labels = [], []
@@ -44,10 +50,7 @@ def figures(tables, sums, segs, out):
     ax.boxplot(data, tick_labels=labels)
     ax.tick_params(labelsize=6)
     ax.set_ylabel("Poisson ratio nu (1)")
-    fig.tight_layout()
-    paths.append(out / "nu_boxplots.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(_save(fig, out / "nu_boxplots.png"))
 
     v = variants[0]
     ok = tables[v][tables[v]["excluded_reason"].isna()][["cell_id", "frequency_hz", "bulk_mN_per_m"]]
@@ -58,8 +61,5 @@ def figures(tables, sums, segs, out):
                 color=f"C{freqs.index(f)}")
     ax.set_xlabel("normalised height h~ (1)")
     ax.set_ylabel("K / K_B (1)")
-    fig.tight_layout()
-    paths.append(out / "k_curves.png")
-    fig.savefig(paths[-1], dpi=80)
-    plt.close(fig)
+    paths.append(_save(fig, out / "k_curves.png"))
     return paths
