@@ -8,8 +8,6 @@ truth, and the blebbing cells must be excluded with their reason."""
 
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,9 +17,8 @@ from analysis.afm.population import summary
 from analysis.afm.synth import generate, solver_forward
 from analysis.calibration import calibrate
 from campaign.store import read_results
+from conftest import BIN, ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 GRID = """
 [campaign]
 name = "paper-standard"

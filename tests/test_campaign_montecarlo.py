@@ -6,8 +6,6 @@ reads the trials."""
 import json
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -17,9 +15,8 @@ import pytest
 from campaign import config
 from campaign.store import TRIAL_COLUMNS, read_results, read_trials
 from campaign.trials import Study, draws, grid_shear, run_study
+from conftest import BIN, ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 # fake_law: every compression returns at once the force of a smooth made-up law
 FAKE = """
 [campaign]

@@ -15,7 +15,6 @@ same numbers as an uninterrupted run.
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -23,9 +22,8 @@ import numpy as np
 import pytest
 
 from campaign.store import read_results, read_trials, summary
+from conftest import BIN
 
-ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 CONFIG = Path(__file__).parent / "data" / "signals.toml"
 N_TASKS, N_CELLS = 60, 2 * 2 * 10 * 200     # compressions; nu x modes x studies x cells
 TRIAL_VALUES = ["volume_used_um3", "h0_used_um", "h1_used_um", "h_tilde", "modulus_mN_per_m",

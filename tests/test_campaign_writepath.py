@@ -10,16 +10,13 @@ skip, saying so, except the check that forcing mpio there is refused."""
 import json
 import os
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from conftest import BIN, ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 DEMO = ROOT / "campaigns" / "demo.toml"
 TIMING = {"rank", "started_unix_s", "wall_s"}          # who and when: differ between any two runs
 MPI_H5PY = bool(h5py.get_config().mpi)
