@@ -41,6 +41,7 @@ from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 AHEAD = 4               # tasks a worker holds: enough to outlast one of rank 0's own tasks
 
+
 class TaskTimeout(Exception):
     pass
 
