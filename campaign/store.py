@@ -285,7 +285,6 @@ class Store:
         write_entries(self.file, entries, self.cells, contiguous=self.parallel)
 
     def state(self):
-
         return self.file["state"][:]
 
     def trial_state(self):
@@ -394,9 +393,13 @@ def _runs(rows):
     return [(int(rows[a]), int(rows[b - 1]) + 1, slice(a, b)) for a, b in zip(starts, stops)]
 
 
+def _fit(dset, values):
+    """`values` as `dset` stores them (error messages clipped to fixed length)."""
+    return np.array([_clip(v) for v in values], dset.dtype) if dset.dtype.kind == "S" else values
+
+
 def _put(dset, rows, values, contiguous):
-    if dset.dtype.kind == "S":
-        values = np.array([_clip(v) for v in values], dset.dtype)
+    values = _fit(dset, values)
     if not contiguous:
         dset[rows] = values
         return
@@ -414,7 +417,7 @@ def _write_trials(f, by_task, N):
     for start, stop, _ in _runs(tasks):
         parts = [_trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in range(start, stop)]
         for key in parts[0]:
-            _put(g[key], np.arange(start * N, stop * N), np.concatenate([p[key] for p in parts]), True)
+            g[key][start * N:stop * N] = _fit(g[key], np.concatenate([p[key] for p in parts]))
 
 
 class Writer:
