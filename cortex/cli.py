@@ -6,7 +6,9 @@ the command runs, so `cortex --help` and `cortex geometry` stay fast and never
 load MPI or HDF5.
 
 Errors from bad input (`solver.errors.InputError`, missing or unreadable files)
-become one line on stderr and exit status 2.
+become one line on stderr and exit status 2; a solver that finds no
+equilibrium, status 4; a write that fails (disk full), status 5. The whole
+table is in `solver.errors` and in every `--help`.
 """
 
 import argparse
@@ -14,7 +16,8 @@ import importlib
 import sys
 
 from cortex import __version__
-from solver.errors import InputError
+from solver.errors import (EXIT_BAD_INPUT, EXIT_NO_EQUILIBRIUM, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
+                           InputError, SolverError, is_write_failure)
 
 REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
 
@@ -27,7 +30,7 @@ class Parser(argparse.ArgumentParser):
 
 
 def build_parser():
-    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".")
+    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".", epilog=EXIT_STATUS_HELP)
     parser.description = (
         "Simulate compressed cortical shells, run campaigns of them under MPI, "
         "calibrate the laws that link the effective area modulus to the Poisson "
@@ -59,10 +62,20 @@ def main(argv=None):
         status = _handler(args.handler)(args)
     except InputError as err:
         print(f"cortex {where}: error: {err}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except SolverError as err:
+        print(f"cortex {where}: no equilibrium found: {err}", file=sys.stderr)
+        return EXIT_NO_EQUILIBRIUM
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
         print(f"cortex {where}: error: {err.strerror or err}: {err.filename}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except OSError as err:
+        if not is_write_failure(err):
+            raise
+        name = f": {err.filename}" if err.filename else ""
+        print(f"cortex {where}: could not write{name}: {err.strerror or err}; free space, then rerun the same "
+              "command to resume", file=sys.stderr)
+        return EXIT_WRITE_FAILED
     except KeyboardInterrupt:
         print(f"cortex {where}: interrupted", file=sys.stderr)
         return 130

@@ -63,7 +63,7 @@ def geometry(args):
 
 def compress(args):
     from solver.compression import compress as run
-    from solver.errors import SolverError
+    from solver.errors import EXIT_NO_EQUILIBRIUM, SolverError
     from solver.model import Shell
     shell = Shell(volume_um3=args.volume, h0_um=args.h0, dh_um=args.dh,
                   bulk_mN_per_m=args.bulk, shear_mN_per_m=args.shear,
@@ -74,7 +74,7 @@ def compress(args):
         result = run(shell, args.solver).to_dict()
     except SolverError as err:
         print(f"cortex compress: the {args.solver} solver failed: {err}", file=sys.stderr)
-        return 3
+        return EXIT_NO_EQUILIBRIUM
     if args.json:
         print(json.dumps(result))
         return 0
