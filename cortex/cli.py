@@ -30,7 +30,7 @@ class Parser(argparse.ArgumentParser):
 
 
 def build_parser():
-    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".", epilog=EXIT_STATUS_HELP)
+    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".")
     parser.description = (
         "Simulate compressed cortical shells, run campaigns of them under MPI, "
         "calibrate the laws that link the effective area modulus to the Poisson "
@@ -46,7 +46,17 @@ def build_parser():
                 raise
             continue
         module.register(sub)
+    _add_exit_statuses(parser)
     return parser
+
+
+def _add_exit_statuses(parser):
+    """Every command's --help ends with the one exit-status table (solver.errors)."""
+    parser.epilog = "\n".join(filter(None, (parser.epilog, EXIT_STATUS_HELP)))
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _add_exit_statuses(child)
 
 
 def _handler(spec):
