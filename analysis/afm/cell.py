@@ -4,9 +4,13 @@ A cell has an id, its volume V (µm³) and how that was obtained, the cantilever
 spring constant (N/m), a date and the oscillation frequencies (Hz); the
 recording is time (s), force (nN) and cantilever height (µm), sampled at
 (nominally) 100 Hz. Segments are half-open sample ranges [start, stop):
-`approach` (a height step and its wait) or `oscillation` (at one frequency f
-around a mean height). `validate` checks everything the analysis relies on
-and raises InputError with one line naming the cell and what is wrong.
+`approach` (a height step and its wait), `pause` and `retract` (kept from
+instrument files; the analysis does not use them) or `oscillation` (at one
+frequency f around a mean height, with its piezo amplitude in µm where the
+file says it: JPK's `modulation` segments). `validate` checks everything the
+analysis relies on and raises InputError with one line naming the cell and
+what is wrong; a cell without any oscillation is valid (it is imported, and
+the analysis lists it with that reason).
 """
 
 from dataclasses import dataclass, field
@@ -15,15 +19,16 @@ import numpy as np
 
 from solver.errors import InputError
 
-KINDS = ("approach", "oscillation")
+KINDS = ("approach", "pause", "retract", "oscillation")
 
 
 @dataclass
 class Segment:
-    kind: str                      # approach | oscillation
+    kind: str                      # approach | pause | retract | oscillation
     start: int                     # first sample
     stop: int                      # one past the last sample
     frequency_hz: float = float("nan")
+    amplitude_um: float = float("nan")   # piezo amplitude of an oscillation, NaN where unknown
 
 
 @dataclass
@@ -68,11 +73,9 @@ class Cell:
         if np.any(self.height_um <= 0):
             raise InputError(f"{at}: height_um must be > 0 (min {np.min(self.height_um):g}); "
                              "heights in m instead of um?")
-        if not self.oscillations():
-            raise InputError(f"{at}: no oscillation segment")
         for i, s in enumerate(self.segments):
             if s.kind not in KINDS:
-                raise InputError(f"{at}: segment {i} has kind {s.kind!r} (expected {' or '.join(KINDS)})")
+                raise InputError(f"{at}: segment {i} has kind {s.kind!r} (expected {', '.join(KINDS)})")
             if not (0 <= s.start < s.stop <= n):
                 raise InputError(f"{at}: segment {i} spans samples [{s.start}, {s.stop}) outside 0..{n}")
             if s.kind == "oscillation":

@@ -1,5 +1,28 @@
-"""`cortex afm synth` and `cortex afm analyze` (argparse only; the work is
-imported when the command runs)."""
+"""`cortex afm synth`, `cortex afm import` and `cortex afm analyze` (argparse
+only; the work is imported when the command runs)."""
+
+
+def _jpk_options(p):
+    """The volume and dish-reference options of JPK recordings (docs/jpk.md)."""
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("--volumes", metavar="TABLE.csv",
+                   help="cell volumes: CSV with columns cell_id, volume_um3[, volume_source]")
+    v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
+    d = p.add_mutually_exclusive_group()
+    d.add_argument("--dish-height-um", type=float, metavar="Z",
+                   help="height channel value (um) at which the cantilever touches the bare dish (default 0): "
+                        "cell height h = z + F/k - Z")
+    d.add_argument("--dish-curve", metavar="FILE",
+                   help="a JPK force curve on the bare dish: Z = z + F/k at its largest approach force")
+
+
+def jpk_options(args):
+    """`import_cells` keyword arguments from the parsed options."""
+    from solver.errors import InputError
+    if args.volume is not None and not args.volume > 0:
+        raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
+    return {"volume_um3": args.volume, "volumes_csv": args.volumes, "dish_um": args.dish_height_um,
+            "dish_curve": args.dish_curve}
 
 
 def register(sub):
@@ -16,11 +39,23 @@ def register(sub):
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     g.add_argument("--bending", default="standard", help="bending variant of the forward model")
     g.set_defaults(handler="analysis.afm.cli:synth")
+    m = s.add_parser("import", help="JPK text exports and binary JPK files into an experiment file (HDF5)",
+                     description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data "
+                                 "files (each map or QI pixel its own recording) into the native experiment "
+                                 "format. Every cell needs a volume. See docs/jpk.md.")
+    m.add_argument("files", nargs="+", metavar="FILES", help="JPK files or folders of them")
+    m.add_argument("--out", required=True, metavar="EXPERIMENT.h5", help="experiment file to write (new)")
+    _jpk_options(m)
+    m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
+                   "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
+    m.set_defaults(handler="analysis.afm.cli:import_")
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md")
-    a.add_argument("data", metavar="DATA", help="experiment (.h5) or single-cell CSV")
+    a.add_argument("data", nargs="+", metavar="DATA",
+                   help="experiment (.h5), single-cell CSV, or JPK files and folders of them")
     a.add_argument("--calibration", required=True, metavar="CAL.json")
     a.add_argument("--out", required=True, metavar="DIR")
     a.add_argument("--bending", default="standard", help="calibration variant for summary.json")
+    _jpk_options(a)
     a.set_defaults(handler="analysis.afm.cli:analyze")
 
 
@@ -50,8 +85,36 @@ def synth(args):
     return 0
 
 
+def import_(args):
+    import json
+    from pathlib import Path
+
+    from analysis.afm.h5format import write_experiment
+    from analysis.afm.jpk_import import import_cells
+    from solver.errors import InputError
+    out = Path(args.out)
+    if out.exists() or out.with_name(out.name + ".tmp").exists():
+        raise InputError(f"{out}: exists; refusing to overwrite")
+    recs, cells = import_cells(args.files, **jpk_options(args))
+    write_experiment(out, cells)
+    for r in recs:
+        if args.json:
+            print(json.dumps(r.summary()))
+        else:
+            segs = ", ".join(f"{s.kind} {s.n_samples} in {s.duration_s:g} s"
+                             + (f" at {s.frequency_hz:g} Hz, {s.amplitude_um:g} um" if s.kind == "modulation" else "")
+                             for s in r.segments)
+            print(f"{r.cell_id}: k {r.spring_constant_N_per_m:.4g} N/m; {segs}")
+    if not args.json:
+        print(f"wrote {out} ({len(cells)} cells)")
+    return 0
+
+
 def analyze(args):
     from analysis.afm.report import run
-    result = run(args.data, args.calibration, args.out, args.bending)
+    from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
+    result = run(args.data, args.calibration, args.out, args.bending, jpk_options(args))
+    for cell, reason in result["skipped"].items():
+        print(f"not analysed: {cell}: {reason}")
     print(f"report: {result['report']}")
-    return 0
+    return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE

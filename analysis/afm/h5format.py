@@ -5,8 +5,11 @@ Layout (format "cortex-afm", version 1):
     /                          attrs: format="cortex-afm", version=1
     /cells/<cell_id>/          attrs: volume_um3, volume_source, spring_constant_N_per_m, date
         time_s, force_nN, height_um      float64 (n,)
-        segments                        compound (m,): kind (str), start, stop (int64,
-                                        samples [start, stop)), frequency_hz (float64, NaN for approach)
+        segments                        compound (m,): kind (str: approach, pause, retract,
+                                        oscillation), start, stop (int64, samples [start, stop)),
+                                        frequency_hz (float64, NaN but for oscillations)
+        segment_amplitude_um            float64 (m,), optional: an oscillation's piezo amplitude
+                                        (NaN where unknown; written by `cortex afm import`)
 
 Writing goes to `FILE.tmp` and is renamed at the end, so an existing file is
 never left half-written. Reading checks the layout and every cell
@@ -39,6 +42,9 @@ def write_experiment(path, cells):
                 g.create_dataset(name, data=np.asarray(getattr(c, name), float))
             seg = np.array([(s.kind, s.start, s.stop, s.frequency_hz) for s in c.segments], dtype=SEG_DTYPE)
             g.create_dataset("segments", data=seg)
+            amp = np.array([s.amplitude_um for s in c.segments], float)
+            if np.isfinite(amp).any():
+                g.create_dataset("segment_amplitude_um", data=amp)
     tmp.replace(path)
     return path
 
@@ -80,10 +86,14 @@ def read_experiment(path):
             except OSError:
                 raise InputError(f"{where}: data unreadable (truncated or corrupt file)") from None
             seg = cols.pop("segments")
+            amp = g["segment_amplitude_um"][()] if "segment_amplitude_um" in g else np.full(len(seg), np.nan)
+            if len(amp) != len(seg):
+                raise InputError(f"{where}: segment_amplitude_um has {len(amp)} values for {len(seg)} segments")
             try:
                 segments = [Segment(kind=k.decode() if isinstance(k, bytes) else str(k), start=int(a),
-                                    stop=int(b), frequency_hz=float(fr))
-                            for k, a, b, fr in zip(seg["kind"], seg["start"], seg["stop"], seg["frequency_hz"])]
+                                    stop=int(b), frequency_hz=float(fr), amplitude_um=float(am))
+                            for k, a, b, fr, am in zip(seg["kind"], seg["start"], seg["stop"],
+                                                       seg["frequency_hz"], amp)]
             except (ValueError, TypeError, KeyError):
                 raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
             volume = _attr(g, "volume_um3", where, default=np.nan)

@@ -10,9 +10,13 @@ vertical deflection is force when its unit is N; when it is V (raw) it is
 converted as F = V · sensitivity · k (sensitivity m/V, k spring constant N/m);
 in m, as F = d · k. Any other unit raises InputError.
 
-Binary `.jpk-force` archives are not read here (see the README: the PyPI
-package `afmformats` reads them; export to text from the JPK software or
-convert with afmformats first).
+`read_jpk_recording` turns an export into a `recording.Recording`: each
+segment's kind from its `segment` header (extend, pause, modulation, retract),
+its duration and, for a modulation, frequency (Hz) and amplitude (m -> µm)
+from the global header's `force-settings.segment.N.*`; the time is
+`seriesTime` (from the start of the recording) where present, else the
+segment's `time` plus the durations of the segments before it. Binary
+archives are read by `jpk_archive`.
 """
 
 from dataclasses import dataclass, field
@@ -21,11 +25,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
 from solver.errors import InputError
 
 LENGTH_TO_UM = {"m": 1e6, "um": 1.0, "µm": 1.0, "nm": 1e-3}
 FORCE_TO_NN = {"N": 1e9, "nN": 1.0, "pN": 1e-3}
-HEIGHT_COLUMNS = ("smoothedMeasuredHeight", "measuredHeight", "height", "capacitiveSensorHeight")
+HEIGHT_COLUMNS = HEIGHT_CHANNELS
 
 
 @dataclass
@@ -89,7 +94,7 @@ def read_jpk(path):
     try:
         glob, blocks = _blocks(path)
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a JPK text export (binary; .jpk-force archives need afmformats)") from None
+        raise InputError(f"{path}: not a JPK text export (binary; a .jpk-force archive needs its own suffix)") from None
     if not blocks:
         raise InputError(f"{path}: no segments (no '# segmentIndex:' header)")
     segments = []
@@ -152,3 +157,46 @@ def read_jpk(path):
                                    name=h.get("segment", ""), header=h, data=pd.DataFrame(out),
                                    spring_constant_N_per_m=k, sensitivity_m_per_V=sens, units=unit))
     return JpkExport(path=path, header=glob, segments=segments)
+
+
+def _segment_setting(seg, key):
+    h = seg.header
+    v = h.get(f"force-settings.segment.{seg.index}.{key}")
+    try:
+        return float(v) if v is not None else float("nan")
+    except ValueError:
+        raise InputError(f"segment {seg.index}: force-settings.segment.{seg.index}.{key} = {v!r} "
+                         "is not a number") from None
+
+
+def read_jpk_recording(path):
+    """A JPK text export as one `Recording` (units s, nN, µm)."""
+    export = read_jpk(path)
+    segments, start = [], 0.0
+    for seg in export.segments:
+        where = f"{export.path}: segment {seg.index}"
+        kind = kind_of(seg.name, where)
+        d = seg.data
+        try:
+            duration = _segment_setting(seg, "duration")
+            freq, amp = _segment_setting(seg, "frequency"), _segment_setting(seg, "amplitude") * 1e6
+        except InputError as err:
+            raise InputError(f"{export.path}: {err}") from None
+        if not np.isfinite(duration):
+            dt = np.diff(d["time_s"]).mean() if len(d) > 1 else 0.0
+            duration = float(d["time_s"].iat[-1] - d["time_s"].iat[0] + dt) if len(d) else 0.0
+        if kind == "modulation" and not (np.isfinite(freq) and np.isfinite(amp)):
+            raise InputError(f"{where}: modulation without force-settings.segment.{seg.index}.frequency "
+                             "and .amplitude")
+        t = d["series_time_s"] if "series_time_s" in d else d["time_s"] + start
+        segments.append(RecordedSegment(kind=kind, duration_s=duration, time_s=t.to_numpy(float),
+                                        force_nN=d["force_nN"].to_numpy(float),
+                                        height_um=d["height_um"].to_numpy(float),
+                                        frequency_hz=freq if kind == "modulation" else float("nan"),
+                                        amplitude_um=amp if kind == "modulation" else float("nan")))
+        start += duration
+    k = {s.spring_constant_N_per_m for s in export.segments}
+    if len(k) != 1:
+        raise InputError(f"{export.path}: segments disagree on the spring constant {sorted(k)}")
+    return Recording(cell_id=export.path.stem, spring_constant_N_per_m=k.pop(), segments=segments,
+                     source=str(export.path), date=export.header.get("date", ""))

@@ -1,6 +1,11 @@
 """`cortex afm analyze`: load recordings, analyse with every bending variant,
 write DIR/cells.csv, DIR/segments.csv, DIR/summary.json (selected variant),
-DIR/summary_<variant>.json, figures and DIR/report.md."""
+DIR/summary_<variant>.json, figures and DIR/report.md.
+
+Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK files and
+folders of them (`jpk_import.import_cells`, with the volume and dish options
+of `cortex afm import`). A recording without any oscillation segment is not
+analysed: report.md lists it with that reason (`skipped` in the result)."""
 
 import json
 from pathlib import Path
@@ -12,9 +17,19 @@ from analysis.afm.population import summary
 from solver.errors import InputError
 
 
-def load(path):
-    """Cells from an experiment (.h5/.hdf5) or a single-cell CSV (.csv)."""
-    path = Path(path)
+NO_OSCILLATION = "no modulation (oscillation) segment"
+
+
+def load(paths, jpk_options=None):
+    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK
+    files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
+    from analysis.afm.jpk_import import import_cells, is_jpk
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    if all(is_jpk(p) for p in paths):
+        return import_cells(paths, **(jpk_options or {}))[1]
+    if len(paths) != 1:
+        raise InputError("give one experiment (.h5) or CSV file, or JPK files and folders (not a mixture)")
+    path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
         from analysis.afm.h5format import read_experiment
@@ -22,17 +37,27 @@ def load(path):
     if suffix == ".csv":
         from analysis.afm.csvformat import read_csv_cell
         return [read_csv_cell(path)]
-    raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5 or .csv)")
+    raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
+                     "a JPK file or a folder of them)")
 
 
-def run(data, calibration_path, out, bending="standard"):
+def run(data, calibration_path, out, bending="standard", jpk_options=None):
+    """Analyse `data` (a path or a list of paths) into `out`; the result has
+    the report's path, the summary, the table and the skipped recordings."""
     from analysis.calibration import Calibration
-    cells = load(data)
+    cells = load(data, jpk_options)
     cal = Calibration.load(calibration_path)
     if bending not in cal.laws:
         raise InputError(f"{calibration_path}: no bending variant '{bending}' (has {', '.join(cal.laws)})")
+    skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
+    cells = [c for c in cells if c.oscillations()]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
+    if not cells:
+        report = out / "report.md"
+        report.write_text(_markdown_skipped(name, skipped))
+        return {"report": report, "summary": None, "table": None, "skipped": skipped}
     tables, sums = {}, {}
     for variant in [bending] + [v for v in cal.laws if v != bending]:
         tab, segs = analyze(cells, cal, variant)
@@ -46,12 +71,20 @@ def run(data, calibration_path, out, bending="standard"):
     from analysis.afm.figures import figures
     figs = figures(tables, sums, segs, out)
     report = out / "report.md"
-    report.write_text(_markdown(data, bending, tables, sums, figs))
-    return {"report": report, "summary": sums[bending], "table": tables[bending]}
+    report.write_text(_markdown(name, bending, tables, sums, figs) + _markdown_skipped(None, skipped))
+    return {"report": report, "summary": sums[bending], "table": tables[bending], "skipped": skipped}
 
 
-def _markdown(data, bending, tables, sums, figs):
-    lines = [f"# Measured cells: {Path(data).name}", "",
+def _markdown_skipped(name, skipped):
+    lines = [f"# Measured cells: {name}", "", "No recording could be analysed."] if name else []
+    if skipped:
+        lines += ["", "## Recordings not analysed", "", "| cell | reason |", "|---|---|"]
+        lines += [f"| {c} | {r} |" for c, r in skipped.items()]
+    return "\n".join(lines) + "\n" if lines else ""
+
+
+def _markdown(name, bending, tables, sums, figs):
+    lines = [f"# Measured cells: {name}", "",
              f"Calibration variant: `{bending}`. {tables[bending]['cell_id'].nunique()} cells.", "",
              "| variant | f (Hz) | cells | excluded | median ν | IQR ν | lognormal μ | lognormal σ |",
              "|---|---|---|---|---|---|---|---|"]
