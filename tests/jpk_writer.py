@@ -30,8 +30,8 @@ def _props(d):
 
 
 def _linear(prefix, offset, mult, unit):
-    return {f"{prefix}.type": "linear", f"{prefix}.style": "offsetmultiplier", f"{prefix}.offset": repr(offset),
-            f"{prefix}.multiplier": repr(mult), f"{prefix}.unit.type": "metric-unit", f"{prefix}.unit.unit": unit}
+    return {f"{prefix}.type": "linear", f"{prefix}.style": "offsetmultiplier", f"{prefix}.offset": repr(float(offset)),
+            f"{prefix}.multiplier": repr(float(mult)), f"{prefix}.unit.type": "metric-unit", f"{prefix}.unit.unit": unit}
 
 
 def channel_settings(name, k):
@@ -64,10 +64,10 @@ def _counts(cell, seg, dish_um):
 def segment_settings(cell, seg):
     n = seg.stop - seg.start
     dt = (cell.time_s[seg.stop - 1] - cell.time_s[seg.start]) / (n - 1) if n > 1 else 1.0
-    s = {"style": STYLE[seg.kind], "duration": repr(n * dt), "num-points": str(n)}
+    s = {"style": STYLE[seg.kind], "duration": repr(float(n * dt)), "num-points": str(n)}
     if seg.kind == "oscillation":
-        s |= {"type": "sine-z-modulation-segment-settings", "frequency": repr(seg.frequency_hz),
-              "amplitude": repr((seg.amplitude_um if np.isfinite(seg.amplitude_um) else 0.25) * 1e-6)}
+        s |= {"type": "sine-z-modulation-segment-settings", "frequency": repr(float(seg.frequency_hz)),
+              "amplitude": repr(float(seg.amplitude_um if np.isfinite(seg.amplitude_um) else 0.25) * 1e-6)}
     return s
 
 

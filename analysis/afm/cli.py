@@ -101,13 +101,23 @@ def import_(args):
         if args.json:
             print(json.dumps(r.summary()))
         else:
-            segs = ", ".join(f"{s.kind} {s.n_samples} in {s.duration_s:g} s"
-                             + (f" at {s.frequency_hz:g} Hz, {s.amplitude_um:g} um" if s.kind == "modulation" else "")
-                             for s in r.segments)
-            print(f"{r.cell_id}: k {r.spring_constant_N_per_m:.4g} N/m; {segs}")
+            print(_summary_line(r))
     if not args.json:
         print(f"wrote {out} ({len(cells)} cells)")
     return 0
+
+
+def _summary_line(rec):
+    """cell, spring constant and segments by kind (sample counts, total duration, frequencies)."""
+    parts = []
+    for kind in ("approach", "pause", "modulation", "retract"):
+        segs = [s for s in rec.segments if s.kind == kind]
+        if segs:
+            f = sorted({s.frequency_hz for s in segs}) if kind == "modulation" else []
+            parts.append(f"{len(segs)} {kind} ({sum(s.n_samples for s in segs)} samples, "
+                         f"{sum(s.duration_s for s in segs):g} s" + (f", at {', '.join(f'{x:g}' for x in f)} Hz"
+                                                                     if f else "") + ")")
+    return f"{rec.cell_id}: k {rec.spring_constant_N_per_m:.4g} N/m; " + "; ".join(parts)
 
 
 def analyze(args):

@@ -1,0 +1,194 @@
+"""`cortex afm import` and `analyze` on JPK archives with modulation segments of
+known truth (written by tests/jpk_writer.py from synthetic cells), the native
+round trip, the dish reference, and bad files (one line, status 2, nothing
+written)."""
+
+import zipfile
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.afm.cell import Cell, Segment
+from analysis.afm.h5format import read_experiment
+from analysis.afm.jpk_import import import_cells
+from analysis.afm.synth import generate, law_forward
+from analysis.calibration import Calibration
+from analysis.synthetic import reference_law
+from cortex.cli import main
+from jpk_writer import write_force, write_map
+
+FORCE_NN, HEIGHT_UM = 1e-6, 1e-6        # the writer's quantisation is far below these
+
+
+@pytest.fixture(scope="module")
+def exp(tmp_path_factory):
+    d = tmp_path_factory.mktemp("jpk")
+    cells, _ = generate(3, seed=2, errors=True, forward=law_forward(reference_law()))
+    folder = d / "force"
+    folder.mkdir()
+    for c in cells:
+        write_force(folder / f"{c.cell_id}.jpk-force", c, dish_um=3.0)
+    vol = d / "volumes.csv"
+    pd.DataFrame({"cell_id": [c.cell_id for c in cells], "volume_um3": [c.volume_um3 for c in cells],
+                  "volume_source": "confocal"}).to_csv(vol, index=False)
+    cal = d / "cal.json"
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    return d, cells, folder, vol, cal
+
+
+def _same_cell(got, want):
+    assert got.cell_id.endswith(want.cell_id) or got.cell_id.startswith("map")
+    assert [(s.kind, s.start, s.stop) for s in got.segments] == [(s.kind, s.start, s.stop) for s in want.segments]
+    osc = [(s.frequency_hz, s.amplitude_um) for s in got.segments if s.kind == "oscillation"]
+    assert osc == [(s.frequency_hz, pytest.approx(0.25)) for s in want.segments if s.kind == "oscillation"]
+    np.testing.assert_allclose(got.force_nN, want.force_nN, atol=FORCE_NN)
+    np.testing.assert_allclose(got.height_um, want.height_um, atol=HEIGHT_UM)
+    for s in got.segments:       # times within a segment as recorded, shifted by half a sample
+        t, t0 = got.time_s[s.start:s.stop], want.time_s[s.start:s.stop]
+        dt = np.diff(t0).mean() if s.stop - s.start > 1 else 0.0
+        np.testing.assert_allclose(t - t0, dt / 2, atol=1e-9)
+
+
+def test_written_force_archives_import_to_the_cells(exp):
+    d, cells, folder, vol, _ = exp
+    recs, got = import_cells([folder], volumes_csv=vol, dish_um=3.0)
+    assert [r.cell_id for r in recs] == [c.cell_id for c in cells]
+    for g, c, r in zip(got, cells, recs):
+        _same_cell(g, c)
+        assert g.volume_um3 == c.volume_um3 and g.volume_source == "confocal"
+        assert r.spring_constant_N_per_m == c.spring_constant_N_per_m
+        mods = [s for s in r.segments if s.kind == "modulation"]
+        assert mods and all(s.amplitude_um == pytest.approx(0.25) for s in mods)
+
+
+@pytest.mark.parametrize("at_top", [False, True], ids=["shared-info", "top-level-settings"])
+def test_written_map_pixels_import_to_the_cells(exp, tmp_path, at_top):
+    _, cells, *_ = exp
+    same = [cells[0]] * 2 if at_top else cells      # top-level settings: one segment plan for all pixels
+    path = write_map(tmp_path / "map.jpk-force-map", same, settings_at_top=at_top)
+    recs, got = import_cells([path], volume_um3=4000.0)
+    assert [r.cell_id for r in recs] == [f"map-px{i}" for i in range(len(same))]
+    for g, c in zip(got, same):
+        _same_cell(g, c)
+        assert g.spring_constant_N_per_m == same[0].spring_constant_N_per_m
+
+
+def test_native_round_trip(exp, tmp_path, capsys):
+    _, cells, folder, vol, _ = exp
+    out = tmp_path / "e.h5"
+    assert main(["afm", "import", str(folder), "--volumes", str(vol), "--dish-height-um", "3", "--out",
+                 str(out)]) == 0
+    back = read_experiment(out)
+    _, direct = import_cells([folder], volumes_csv=vol, dish_um=3.0)
+    def plan(cell):
+        return [(s.kind, s.start, s.stop, *np.nan_to_num([s.frequency_hz, s.amplitude_um], nan=-1.0))
+                for s in cell.segments]
+    for b, c in zip(back, direct):
+        assert plan(b) == plan(c)
+        for name in ("time_s", "force_nN", "height_um"):
+            np.testing.assert_array_equal(getattr(b, name), getattr(c, name))
+        assert (b.volume_um3, b.spring_constant_N_per_m) == (c.volume_um3, c.spring_constant_N_per_m)
+
+
+def test_modulation_archives_analyse_like_the_native_experiment(exp, tmp_path):
+    d, cells, folder, vol, cal = exp
+    from analysis.afm.h5format import write_experiment
+    native = write_experiment(tmp_path / "native.h5", cells)
+    assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a")]) == 0
+    assert main(["afm", "analyze", str(folder), "--volumes", str(vol), "--dish-height-um", "3",
+                 "--calibration", str(cal), "--out", str(tmp_path / "b")]) == 0
+    a, b = (pd.read_csv(tmp_path / x / "cells.csv") for x in ("a", "b"))
+    assert len(a) == len(b) > 3 and a["nu"].notna().sum() > 3
+    pd.testing.assert_series_equal(a["cell_id"], b["cell_id"])
+    for col in ("nu", "ks_tilde", "tension_mN_per_m", "loss_angle_rad"):
+        np.testing.assert_allclose(b[col], a[col], rtol=1e-6, atol=1e-6, err_msg=col)
+    assert (a["excluded_reason"].fillna("") == b["excluded_reason"].fillna("")).all()
+
+
+def test_dish_curve_sets_the_height_reference(exp, tmp_path):
+    """A curve pressed onto the bare dish: the wedge (z + F/k) stops at the dish
+    while the force climbs; importing with it recovers the cells' heights."""
+    _, cells, *_ = exp
+    n, k = 400, 0.4
+    h = np.r_[np.linspace(2.0, 0.0, n // 2), np.zeros(n // 2)]          # the wedge on the dish: h = 0
+    force = np.r_[np.zeros(n // 2), np.linspace(0.0, 80.0, n // 2)]
+    dish = Cell("dish", 1.0, np.arange(n) * 0.01, force, h, [Segment("approach", 0, n)], spring_constant_N_per_m=k)
+    write_force(tmp_path / "dish.jpk-force", dish, dish_um=7.5)
+    write_force(tmp_path / "c.jpk-force", cells[0], dish_um=7.5)
+    _, (got,) = import_cells([tmp_path / "c.jpk-force"], volume_um3=cells[0].volume_um3,
+                             dish_curve=tmp_path / "dish.jpk-force")
+    np.testing.assert_allclose(got.height_um, cells[0].height_um, atol=HEIGHT_UM)
+
+
+def _rewrite(src, dst, edit):
+    """Copy a zip, `edit(name, data)` returning new data or None to leave the member out."""
+    with zipfile.ZipFile(src) as a, zipfile.ZipFile(dst, "w") as b:
+        for name in a.namelist():
+            data = edit(name, a.read(name))
+            if data is not None:
+                b.writestr(name, data)
+    return dst
+
+
+def _flip(data, at):
+    data = bytearray(data)
+    data[at] ^= 0xFF
+    return bytes(data)
+
+
+def _sub(old, new, member="segments/0/segment-header.properties"):
+    return lambda name, data: data.replace(old, new) if name == member else data
+
+
+BAD = {
+    "not a zip": lambda src, d, cell: (d / "x.jpk-force").write_bytes(b"hello") and d / "x.jpk-force",
+    "truncated": lambda src, d, cell: (d / "t.jpk-force").write_bytes(src.read_bytes()[:5000]) and d / "t.jpk-force",
+    "corrupt member": lambda src, d, cell: (d / "cm.jpk-force").write_bytes(_flip(src.read_bytes(), 3000))
+    and d / "cm.jpk-force",
+    "empty file": lambda src, d, cell: (d / "e.jpk-force").write_bytes(b"") or d / "e.jpk-force",
+    "no header.properties": lambda src, d, cell: _rewrite(src, d / "h.jpk-force",
+                                                    lambda n, x: None if n == "header.properties" else x),
+    "no segment header": lambda src, d, cell: _rewrite(src, d / "s.jpk-force",
+                                                 lambda n, x: None if n.endswith("1/segment-header.properties") else x),
+    "missing channel file": lambda src, d, cell: _rewrite(src, d / "c.jpk-force",
+                                                    lambda n, x: None if n == "segments/0/channels/vDeflection.dat" else x),
+    "truncated channel": lambda src, d, cell: _rewrite(src, d / "tc.jpk-force",
+                                                 lambda n, x: x[:-4] if n.endswith("0/channels/measuredHeight.dat") else x),
+    "unknown unit": lambda src, d, cell: _rewrite(src, d / "u.jpk-force", _sub(b"unit.unit=N", b"unit.unit=lbf")),
+    "unknown encoder": lambda src, d, cell: _rewrite(src, d / "en.jpk-force", _sub(b"encoder.type=signedinteger",
+                                                                             b"encoder.type=zigzag")),
+    "channel without conversion": lambda src, d, cell: _rewrite(src, d / "nc.jpk-force", _sub(
+        b"conversion.force.defined=true", b"conversion.force.defined=false")),
+    "unknown segment style": lambda src, d, cell: _rewrite(src, d / "st.jpk-force", _sub(b"style=extend", b"style=wobble")),
+    "modulation without frequency": lambda src, d, cell: _rewrite(src, d / "mf.jpk-force", _sub(
+        b"segment-settings.frequency=", b"segment-settings.freq=", "segments/1/segment-header.properties")),
+    "missing shared header": lambda src, d, cell: _rewrite(
+        write_map(d / "m0.jpk-force-map", [cell]), d / "m.jpk-force-map",
+        lambda n, x: None if n.startswith("shared-data/") else x),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD) + ["volume missing for a cell", "volume table malformed"])
+def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case):
+    _, cells, folder, vol, cal = exp
+    src = folder / f"{cells[0].cell_id}.jpk-force"
+    args = ["--volume", "4000"]
+    if case == "volume missing for a cell":
+        path = folder
+        (tmp_path / "v.csv").write_text(vol.read_text().splitlines()[0] + "\n" + vol.read_text().splitlines()[1] + "\n")
+        args = ["--volumes", str(tmp_path / "v.csv")]
+    elif case == "volume table malformed":
+        path = src
+        (tmp_path / "v.csv").write_text("cell,vol\nx,1\n")
+        args = ["--volumes", str(tmp_path / "v.csv")]
+    else:
+        path = BAD[case](src, tmp_path, cells[0])
+    for cmd in (["afm", "import", str(path), "--out", str(tmp_path / "out.h5")],
+                ["afm", "analyze", str(path), "--calibration", str(cal), "--out", str(tmp_path / "o")]):
+        capsys.readouterr()
+        status = main(cmd + args)
+        err = capsys.readouterr().err
+        assert status == 2, err
+        assert len(err.strip().splitlines()) == 1 and "error" in err and "Traceback" not in err
+    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "o").exists()
