@@ -105,11 +105,12 @@ def write_force(path, cell, dish_um=0.0):
     return path
 
 
-def write_map(path, cells, dish_um=0.0, settings_at_top=False):
-    """Cells as the pixels of one `.jpk-force-map`, settings in shared-data (or the top-level header);
+def write_map(path, cells, dish_um=0.0, settings_at_top=False, scan_type="force-scan-map"):
+    """Cells as the pixels of one `.jpk-force-map` (`scan_type` quantitative-imaging-map: `.jpk-qi-data`),
+    settings in shared-data (or the top-level header);
     one cantilever, so every pixel is written with the first cell's spring constant."""
     cells = [dataclasses.replace(c, spring_constant_N_per_m=cells[0].spring_constant_N_per_m) for c in cells]
-    shared, infos, top = {"lcd-infos.count": 2}, {}, {"jpk-data-file": "spm-forcemapfile", "type": "force-scan-map"}
+    shared, infos, top = {"lcd-infos.count": 2}, {}, {"jpk-data-file": "spm-forcemapfile", "type": scan_type}
     for i, name in enumerate(("vDeflection", "measuredHeight")):
         shared |= {f"lcd-info.{i}.channel.name": name,
                    **{f"lcd-info.{i}.{k}": v for k, v in channel_settings(name, cells[0].spring_constant_N_per_m).items()}}
@@ -118,7 +119,7 @@ def write_map(path, cells, dish_um=0.0, settings_at_top=False):
             for j, seg in enumerate(cell.segments):
                 st = segment_settings(cell, seg)
                 if settings_at_top:
-                    top |= {f"force-scan-map.settings.force-settings.segment.{j}.{k}": v for k, v in st.items()}
+                    top |= {f"{scan_type}.settings.force-settings.segment.{j}.{k}": v for k, v in st.items()}
                     info = None
                 else:
                     info = infos.setdefault(tuple(sorted(st.items())), len(infos))

@@ -62,11 +62,13 @@ def test_written_force_archives_import_to_the_cells(exp):
         assert mods and all(s.amplitude_um == pytest.approx(0.25) for s in mods)
 
 
-@pytest.mark.parametrize("at_top", [False, True], ids=["shared-info", "top-level-settings"])
-def test_written_map_pixels_import_to_the_cells(exp, tmp_path, at_top):
+@pytest.mark.parametrize("at_top, suffix", [(False, ".jpk-force-map"), (True, ".jpk-force-map"),
+                                            (True, ".jpk-qi-data")], ids=["shared-info", "top-level", "qi"])
+def test_written_map_pixels_import_to_the_cells(exp, tmp_path, at_top, suffix):
     _, cells, *_ = exp
     same = [cells[0]] * 2 if at_top else cells      # top-level settings: one segment plan for all pixels
-    path = write_map(tmp_path / "map.jpk-force-map", same, settings_at_top=at_top)
+    scan = "quantitative-imaging-map" if suffix == ".jpk-qi-data" else "force-scan-map"
+    path = write_map(tmp_path / f"map{suffix}", same, settings_at_top=at_top, scan_type=scan)
     recs, got = import_cells([path], volume_um3=4000.0)
     assert [r.cell_id for r in recs] == [f"map-px{i}" for i in range(len(same))]
     for g, c in zip(got, same):
@@ -169,7 +171,8 @@ BAD = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD) + ["volume missing for a cell", "volume table malformed"])
+@pytest.mark.parametrize("case", sorted(BAD) + ["volume missing for a cell", "volume table malformed",
+                                                   "dish above the cell"])
 def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case):
     _, cells, folder, vol, cal = exp
     src = folder / f"{cells[0].cell_id}.jpk-force"
@@ -178,6 +181,9 @@ def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case
         path = folder
         (tmp_path / "v.csv").write_text(vol.read_text().splitlines()[0] + "\n" + vol.read_text().splitlines()[1] + "\n")
         args = ["--volumes", str(tmp_path / "v.csv")]
+    elif case == "dish above the cell":
+        path = src
+        args += ["--dish-height-um", "50"]
     elif case == "volume table malformed":
         path = src
         (tmp_path / "v.csv").write_text("cell,vol\nx,1\n")

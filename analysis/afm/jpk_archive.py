@@ -1,5 +1,5 @@
-"""Reader of binary JPK archives: `.jpk-force` (one force curve) and
-`.jpk-force-map` / `.jpk-qi-data` (one curve per pixel).
+"""Reader of binary JPK archives: `.jpk-force` (one force curve),
+`.jpk-force-map` / `.jpk-qi-data` (one curve per pixel) and `.jpk-qi-series`.
 
 An archive is a zip of properties files and big-endian channel files:
 
@@ -33,7 +33,7 @@ from analysis.afm.jpk_properties import parse_properties, resolve_shared, subtre
 from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
 from solver.errors import InputError
 
-SUFFIXES = (".jpk-force", ".jpk-force-map", ".jpk-qi-data")
+SUFFIXES = (".jpk-force", ".jpk-force-map", ".jpk-qi-data", ".jpk-qi-series")
 _SEGMENT = re.compile(r"^(index/(\d+)/)?segments/(\d+)/")
 
 

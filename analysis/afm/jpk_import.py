@@ -128,6 +128,10 @@ def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
         parts.append((s.time_s, s.force_nN, wedge_height_um(s, rec.spring_constant_N_per_m) - dish_um))
         n0 += s.n_samples
     t, f, h = (np.concatenate(c) for c in zip(*parts))
+    if np.min(h) <= 0:
+        raise InputError(f"{rec.source}: cell '{rec.cell_id}': height z + F/k - Z reaches {np.min(h):.4g} um "
+                         f"with dish reference Z = {dish_um:g} um: give the dish with --dish-height-um or "
+                         "--dish-curve")
     cell = Cell(cell_id=rec.cell_id, volume_um3=float(volume_um3), time_s=t, force_nN=f, height_um=h,
                 segments=segs, volume_source=volume_source,
                 spring_constant_N_per_m=float(rec.spring_constant_N_per_m), date=rec.date)
