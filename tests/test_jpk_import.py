@@ -198,3 +198,36 @@ def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case
         assert status == 2, err
         assert len(err.strip().splitlines()) == 1 and "error" in err and "Traceback" not in err
     assert not (tmp_path / "out.h5").exists() and not (tmp_path / "o").exists()
+
+
+def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_path, capsys):
+    _, cells, folder, vol, cal = exp
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    for f in folder.iterdir():
+        (mixed / f.name).write_bytes(f.read_bytes())
+    c = cells[0]
+    first = c.segments[0]                    # its first approach segment only, as a curve of its own
+    lone = Cell("approach-only", c.volume_um3, c.time_s[:first.stop], c.force_nN[:first.stop],
+                c.height_um[:first.stop], [first], spring_constant_N_per_m=c.spring_constant_N_per_m)
+    write_force(mixed / "approach-only.jpk-force", lone, dish_um=3.0)
+    table = tmp_path / "v.csv"
+    table.write_text(vol.read_text() + f"approach-only,{c.volume_um3},confocal\n")
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(mixed), "--volumes", str(table), "--dish-height-um", "3",
+                 "--calibration", str(cal), "--out", str(tmp_path / "o")]) == 1
+    assert "not analysed: approach-only: no modulation (oscillation) segment" in capsys.readouterr().out
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "| approach-only | no modulation (oscillation) segment |" in report
+    done = pd.read_csv(tmp_path / "o" / "cells.csv")
+    assert set(done["cell_id"]) == {x.cell_id for x in cells} and done["nu"].notna().any()
+
+
+def test_jpk_options_refused_for_the_native_format(exp, tmp_path, capsys):
+    _, cells, _, _, cal = exp
+    from analysis.afm.h5format import write_experiment
+    native = write_experiment(tmp_path / "n.h5", cells)
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(native), "--volume", "4000", "--calibration", str(cal),
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "JPK files only" in capsys.readouterr().err and not (tmp_path / "o").exists()

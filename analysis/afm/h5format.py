@@ -58,6 +58,22 @@ def _attr(g, key, where, default=None):
     return v.decode() if isinstance(v, bytes) else v
 
 
+def _segments(seg, amp, where):
+    """Segment objects from the `segments` table and the optional amplitudes."""
+    try:
+        amp = np.full(len(seg), np.nan) if amp is None else np.asarray(amp, float).ravel()
+    except (ValueError, TypeError):
+        raise InputError(f"{where}: segment_amplitude_um is not numeric") from None
+    if len(amp) != len(seg):
+        raise InputError(f"{where}: segment_amplitude_um has {len(amp)} values for {len(seg)} segments")
+    try:
+        return [Segment(kind=k.decode() if isinstance(k, bytes) else str(k), start=int(a), stop=int(b),
+                        frequency_hz=float(fr), amplitude_um=float(am))
+                for k, a, b, fr, am in zip(seg["kind"], seg["start"], seg["stop"], seg["frequency_hz"], amp)]
+    except (ValueError, TypeError, KeyError, IndexError):
+        raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
+
+
 def read_experiment(path):
     """All cells of an experiment file, validated."""
     path = Path(path)
@@ -83,19 +99,10 @@ def read_experiment(path):
                     if name not in g:
                         raise InputError(f"{where}: dataset '{name}' missing")
                     cols[name] = g[name][()]
+                amp = g["segment_amplitude_um"][()] if "segment_amplitude_um" in g else None
             except OSError:
                 raise InputError(f"{where}: data unreadable (truncated or corrupt file)") from None
-            seg = cols.pop("segments")
-            amp = g["segment_amplitude_um"][()] if "segment_amplitude_um" in g else np.full(len(seg), np.nan)
-            if len(amp) != len(seg):
-                raise InputError(f"{where}: segment_amplitude_um has {len(amp)} values for {len(seg)} segments")
-            try:
-                segments = [Segment(kind=k.decode() if isinstance(k, bytes) else str(k), start=int(a),
-                                    stop=int(b), frequency_hz=float(fr), amplitude_um=float(am))
-                            for k, a, b, fr, am in zip(seg["kind"], seg["start"], seg["stop"],
-                                                       seg["frequency_hz"], amp)]
-            except (ValueError, TypeError, KeyError):
-                raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
+            segments = _segments(cols.pop("segments"), amp, where)
             volume = _attr(g, "volume_um3", where, default=np.nan)
             cell = Cell(cell_id=cid, volume_um3=float(volume), segments=segments,
                         volume_source=str(_attr(g, "volume_source", where, "")),

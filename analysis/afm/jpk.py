@@ -94,7 +94,8 @@ def read_jpk(path):
     try:
         glob, blocks = _blocks(path)
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a JPK text export (binary; a .jpk-force archive needs its own suffix)") from None
+        raise InputError(f"{path}: not a JPK text export (binary data; a binary JPK archive is read by its "
+                         "suffix: .jpk-force, .jpk-force-map, .jpk-qi-data)") from None
     if not blocks:
         raise InputError(f"{path}: no segments (no '# segmentIndex:' header)")
     segments = []

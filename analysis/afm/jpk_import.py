@@ -127,6 +127,8 @@ def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
         segs.append(Segment(NATIVE_KIND[s.kind], n0, n0 + s.n_samples, s.frequency_hz, s.amplitude_um))
         parts.append((s.time_s, s.force_nN, wedge_height_um(s, rec.spring_constant_N_per_m) - dish_um))
         n0 += s.n_samples
+    if not parts:
+        raise InputError(f"{rec.source}: cell '{rec.cell_id}': no samples in any segment")
     t, f, h = (np.concatenate(c) for c in zip(*parts))
     if np.min(h) <= 0:
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': height z + F/k - Z reaches {np.min(h):.4g} um "

@@ -29,6 +29,10 @@ def load(paths, jpk_options=None):
         return import_cells(paths, **(jpk_options or {}))[1]
     if len(paths) != 1:
         raise InputError("give one experiment (.h5) or CSV file, or JPK files and folders (not a mixture)")
+    given = [k for k, v in (jpk_options or {}).items() if v is not None]
+    if given:
+        raise InputError(f"{paths[0]}: --volume(s) and --dish-* apply to JPK files only; the experiment "
+                         "and CSV formats carry their own volumes and heights")
     path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
