@@ -30,14 +30,16 @@ def _props(d):
 
 
 def _linear(prefix, offset, mult, unit):
-    return {f"{prefix}.type": "linear", f"{prefix}.style": "offsetmultiplier", f"{prefix}.offset": repr(float(offset)),
-            f"{prefix}.multiplier": repr(float(mult)), f"{prefix}.unit.type": "metric-unit", f"{prefix}.unit.unit": unit}
+    return {f"{prefix}.type": "linear", f"{prefix}.style": "offsetmultiplier",
+            f"{prefix}.offset": repr(float(offset)), f"{prefix}.multiplier": repr(float(mult)),
+            f"{prefix}.unit.type": "metric-unit", f"{prefix}.unit.unit": unit}
 
 
 def channel_settings(name, k):
     """Encoder and conversion set of vDeflection or measuredHeight (keys without a prefix)."""
     if name == "vDeflection":
-        d = {"type": "integer-data", "encoder.type": "signedinteger", **_linear("encoder.scaling", 0.0, VOLT_COUNT, "V"),
+        d = {"type": "integer-data", "encoder.type": "signedinteger",
+             **_linear("encoder.scaling", 0.0, VOLT_COUNT, "V"),
              "conversion-set.conversions.list": "distance force", "conversion-set.conversions.default": "force",
              "conversion-set.conversions.base": "volts", "conversion-set.conversion.volts.defined": "false"}
         for slot, base, mult, unit in (("distance", "volts", SENSITIVITY, "m"), ("force", "distance", k, "N")):
@@ -45,7 +47,8 @@ def channel_settings(name, k):
                   f"conversion-set.conversion.{slot}.base-calibration-slot": base,
                   **_linear(f"conversion-set.conversion.{slot}.scaling", 0.0, mult, unit)}
         return d
-    return {"type": "integer-data", "encoder.type": "signedinteger", **_linear("encoder.scaling", 0.0, METRE_COUNT, "m"),
+    return {"type": "integer-data", "encoder.type": "signedinteger",
+            **_linear("encoder.scaling", 0.0, METRE_COUNT, "m"),
             "conversion-set.conversions.list": "nominal", "conversion-set.conversions.default": "nominal",
             "conversion-set.conversions.base": "absolute", "conversion-set.conversion.nominal.defined": "true",
             "conversion-set.conversion.nominal.base-calibration-slot": "absolute",
@@ -112,8 +115,8 @@ def write_map(path, cells, dish_um=0.0, settings_at_top=False, scan_type="force-
     cells = [dataclasses.replace(c, spring_constant_N_per_m=cells[0].spring_constant_N_per_m) for c in cells]
     shared, infos, top = {"lcd-infos.count": 2}, {}, {"jpk-data-file": "spm-forcemapfile", "type": scan_type}
     for i, name in enumerate(("vDeflection", "measuredHeight")):
-        shared |= {f"lcd-info.{i}.channel.name": name,
-                   **{f"lcd-info.{i}.{k}": v for k, v in channel_settings(name, cells[0].spring_constant_N_per_m).items()}}
+        settings = channel_settings(name, cells[0].spring_constant_N_per_m)
+        shared |= {f"lcd-info.{i}.channel.name": name, **{f"lcd-info.{i}.{k}": v for k, v in settings.items()}}
     with zipfile.ZipFile(path, "w") as z:
         for p, cell in enumerate(cells):
             for j, seg in enumerate(cell.segments):

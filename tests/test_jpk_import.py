@@ -143,35 +143,45 @@ def _sub(old, new, member="segments/0/segment-header.properties"):
     return lambda name, data: data.replace(old, new) if name == member else data
 
 
-BAD = {
-    "not a zip": lambda src, d, cell: (d / "x.jpk-force").write_bytes(b"hello") and d / "x.jpk-force",
-    "truncated": lambda src, d, cell: (d / "t.jpk-force").write_bytes(src.read_bytes()[:5000]) and d / "t.jpk-force",
-    "corrupt member": lambda src, d, cell: (d / "cm.jpk-force").write_bytes(_flip(src.read_bytes(), 3000))
-    and d / "cm.jpk-force",
-    "empty file": lambda src, d, cell: (d / "e.jpk-force").write_bytes(b"") or d / "e.jpk-force",
-    "no header.properties": lambda src, d, cell: _rewrite(src, d / "h.jpk-force",
-                                                    lambda n, x: None if n == "header.properties" else x),
-    "no segment header": lambda src, d, cell: _rewrite(src, d / "s.jpk-force",
-                                                 lambda n, x: None if n.endswith("1/segment-header.properties") else x),
-    "missing channel file": lambda src, d, cell: _rewrite(src, d / "c.jpk-force",
-                                                    lambda n, x: None if n == "segments/0/channels/vDeflection.dat" else x),
-    "truncated channel": lambda src, d, cell: _rewrite(src, d / "tc.jpk-force",
-                                                 lambda n, x: x[:-4] if n.endswith("0/channels/measuredHeight.dat") else x),
-    "unknown unit": lambda src, d, cell: _rewrite(src, d / "u.jpk-force", _sub(b"unit.unit=N", b"unit.unit=lbf")),
-    "unknown encoder": lambda src, d, cell: _rewrite(src, d / "en.jpk-force", _sub(b"encoder.type=signedinteger",
-                                                                             b"encoder.type=zigzag")),
-    "channel without conversion": lambda src, d, cell: _rewrite(src, d / "nc.jpk-force", _sub(
-        b"conversion.force.defined=true", b"conversion.force.defined=false")),
-    "unknown segment style": lambda src, d, cell: _rewrite(src, d / "st.jpk-force", _sub(b"style=extend", b"style=wobble")),
-    "modulation without frequency": lambda src, d, cell: _rewrite(src, d / "mf.jpk-force", _sub(
-        b"segment-settings.frequency=", b"segment-settings.freq=", "segments/1/segment-header.properties")),
-    "missing shared header": lambda src, d, cell: _rewrite(
-        write_map(d / "m0.jpk-force-map", [cell]), d / "m.jpk-force-map",
-        lambda n, x: None if n.startswith("shared-data/") else x),
+def _without(suffix):
+    return lambda name, data: None if name.endswith(suffix) else data
+
+
+ZIP_EDITS = {                   # case: an edit of the archive's members
+    "no header.properties": lambda name, data: None if name == "header.properties" else data,
+    "no segment header": _without("segments/1/segment-header.properties"),
+    "missing channel file": _without("segments/0/channels/vDeflection.dat"),
+    "truncated channel": lambda name, data: data[:-4] if name.endswith("0/channels/measuredHeight.dat") else data,
+    "unknown unit": _sub(b"unit.unit=N", b"unit.unit=lbf"),
+    "unknown encoder": _sub(b"encoder.type=signedinteger", b"encoder.type=zigzag"),
+    "channel without conversion": _sub(b"conversion.force.defined=true", b"conversion.force.defined=false"),
+    "unknown segment style": _sub(b"style=extend", b"style=wobble"),
+    "modulation without frequency": _sub(b"segment-settings.frequency=", b"segment-settings.freq=",
+                                         "segments/1/segment-header.properties"),
+}
+BYTE_EDITS = {                  # case: an edit of the archive's bytes
+    "not a zip": lambda data: b"hello",
+    "truncated": lambda data: data[:5000],
+    "empty file": lambda data: b"",
+    "corrupt member": lambda data: _flip(data, 3000),
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD) + ["volume missing for a cell", "volume table malformed",
+def _bad_archive(case, src, d, cell):
+    if case in ZIP_EDITS:
+        return _rewrite(src, d / "bad.jpk-force", ZIP_EDITS[case])
+    if case in BYTE_EDITS:
+        (d / "bad.jpk-force").write_bytes(BYTE_EDITS[case](src.read_bytes()))
+        return d / "bad.jpk-force"
+    assert case == "missing shared header"
+    return _rewrite(write_map(d / "m0.jpk-force-map", [cell]), d / "bad.jpk-force-map",
+                    lambda name, data: None if name.startswith("shared-data/") else data)
+
+
+BAD = sorted(ZIP_EDITS) + sorted(BYTE_EDITS) + ["missing shared header"]
+
+
+@pytest.mark.parametrize("case", BAD + ["volume missing for a cell", "volume table malformed",
                                                    "dish above the cell"])
 def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case):
     _, cells, folder, vol, cal = exp
@@ -189,7 +199,7 @@ def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case
         (tmp_path / "v.csv").write_text("cell,vol\nx,1\n")
         args = ["--volumes", str(tmp_path / "v.csv")]
     else:
-        path = BAD[case](src, tmp_path, cells[0])
+        path = _bad_archive(case, src, tmp_path, cells[0])
     for cmd in (["afm", "import", str(path), "--out", str(tmp_path / "out.h5")],
                 ["afm", "analyze", str(path), "--calibration", str(cal), "--out", str(tmp_path / "o")]):
         capsys.readouterr()
