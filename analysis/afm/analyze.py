@@ -17,12 +17,16 @@ import pandas as pd
 
 from analysis.afm.timeseries import segment_moduli
 from analysis.inversion import invert_cell
+from solver.errors import InputError
 
 TENSION_TOLERANCE = 0.10
 
 
 def analyze_cell(cell, calibration, bending="standard"):
-    """Returns (per-frequency rows, per-segment rows) for one cell."""
+    """Returns (per-frequency rows, per-segment rows) for one cell (InputError without oscillations:
+    `report.run` lists such recordings instead)."""
+    if not cell.oscillations():
+        raise InputError(f"cell '{cell.cell_id}': no oscillation segment to analyse")
     segs = pd.DataFrame(segment_moduli(cell))
     segs.insert(0, "cell_id", cell.cell_id)
     med = float(np.median(segs["tension_mN_per_m"]))
