@@ -241,3 +241,36 @@ def test_jpk_options_refused_for_the_native_format(exp, tmp_path, capsys):
     assert main(["afm", "analyze", str(native), "--volume", "4000", "--calibration", str(cal),
                  "--out", str(tmp_path / "o")]) == 2
     assert "JPK files only" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+def _text_export(path, modulation):
+    """A two-segment JPK-style text export: extend, then a 1 Hz modulation (or its settings missing)."""
+    t = (np.arange(200) + 0.5) * 0.01
+    head = ["# force-settings.segment.0.style: extend", "# force-settings.segment.0.duration: 2.0",
+            "# force-settings.segment.1.style: modulation", "# force-settings.segment.1.duration: 2.0"]
+    if modulation:
+        head += ["# force-settings.segment.1.frequency: 1.0", "# force-settings.segment.1.amplitude: 2.5E-7"]
+    lines = head
+    for i, name in enumerate(("extend", "modulation")):
+        z = 12e-6 - 1e-6 * t / 2 if i == 0 else 11e-6 - 2.5e-7 * np.sin(2 * np.pi * t)
+        lines += [f"# segmentIndex: {i}", f"# segment: {name}", "# columns: height vDeflection seriesTime time",
+                  "# units: m N s s", "# springConstant: 0.5", "# sensitivity: 2E-8"]
+        lines += [f"{a:.17g} {b:.17g} {c:.17g} {d:.17g}" for a, b, c, d in zip(z, 20e-9 + 0 * t, t + 2.0 * i, t)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_text_export_modulation_segment(tmp_path, capsys):
+    from analysis.afm.jpk import read_jpk_recording
+    rec = read_jpk_recording(_text_export(tmp_path / "m.txt", True))
+    assert [s.kind for s in rec.segments] == ["approach", "modulation"]
+    mod = rec.segments[1]
+    assert (mod.frequency_hz, mod.amplitude_um, mod.duration_s, mod.n_samples) == (1.0, pytest.approx(0.25), 2.0, 200)
+    np.testing.assert_allclose(mod.time_s[[0, -1]], [2.005, 3.995])
+    _, (cell,) = import_cells([tmp_path / "m.txt"], volume_um3=4000.0)
+    osc, = cell.oscillations()
+    np.testing.assert_allclose(cell.height_um[osc.start:osc.stop], mod.height_um + 20.0 * 1e-3 / 0.5)
+    capsys.readouterr()
+    assert main(["afm", "import", str(_text_export(tmp_path / "bad.txt", False)), "--volume", "4000",
+                 "--out", str(tmp_path / "o.h5")]) == 2
+    assert "modulation without" in capsys.readouterr().err and not (tmp_path / "o.h5").exists()

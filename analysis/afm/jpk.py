@@ -160,9 +160,10 @@ def read_jpk(path):
     return JpkExport(path=path, header=glob, segments=segments)
 
 
-def _segment_setting(seg, key):
-    h = seg.header
-    v = h.get(f"force-settings.segment.{seg.index}.{key}")
+def _segment_setting(glob, seg, key):
+    """`force-settings.segment.N.key` of a segment: its block's header, else the file's first lines."""
+    name = f"force-settings.segment.{seg.index}.{key}"
+    v = seg.header.get(name, glob.get(name))
     try:
         return float(v) if v is not None else float("nan")
     except ValueError:
@@ -179,8 +180,9 @@ def read_jpk_recording(path):
         kind = kind_of(seg.name, where)
         d = seg.data
         try:
-            duration = _segment_setting(seg, "duration")
-            freq, amp = _segment_setting(seg, "frequency"), _segment_setting(seg, "amplitude") * 1e6
+            duration = _segment_setting(export.header, seg, "duration")
+            freq = _segment_setting(export.header, seg, "frequency")
+            amp = _segment_setting(export.header, seg, "amplitude") * 1e6
         except InputError as err:
             raise InputError(f"{export.path}: {err}") from None
         if not np.isfinite(duration):
