@@ -74,7 +74,7 @@ def segment_settings(cell, seg):
     return s
 
 
-def _segment_files(cell, j, seg, dish_um, shared):
+def _segment_files(cell, seg, dish_um, shared):
     """{name in the segment folder: bytes}; `shared`: (lcd index of each channel, settings index) or None."""
     st = segment_settings(cell, seg)
     head = {"force-segment-header.type": "spm-force-segment-header", "force-segment-header.duration": st["duration"],
@@ -103,7 +103,7 @@ def write_force(path, cell, dish_um=0.0):
         z.writestr("header.properties", _props({"jpk-data-file": "spm-forcefile", "type": "force-scan-series",
                                                 "force-scan-series.force-segments.count": len(cell.segments)}))
         for j, seg in enumerate(cell.segments):
-            for name, data in _segment_files(cell, j, seg, dish_um, None).items():
+            for name, data in _segment_files(cell, seg, dish_um, None).items():
                 z.writestr(f"segments/{j}/{name}", data)
     return path
 
@@ -128,7 +128,7 @@ def write_map(path, cells, dish_um=0.0, settings_at_top=False, scan_type="force-
                     info = infos.setdefault(tuple(sorted(st.items())), len(infos))
                     shared |= {f"force-segment-header-info.{info}.settings.segment-settings.{k}": v
                                for k, v in st.items()}
-                for name, data in _segment_files(cell, j, seg, dish_um, (0, info)).items():
+                for name, data in _segment_files(cell, seg, dish_um, (0, info)).items():
                     z.writestr(f"index/{p}/segments/{j}/{name}", data)
         z.writestr("header.properties", _props(top))
         z.writestr("shared-data/header.properties", _props(shared))

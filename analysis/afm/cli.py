@@ -108,15 +108,16 @@ def import_(args):
 
 
 def _summary_line(rec):
-    """cell, spring constant and segments by kind (sample counts, total duration, frequencies)."""
+    """cell, spring constant and segments by kind (count, samples, total duration, frequencies)."""
     parts = []
     for kind in ("approach", "pause", "modulation", "retract"):
         segs = [s for s in rec.segments if s.kind == kind]
-        if segs:
-            f = sorted({s.frequency_hz for s in segs}) if kind == "modulation" else []
-            parts.append(f"{len(segs)} {kind} ({sum(s.n_samples for s in segs)} samples, "
-                         f"{sum(s.duration_s for s in segs):g} s" + (f", at {', '.join(f'{x:g}' for x in f)} Hz"
-                                                                     if f else "") + ")")
+        if not segs:
+            continue
+        text = f"{len(segs)} {kind} ({sum(s.n_samples for s in segs)} samples, {sum(s.duration_s for s in segs):g} s"
+        if kind == "modulation":
+            text += ", at " + ", ".join(f"{f:g}" for f in sorted({s.frequency_hz for s in segs})) + " Hz"
+        parts.append(text + ")")
     return f"{rec.cell_id}: k {rec.spring_constant_N_per_m:.4g} N/m; " + "; ".join(parts)
 
 
