@@ -40,7 +40,7 @@ def register(sub):
     g.add_argument("--bending", default="standard", help="bending variant of the forward model")
     g.set_defaults(handler="analysis.afm.cli:synth")
     m = s.add_parser("import", help="JPK text exports and binary JPK files into an experiment file (HDF5)",
-                     description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data "
+                     description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data (-series) "
                                  "files (each map or QI pixel its own recording) into the native experiment "
                                  "format. Every cell needs a volume. See docs/jpk.md.")
     m.add_argument("files", nargs="+", metavar="FILES", help="JPK files or folders of them")

@@ -81,7 +81,7 @@ def read_volumes(path):
     """{cell_id: (volume_um3, volume_source)} from a CSV table."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: no such file (volume table)")
+        raise InputError(f"{path}: volume table not found (or not a file)")
     try:
         df = pd.read_csv(path, dtype={"cell_id": str})
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as err:
