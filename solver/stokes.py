@@ -96,10 +96,10 @@ class Interior:
 
     def _factor(self):
         """LU of the saddle-point matrix on the free velocities and the pressures
-        (pressure unknown 0 held at 0)."""
+        (pressure unknown 0 held at 0; the MMD ordering of AᵀA fills least here)."""
         if self._lu is None:
             A, B = self.A[self.free][:, self.free], self.B[1:][:, self.free]
-            self._lu = splu(bmat([[A, -B.T], [-B, None]], format="csc"))
+            self._lu = splu(bmat([[A, -B.T], [-B, None]], format="csc"), permc_spec="MMD_ATA")
         return self._lu
 
     def solve(self, boundary_velocity, viscosity_Pa_s=1.0):
@@ -114,13 +114,27 @@ class Interior:
 
     def _solve_fixed(self, u, viscosity):
         """Given u on the fixed dofs, the free velocities and the pressure."""
-        rhs = np.concatenate([-(self.A[self.free][:, self.fixed] @ u[self.fixed]),
-                              self.B[1:][:, self.fixed] @ u[self.fixed]])
-        x = self._factor().solve(rhs)
+        free, p = self.extend(u[self.fixed])
         u = u.copy()
-        u[self.free] = x[: len(self.free)]
-        p = np.concatenate([[0.0], x[len(self.free):]]) * viscosity
-        return u, p
+        u[self.free] = free
+        return u, np.concatenate([[0.0], p]) * viscosity
+
+    def extend(self, fixed_values):
+        """Free velocities and pressures (but the first, held at 0; per unit η) for
+        the given values on the fixed dofs; columns of a 2D array are solved together."""
+        w = np.asarray(fixed_values)
+        rhs = np.concatenate([-(self.A[self.free][:, self.fixed] @ w), self.B[1:][:, self.fixed] @ w])
+        x = self._factor().solve(rhs)
+        return x[: len(self.free)], x[len(self.free):]
+
+    def drag(self, fixed_values):
+        """The reaction R = A_bf u_f + A_bb u_b - B_bᵀ p on the fixed dofs (per unit
+        η: Pa·µm² per Pa·s·µm/s) for the given values there: the Dirichlet-to-
+        Neumann map, symmetric, with u_bᵀ R = ∫ 2 e:e dV (the dissipation per η)."""
+        w = np.asarray(fixed_values)
+        free, p = self.extend(w)
+        Af, Ab, Bb = self.A[self.fixed][:, self.free], self.A[self.fixed][:, self.fixed], self.B[1:][:, self.fixed]
+        return Af @ free + Ab @ w - Bb.T @ p
 
     def dissipation(self, u, viscosity_Pa_s):
         """D = ∫ 2η e:e dV over the half domain (Pa·µm³/s)."""
