@@ -39,6 +39,13 @@ def register(sub):
     p.add_argument("--solver", choices=("fast", "explicit"), default="fast",
                    help="fast: direct equilibrium (default); explicit: the published gradient flow")
     p.add_argument("--resolution", type=float, default=1.0, help="mesh refinement factor (1)")
+    p.add_argument("--viscosity", type=float, default=None, metavar="PA_S",
+                   help="interior viscosity eta, Pa s: also oscillate around h0 - dh/2 at --frequency "
+                        "and report the complex modulus K* (modulus_mN_per_m = |K*|, storage, loss, "
+                        "loss angle, elastic_modulus_mN_per_m without viscosity; the secant K becomes "
+                        "compression_modulus_mN_per_m); fast solver only")
+    p.add_argument("--frequency", type=float, default=None, metavar="HZ",
+                   help="oscillation frequency f, Hz (needed with --viscosity)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(handler="solver.cli:compress")
 
@@ -83,6 +90,22 @@ def geometry(args):
     return 0
 
 
+def viscous_run(args):
+    """True when --viscosity/--frequency ask for the oscillated viscous cell (both needed)."""
+    from solver.errors import InputError
+    if (args.viscosity is None) != (args.frequency is None):
+        raise InputError("--viscosity and --frequency go together (a viscous cell needs both)")
+    if args.viscosity is not None and args.solver != "fast":
+        raise InputError("--viscosity needs --solver fast (the linear response uses its Hessian)")
+    return args.viscosity is not None
+
+
+def _viscous(shell, args):
+    from solver.viscous import check_inputs, oscillate
+    check_inputs(args.viscosity, args.frequency)
+    return oscillate(shell, args.viscosity, args.frequency, args.solver)
+
+
 def compress(args):
     from solver.compression import compress as run
     from solver.errors import EXIT_NO_EQUILIBRIUM, SolverError
@@ -93,7 +116,7 @@ def compress(args):
                   bending_pN_um=args.bending_pN_um, thickness_um=args.thickness,
                   resolution=args.resolution)
     try:
-        result = run(shell, args.solver).to_dict()
+        result = _viscous(shell, args) if viscous_run(args) else run(shell, args.solver).to_dict()
     except SolverError as err:
         print(f"cortex compress: the {args.solver} solver failed: {err}", file=sys.stderr)
         return EXIT_NO_EQUILIBRIUM

@@ -167,8 +167,8 @@ class Response:
     complex_modulus: complex      # mN/m
     force_amplitude_nN: complex   # δF per δh = -1 µm (compression)
     displacement: np.ndarray      # δq = (δu, δz_p) per δh = -1 µm
-    dissipation: float            # mean viscous dissipation, nN·µm/s (= 1e-15 W), whole cell
-    plate_power: float            # mean power the plate puts in, nN·µm/s
+    dissipation: float            # mean viscous dissipation, nN·µm/s (= 1e-15 W), whole cell, per µm² of δh²
+    plate_power: float            # mean power the plate puts in, nN·µm/s, per µm² of δh²
     h_mean_um: float
     wall_s: float
 
@@ -177,7 +177,7 @@ class Response:
         return {"modulus_mN_per_m": abs(K), "storage_modulus_mN_per_m": K.real,
                 "loss_modulus_mN_per_m": K.imag, "loss_angle_rad": float(np.angle(K)),
                 "elastic_modulus_mN_per_m": float(elastic_modulus),
-                "dissipation_fW": self.dissipation, "plate_power_fW": self.plate_power,
+                "dissipation_fW_per_um2": self.dissipation, "plate_power_fW_per_um2": self.plate_power,
                 "h_mean_um": self.h_mean_um, "viscous_wall_s": self.wall_s}
 
 
@@ -250,3 +250,23 @@ def complex_modulus(shell, viscosity_Pa_s, frequency_hz, h_max=H_MAX):
     """K*(ω) of `shell` (a `solver.model.Shell`) oscillated around h0 - Δh/2."""
     check_inputs(viscosity_Pa_s, frequency_hz)
     return respond(prepare(shell, h_max)[0], viscosity_Pa_s, frequency_hz)
+
+
+def oscillate(shell, viscosity_Pa_s, frequency_hz, method="fast", h_max=H_MAX):
+    """`cortex compress --viscosity --frequency`: the compression's keys
+    (`solver.compression`; its secant K as `compression_modulus_mN_per_m`) and
+    K*(ω) around h_m: `modulus_mN_per_m` = |K*|, `storage_modulus_mN_per_m`,
+    `loss_modulus_mN_per_m`, `loss_angle_rad`, `elastic_modulus_mN_per_m`
+    (K*(ω) without viscosity, the same linearisation)."""
+    from solver.compression import compress
+    check_inputs(viscosity_Pa_s, frequency_hz)
+    out = compress(shell, method).to_dict()
+    start = time.perf_counter()
+    lin = prepare(shell, h_max)[0]
+    elastic = respond(lin, 0.0, frequency_hz).complex_modulus.real
+    res = respond(lin, viscosity_Pa_s, frequency_hz)
+    out["compression_modulus_mN_per_m"] = out.pop("modulus_mN_per_m")
+    out.update(viscosity_Pa_s=float(viscosity_Pa_s), frequency_hz=float(frequency_hz))
+    out.update(res.to_dict(elastic))
+    out["viscous_wall_s"] = time.perf_counter() - start
+    return out

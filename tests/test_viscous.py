@@ -80,3 +80,39 @@ def test_modulus_converges_with_the_fluid_mesh(prepared):
 def test_bad_viscosity_or_frequency(prepared, eta, f):
     with pytest.raises(InputError):
         viscous.respond(prepared[0], eta, f)
+
+
+def cortex(*args):
+    import subprocess
+    import sys
+    from pathlib import Path
+    exe = Path(sys.executable).with_name("cortex")
+    return subprocess.run([str(exe), "compress", "--h0", "12", "--bulk", "25", "--shear", "8.33",
+                           "--tension", "1.5", *args], capture_output=True, text=True, timeout=300,
+                          stdin=subprocess.DEVNULL)
+
+
+def test_cli_compress_with_viscosity(prepared):
+    import json
+    done = cortex("--viscosity", "2", "--frequency", "5", "--json")
+    assert done.returncode == 0, done.stderr
+    row = json.loads(done.stdout)
+    K = viscous.respond(prepared[0], 2.0, 5.0).complex_modulus
+    assert row["modulus_mN_per_m"] == pytest.approx(abs(K), rel=1e-9)
+    assert row["storage_modulus_mN_per_m"] == pytest.approx(K.real, rel=1e-9)
+    assert row["loss_modulus_mN_per_m"] == pytest.approx(K.imag, rel=1e-9)
+    assert row["loss_angle_rad"] == pytest.approx(np.angle(K), rel=1e-9)
+    assert row["elastic_modulus_mN_per_m"] == pytest.approx(
+        viscous.respond(prepared[0], 0.0, 5.0).complex_modulus.real, rel=1e-9)
+    for key in ("force_nN", "area_strain", "compression_modulus_mN_per_m", "h_tilde", "converged"):
+        assert key in row
+
+
+@pytest.mark.parametrize("args", [("--viscosity", "-1", "--frequency", "1"),
+                                  ("--viscosity", "1", "--frequency", "0"),
+                                  ("--viscosity", "1"),
+                                  ("--viscosity", "1", "--frequency", "1", "--solver", "explicit")])
+def test_cli_bad_viscous_input_one_line_exit_2(args):
+    done = cortex(*args, "--json")
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == "" and len(done.stderr.strip().splitlines()) == 1
