@@ -90,22 +90,6 @@ def geometry(args):
     return 0
 
 
-def viscous_run(args):
-    """True when --viscosity/--frequency ask for the oscillated viscous cell (both needed)."""
-    from solver.errors import InputError
-    if (args.viscosity is None) != (args.frequency is None):
-        raise InputError("--viscosity and --frequency go together (a viscous cell needs both)")
-    if args.viscosity is not None and args.solver != "fast":
-        raise InputError("--viscosity needs --solver fast (the linear response uses its Hessian)")
-    return args.viscosity is not None
-
-
-def _viscous(shell, args):
-    from solver.viscous import check_inputs, oscillate
-    check_inputs(args.viscosity, args.frequency)
-    return oscillate(shell, args.viscosity, args.frequency, args.solver)
-
-
 def compress(args):
     from solver.compression import compress as run
     from solver.errors import EXIT_NO_EQUILIBRIUM, SolverError
@@ -114,9 +98,9 @@ def compress(args):
                   bulk_mN_per_m=args.bulk, shear_mN_per_m=args.shear,
                   tension_mN_per_m=args.tension, bending=args.bending,
                   bending_pN_um=args.bending_pN_um, thickness_um=args.thickness,
-                  resolution=args.resolution)
+                  resolution=args.resolution, viscosity_Pa_s=args.viscosity, frequency_hz=args.frequency)
     try:
-        result = _viscous(shell, args) if viscous_run(args) else run(shell, args.solver).to_dict()
+        result = run(shell, args.solver).to_dict()
     except SolverError as err:
         print(f"cortex compress: the {args.solver} solver failed: {err}", file=sys.stderr)
         return EXIT_NO_EQUILIBRIUM

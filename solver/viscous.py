@@ -40,6 +40,7 @@ equals the mean dissipation (1/2) ∫ 2η ê:ê* dV.
 
 import time
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from scipy.sparse import coo_matrix, csc_matrix
@@ -84,7 +85,7 @@ def linearise(shell):
     response where it is stationary (dE*/dl = 0); it is held where it is a
     gauge (tension-only shell) or at its least value. Raises SolverError
     where it is held by the free surface touching the plate (not smooth)."""
-    mean = replace(shell, dh_um=0.5 * shell.dh_um)
+    mean = replace(shell, dh_um=0.5 * shell.dh_um, viscosity_Pa_s=None, frequency_hz=None)
     lag, u, _ = _equilibrium(mean)
     zp = 0.5 * mean.h1_um
     _, g, dzp, H = lag.evaluate(u, zp)
@@ -252,21 +253,23 @@ def complex_modulus(shell, viscosity_Pa_s, frequency_hz, h_max=H_MAX):
     return respond(prepare(shell, h_max)[0], viscosity_Pa_s, frequency_hz)
 
 
-def oscillate(shell, viscosity_Pa_s, frequency_hz, method="fast", h_max=H_MAX):
-    """`cortex compress --viscosity --frequency`: the compression's keys
-    (`solver.compression`; its secant K as `compression_modulus_mN_per_m`) and
-    K*(ω) around h_m: `modulus_mN_per_m` = |K*|, `storage_modulus_mN_per_m`,
-    `loss_modulus_mN_per_m`, `loss_angle_rad`, `elastic_modulus_mN_per_m`
-    (K*(ω) without viscosity, the same linearisation)."""
-    from solver.compression import compress
-    check_inputs(viscosity_Pa_s, frequency_hz)
-    out = compress(shell, method).to_dict()
+@lru_cache(maxsize=4)
+def _prepared(shell, h_max):
+    """The condensed linearisation of an elastic shell (cached: a campaign asks
+    for many viscosities and frequencies of the same cell in a row)."""
+    return prepare(shell, h_max)[0]
+
+
+def viscous_keys(shell, h_max=H_MAX):
+    """K*(ω) of a shell with `viscosity_Pa_s` and `frequency_hz` set, around h_m:
+    `modulus_mN_per_m` = |K*|, `storage_modulus_mN_per_m`, `loss_modulus_mN_per_m`,
+    `loss_angle_rad`, `elastic_modulus_mN_per_m` (K*(ω) without viscosity, the
+    same linearisation), the energy balance and the wall time."""
     start = time.perf_counter()
-    lin = prepare(shell, h_max)[0]
-    elastic = respond(lin, 0.0, frequency_hz).complex_modulus.real
-    res = respond(lin, viscosity_Pa_s, frequency_hz)
-    out["compression_modulus_mN_per_m"] = out.pop("modulus_mN_per_m")
-    out.update(viscosity_Pa_s=float(viscosity_Pa_s), frequency_hz=float(frequency_hz))
-    out.update(res.to_dict(elastic))
+    eta, f = shell.viscosity_Pa_s, shell.frequency_hz
+    check_inputs(eta, f)
+    lin = _prepared(replace(shell, viscosity_Pa_s=None, frequency_hz=None), h_max)
+    out = {"viscosity_Pa_s": float(eta), "frequency_hz": float(f)}
+    out.update(respond(lin, eta, f).to_dict(respond(lin, 0.0, f).complex_modulus.real))
     out["viscous_wall_s"] = time.perf_counter() - start
     return out
