@@ -197,6 +197,17 @@ def check_inputs(viscosity_Pa_s, frequency_hz):
                              f"({'Pa s' if zero else 'Hz'}; got {value:g})")
 
 
+def shell_response(lin, viscosity_Pa_s, frequency_hz):
+    """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`."""
+    n = lin.lag.size
+    c = 2.0 * NN_PER_PA_UM2 * 2j * np.pi * frequency_hz * viscosity_Pa_s
+    S = lin.H + c * lin.D
+    dq = np.empty(n + 1, complex)
+    dq[n] = -0.5                                          # δz_p for δh = -1
+    dq[:n] = np.linalg.solve(S[:n, :n], -S[:n, n] * dq[n])
+    return dq, -0.5 * (S[n] @ dq)
+
+
 def respond(lin, viscosity_Pa_s, frequency_hz):
     """Solve the coupled linear system at (η, f) for δh = -1 µm: a Response.
     With the fluid condensed onto the shell (`prepare`: D = Gᵀ R_1 G, R_1 the
@@ -207,14 +218,8 @@ def respond(lin, viscosity_Pa_s, frequency_hz):
     and δF = -(1/2) (H_zp,q + c D_zp,q) δq."""
     check_inputs(viscosity_Pa_s, frequency_hz)
     start = time.perf_counter()
-    n = lin.lag.size
     omega = 2 * np.pi * frequency_hz
-    c = 2.0 * NN_PER_PA_UM2 * 1j * omega * viscosity_Pa_s
-    S = lin.H + c * lin.D
-    dq = np.empty(n + 1, complex)
-    dq[n] = -0.5                                          # δz_p for δh = -1
-    dq[:n] = np.linalg.solve(S[:n, :n], -S[:n, n] * dq[n])
-    dF = -0.5 * (S[n] @ dq)
+    dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz)
     dissipation = omega**2 * viscosity_Pa_s * np.real(np.conj(dq) @ (lin.D @ dq)) * NN_PER_PA_UM2
     power = -0.5 * np.real(dF * np.conj(1j * omega * -1.0))
     g, dg, area, darea = _droplet_slopes(lin.shell, lin.h_mean_um)

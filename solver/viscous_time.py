@@ -11,13 +11,15 @@ the factor 2 for both halves) and q = (δu, δz_p), δz_p = δh/2:
 a differential-algebraic system (the pressure and the contact label carry no
 damping), integrated by the second-order backward difference formula
 (BDF2, its first step backward Euler) with one LU of (3/(2Δt)) C_uu + H_uu.
+`periodic_response` gives the frequency-domain answer for the same history
+(Fourier superposition of K*(ω)), which the time integration must reproduce.
 """
 
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from solver.errors import InputError
-from solver.viscous import NN_PER_PA_UM2, check_inputs
+from solver.viscous import NN_PER_PA_UM2, check_inputs, shell_response
 
 
 def _damping(lin, viscosity_Pa_s):
@@ -61,6 +63,21 @@ def integrate(lin, viscosity_Pa_s, t, dh):
 
 def half_cosine(t, depth_um, frequency_hz):
     """SPEC 2's plate motion as a change of gap: δh(t) = -(Δ/2)(1 - cos(2π f t))
-    until full compression (f t = 1/2), then held at -Δ."""
+    until full compression (f t = 1/2), then held at -Δ (SPEC 2's cos(f t),
+    with f read as the oscillation frequency in Hz)."""
     phase = np.minimum(2.0 * np.pi * frequency_hz * np.asarray(t, float), np.pi)
     return -0.5 * depth_um * (1.0 - np.cos(phase))
+
+
+def periodic_response(lin, viscosity_Pa_s, t, dh):
+    """The frequency-domain answer for a periodic gap history: δF(t) (nN) =
+    Σ_k T(ω_k) ĥ_k e^{iω_k t}, with ĥ the discrete Fourier transform of δh over
+    the window t (equally spaced, one period) and T(ω) = δF/δh from
+    `solver.viscous.shell_response` at every harmonic (T(0) the elastic one)."""
+    check_inputs(viscosity_Pa_s, 1.0)
+    t, dh = np.asarray(t, float), np.asarray(dh, float)
+    dt = t[1] - t[0]
+    spectrum = np.fft.rfft(dh)
+    f = np.fft.rfftfreq(len(t), dt)
+    transfer = np.array([-shell_response(lin, viscosity_Pa_s, fk)[1] for fk in f])
+    return np.fft.irfft(transfer * spectrum, n=len(t))

@@ -59,3 +59,20 @@ def test_bad_time_axis(lin):
         viscous_time.integrate(lin, 1.0, np.array([0.0, 0.1, 0.3]), np.zeros(3))
     with pytest.raises(InputError):
         viscous_time.integrate(lin, -1.0, np.linspace(0, 1, 5), np.zeros(5))
+
+
+def test_published_protocol_in_time_equals_the_frequency_domain_answer(lin):
+    # SPEC 2's half cosine down by 0.05 um in 0.05 s, held, back up, held: one
+    # 0.5 s period; the time integration from rest, over its second period,
+    # against the Fourier superposition of K*(omega) at every harmonic
+    eta, f, depth, dt = 10.0, 10.0, 0.05, 1e-3
+    t = np.arange(500) * dt
+    down = viscous_time.half_cosine(t, depth, f)
+    dh = np.where(t < 0.25, down, -depth - viscous_time.half_cosine(t - 0.25, depth, f))
+    assert dh[0] == 0 and dh.min() == -depth and abs(dh[-1]) < 1e-15
+    periodic = viscous_time.periodic_response(lin, eta, t, dh)
+    timed = viscous_time.integrate(lin, eta, np.arange(1000) * dt, np.concatenate([dh, dh]))[500:]
+    assert np.abs(timed - periodic).max() < 1e-2 * np.abs(periodic).max()
+    # and the viscous force is not negligible here: far from the elastic one
+    elastic = viscous_time.periodic_response(lin, 0.0, t, dh)
+    assert np.abs(periodic - elastic).max() > 0.1 * np.abs(periodic).max()
