@@ -116,3 +116,20 @@ def test_cli_bad_viscous_input_one_line_exit_2(args):
     done = cortex(*args, "--json")
     assert done.returncode == 2, done.stderr
     assert done.stdout == "" and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_no_slip_map_carries_exactly_the_shell_volume_change(prepared):
+    # ∮ w·n dS of the fluid's boundary displacement (Σ of the divergence rows:
+    # the P1 basis sums to one) equals half the shell polygon's volume change
+    # -H_p,q δq / 2 for any δq, the slip of the relabelled nodes included
+    lin, fluid = prepared
+    n = lin.lag.size
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        dq = rng.normal(size=n + 1) * 1e-3
+        flux = (fluid.B[:, fluid.fixed] @ (lin.G @ dq)).sum()
+        assert flux == pytest.approx(-0.5 * lin.H[n - 1] @ dq, rel=1e-7)   # H_p,zp: a difference
+    only_l = np.zeros(n + 1)
+    only_l[n - 2] = 1.0
+    assert np.abs(lin.G @ only_l).max() > 0            # the slip is there, and carries no flux
+    assert abs((fluid.B[:, fluid.fixed] @ (lin.G @ only_l)).sum()) < 1e-9 * np.abs(lin.G @ only_l).max()
