@@ -164,6 +164,9 @@ def load(path):
                 raise InputError(f"{path}: [test] {key} must be grid indices 0..{len(shells) - 1} (got {row!r})")
             faults[row] = key.removesuffix("_task")
     mc = data.get("montecarlo")
+    if mc is not None and any(key in grid for key in OPTIONAL):
+        raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
+                         "frequency_hz from [grid] (or the [montecarlo] section)")
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells) if mc is not None else ()
     return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),

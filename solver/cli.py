@@ -4,8 +4,6 @@
 import json
 import sys
 
-import numpy as np
-
 
 def register(sub):
     p = sub.add_parser(
@@ -114,6 +112,8 @@ def compress(args):
 
 
 def poroelastic(args):
+    import numpy as np
+
     from solver import poroelastic as pe
     inputs = (args.pore_diameter_um, args.viscosity, args.thickness_um, args.frequency)
     out = {"pore_diameter_um": args.pore_diameter_um, "viscosity_Pa_s": args.viscosity,

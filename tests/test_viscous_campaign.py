@@ -76,3 +76,9 @@ def test_small_viscous_campaign_and_its_analysis(tmp_path):
     report = (out / "viscosity.md").read_text()
     # 0.01 Pa s at 10 Hz changes |K*| by ~1e-5, 10 Pa s by far more than 1 %: the limit is 0.01
     assert "| 10 | 0.01 | 0.628 |" in report
+
+
+def test_viscous_axes_and_montecarlo_trials_are_refused_together(tmp_path):
+    from solver.errors import InputError
+    with pytest.raises(InputError, match="montecarlo"):
+        load(write(tmp_path, GRID + "viscosity_Pa_s = 1.0\nfrequency_hz = 1.0\n[montecarlo]\nnu = [0.5]\n"))
