@@ -3,7 +3,9 @@
     [campaign]  name, store (default path of the HDF5 store)
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
-                bending: a name or a list of `standard`, `double`, `none`
+                bending: a name or a list of `standard`, `double`, `none`;
+                optional viscosity_Pa_s and frequency_hz (both or neither): a
+                viscous interior oscillated at f, K*(ω) (`solver.viscous`)
     [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
     [montecarlo] the Monte-Carlo error trials (SPEC 5, `campaign.trials`):
                 nu (true Poisson ratios, each mapped to the grid's K_S closest to
@@ -36,8 +38,9 @@ from solver.errors import InputError
 from solver.model import BENDING_VARIANTS, Shell
 
 GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
-             "tension_mN_per_m", "thickness_um", "bending")
+             "tension_mN_per_m", "thickness_um", "bending", "viscosity_Pa_s", "frequency_hz")
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
+OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # absent: an elastic cell
 SECTIONS = {"campaign": {"name", "store"}, "grid": set(GRID_KEYS),
             "solver": {"method", "resolution", "timeout_s"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
@@ -117,6 +120,8 @@ def load(path):
             if bad or not names:
                 raise InputError(f"{path}: [grid] bending must be among {', '.join(BENDING_VARIANTS)} (got {bad or names})")
             axes[key] = names
+        elif key in OPTIONAL and key not in grid:
+            axes[key] = [None]
         else:
             axes[key] = _numbers(path, key, grid[key])
     solver = data.get("solver", {})
@@ -134,7 +139,8 @@ def load(path):
             shells.append(Shell(volume_um3=p["volume_um3"], h0_um=p["h0_um"], dh_um=p["dh_um"],
                                 bulk_mN_per_m=p["bulk_mN_per_m"], shear_mN_per_m=p["shear_mN_per_m"],
                                 tension_mN_per_m=p["tension_mN_per_m"], thickness_um=p["thickness_um"],
-                                bending=p["bending"], resolution=float(resolution)))
+                                bending=p["bending"], resolution=float(resolution),
+                                viscosity_Pa_s=p["viscosity_Pa_s"], frequency_hz=p["frequency_hz"]))
         except InputError as err:
             raise InputError(f"{path}: [grid] {err}") from None
     meta = data.get("campaign", {})
@@ -158,6 +164,9 @@ def load(path):
                 raise InputError(f"{path}: [test] {key} must be grid indices 0..{len(shells) - 1} (got {row!r})")
             faults[row] = key.removesuffix("_task")
     mc = data.get("montecarlo")
+    if mc is not None and any(key in grid for key in OPTIONAL):
+        raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
+                         "frequency_hz from [grid] (or the [montecarlo] section)")
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells) if mc is not None else ()
     return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),

@@ -53,10 +53,13 @@ from campaign.trials import CELL_KEYS, HEIGHT_KEYS
 from solver.errors import InputError
 
 PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
-          "tension_mN_per_m", "thickness_um")
+          "tension_mN_per_m", "thickness_um", "viscosity_Pa_s", "frequency_hz")   # NaN: elastic
 RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_per_m",
            "area_strain", "area_strain_shell", "modulus_mN_per_m", "h_mean_um", "h_tilde",
-           "volume_error", "equator_shear_ratio", "iterations", "wall_s")
+           "volume_error", "equator_shear_ratio", "iterations", "wall_s",
+           # a viscous cell's (solver.viscous; NaN for an elastic one)
+           "compression_modulus_mN_per_m", "storage_modulus_mN_per_m", "loss_modulus_mN_per_m",
+           "loss_angle_rad", "elastic_modulus_mN_per_m", "viscous_wall_s")
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 ERROR_BYTES = 256           # an error message's room in its row
@@ -381,7 +384,8 @@ def write_entries(f, entries, cells, contiguous=False):
         "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
         "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
     for key in RESULTS:
-        columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+        if key in f:                      # a store made before the viscous columns lacks them
+            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
     for key, values in columns.items():
         _put(f[key], rows, values, contiguous)
 
@@ -513,7 +517,8 @@ def read_results(path):
     with _open_read(path) as f:
         if "fingerprint" not in f.attrs or "state" not in f:
             raise InputError(f"{path}: not a campaign store")
-        frame = pd.DataFrame({key: f[key][:] for key in PARAMS + RESULTS})
+        frame = pd.DataFrame({key: f[key][:] if key in f else np.full(len(f["state"]), np.nan)
+                              for key in PARAMS + RESULTS})
         frame.insert(0, "task_id", f["task_id"].asstr()[:])
         frame.insert(1, "bending", f["bending"].asstr()[:])
         state = f["state"][:]

@@ -1,4 +1,5 @@
-"""Command-line entry points of the physics: `cortex geometry`, `cortex compress`."""
+"""Command-line entry points of the physics: `cortex geometry`, `cortex compress`,
+`cortex poroelastic`."""
 
 import json
 import sys
@@ -36,8 +37,34 @@ def register(sub):
     p.add_argument("--solver", choices=("fast", "explicit"), default="fast",
                    help="fast: direct equilibrium (default); explicit: the published gradient flow")
     p.add_argument("--resolution", type=float, default=1.0, help="mesh refinement factor (1)")
+    p.add_argument("--viscosity", type=float, default=None, metavar="PA_S",
+                   help="interior viscosity eta, Pa s: also oscillate around h0 - dh/2 at --frequency "
+                        "and report the complex modulus K* (modulus_mN_per_m = |K*|, storage, loss, "
+                        "loss angle, elastic_modulus_mN_per_m without viscosity; the secant K becomes "
+                        "compression_modulus_mN_per_m); fast solver only")
+    p.add_argument("--frequency", type=float, default=None, metavar="HZ",
+                   help="oscillation frequency f, Hz (needed with --viscosity)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(handler="solver.cli:compress")
+
+    p = sub.add_parser(
+        "poroelastic", help="the poroelastic layer's effective modulus (SPEC section 8)",
+        description="Effective compression modulus of a poroelastic layer of thickness t_c "
+                    "between porous plates, oscillated at f: the large-lambda term "
+                    "omega eta t_c^2 / (12 k_perm) with k_perm = d_pore^2/32 and, given the "
+                    "scaffold modulus K, the exact K_eff = K x coth x, "
+                    "x = (t_c/2) sqrt(i omega eta / (K k_perm)). Moduli in Pa (3D).")
+    p.add_argument("--pore-diameter-um", type=float, required=True, metavar="D",
+                   help="pore diameter d_pore, um")
+    p.add_argument("--viscosity", type=float, required=True, metavar="PA_S",
+                   help="fluid viscosity eta, Pa s")
+    p.add_argument("--thickness-um", type=float, required=True, metavar="T",
+                   help="layer thickness t_c, um")
+    p.add_argument("--frequency", type=float, required=True, metavar="HZ", help="frequency f, Hz")
+    p.add_argument("--scaffold-modulus-Pa", type=float, default=None, metavar="K",
+                   help="drained compression modulus of the scaffold, Pa (adds the exact K_eff)")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(handler="solver.cli:poroelastic")
 
 
 def geometry(args):
@@ -69,7 +96,7 @@ def compress(args):
                   bulk_mN_per_m=args.bulk, shear_mN_per_m=args.shear,
                   tension_mN_per_m=args.tension, bending=args.bending,
                   bending_pN_um=args.bending_pN_um, thickness_um=args.thickness,
-                  resolution=args.resolution)
+                  resolution=args.resolution, viscosity_Pa_s=args.viscosity, frequency_hz=args.frequency)
     try:
         result = run(shell, args.solver).to_dict()
     except SolverError as err:
@@ -81,4 +108,29 @@ def compress(args):
     width = max(map(len, result))
     for key, value in result.items():
         print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
+    return 0
+
+
+def poroelastic(args):
+    import numpy as np
+
+    from solver import poroelastic as pe
+    inputs = (args.pore_diameter_um, args.viscosity, args.thickness_um, args.frequency)
+    out = {"pore_diameter_um": args.pore_diameter_um, "viscosity_Pa_s": args.viscosity,
+           "thickness_um": args.thickness_um, "frequency_hz": args.frequency,
+           "permeability_um2": pe.permeability_m2(args.pore_diameter_um) / pe.UM**2,
+           "dissipative_modulus_Pa": pe.dissipative_modulus_Pa(*inputs)}
+    if args.scaffold_modulus_Pa is not None:
+        K = args.scaffold_modulus_Pa
+        exact, limit = pe.effective_modulus_exact(K, *inputs), pe.effective_modulus_limit(K, *inputs)
+        out.update(scaffold_modulus_Pa=K, diffusion_ratio_lambda=pe.diffusion_ratio(K, *inputs),
+                   storage_modulus_Pa=exact.real, loss_modulus_Pa=exact.imag,
+                   modulus_Pa=abs(exact), loss_angle_rad=float(np.angle(exact)),
+                   storage_modulus_limit_Pa=limit.real, loss_modulus_limit_Pa=limit.imag)
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    width = max(map(len, out))
+    for key, value in out.items():
+        print(f"{key:<{width}}  {value:.6g}")
     return 0

@@ -5,7 +5,9 @@ force and the final shape. `compress` turns that into a `Compression`, adding
 the effective modulus of SPEC section 3 (from the droplet geometry, via
 `solver.modulus`), the volume error |V - V0| / V0, the simulated shell's area
 increase next to the droplet estimate, and the equator's shear-to-dilation
-ratio |e1 - e2| / (e1 + e2) with e_i = λ_i - 1.
+ratio |e1 - e2| / (e1 + e2) with e_i = λ_i - 1. A shell with a viscosity and a
+frequency also gets the complex modulus K*(ω) of `solver.viscous` (|K*| as
+`modulus_mN_per_m`, the secant K above as `compression_modulus_mN_per_m`).
 """
 
 import importlib
@@ -79,4 +81,10 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
     derived["area_strain_shell"] = (sol.area_um2 - sol.area0_um2) / sol.area0_um2
     derived["volume_error"] = abs(sol.volume_um3 - shell.volume_um3) / shell.volume_um3
     derived["equator_shear_ratio"] = equator_shear_ratio(sol.lambda1, sol.lambda2)
+    if shell.viscosity_Pa_s is not None:        # the oscillated viscous cell (solver.viscous)
+        if method != "fast":
+            raise InputError("a viscous cell needs the fast solver (its linear response uses the Hessian)")
+        from solver.viscous import viscous_keys
+        derived["compression_modulus_mN_per_m"] = derived["modulus_mN_per_m"]
+        derived.update(viscous_keys(shell))
     return Compression(shell=shell, method=method, solution=sol, wall_s=wall, derived=derived)

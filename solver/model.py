@@ -27,7 +27,10 @@ class Shell:
     tension_mN_per_m: active tension γ_a (> 0).
     bending: `standard`, `double` or `none`; bending_pN_um, if given, overrides it.
     thickness_um: t_c.  resolution: mesh refinement factor (1 = default, the
-    resolution at which K is converged to 0.1 %; 2 halves every element)."""
+    resolution at which K is converged to 0.1 %; 2 halves every element).
+    viscosity_Pa_s, frequency_hz: a viscous interior oscillated at f around
+    h0 - Δh/2 (`solver.viscous`), both or neither; left out of `to_dict` when
+    not given, so an elastic cell's identity (campaign task ids) is unchanged."""
 
     volume_um3: float
     h0_um: float
@@ -39,6 +42,8 @@ class Shell:
     bending_pN_um: float | None = None
     thickness_um: float = 0.2
     resolution: float = 1.0
+    viscosity_Pa_s: float | None = None
+    frequency_hz: float | None = None
 
     def __post_init__(self):
         for name in ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
@@ -68,6 +73,11 @@ class Shell:
             raise InputError("bending stiffness must be >= 0 pN um")
         if self.thickness_um <= 0 or self.resolution <= 0:
             raise InputError("thickness and resolution must be > 0")
+        if (self.viscosity_Pa_s is None) != (self.frequency_hz is None):
+            raise InputError("viscosity and frequency go together (a viscous cell needs both)")
+        if self.viscosity_Pa_s is not None:
+            from solver.viscous import check_inputs
+            check_inputs(self.viscosity_Pa_s, self.frequency_hz)
 
     @property
     def h1_um(self):
@@ -88,4 +98,8 @@ class Shell:
         return (self.bulk_mN_per_m - self.shear_mN_per_m) / total if total > 0 else float("nan")
 
     def to_dict(self):
-        return asdict(self)
+        out = asdict(self)
+        for key in ("viscosity_Pa_s", "frequency_hz"):
+            if out[key] is None:
+                del out[key]
+        return out
