@@ -1,0 +1,70 @@
+"""Writing files so that a full disk stops cleanly: one line naming the file
+(`solver.errors.WriteError`, exit status 5), and nothing left half-written.
+
+HDF5 must never be the one that meets a full file system: HDF5 2.0 then
+crashes (a segmentation fault while it creates a dataset) or leaves its
+metadata cache broken (a failed flush, "Can't destroy cache"). So new HDF5
+files are built in memory (`hdf5_image`) and written by Python
+(`write_atomically`), and before HDF5 grows an open file the free space is
+checked first (`ensure_room`). Writing rows into datasets made at their full
+size goes in place and needs no room.
+"""
+
+import contextlib
+import errno
+import io
+import os
+import shutil
+
+from solver.errors import WriteError, is_write_failure
+
+ROOM_MARGIN_BYTES = 64 * 1024    # kept free beyond what a growing HDF5 file is expected to need
+
+
+def hdf5_image(build):
+    """The bytes of a new HDF5 file that `build(f)` fills (made in memory)."""
+    import h5py
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        build(f)
+    return buffer.getvalue()
+
+
+def write_atomically(path, data):
+    """Write `data` (bytes) to `path` by way of `path.tmp`, fsync'd, then renamed;
+    on a full disk the tmp file is removed and WriteError names `path`."""
+    path, tmp = str(path), str(path) + ".tmp"
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as err:
+        if not is_write_failure(err):
+            raise
+        with contextlib.suppress(OSError):
+            os.remove(tmp)            # ours: just made
+        raise WriteError(err.errno, err.strerror or str(err), path) from None
+    os.replace(tmp, path)
+    return path
+
+
+def ensure_room(path, nbytes):
+    """WriteError (ENOSPC) naming `path` unless its file system has `nbytes`
+    plus ROOM_MARGIN_BYTES free: checked before HDF5 grows a file."""
+    free = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free
+    need = int(nbytes) + ROOM_MARGIN_BYTES
+    if free < need:
+        raise WriteError(errno.ENOSPC, f"No space left on device ({free} bytes free, {need} needed)", str(path))
+
+
+@contextlib.contextmanager
+def named_failures(path):
+    """A write failure (disk full, I/O error) inside the block becomes a
+    WriteError naming `path`."""
+    try:
+        yield path
+    except OSError as err:
+        if isinstance(err, WriteError) or not is_write_failure(err):
+            raise
+        raise WriteError(err.errno, err.strerror or str(err), str(path)) from None
