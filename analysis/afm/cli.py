@@ -28,14 +28,19 @@ def synth(args):
     import json
     from pathlib import Path
 
+    import os
+
     from analysis.afm import synth as sy
     from analysis.afm.h5format import write_experiment
+    from outputs.ownership import check_file
+    from outputs.writing import write_atomically
     from solver.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
     out = Path(args.out)
-    if out.exists():
-        raise InputError(f"{out}: exists; refusing to overwrite")
+    if os.path.lexists(out):
+        raise InputError(f"{out}: exists; refusing to overwrite (it is left as it is)")
+    truth_path = check_file(out.parent / "truth.json", _is_our_truth, "truth.json beside --out")
     if args.forward == "law":
         if not args.calibration:
             raise InputError("--forward law needs --calibration CAL.json")
@@ -45,9 +50,21 @@ def synth(args):
         forward = sy.solver_forward(args.bending)
     cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=forward)
     write_experiment(out, cells)
-    (out.parent / "truth.json").write_text(json.dumps(truth, indent=1, default=float) + "\n")
-    print(f"wrote {out} ({len(cells)} cells) and {out.parent / 'truth.json'}")
+    text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
+    write_atomically(truth_path, text.encode())
+    print(f"wrote {out} ({len(cells)} cells) and {truth_path}")
     return 0
+
+
+TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours (may be replaced)
+
+
+def _is_our_truth(path):
+    import json
+    try:
+        return json.loads(path.read_text()).get("format") == TRUTH_FORMAT
+    except (ValueError, UnicodeDecodeError, AttributeError):
+        return False
 
 
 def analyze(args):

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from analysis.afm.analyze import analyze
+from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
+from outputs.ownership import OutputDir
 from solver.errors import InputError
 
 
@@ -31,23 +33,32 @@ def run(data, calibration_path, out, bending="standard"):
     cal = Calibration.load(calibration_path)
     if bending not in cal.laws:
         raise InputError(f"{calibration_path}: no bending variant '{bending}' (has {', '.join(cal.laws)})")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = OutputDir(out)              # refused now if not ours (a file, someone else's folder)
+    variants = [bending] + [v for v in cal.laws if v != bending]
+    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", *FIGURES]
+              + [f"{kind}_{v}.{ext}" for v in variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     tables, sums = {}, {}
-    for variant in [bending] + [v for v in cal.laws if v != bending]:
+    for variant in variants:
         tab, segs = analyze(cells, cal, variant)
         tables[variant], sums[variant] = tab, summary(tab)
-        tab.to_csv(out / f"cells_{variant}.csv", index=False)
-        (out / f"summary_{variant}.json").write_text(json.dumps(sums[variant], indent=1) + "\n")
+        _write(out, f"cells_{variant}.csv", lambda p: tab.to_csv(p, index=False))
+        _write(out, f"summary_{variant}.json", lambda p: p.write_text(json.dumps(sums[variant], indent=1) + "\n"))
         if variant == bending:
-            segs.to_csv(out / "segments.csv", index=False)
-            tab.to_csv(out / "cells.csv", index=False)
-    (out / "summary.json").write_text(json.dumps({"bending": bending, **sums[bending]}, indent=1) + "\n")
-    from analysis.afm.figures import figures
+            _write(out, "segments.csv", lambda p: segs.to_csv(p, index=False))
+            _write(out, "cells.csv", lambda p: tab.to_csv(p, index=False))
+    _write(out, "summary.json", lambda p: p.write_text(json.dumps({"bending": bending, **sums[bending]}, indent=1)
+                                                       + "\n"))
+    from analysis.afm.figures import figures      # matplotlib: only now
     figs = figures(tables, sums, segs, out)
-    report = out / "report.md"
-    report.write_text(_markdown(data, bending, tables, sums, figs))
+    report = _write(out, "report.md", lambda p: p.write_text(_markdown(data, bending, tables, sums, figs)))
     return {"report": report, "summary": sums[bending], "table": tables[bending]}
+
+
+def _write(out, name, write):
+    """`write(path)` for file `name` of the output folder `out` (`OutputDir`); its path."""
+    with out.writing(name) as path:
+        write(path)
+    return path
 
 
 def _markdown(data, bending, tables, sums, figs):
