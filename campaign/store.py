@@ -75,6 +75,7 @@ def is_our_store(path):
     """A campaign store: an HDF5 file with our `format` attribute (or, made
     before it had one, our fingerprint and state rows); or a file a kill left
     unreadable with our journal and lock beside it."""
+    path = str(path)
     if hdf5_format(path) == FORMAT:
         return True
     try:
