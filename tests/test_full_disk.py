@@ -1,6 +1,7 @@
 """A full disk stops cleanly: one line naming the file and saying to free
 space and rerun, exit status 5, no segmentation fault; after freeing space
-the rerun ends with the rows of an uninterrupted run (1 and 2 ranks). Runs on
+the rerun ends with the rows of an uninterrupted run (1 and 2 ranks, both
+write paths: mpio where h5py has MPI, as under `make test-mpi-parallel`). Runs on
 a 4 MB tmpfs filled with a ballast file (needs root to mount; skipped
 otherwise, saying why)."""
 
@@ -9,6 +10,7 @@ import os
 import shutil
 import subprocess
 
+import h5py
 import pandas as pd
 import pytest
 
@@ -20,6 +22,8 @@ from outputs.writing import ROOM_MARGIN_BYTES
 
 CAMPAIGN = ROOT / "campaigns" / "demo.toml"     # 60 compressions, 20 Monte-Carlo studies of 20 cells
 MOVING = {"wall_s", "rank", "attempts", "started_unix_s"}   # differ between any two runs
+needs_mpio = pytest.mark.skipif(not h5py.get_config().mpi, reason="h5py here was built without MPI "
+                                "(make test-mpi-parallel runs this with .venv-mpio, which has it)")
 
 
 @pytest.fixture
@@ -90,14 +94,14 @@ def one_line(stderr, path):
     return lines[0]
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
-def test_disk_full_during_a_campaign_then_rerun(reference, tmpfs, ranks):
+@pytest.mark.parametrize("ranks,path", [(1, "rank0"), (2, "rank0"), pytest.param(2, "mpio", marks=needs_mpio)])
+def test_disk_full_during_a_campaign_then_rerun(reference, tmpfs, ranks, path):
     config, ref_store = reference
     store = tmpfs / "s.h5"
     journal_bytes = os.path.getsize(str(ref_store) + ".journal")
     # room for the store and half of its journal: the journal fills the disk mid-run
     ballast = fill(tmpfs, os.path.getsize(ref_store) + ROOM_MARGIN_BYTES + journal_bytes // 2)
-    args = ("campaign", "run", str(config), "--store", str(store), "--quiet")
+    args = ("campaign", "run", str(config), "--store", str(store), "--quiet", "--write-path", path)
     full = cortex(*args, ranks=ranks)
     assert full.returncode == 5, full.stderr
     one_line(full.stderr, str(store) + ".journal")
