@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from outputs.ownership import OutputDir
+from outputs.ownership import OutputDir, json_document
 from solver.errors import InputError
 
 
@@ -73,7 +73,8 @@ def run(store, out, partial=False, progress=None):
     store, out = Path(store), Path(out)
     if not store.exists():
         raise InputError(f"{store}: no such store")
-    out = OutputDir(out)                     # refused now if not ours (a file, someone else's folder)
+    out = OutputDir(out, written_before_manifests=lambda d: json_document(d / "calibration.json").get("format")
+                    == cal_mod.FORMAT)    # refused now if not ours (a file, someone else's folder)
     marks = [("start", time.perf_counter())]
     results, trials = read_store(store)      # no output before the input is checked
     marks.append(("read_s", time.perf_counter()))

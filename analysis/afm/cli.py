@@ -60,11 +60,8 @@ TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours 
 
 
 def _is_our_truth(path):
-    import json
-    try:
-        return json.loads(path.read_text()).get("format") == TRUTH_FORMAT
-    except (ValueError, UnicodeDecodeError, AttributeError):
-        return False
+    from outputs.ownership import json_document
+    return json_document(path).get("format") == TRUTH_FORMAT
 
 
 def analyze(args):

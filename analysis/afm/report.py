@@ -10,7 +10,7 @@ import numpy as np
 from analysis.afm.analyze import analyze
 from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
-from outputs.ownership import OutputDir
+from outputs.ownership import OutputDir, json_document
 from solver.errors import InputError
 
 
@@ -33,7 +33,8 @@ def run(data, calibration_path, out, bending="standard"):
     cal = Calibration.load(calibration_path)
     if bending not in cal.laws:
         raise InputError(f"{calibration_path}: no bending variant '{bending}' (has {', '.join(cal.laws)})")
-    out = OutputDir(out)              # refused now if not ours (a file, someone else's folder)
+    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
+                    <= set(json_document(d / "summary.json")))   # refused now if not ours
     variants = [bending] + [v for v in cal.laws if v != bending]
     out.check(["segments.csv", "cells.csv", "summary.json", "report.md", *FIGURES]
               + [f"{kind}_{v}.{ext}" for v in variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
