@@ -9,7 +9,8 @@ def register(sub):
     g = s.add_parser("synth", help="write a synthetic experiment (HDF5) and truth.json beside it")
     g.add_argument("--cells", type=int, default=85, help="number of cells (default 85, the published size)")
     g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--out", required=True, metavar="FILE", help="experiment file (.h5)")
+    g.add_argument("--out", required=True, metavar="FILE", help="experiment file (.h5), new: an existing one "
+                   "is never overwritten; truth.json beside it is replaced only if cortex wrote it")
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
     g.add_argument("--forward", choices=("fast", "law"), default="fast",
                    help="forward model: the fast solver (default) or a calibration law (needs --calibration)")
@@ -19,7 +20,8 @@ def register(sub):
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md")
     a.add_argument("data", metavar="DATA", help="experiment (.h5) or single-cell CSV")
     a.add_argument("--calibration", required=True, metavar="CAL.json")
-    a.add_argument("--out", required=True, metavar="DIR")
+    a.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing); a "
+                   "non-empty folder cortex did not write is refused (DIR/.cortex-outputs lists what it wrote)")
     a.add_argument("--bending", default="standard", help="calibration variant for summary.json")
     a.set_defaults(handler="analysis.afm.cli:analyze")
 
