@@ -168,7 +168,10 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     try:
         status = _master(comm, store, campaign, retry_failed, progress)
     except BaseException as err:
-        store.abort() if is_write_failure(err) else store.close()
+        if is_write_failure(err):
+            store.abort()             # nothing more is written: the rerun resumes from the journal
+        else:
+            store.close()
         raise
     store.close()
     return status

@@ -21,6 +21,14 @@ that a kill left unreadable is set aside and rebuilt from the campaign and the
 journal. So a rerun finishes the remaining tasks and ends with the same rows as
 an uninterrupted run. A lock file refuses a second run on the same store.
 
+Only a file that is ours is ever opened for writing, set aside or rebuilt
+(`check_store_path`, the rule of `outputs.ownership`): our `format`
+attribute, or, unreadable, our journal and lock beside it. A full disk never
+reaches HDF5 while it grows the file (HDF5 then crashes): new files are built
+in memory and written by Python, growth waits for `ensure_room`, rows are
+written in place (`outputs.writing`); a failed journal write is a WriteError
+naming the journal, and `abort` closes without writing more.
+
 Two write paths, one schema and the same rows (`write_path`):
 - rank0: rank 0 alone has the file open and writes every row, as above;
 - mpio (h5py built with MPI, more than one rank): rank 0 prepares the file
@@ -168,10 +176,19 @@ class Store:
         if not os.path.exists(self.path):
             self._create(campaign, ranks)
         self.file = self._open_or_rebuild(campaign, ranks)
+        try:
+            self._prepare(campaign, ranks, parallel)
+        except BaseException:
+            self.file.close()                     # a refusal or a full disk: nothing more is written
+            self._unlock()
+            raise
+
+    def _prepare(self, campaign, ranks, parallel):
+        """Trials added, journal replayed, rows left running pending again, this run logged."""
+        path = self.path
         self._add_trials(campaign)
         if parallel and any(name in self.file and self.file[name].dtype.kind == "O"
                             for name in ("error", "trials/error")):
-            self.file.close()
             raise InputError(f"{path} was made by an earlier version (variable-length error strings, which "
                              "parallel HDF5 cannot write): use --write-path rank0, or --new")
         self.parallel = parallel
