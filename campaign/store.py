@@ -252,7 +252,7 @@ class Store:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         for p in (self.path, self.journal_path):
             if os.path.exists(p):
-                shutil.move(p, f"{p}.bak-{stamp}")
+                _set_aside(p, f"{p}.bak-{stamp}")
 
     def _create(self, campaign, ranks):
         """The new file, built in memory and written by Python (`outputs.writing`)."""
@@ -330,8 +330,7 @@ class Store:
             f["state"][:1]
             return f
         except (OSError, KeyError):
-            aside = f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}"
-            shutil.move(self.path, aside)
+            aside = _set_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
             print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
                   "rebuilding it from the journal", flush=True)
             self._create(campaign, ranks)
@@ -565,6 +564,17 @@ def _decode(value):
     if isinstance(value, dict):
         return np.frombuffer(base64.b64decode(value["f8"]), "<f8").reshape(value["shape"]).copy()
     return np.array(value, float)
+
+
+def _set_aside(path, name):
+    """Rename our file `path` to `name`, or `name-2`, `name-3`, ... if that is
+    taken (never onto someone else's file); returns the name used."""
+    target, k = name, 1
+    while os.path.lexists(target):
+        k += 1
+        target = f"{name}-{k}"
+    shutil.move(path, target)
+    return target
 
 
 def _trim_cut_line(path):
