@@ -15,6 +15,7 @@ import errno
 import io
 import os
 import shutil
+import tempfile
 
 from solver.errors import WriteError, is_write_failure
 
@@ -31,22 +32,37 @@ def hdf5_image(build):
 
 
 def write_atomically(path, data):
-    """Write `data` (bytes) to `path` by way of `path.tmp`, fsync'd, then renamed;
-    on a full disk the tmp file is removed and WriteError names `path`."""
-    path, tmp = str(path), str(path) + ".tmp"
+    """Write `data` (bytes) to `path` by way of a new `path.<random>.tmp` (made
+    exclusively: never someone else's file), fsync'd, then renamed; on a full
+    disk the tmp file is removed and WriteError names `path`."""
+    path = str(path)
     try:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)),
+                                   prefix=os.path.basename(path) + ".", suffix=".tmp")
     except OSError as err:
         if not is_write_failure(err):
             raise
+        raise WriteError(err.errno, err.strerror or str(err), path) from None
+    try:
+        with open(fd, "wb") as fh:
+            os.fchmod(fd, 0o666 & ~_umask())          # as open() would make it, not mkstemp's 0600
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as err:
         with contextlib.suppress(OSError):
             os.remove(tmp)            # ours: just made
-        raise WriteError(err.errno, err.strerror or str(err), path) from None
-    os.replace(tmp, path)
+        if isinstance(err, OSError) and is_write_failure(err):
+            raise WriteError(err.errno, err.strerror or str(err), path) from None
+        raise
     return path
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def ensure_room(path, nbytes):
