@@ -94,7 +94,7 @@ def main(argv=None):
               "command to resume", file=sys.stderr)
         return EXIT_WRITE_FAILED
     except KeyboardInterrupt:
-        print(f"cortex {where}: stopped by a signal; rerun the same command", file=sys.stderr)
+        print(f"cortex {where}: stopped by a signal; rerun the same command to resume", file=sys.stderr)
         return EXIT_SIGNAL
     finally:
         signal.signal(signal.SIGTERM, previous)
