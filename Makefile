@@ -70,7 +70,7 @@ test-mpi-parallel:
 	@$(SETUP_PARALLEL); \
 	if [ $$status = 0 ]; then set -x; \
 	  $(PVENV)/bin/with-mpi $(PVENV)/bin/python -m pytest -q -p no:cacheprovider $(PYTEST_ARGS) \
-	    tests/test_stack.py tests/test_campaign_writepath.py && \
+	    tests/test_stack.py tests/test_campaign_writepath.py tests/test_full_disk.py && \
 	  $(call mpi_pytest,$(PVENV)/bin/with-mpi mpiexec,$(PVENV)/bin/python); fi
 
 # Calibration laws, reconstruction check, Monte-Carlo study and report of a

@@ -13,7 +13,9 @@ def register(sub):
                                  "reconstruction of nu; summarise the Monte-Carlo trials. Writes "
                                  "DIR/calibration.json, CSV tables, figures and DIR/report.md.")
     c.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
-    c.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing)")
+    c.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (created if missing); a non-empty folder cortex did not write is "
+                        "refused (DIR/.cortex-outputs lists what cortex wrote there)")
     c.add_argument("--partial", action="store_true",
                    help="analyse an unfinished store with what is done, saying what was left out")
     c.set_defaults(handler="analysis.cli:calibrate")

@@ -41,8 +41,8 @@ def _save(fig, out, name):
     fig.set_layout_engine("none")
     paths = []
     for ext in ("png", "pdf"):
-        path = out / f"{name}.{ext}"
-        fig.savefig(path, dpi=110)
+        with out.writing(f"{name}.{ext}") as path:     # out: an outputs.ownership.OutputDir
+            fig.savefig(path, dpi=110)
         paths.append(path)
     plt.close(fig)
     return paths

@@ -14,6 +14,8 @@ refuses an unfinished store unless `partial`, computes everything in memory
     montecarlo_cells.csv      per trial: the inversion of its curve
     *.png, *.pdf              figures
     report.md                 numbers, tables, figures
+    .cortex-outputs           the manifest of these files (`outputs.ownership`): a rerun
+                              replaces only them; someone else's folder is refused
 """
 
 import json
@@ -24,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from outputs.ownership import OutputDir, json_document
 from solver.errors import InputError
 
 
@@ -70,8 +73,8 @@ def run(store, out, partial=False, progress=None):
     store, out = Path(store), Path(out)
     if not store.exists():
         raise InputError(f"{store}: no such store")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a directory")
+    out = OutputDir(out, written_before_manifests=lambda d: json_document(d / "calibration.json").get("format")
+                    == cal_mod.FORMAT)    # refused now if not ours (a file, someone else's folder)
     marks = [("start", time.perf_counter())]
     results, trials = read_store(store)      # no output before the input is checked
     marks.append(("read_s", time.perf_counter()))
@@ -118,16 +121,19 @@ def run(store, out, partial=False, progress=None):
             mc_records, studies, cells = mc_mod.montecarlo(usable, calibration)
 
     marks.append(("reconstruction_montecarlo_s", time.perf_counter()))
-    say(f"writing {out}/")
-    out.mkdir(parents=True, exist_ok=True)
-    calibration.save(out / "calibration.json")
-    fits.to_csv(out / "calibration_fits.csv", index=False)
-    loglaw.to_csv(out / "calibration_log_law.csv", index=False)
-    recon.to_csv(out / "reconstruction.csv", index=False)
+    say(f"writing {out.path}/")
+    tables = {"calibration_fits.csv": fits, "calibration_log_law.csv": loglaw, "reconstruction.csv": recon}
     if mc_records is not None:
-        (out / "montecarlo.json").write_text(json.dumps(mc_records, indent=1) + "\n")
-        studies.to_csv(out / "montecarlo_studies.csv", index=False)
-        cells.to_csv(out / "montecarlo_cells.csv", index=False)
+        tables.update({"montecarlo_studies.csv": studies, "montecarlo_cells.csv": cells})
+    out.check(["calibration.json", "montecarlo.json", "report.md", *tables])
+    with out.writing("calibration.json") as path:
+        calibration.save(path)
+    for name, table in tables.items():
+        with out.writing(name) as path:
+            table.to_csv(path, index=False)
+    if mc_records is not None:
+        with out.writing("montecarlo.json") as path:
+            path.write_text(json.dumps(mc_records, indent=1) + "\n")
     say("figures")
     from analysis import figures
     figs = [figures.modulus_curves(done, calibration, fits, out)[0],
@@ -143,13 +149,14 @@ def run(store, out, partial=False, progress=None):
     if unconverged:
         notes.append(f"{unconverged} finished simulation(s) report converged = False; they were used")
     text = render(store, calibration, recon_summary, mc_records, checks, left_out, figs, len(done), notes)
-    (out / "report.md").write_text(text)
+    with out.writing("report.md") as path:
+        path.write_text(text)
     marks.append(("figures_report_s", time.perf_counter()))
     wall = time.perf_counter() - start
     timings = {name: round(t - t0, 3) for (_, t0), (name, t) in zip(marks, marks[1:])}
-    say(f"done: {out / 'report.md'}" + (f" (partial: {'; '.join(left_out)})" if left_out else ""))
+    say(f"done: {path}" + (f" (partial: {'; '.join(left_out)})" if left_out else ""))
     return {"calibration": calibration, "reconstruction": recon_summary, "montecarlo": mc_records,
-            "left_out": left_out, "wall_s": wall, "timings_s": timings, "report": out / "report.md"}
+            "left_out": left_out, "wall_s": wall, "timings_s": timings, "report": path}
 
 
 def _checks(done):

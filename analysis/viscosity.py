@@ -94,16 +94,19 @@ def _markdown(tab, limits):
 
 
 def run(store, out):
-    """Write DIR/viscosity.csv, .png, .pdf and .md; returns the report's path."""
-    store, out = Path(store), Path(out)
+    """Write DIR/viscosity.csv, .png, .pdf and .md; returns the report's path.
+    DIR holds only what cortex wrote there (`outputs.ownership.OutputDir`)."""
+    from outputs.ownership import OutputDir
+    store = Path(store)
     if not store.is_file():
         raise InputError(f"{store}: no such campaign store")
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a directory")
+    out = OutputDir(out)
+    out.check(["viscosity.csv", "viscosity.png", "viscosity.pdf", "viscosity.md"])
     tab = table(store)
     limits = validity(tab)
-    out.mkdir(parents=True, exist_ok=True)
-    tab.to_csv(out / "viscosity.csv", index=False)
+    with out.writing("viscosity.csv") as path:
+        tab.to_csv(path, index=False)
     figure(tab, out)
-    (out / "viscosity.md").write_text(_markdown(tab, limits))
-    return out / "viscosity.md"
+    with out.writing("viscosity.md") as path:
+        path.write_text(_markdown(tab, limits))
+    return path

@@ -10,11 +10,14 @@ def register(sub):
     r = cs.add_parser("run", help="run or resume a campaign",
                       description="Run or resume the campaign of CONFIG into STORE. Rerunning the same "
                                   "command resumes: done tasks are skipped, interrupted ones redone. "
-                                  "Exit status: 0 all done, 1 some tasks failed, 2 bad input, "
-                                  "3 stopped by SIGTERM/SIGINT (rerun to resume).")
+                                  "Exit status: 0 all done, 1 some tasks failed, 2 bad input (also a "
+                                  "--store that is a folder or a file that is not a campaign store: it is "
+                                  "left as it is), 3 stopped by SIGTERM/SIGINT (rerun to resume), 5 could "
+                                  "not write, e.g. disk full (free space, then rerun to resume).")
     r.add_argument("config", metavar="CONFIG.toml", help="campaign file")
-    r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file)")
-    r.add_argument("--new", action="store_true", help="start over; the old store is kept as a backup")
+    r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
+                   "a folder, or an existing file that is not a campaign store, is refused")
+    r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
     r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.add_argument("--write-path", choices=("auto", "mpio", "rank0"), default="auto",

@@ -1,6 +1,7 @@
 """Campaign files (TOML): the grid of compressions and the solver settings.
 
-    [campaign]  name, store (default path of the HDF5 store)
+    [campaign]  name, store (default path of the HDF5 store), max_tasks
+                (the largest campaign accepted, default MAX_TASKS = 100,000)
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
@@ -26,10 +27,19 @@
 The grid is the Cartesian product of the lists. Every compression is checked
 with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
 sphere, a negative modulus) is refused before anything is written.
+
+Too big a campaign is refused before it is built: its task count, the
+product of the grid's list lengths n = Π_k len(list_k) plus the Monte-Carlo
+trial tasks (len(bending) · len(nu) · len(height_error_mode) · studies), is
+counted from the list lengths alone and must not exceed `[campaign]
+max_tasks`. The default, MAX_TASKS = 100,000, is what loads in about a
+minute here (checking and fingerprinting 100,000 compressions took 50 s) and
+makes a store of about 50 MB (some 500 bytes a row).
 """
 
 import hashlib
 import itertools
+import math
 import tomllib
 from dataclasses import dataclass
 
@@ -41,7 +51,8 @@ GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
              "tension_mN_per_m", "thickness_um", "bending", "viscosity_Pa_s", "frequency_hz")
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # absent: an elastic cell
-SECTIONS = {"campaign": {"name", "store"}, "grid": set(GRID_KEYS),
+MAX_TASKS = 100_000
+SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS),
             "solver": {"method", "resolution", "timeout_s"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
@@ -132,6 +143,9 @@ def load(path):
     for key, value in (("resolution", resolution), ("timeout_s", timeout)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
             raise InputError(f"{path}: [solver] {key} must be a positive number (got {value!r})")
+    meta = data.get("campaign", {})
+    limit = _max_tasks(path, meta)
+    _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
     shells = []
     for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
         p = dict(zip(GRID_KEYS, combo))
@@ -143,7 +157,6 @@ def load(path):
                                 viscosity_Pa_s=p["viscosity_Pa_s"], frequency_hz=p["frequency_hz"]))
         except InputError as err:
             raise InputError(f"{path}: [grid] {err}") from None
-    meta = data.get("campaign", {})
     for key in ("name", "store"):
         if key in meta and not isinstance(meta[key], str):
             raise InputError(f"{path}: [campaign] {key} must be a string")
@@ -167,10 +180,25 @@ def load(path):
     if mc is not None and any(key in grid for key in OPTIONAL):
         raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
                          "frequency_hz from [grid] (or the [montecarlo] section)")
-    studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells) if mc is not None else ()
+    studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
     return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
                     text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
+
+
+def _max_tasks(path, meta):
+    """[campaign] max_tasks (a positive integer), MAX_TASKS without it."""
+    limit = meta.get("max_tasks", MAX_TASKS)
+    if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+        raise InputError(f"{path}: [campaign] max_tasks must be a positive integer (got {limit!r})")
+    return limit
+
+
+def _refuse_above(path, count, limit, what):
+    """InputError if a campaign of `count` tasks (`what`) exceeds `limit`; nothing is built."""
+    if count > limit:
+        raise InputError(f"{path}: {count:,} {what} exceed the limit of {limit:,} tasks; make the grid "
+                         "smaller, or raise [campaign] max_tasks if this machine can hold it")
 
 
 def _mc_number(path, key, value, low, high=float("inf"), integer=False):
@@ -190,8 +218,9 @@ def _mc_names(path, key, value, allowed):
     return names
 
 
-def _studies(path, mc, axes, shells):
-    """The Monte-Carlo trial tasks: one `Study` per (bending, ν, mode, repetition)."""
+def _studies(path, mc, axes, shells, limit=MAX_TASKS):
+    """The Monte-Carlo trial tasks: one `Study` per (bending, ν, mode, repetition);
+    refused if they and the compressions exceed `limit` tasks."""
     for key in ("volume_um3", "dh_um", "bulk_mN_per_m", "thickness_um"):
         if len(axes[key]) != 1:
             raise InputError(f"{path}: [montecarlo] needs one [grid] {key} (got {len(axes[key])}): "
@@ -230,6 +259,8 @@ def _studies(path, mc, axes, shells):
             or len(set(tensions)) < len(tensions):
         raise InputError(f"{path}: [montecarlo] tension_mN_per_m must be distinct values of [grid] "
                          f"tension_mN_per_m {axes['tension_mN_per_m']} (got {mc['tension_mN_per_m']!r})")
+    _refuse_above(path, len(shells) + len(bendings) * len(shears) * len(modes) * repeats, limit,
+                  "tasks (compressions and Monte-Carlo trial tasks)")
     row = {(s.h0_um, s.shear_mN_per_m, s.tension_mN_per_m, s.bending): i for i, s in enumerate(shells)}
     heights = tuple(axes["h0_um"])
     studies = []

@@ -27,6 +27,7 @@ its entries the journal holds (TAG_WRITE; the final count comes with
 TAG_STOP, before every rank closes the file together).
 """
 
+import contextlib
 import math
 import signal
 import sys
@@ -37,6 +38,8 @@ from collections import deque
 from campaign.signals import install as install_signal_handlers
 from campaign.signals import stop as _stop
 from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
+from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
+                           is_write_failure)
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 AHEAD = 4               # tasks a worker holds: enough to outlast one of rank 0's own tasks
@@ -133,7 +136,9 @@ def _guarded(work, timeout_s):
 def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
     """Run or resume `campaign` into `store_path` with the write path `writes`
     (auto, mpio or rank0; `campaign.store.write_path`); returns the exit status:
-    0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume)."""
+    0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume).
+    Bad input and a failed write (disk full) are raised on rank 0 (the command
+    line says why, status 2 or 5); the other ranks return that status quietly."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -147,11 +152,13 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
             error = err
     error, path = comm.bcast((error, path), root=0)
     if error is not None:
-        raise error
+        if rank == 0 or not isinstance(error, (InputError, OSError)):
+            raise error
+        return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
     parallel_file = open_parallel(store_path, comm) if path == "mpio" else None   # every rank
     if rank != 0:
         _worker(comm, campaign, parallel_file and Writer(parallel_file))
-        return 0
+        return EXIT_DONE
     if parallel_file:
         store.attach(parallel_file)
     if progress:
@@ -159,9 +166,15 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
               file=sys.stderr, flush=True)
     try:
-        return _master(comm, store, campaign, retry_failed, progress)
-    finally:
-        store.close()
+        status = _master(comm, store, campaign, retry_failed, progress)
+    except BaseException as err:
+        if is_write_failure(err):
+            store.abort()             # nothing more is written: the rerun resumes from the journal
+        else:
+            store.close()
+        raise
+    store.close()
+    return status
 
 
 def execute(campaign, task, payload):
@@ -280,11 +293,13 @@ def _master(comm, store, campaign, retry_failed, progress):
     bar = _Progress(total, int(np.sum(states == DONE)) + trials.done0, len(todo), enabled=progress)
     in_flight = {w: 0 for w in range(1, comm.Get_size())}
     received = dict.fromkeys(in_flight, 0)       # entries journalled per worker
+    synced = dict(received)                      # entries the fsync'd journal holds, per worker
     last_flush, failed = time.time(), 0
 
     def finish(done):
         nonlocal failed
-        store.record(done)
+        with _stopping_workers_on_write_failure(comm, in_flight, synced):
+            store.record(done)
         state = done["state"]
         if "row" in done:
             todo.extend(trials.compression_finished(done["row"], state, done["results"], done["error"]))
@@ -307,7 +322,9 @@ def _master(comm, store, campaign, retry_failed, progress):
     def flush(tag=TAG_WRITE):
         """The journal fsync'd and rank 0's rows written; on the mpio path the
         workers then write theirs."""
-        store.flush()
+        with _stopping_workers_on_write_failure(comm, in_flight, synced):
+            store.flush()
+        synced.update(received)
         for w in in_flight:
             if store.parallel or tag == TAG_STOP:
                 comm.send(received[w], dest=w, tag=tag)
@@ -347,12 +364,31 @@ def _master(comm, store, campaign, retry_failed, progress):
     if _stop["flag"] and (todo or trials.left()):
         print(f"campaign: stopped by a signal with {len(todo) + trials.left()} tasks left; rerun the same "
               f"command to resume", file=sys.stderr, flush=True)
-        return 3
+        return EXIT_SIGNAL
     if failed:
         print(f"campaign: {failed} tasks failed; see `cortex campaign status {store.path}`, "
               "rerun with --retry-failed to retry them", file=sys.stderr, flush=True)
-        return 1
-    return 0
+        return EXIT_SOME_FAILED
+    return EXIT_DONE
+
+
+@contextlib.contextmanager
+def _stopping_workers_on_write_failure(comm, in_flight, synced):
+    """A write that fails on rank 0 (disk full) stops the run: the results
+    still coming are taken in but not journalled (the rerun redoes them), then
+    each worker is stopped with the count of its entries the fsync'd journal
+    holds (on the mpio path, the rows it may write), and the error goes on up."""
+    try:
+        yield
+    except OSError as err:
+        if not is_write_failure(err):
+            raise
+        for w, count in in_flight.items():
+            for _ in range(count):
+                comm.recv(source=w, tag=TAG_RESULT)
+            in_flight[w] = 0
+            comm.send(synced[w], dest=w, tag=TAG_STOP)
+        raise
 
 
 class _Progress:

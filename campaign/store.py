@@ -21,6 +21,14 @@ that a kill left unreadable is set aside and rebuilt from the campaign and the
 journal. So a rerun finishes the remaining tasks and ends with the same rows as
 an uninterrupted run. A lock file refuses a second run on the same store.
 
+Only a file that is ours is ever opened for writing, set aside or rebuilt
+(`check_store_path`, the rule of `outputs.ownership`): our `format`
+attribute, or, unreadable, our journal and lock beside it. A full disk never
+reaches HDF5 while it grows the file (HDF5 then crashes): new files are built
+in memory and written by Python, growth waits for `ensure_room`, rows are
+written in place (`outputs.writing`); a failed journal write is a WriteError
+naming the journal, and `abort` closes without writing more.
+
 Two write paths, one schema and the same rows (`write_path`):
 - rank0: rank 0 alone has the file open and writes every row, as above;
 - mpio (h5py built with MPI, more than one rank): rank 0 prepares the file
@@ -39,6 +47,7 @@ readers and the replay parse only the rest.
 """
 
 import base64
+import contextlib
 import fcntl
 import json
 import os
@@ -50,6 +59,8 @@ import time
 import numpy as np
 
 from campaign.trials import CELL_KEYS, HEIGHT_KEYS
+from outputs.ownership import check_file, hdf5_format
+from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
 from solver.errors import InputError
 
 PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
@@ -68,6 +79,43 @@ TRIAL_COLUMNS = ("trial_id", "state", "nu_true", "bending", "height_error_mode",
                  "volume_used_um3", "h0_true_um", "h0_used_um", "h1_used_um", "h_tilde",
                  "modulus_mN_per_m", "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
 TRIAL_PARAMS = ("nu_true", "bulk_mN_per_m", "shear_mN_per_m", "volume_true_um3")
+FORMAT = "cortex-campaign-store"    # the file's `format` attribute: what says a file is ours
+
+
+def is_our_store(path):
+    """A campaign store: an HDF5 file with our `format` attribute (or, made
+    before it had one, our fingerprint and state rows); or a file a kill left
+    unreadable with our journal and lock beside it."""
+    path = str(path)
+    if hdf5_format(path) == FORMAT:
+        return True
+    try:
+        with _open_read(path) as f:
+            return "fingerprint" in f.attrs and "config_text" in f.attrs and "state" in f
+    except InputError:
+        return os.path.isfile(path + ".lock") and os.path.isfile(path + ".journal") \
+            and is_our_journal(path + ".journal")
+
+
+def is_our_journal(path):
+    """A journal: empty, or its first line one of our entries (a compression's
+    `row` or a trial task's `task`, with its `state`)."""
+    with open(path, "rb") as fh:
+        first = fh.readline()
+    if not first:
+        return True
+    try:
+        entry = json.loads(first)
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return False
+    return isinstance(entry, dict) and "state" in entry and ("row" in entry or "task" in entry)
+
+
+def check_store_path(path):
+    """Refuse (InputError) a --store that is a folder or a file that is not ours,
+    or whose journal is not ours; they are left as they are."""
+    check_file(path, is_our_store, "--store")
+    check_file(path + ".journal", is_our_journal, "--store's journal")
 
 
 def task_id(shell, method):
@@ -118,6 +166,7 @@ class Store:
 
     def __init__(self, path, campaign, new=False, ranks=1, parallel=False):
         self.path, self.journal_path = str(path), str(path) + ".journal"
+        check_store_path(self.path)               # before anything is created beside it
         self.lock = open(str(path) + ".lock", "a")
         try:
             fcntl.flock(self.lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -130,14 +179,24 @@ class Store:
         if not os.path.exists(self.path):
             self._create(campaign, ranks)
         self.file = self._open_or_rebuild(campaign, ranks)
+        try:
+            self._prepare(campaign, ranks, parallel)
+        except BaseException:
+            self.file.close()                     # a refusal or a full disk: nothing more is written
+            self._unlock()
+            raise
+
+    def _prepare(self, campaign, ranks, parallel):
+        """Trials added, journal replayed, rows left running pending again, this run logged."""
+        path = self.path
         self._add_trials(campaign)
         if parallel and any(name in self.file and self.file[name].dtype.kind == "O"
                             for name in ("error", "trials/error")):
-            self.file.close()
             raise InputError(f"{path} was made by an earlier version (variable-length error strings, which "
                              "parallel HDF5 cannot write): use --write-path rank0, or --new")
         self.parallel = parallel
         self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
+        _trim_cut_line(self.journal_path)
         self._replay()
         for name in ("state", "trials/state"):
             if name in self.file:
@@ -152,6 +211,7 @@ class Store:
     def _log_run(self, ranks):
         """Provenance of this run (appended to the JSON list `runs`); the rows
         hold the whole journal now (replayed)."""
+        ensure_room(self.path, 0)                     # the attribute may grow the file
         runs = json.loads(self.file.attrs.get("runs", "[]"))
         runs.append({"started": time.strftime("%Y-%m-%dT%H:%M:%S"), "ranks": ranks, "host": socket.gethostname(),
                      "write_path": "mpio" if self.parallel else "rank0", "code_version": _code_version()})
@@ -169,9 +229,6 @@ class Store:
                 fingerprint, trials = f.attrs.get("fingerprint"), f.attrs.get("trials_fingerprint", "")
         except InputError:
             return            # unreadable: rebuilt from the journal below
-        if fingerprint is None:
-            raise InputError(f"{self.path}: not a campaign store (no fingerprint); "
-                             "choose another --store")
         if fingerprint != campaign.fingerprint:
             raise InputError(f"{self.path} was made from a different campaign file; "
                              "use --new to start over (the old store is kept as a backup)")
@@ -185,6 +242,8 @@ class Store:
         f = self.file
         if not campaign.studies or f.attrs.get("trials_fingerprint", "") == campaign.trials_fingerprint:
             return
+        image = hdf5_image(lambda g: self._create_trials(g.create_group("trials"), campaign))
+        ensure_room(self.path, len(image))            # HDF5 grows the file: never into a full disk
         if "trials" in f:
             del f["trials"]
         self._create_trials(f.create_group("trials"), campaign)
@@ -196,31 +255,32 @@ class Store:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         for p in (self.path, self.journal_path):
             if os.path.exists(p):
-                shutil.move(p, f"{p}.bak-{stamp}")
+                _set_aside(p, f"{p}.bak-{stamp}")
 
     def _create(self, campaign, ranks):
+        """The new file, built in memory and written by Python (`outputs.writing`)."""
+        write_atomically(self.path, hdf5_image(lambda f: self._fill(f, campaign, ranks)))
+
+    def _fill(self, f, campaign, ranks):
         h5py = _h5()
         n = len(campaign.shells)
-        tmp = self.path + ".tmp"
-        with h5py.File(tmp, "w") as f:
-            for key in PARAMS:
-                f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
-            str_t = h5py.string_dtype()
-            f.create_dataset("bending", data=np.array([s.bending for s in campaign.shells], object), dtype=str_t)
-            f.create_dataset("task_id", data=np.array([task_id(s, campaign.method) for s in campaign.shells],
-                                                      object), dtype=str_t)
-            for key in RESULTS:
-                f.create_dataset(key, data=np.full(n, np.nan))
-            f["converged"] = np.zeros(n, np.int8)
-            f["state"] = np.zeros(n, np.int8)
-            f["attempts"] = np.zeros(n, np.int32)
-            f["rank"] = np.full(n, -1, np.int32)
-            f["started_unix_s"] = np.full(n, np.nan)
-            f.create_dataset("error", data=np.zeros(n, _error_dtype()), dtype=_error_dtype())
-            if campaign.studies:
-                self._create_trials(f.create_group("trials"), campaign)
-            f.attrs.update(self._provenance(campaign, ranks))
-        os.replace(tmp, self.path)
+        for key in PARAMS:
+            f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
+        str_t = h5py.string_dtype()
+        f.create_dataset("bending", data=np.array([s.bending for s in campaign.shells], object), dtype=str_t)
+        f.create_dataset("task_id", data=np.array([task_id(s, campaign.method) for s in campaign.shells],
+                                                  object), dtype=str_t)
+        for key in RESULTS:
+            f.create_dataset(key, data=np.full(n, np.nan))
+        f["converged"] = np.zeros(n, np.int8)
+        f["state"] = np.zeros(n, np.int8)
+        f["attempts"] = np.zeros(n, np.int32)
+        f["rank"] = np.full(n, -1, np.int32)
+        f["started_unix_s"] = np.full(n, np.nan)
+        f.create_dataset("error", data=np.zeros(n, _error_dtype()), dtype=_error_dtype())
+        if campaign.studies:
+            self._create_trials(f.create_group("trials"), campaign)
+        f.attrs.update(self._provenance(campaign, ranks), format=FORMAT)
 
     @staticmethod
     def _create_trials(g, campaign):
@@ -273,8 +333,7 @@ class Store:
             f["state"][:1]
             return f
         except (OSError, KeyError):
-            aside = f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}"
-            shutil.move(self.path, aside)
+            aside = _set_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
             print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
                   "rebuilding it from the journal", flush=True)
             self._create(campaign, ranks)
@@ -312,7 +371,8 @@ class Store:
 
     def record(self, entry):
         """Journal first; the HDF5 rows follow in batches, after the journal's fsync (`flush`)."""
-        self.journal.write(json.dumps(entry, default=_encode) + "\n")
+        with named_failures(self.journal_path):
+            self.journal.write(json.dumps(entry, default=_encode) + "\n")
         self.unsynced = True
         if not self.parallel or entry["rank"] == 0:
             self.buffer.append(entry)
@@ -330,8 +390,9 @@ class Store:
         finished: its entry is written). On the mpio path the buffer holds only
         rank 0's own entries, and nothing collective happens."""
         if self.unsynced:
-            self.journal.flush()
-            os.fsync(self.journal.fileno())
+            with named_failures(self.journal_path):
+                self.journal.flush()
+                os.fsync(self.journal.fileno())
             self.unsynced = False
         if self.buffer:
             self._write_rows(self.buffer)
@@ -359,6 +420,20 @@ class Store:
             with _h5().File(self.path, "r+") as f:
                 f.attrs["journal_bytes"] = self.journal.tell()
         self.journal.close()
+        self._unlock()
+
+    def abort(self):
+        """After a failed write: close without writing anything more. The rows
+        hold what the journal held at the last flush, the journal what was
+        fsync'd (a line a full disk cut is trimmed on the next open), so the
+        rerun replays it and resumes. On the mpio path every rank closes the
+        file together, as in `close`."""
+        self.file.close()
+        with contextlib.suppress(OSError):
+            self.journal.close()                   # what it still buffers may not fit
+        self._unlock()
+
+    def _unlock(self):
         fcntl.flock(self.lock, fcntl.LOCK_UN)
         self.lock.close()
 
@@ -493,6 +568,39 @@ def _decode(value):
     if isinstance(value, dict):
         return np.frombuffer(base64.b64decode(value["f8"]), "<f8").reshape(value["shape"]).copy()
     return np.array(value, float)
+
+
+def _set_aside(path, name):
+    """Rename our file `path` to `name`, or `name-2`, `name-3`, ... if that is
+    taken (never onto someone else's file); returns the name used."""
+    target, k = name, 1
+    while os.path.lexists(target):
+        k += 1
+        target = f"{name}-{k}"
+    shutil.move(path, target)
+    return target
+
+
+def _trim_cut_line(path):
+    """Cut a journal's last line if a kill or a full disk left it without its
+    newline: it was never fsync'd whole, so no row holds it, and entries
+    appended after it must stay readable."""
+    if not os.path.exists(path) or os.path.getsize(path) == 0:
+        return
+    with open(path, "rb+") as fh:
+        fh.seek(-1, os.SEEK_END)
+        if fh.read(1) == b"\n":
+            return
+        size, chunk = fh.tell(), 1 << 16
+        end = 0
+        while size > 0 and not end:
+            start = max(0, size - chunk)
+            fh.seek(start)
+            block = fh.read(size - start)
+            cut = block.rfind(b"\n")
+            end = start + cut + 1 if cut >= 0 else 0
+            size = start
+        fh.truncate(end)
 
 
 def read_journal(path, start=0):

@@ -7,16 +7,18 @@ load MPI or HDF5.
 
 Errors from bad input (`solver.errors.InputError`, missing or unreadable files)
 become one line on stderr and exit status 2; a solver that finds no
-equilibrium, status 4; a write that fails (disk full), status 5. The whole
-table is in `solver.errors` and in every `--help`.
+equilibrium, status 4; a write that fails (disk full), status 5; SIGTERM
+or Ctrl-C, status 3 (`cortex campaign run` handles them itself and stops
+cleanly). The whole table is in `solver.errors` and in every `--help`.
 """
 
 import argparse
 import importlib
+import signal
 import sys
 
 from cortex import __version__
-from solver.errors import (EXIT_BAD_INPUT, EXIT_NO_EQUILIBRIUM, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
+from solver.errors import (EXIT_BAD_INPUT, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
 
 REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
@@ -64,10 +66,15 @@ def _handler(spec):
     return getattr(importlib.import_module(module), func)
 
 
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
     where = " ".join(a for a in (args.command, getattr(args, "subcommand", None)) if a)
+    previous = signal.signal(signal.SIGTERM, _interrupt)   # SIGTERM stops like Ctrl-C: status 3
     try:
         status = _handler(args.handler)(args)
     except InputError as err:
@@ -87,8 +94,10 @@ def main(argv=None):
               "command to resume", file=sys.stderr)
         return EXIT_WRITE_FAILED
     except KeyboardInterrupt:
-        print(f"cortex {where}: interrupted", file=sys.stderr)
-        return 130
+        print(f"cortex {where}: stopped by a signal; rerun the same command to resume", file=sys.stderr)
+        return EXIT_SIGNAL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     return int(status or 0)
 
 

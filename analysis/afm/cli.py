@@ -32,7 +32,8 @@ def register(sub):
     g = s.add_parser("synth", help="write a synthetic experiment (HDF5) and truth.json beside it")
     g.add_argument("--cells", type=int, default=85, help="number of cells (default 85, the published size)")
     g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--out", required=True, metavar="FILE", help="experiment file (.h5)")
+    g.add_argument("--out", required=True, metavar="FILE", help="experiment file (.h5), new: an existing one "
+                   "is never overwritten; truth.json beside it is replaced only if cortex wrote it")
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
     g.add_argument("--forward", choices=("fast", "law"), default="fast",
                    help="forward model: the fast solver (default) or a calibration law (needs --calibration)")
@@ -53,7 +54,8 @@ def register(sub):
     a.add_argument("data", nargs="+", metavar="DATA",
                    help="experiment (.h5), single-cell CSV, or JPK files and folders of them")
     a.add_argument("--calibration", required=True, metavar="CAL.json")
-    a.add_argument("--out", required=True, metavar="DIR")
+    a.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing); a "
+                   "non-empty folder cortex did not write is refused (DIR/.cortex-outputs lists what it wrote)")
     a.add_argument("--bending", default="standard", help="calibration variant for summary.json")
     _jpk_options(a)
     a.set_defaults(handler="analysis.afm.cli:analyze")
@@ -63,14 +65,19 @@ def synth(args):
     import json
     from pathlib import Path
 
+    import os
+
     from analysis.afm import synth as sy
     from analysis.afm.h5format import write_experiment
+    from outputs.ownership import check_file
+    from outputs.writing import write_atomically
     from solver.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
     out = Path(args.out)
-    if out.exists():
-        raise InputError(f"{out}: exists; refusing to overwrite")
+    if os.path.lexists(out):
+        raise InputError(f"{out}: exists; refusing to overwrite (it is left as it is)")
+    truth_path = check_file(out.parent / "truth.json", _is_our_truth, "truth.json beside --out")
     if args.forward == "law":
         if not args.calibration:
             raise InputError("--forward law needs --calibration CAL.json")
@@ -80,8 +87,9 @@ def synth(args):
         forward = sy.solver_forward(args.bending)
     cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=forward)
     write_experiment(out, cells)
-    (out.parent / "truth.json").write_text(json.dumps(truth, indent=1, default=float) + "\n")
-    print(f"wrote {out} ({len(cells)} cells) and {out.parent / 'truth.json'}")
+    text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
+    write_atomically(truth_path, text.encode())
+    print(f"wrote {out} ({len(cells)} cells) and {truth_path}")
     return 0
 
 
@@ -119,6 +127,14 @@ def _summary_line(rec):
             text += ", at " + ", ".join(f"{f:g}" for f in sorted({s.frequency_hz for s in segs})) + " Hz"
         parts.append(text + ")")
     return f"{rec.cell_id}: k {rec.spring_constant_N_per_m:.4g} N/m; " + "; ".join(parts)
+
+
+TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours (may be replaced)
+
+
+def _is_our_truth(path):
+    from outputs.ownership import json_document
+    return json_document(path).get("format") == TRUTH_FORMAT
 
 
 def analyze(args):

@@ -7,11 +7,16 @@ import numpy as np
 from analysis.afm.population import nu_density
 
 
-def _save(fig, path):
-    """Lay out, write (PNG, 80 dpi) and close a figure; returns its path."""
+FIGURES = ("nu_histograms.png", "nu_boxplots.png", "k_curves.png")
+
+
+def _save(fig, out, name):
+    """Lay out, write (PNG, 80 dpi) as file `name` of the output folder `out`
+    (an `outputs.ownership.OutputDir`) and close a figure; returns its path."""
     import matplotlib.pyplot as plt
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    with out.writing(name) as path:
+        fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
 
@@ -38,7 +43,7 @@ def figures(tables, sums, segs, out):
             ax.set_title(f"{v}, {f:g} Hz", fontsize=8)
             ax.set_xlabel("Poisson ratio nu (1)")
             ax.set_ylabel("density (1)")
-    paths.append(_save(fig, out / "nu_histograms.png"))
+    paths.append(_save(fig, out, "nu_histograms.png"))
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
     data, labels = [], []
@@ -50,7 +55,7 @@ def figures(tables, sums, segs, out):
     ax.boxplot(data, tick_labels=labels)
     ax.tick_params(labelsize=6)
     ax.set_ylabel("Poisson ratio nu (1)")
-    paths.append(_save(fig, out / "nu_boxplots.png"))
+    paths.append(_save(fig, out, "nu_boxplots.png"))
 
     v = variants[0]
     ok = tables[v][tables[v]["excluded_reason"].isna()][["cell_id", "frequency_hz", "bulk_mN_per_m"]]
@@ -61,5 +66,5 @@ def figures(tables, sums, segs, out):
                 color=f"C{freqs.index(f)}")
     ax.set_xlabel("normalised height h~ (1)")
     ax.set_ylabel("K / K_B (1)")
-    paths.append(_save(fig, out / "k_curves.png"))
+    paths.append(_save(fig, out, "k_curves.png"))
     return paths

@@ -11,8 +11,8 @@ Layout (format "cortex-afm", version 1):
         segment_amplitude_um            float64 (m,), optional: an oscillation's piezo amplitude
                                         (NaN where unknown; written by `cortex afm import`)
 
-Writing goes to `FILE.tmp` and is renamed at the end, so an existing file is
-never left half-written. Reading checks the layout and every cell
+Writing builds the file in memory and writes it to `FILE.tmp`, renamed at
+the end, so no file is left half-written and a full disk is one clear error. Reading checks the layout and every cell
 (`Cell.validate`) and raises InputError naming the file and cell.
 """
 
@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 
 from analysis.afm.cell import Cell, Segment
+from outputs.writing import hdf5_image, write_atomically
 from solver.errors import InputError
 
 FORMAT, VERSION = "cortex-afm", 1
@@ -29,24 +30,25 @@ SEG_DTYPE = np.dtype([("kind", h5py.string_dtype()), ("start", "i8"), ("stop", "
 
 
 def write_experiment(path, cells):
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
-        f.attrs["format"], f.attrs["version"] = FORMAT, VERSION
-        root = f.create_group("cells")
-        for c in cells:
-            g = root.create_group(c.cell_id)
-            g.attrs.update(volume_um3=float(c.volume_um3), volume_source=c.volume_source,
-                           spring_constant_N_per_m=float(c.spring_constant_N_per_m), date=c.date)
-            for name in ("time_s", "force_nN", "height_um"):
-                g.create_dataset(name, data=np.asarray(getattr(c, name), float))
-            seg = np.array([(s.kind, s.start, s.stop, s.frequency_hz) for s in c.segments], dtype=SEG_DTYPE)
-            g.create_dataset("segments", data=seg)
-            amp = np.array([s.amplitude_um for s in c.segments], float)
-            if np.isfinite(amp).any():
-                g.create_dataset("segment_amplitude_um", data=amp)
-    tmp.replace(path)
-    return path
+    """Write `cells` to `path` (built in memory, written atomically: a full
+    disk gives a WriteError naming `path`, never a half-written file)."""
+    return Path(write_atomically(path, hdf5_image(lambda f: _fill(f, cells))))
+
+
+def _fill(f, cells):
+    f.attrs["format"], f.attrs["version"] = FORMAT, VERSION
+    root = f.create_group("cells")
+    for c in cells:
+        g = root.create_group(c.cell_id)
+        g.attrs.update(volume_um3=float(c.volume_um3), volume_source=c.volume_source,
+                       spring_constant_N_per_m=float(c.spring_constant_N_per_m), date=c.date)
+        for name in ("time_s", "force_nN", "height_um"):
+            g.create_dataset(name, data=np.asarray(getattr(c, name), float))
+        seg = np.array([(s.kind, s.start, s.stop, s.frequency_hz) for s in c.segments], dtype=SEG_DTYPE)
+        g.create_dataset("segments", data=seg)
+        amp = np.array([s.amplitude_um for s in c.segments], float)
+        if np.isfinite(amp).any():
+            g.create_dataset("segment_amplitude_um", data=amp)
 
 
 def _attr(g, key, where, default=None):

@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from analysis.afm.analyze import analyze
+from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
+from outputs.ownership import OutputDir, json_document
 from solver.errors import InputError
 
 
@@ -55,28 +57,38 @@ def run(data, calibration_path, out, bending="standard", jpk_options=None):
         raise InputError(f"{calibration_path}: no bending variant '{bending}' (has {', '.join(cal.laws)})")
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
     cells = [c for c in cells if c.oscillations()]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
+    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
+                    <= set(json_document(d / "summary.json")))   # refused now if not ours
+    variants = [bending] + [v for v in cal.laws if v != bending]
+    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", *FIGURES]
+              + [f"{kind}_{v}.{ext}" for v in variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not cells:
-        report = out / "report.md"
-        report.write_text(_markdown_skipped(name, skipped))
+        report = _write(out, "report.md", lambda p: p.write_text(_markdown_skipped(name, skipped)))
         return {"report": report, "summary": None, "table": None, "skipped": skipped}
     tables, sums = {}, {}
-    for variant in [bending] + [v for v in cal.laws if v != bending]:
+    for variant in variants:
         tab, segs = analyze(cells, cal, variant)
         tables[variant], sums[variant] = tab, summary(tab)
-        tab.to_csv(out / f"cells_{variant}.csv", index=False)
-        (out / f"summary_{variant}.json").write_text(json.dumps(sums[variant], indent=1) + "\n")
+        _write(out, f"cells_{variant}.csv", lambda p: tab.to_csv(p, index=False))
+        _write(out, f"summary_{variant}.json", lambda p: p.write_text(json.dumps(sums[variant], indent=1) + "\n"))
         if variant == bending:
-            segs.to_csv(out / "segments.csv", index=False)
-            tab.to_csv(out / "cells.csv", index=False)
-    (out / "summary.json").write_text(json.dumps({"bending": bending, **sums[bending]}, indent=1) + "\n")
-    from analysis.afm.figures import figures
+            _write(out, "segments.csv", lambda p: segs.to_csv(p, index=False))
+            _write(out, "cells.csv", lambda p: tab.to_csv(p, index=False))
+    _write(out, "summary.json", lambda p: p.write_text(json.dumps({"bending": bending, **sums[bending]}, indent=1)
+                                                       + "\n"))
+    from analysis.afm.figures import figures      # matplotlib: only now
     figs = figures(tables, sums, segs, out)
-    report = out / "report.md"
-    report.write_text(_markdown(name, bending, tables, sums, figs) + _markdown_skipped(None, skipped))
+    report = _write(out, "report.md", lambda p: p.write_text(_markdown(name, bending, tables, sums, figs)
+                                                            + _markdown_skipped(None, skipped)))
     return {"report": report, "summary": sums[bending], "table": tables[bending], "skipped": skipped}
+
+
+def _write(out, name, write):
+    """`write(path)` for file `name` of the output folder `out` (`OutputDir`); its path."""
+    with out.writing(name) as path:
+        write(path)
+    return path
 
 
 def _markdown_skipped(name, skipped):

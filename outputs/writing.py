@@ -1,0 +1,89 @@
+"""Writing files so that a full disk stops cleanly: one line naming the file
+(`solver.errors.WriteError`, exit status 5), and nothing left half-written.
+
+HDF5 must never be the one that meets a full file system: HDF5 2.0 then
+crashes (a segmentation fault while it creates a dataset) or leaves its
+metadata cache broken (a failed flush, "Can't destroy cache"). So new HDF5
+files are built in memory (`hdf5_image`) and written by Python
+(`write_atomically`), and before HDF5 grows an open file the free space is
+checked first (`ensure_room`). Writing rows into datasets made at their full
+size goes in place and needs no room.
+"""
+
+import contextlib
+import errno
+import itertools
+import os
+import shutil
+import tempfile
+
+from solver.errors import WriteError, is_write_failure
+
+_images = itertools.count()
+ROOM_MARGIN_BYTES = 64 * 1024    # kept free beyond what a growing HDF5 file is expected to need
+
+
+def hdf5_image(build):
+    """The bytes of a new HDF5 file that `build(f)` fills, made in memory
+    (HDF5's core driver without a backing file; for the 28 MB paper store
+    0.57 s against 0.66 s through a Python file object, best of 5)."""
+    import h5py
+    with h5py.File(f"in-memory-{next(_images)}.h5", "w", driver="core", backing_store=False) as f:
+        build(f)
+        f.flush()
+        return f.id.get_file_image()
+
+
+def write_atomically(path, data):
+    """Write `data` (bytes) to `path` by way of a new `path.<random>.tmp` (made
+    exclusively: never someone else's file), fsync'd, then renamed; on a full
+    disk the tmp file is removed and WriteError names `path`."""
+    path = str(path)
+    try:
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)),
+                                   prefix=os.path.basename(path) + ".", suffix=".tmp")
+    except OSError as err:
+        if not is_write_failure(err):
+            raise
+        raise WriteError(err.errno, err.strerror or str(err), path) from None
+    try:
+        with open(fd, "wb") as fh:
+            os.fchmod(fd, 0o666 & ~_umask())          # as open() would make it, not mkstemp's 0600
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as err:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)            # ours: just made
+        if isinstance(err, OSError) and is_write_failure(err):
+            raise WriteError(err.errno, err.strerror or str(err), path) from None
+        raise
+    return path
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def ensure_room(path, nbytes):
+    """WriteError (ENOSPC) naming `path` unless its file system has `nbytes`
+    plus ROOM_MARGIN_BYTES free: checked before HDF5 grows a file."""
+    free = shutil.disk_usage(os.path.dirname(os.path.abspath(path))).free
+    need = int(nbytes) + ROOM_MARGIN_BYTES
+    if free < need:
+        raise WriteError(errno.ENOSPC, f"No space left on device ({free} bytes free, {need} needed)", str(path))
+
+
+@contextlib.contextmanager
+def named_failures(path):
+    """A write failure (disk full, I/O error) inside the block becomes a
+    WriteError naming `path`."""
+    try:
+        yield path
+    except OSError as err:
+        if isinstance(err, WriteError) or not is_write_failure(err):
+            raise
+        raise WriteError(err.errno, err.strerror or str(err), str(path)) from None
