@@ -129,7 +129,8 @@ def test_injected_faults_are_recorded_and_the_rest_completes(tmp_path):
     The fourth is [test] fake_law (a made-up law's force at once, on K_B > 0):
     a real solve could itself outlast the short timeout on a slow machine."""
     text = TINY.replace("timeout_s = 120.0", "timeout_s = 2.0") \
-        .replace("bulk_mN_per_m = 0.0", "bulk_mN_per_m = 25.0").replace("shear_mN_per_m = 0.0", "shear_mN_per_m = 8.33") + \
+        .replace("bulk_mN_per_m = 0.0", "bulk_mN_per_m = 25.0") \
+        .replace("shear_mN_per_m = 0.0", "shear_mN_per_m = 8.33") + \
         "[test]\nfake_law = true\nraise_task = [0]\nhang_task = [1]\nnan_task = [2]\n"
     (tmp_path / "f.toml").write_text(text)
     store = tmp_path / "f.h5"
