@@ -280,6 +280,7 @@ BAD = {
     "negative seed": FAKE.replace("seed = 7", "seed = -1"),
     "not a table": FAKE.replace("[montecarlo]", "montecarlo = 3\n[montecarlo2]"),
     "fake_law not bool": FAKE.replace("fake_law = true", "fake_law = 1"),
+    "negative task sleep": FAKE.replace("fake_law = true", "fake_law = true\ntrial_sleep_s = -0.5"),
     "other trials": FAKE.replace("seed = 7", "seed = 8"),
 }
 
