@@ -123,6 +123,7 @@ def test_mpio_sigkill_then_rerun_gives_the_same_rows(reference, tmp_path, moment
     finally:
         os.killpg(proc.pid, 9)
         proc.wait()
+    assert sum(journal_counts(store)) < N_COMPRESSIONS + N_TRIAL_TASKS     # killed before the end
     rerun = run(store, 2, config=config)
     assert rerun.returncode == 0, rerun.stderr
     got, _ = rows(store)
