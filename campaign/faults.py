@@ -40,11 +40,12 @@ KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
 HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
 KILL_ENV = "CORTEX_TEST_KILL_MID_WRITE"
 
-# The made-up law of `fake_law`: analysis.synthetic.reference_law("standard"),
-# K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S + D(γ̃_a). Plausible, not
-# fitted to anything: α < 0, so K rises towards K_B as the cell flattens,
-# faster for small ν; λ = 0.2 (twice the published ~0.1) so a test can tell
-# this law from the shipped calibration. Lowest order first.
+# The made-up law of `fake_law`: analysis.synthetic.reference_law("standard")
+# (a test checks they agree), K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S +
+# D(γ̃_a) with K̃_S = K_S/K_B, γ̃_a = γ_a/K_B (SPEC 4). Plausible in shape, not
+# fitted to anything: α between -0.02 and -0.006 over the test grids, so K
+# approaches K_B as the cell flattens; λ = 0.2 is twice the published ~0.1, so
+# this law is never mistaken for a real calibration. Lowest order first.
 FAKE_LAMBDA = 0.2
 FAKE_C = (-0.012, 0.03, -0.2, 0.6)
 FAKE_D = (-0.018, -0.04, 0.3, -1.0)
