@@ -17,12 +17,15 @@
                 values a model cell draws from, default all of the grid's),
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
-    [test]      fault injection for tests only: raise_task, hang_task, nan_task,
-                each a list of grid indices whose task raises, sleeps past its
-                timeout, or returns NaN instead of being solved; noop = true
-                makes every task return zeros at once (throughput benchmark);
-                fake_law = true makes every compression return at once the
-                force of a made-up smooth law K(h̃) (tests of trials and analysis)
+    [test]      for tests only (`campaign.faults`): raise_task, hang_task,
+                nan_task (grid indices whose task raises, sleeps past its
+                timeout, or returns NaN instead of being solved); noop = true
+                (every task returns zeros at once: throughput benchmark);
+                fake_law = true (every compression returns at once the force
+                of a made-up smooth law K(h̃): tests of trials and analysis);
+                compression_sleep_s, trial_sleep_s (every compression / trial
+                task first sleeps that many seconds of wall time, using no
+                CPU, so a test can interrupt a run that is surely still going)
 
 The grid is the Cartesian product of the lists. Every compression is checked
 with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
@@ -43,6 +46,7 @@ import math
 import tomllib
 from dataclasses import dataclass
 
+from campaign import faults
 from campaign.trials import MODES, Study, grid_shear
 from solver.errors import InputError
 from solver.model import BENDING_VARIANTS, Shell
@@ -56,7 +60,7 @@ SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS),
             "solver": {"method", "resolution", "timeout_s"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
-            "test": {"raise_task", "hang_task", "nan_task", "noop", "fake_law"}}
+            "test": faults.KEYS}
 MC_DEFAULTS = {"cells": 55, "studies": 100, "volume_error_rel_sd": 0.075, "height_error_sd_um": 0.5,
                "height_error_mode": list(MODES), "seed": 0}
 
@@ -70,7 +74,7 @@ class Campaign:
     timeout_s: float
     shells: tuple          # every compression, in grid order
     text: str              # the file's text, kept in the store
-    faults: dict = None    # grid index -> "raise" | "hang" | "nan" | "noop" | "fake_law" ([test] only)
+    test: faults.Knobs = faults.Knobs()   # the [test] section (tests only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
     trial_cells: int = 0   # N, cells per study
 
@@ -160,28 +164,13 @@ def load(path):
     for key in ("name", "store"):
         if key in meta and not isinstance(meta[key], str):
             raise InputError(f"{path}: [campaign] {key} must be a string")
-    faults = {}
-    tests = dict(data.get("test", {}))
-    noop = tests.pop("noop", False)
-    if not isinstance(noop, bool):
-        raise InputError(f"{path}: [test] noop must be true or false (got {noop!r})")
-    fake_law = tests.pop("fake_law", False)
-    if not isinstance(fake_law, bool):
-        raise InputError(f"{path}: [test] fake_law must be true or false (got {fake_law!r})")
-    if noop or fake_law:
-        faults.update({row: "noop" if noop else "fake_law" for row in range(len(shells))})
-    for key, value in tests.items():
-        rows = value if isinstance(value, list) else [value]
-        for row in rows:
-            if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < len(shells):
-                raise InputError(f"{path}: [test] {key} must be grid indices 0..{len(shells) - 1} (got {row!r})")
-            faults[row] = key.removesuffix("_task")
+    test = faults.parse(path, data.get("test", {}), len(shells))
     mc = data.get("montecarlo")
     if mc is not None and any(key in grid for key in OPTIONAL):
         raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
                          "frequency_hz from [grid] (or the [montecarlo] section)")
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
-    return Campaign(faults=faults, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
+    return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
                     text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
 

@@ -35,6 +35,7 @@ import time
 import traceback
 from collections import deque
 
+from campaign import faults
 from campaign.signals import install as install_signal_handlers
 from campaign.signals import stop as _stop
 from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
@@ -53,45 +54,14 @@ def _alarm(signum, frame):
     raise TaskTimeout()
 
 
-def _fake_law(shell):
-    """[test] fake_law: the result of a made-up smooth law instead of a solve,
-    K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S + D(γ̃_a) with cubic C, D
-    (K̃_S = K_S/K_B, γ̃_a = γ_a/K_B, λ = 0.2), and the force that gives it,
-    F = (γ_a + K ε_A) 2 H(h1) A_c(h1); K and the rest then come from that force
-    exactly as after a solve."""
-    from solver.geometry import droplet
-    from solver.modulus import effective_modulus
-    V, h0, h1, bulk, g = shell.volume_um3, shell.h0_um, shell.h1_um, shell.bulk_mN_per_m, shell.tension_mN_per_m
-    geo = effective_modulus(V, h0, h1, g, 0.0)
-    gt = g / bulk
-    alpha = (-0.012 + 0.03 * gt - 0.2 * gt**2 + 0.6 * gt**3) * math.log(shell.shear_mN_per_m / bulk) \
-        + (-0.018 - 0.04 * gt + 0.3 * gt**2 - 1.0 * gt**3)
-    K = bulk * (1.0 + alpha * math.exp(float(geo["h_tilde"]) / 0.2))
-    force = (g + K * float(geo["area_strain"])) * float(droplet(V, h1).force_per_tension_um)
-    out = {k: float(v) for k, v in effective_modulus(V, h0, h1, g, force).items()}
-    out.update(force_nN=force, area_strain_shell=out["area_strain"], volume_error=0.0,
-               equator_shear_ratio=0.0, iterations=0, wall_s=0.0, converged=True)
-    return out
-
-
-def _faulty(fault, shell):
-    """The injected faults and fakes of a campaign's [test] section."""
-    if fault == "raise":
-        raise RuntimeError("injected fault: this task raises")
-    if fault == "hang":
-        time.sleep(1e6)
-    if fault == "fake_law":
-        return _fake_law(shell)
-    from campaign.store import RESULTS
-    return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
-
-
-def compute(shell, method, timeout_s, fault=None):
-    """Run one compression: (state, results, error, started)."""
+def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
+    """Run one compression: (state, results, error, started); `fault` and
+    `sleep_s` are the test knobs of `campaign.faults`."""
     from solver.compression import compress
 
     def work():
-        result = _faulty(fault, shell) if fault else compress(shell, method).to_dict()
+        faults.pause(sleep_s)
+        result = faults.injected(fault, shell) if fault else compress(shell, method).to_dict()
         result.pop("method", None)
         if not all(math.isfinite(v) for v in result.values() if isinstance(v, float)):
             raise _NonFinite()
@@ -99,11 +69,12 @@ def compute(shell, method, timeout_s, fault=None):
     return _guarded(work, timeout_s)
 
 
-def compute_study(study, forces, errors, timeout_s):
+def compute_study(study, forces, errors, timeout_s, sleep_s=0.0):
     """Run one Monte-Carlo trial task: (state, per-cell lists, error, started)."""
     from campaign.trials import run_study
 
     def work():
+        faults.pause(sleep_s)
         # numbers stay arrays (sent and journalled as raw float64), the strings become lists
         return {k: v.tolist() if v.dtype.kind in "UO" else v for k, v in run_study(study, forces, errors).items()}
     return _guarded(work, timeout_s)
@@ -179,11 +150,11 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
 
 def execute(campaign, task, payload):
     """Task `task` (a compression row, or n + j for trial task j): (state, results, error, started)."""
-    n = len(campaign.shells)
+    n, test = len(campaign.shells), campaign.test
     if task < n:
-        return compute(campaign.shells[task], campaign.method, campaign.timeout_s,
-                       (campaign.faults or {}).get(task))
-    return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s)
+        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, test.by_row.get(task),
+                       test.compression_sleep_s)
+    return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s, test.trial_sleep_s)
 
 
 def entry(campaign, task, attempts, rank, state, results, error, started):

@@ -58,6 +58,7 @@ import time
 
 import numpy as np
 
+from campaign import faults
 from campaign.trials import CELL_KEYS, HEIGHT_KEYS
 from outputs.ownership import check_file, hdf5_format
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
@@ -377,12 +378,7 @@ class Store:
         if not self.parallel or entry["rank"] == 0:
             self.buffer.append(entry)
         self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
-        kill = os.environ.get("CORTEX_TEST_KILL_MID_WRITE")
-        if kill is not None and kill == (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
-            self.flush()                          # written, then killed: the replay must not redo it
-            if "row" in entry:
-                self.file["state"][entry["row"]] = DONE
-            os.kill(os.getpid(), 9)
+        faults.kill_mid_write(self, entry)        # tests only
 
     def flush(self):
         """fsync the journal, then write the buffered rows and the new running
@@ -691,8 +687,9 @@ def read_trials(path):
     return pd.DataFrame(columns)
 
 
-def summary(path):
-    """Counts by state, failures with their messages, throughput and ETA."""
+def summary(path, now=time.time):
+    """Counts by state, failures with their messages, throughput and ETA;
+    `now()` is the clock (Unix s) a running campaign's rate is taken up to."""
     frame = read_results(path)
     counts = frame["state"].value_counts().to_dict()
     done = frame[frame["state"] == "done"]
@@ -702,7 +699,7 @@ def summary(path):
     left = int(len(frame) - counts.get("done", 0) - counts.get("failed", 0))
     if len(done) and np.isfinite(started).any():
         # a finished campaign's rate over its own span, a running one's up to now
-        span = (time.time() if left else np.nanmax(started + np.nan_to_num(frame["wall_s"].to_numpy()))) \
+        span = (now() if left else np.nanmax(started + np.nan_to_num(frame["wall_s"].to_numpy()))) \
             - np.nanmin(started)
         rate = len(done) / span if span > 0 else None
     info = {"tasks": int(len(frame)), **{s: int(counts.get(s, 0)) for s in STATES},

@@ -1,8 +1,42 @@
-"""Paths the tests share: ROOT, the project checkout (commands run there), and
-BIN, the virtual environment's bin directory (`cortex`, `mpiexec`)."""
+"""What the tests share: ROOT, the project checkout (commands run there), and
+BIN, the virtual environment's bin directory (`cortex`, `mpiexec`); and the
+one way a test waits for something: `poll_until` a condition it can observe
+(a journal entry, a state in the store, a job's state), never a guessed
+number of seconds. `journal_counts` is the progress a campaign test observes."""
 
 import sys
+import time
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
+POLL_S = 0.01           # between two looks: short against any task a test waits for
+
+
+def poll_until(condition, timeout_s, what, proc=None, every_s=POLL_S):
+    """Call `condition()` until it returns something true, and return that.
+
+    Fails the test, naming `what`, if `timeout_s` pass first (a bound for a
+    hung run, not a guess at its speed), or if the process `proc` (a Popen)
+    ends first: then whatever was waited for cannot happen any more."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        got = condition()
+        if got:
+            return got
+        if proc is not None and proc.poll() is not None:
+            pytest.fail(f"the process ended (status {proc.returncode}) before {what}")
+        if time.monotonic() > deadline:
+            pytest.fail(f"not within {timeout_s:g} s: {what}")
+        time.sleep(every_s)
+
+
+def journal_counts(store):
+    """(compression entries, trial-task entries) in the journal of `store`
+    as it is on disk now (0, 0 before it exists)."""
+    from campaign.store import read_journal
+    entries = read_journal(f"{store}.journal")
+    trials = sum(1 for e in entries if "task" in e)
+    return len(entries) - trials, trials

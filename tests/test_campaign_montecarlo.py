@@ -15,7 +15,7 @@ import pytest
 from campaign import config
 from campaign.store import TRIAL_COLUMNS, read_results, read_trials
 from campaign.trials import Study, draws, grid_shear, run_study
-from conftest import BIN, ROOT
+from conftest import BIN, ROOT, journal_counts, poll_until
 
 # fake_law: every compression returns at once the force of a smooth made-up law
 FAKE = """
@@ -100,16 +100,19 @@ def test_two_and_three_ranks_and_a_resumed_run_give_the_same_trials(fake_store, 
 
 
 def test_sigkill_under_two_ranks_then_rerun_gives_the_same_trials(fake_store, tmp_path):
-    (tmp_path / "c.toml").write_text(FAKE)
+    """SIGKILL once the journal holds a finished trial task; each of the 12
+    first sleeps 1 s (a [test] knob), so some are surely still to come."""
+    (tmp_path / "c.toml").write_text(FAKE + "trial_sleep_s = 1.0\n")
     store = tmp_path / "s.h5"
     proc = subprocess.Popen([str(BIN / "mpiexec"), "-n", "2", str(BIN / "cortex"), "campaign", "run",
                              str(tmp_path / "c.toml"), "--store", str(store), "--quiet"], cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
-        proc.wait(timeout=2.5)
-    except subprocess.TimeoutExpired:
+        poll_until(lambda: journal_counts(store)[1] > 0, 120, "a trial task in the journal", proc=proc)
+    finally:
         os.killpg(proc.pid, 9)
         proc.wait()
+    assert 0 < journal_counts(store)[1] < 12
     rerun = run(tmp_path, FAKE)
     assert rerun.returncode == 0, rerun.stderr
     pd.testing.assert_frame_equal(read_trials(fake_store), read_trials(store))
@@ -277,6 +280,7 @@ BAD = {
     "negative seed": FAKE.replace("seed = 7", "seed = -1"),
     "not a table": FAKE.replace("[montecarlo]", "montecarlo = 3\n[montecarlo2]"),
     "fake_law not bool": FAKE.replace("fake_law = true", "fake_law = 1"),
+    "negative task sleep": FAKE.replace("fake_law = true", "fake_law = true\ntrial_sleep_s = -0.5"),
     "other trials": FAKE.replace("seed = 7", "seed = 8"),
 }
 

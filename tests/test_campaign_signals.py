@@ -1,8 +1,9 @@
 """A running campaign sent SIGTERM (a SLURM time limit) or SIGINT (Ctrl-C).
 
 `cortex campaign run` is started on tests/data/signals.toml (60 made-up
-compressions, then 40 Monte-Carlo trial tasks of 200 cells, some 5 s of
-work), under one process and under `mpiexec -n 2`. Once the store shows a
+compressions, then 40 Monte-Carlo trial tasks of 200 cells that each sleep
+0.25 s first: at least 10 s of work on one rank however fast the machine),
+under one process and under `mpiexec -n 2`. Once the store shows a
 finished trial task, the signal goes to the command (SIGTERM, as
 jobs/campaign.sbatch sends it to mpiexec) or to its whole process group
 (SIGINT, as a terminal's Ctrl-C does). The engine must stop handing out work,
@@ -22,7 +23,7 @@ import numpy as np
 import pytest
 
 from campaign.store import read_results, read_trials, summary
-from conftest import BIN
+from conftest import BIN, poll_until
 
 CONFIG = Path(__file__).parent / "data" / "signals.toml"
 N_TASKS, N_CELLS = 60, 2 * 2 * 10 * 200     # compressions; nu x modes x studies x cells
@@ -59,11 +60,7 @@ def test_signal_stops_cleanly_and_rerun_completes(tmp_path, reference, ranks, si
     store = tmp_path / "s.h5"
     proc = subprocess.Popen(command(store, ranks), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
-    deadline = time.monotonic() + 120
-    while done_trials(store) == 0:
-        assert proc.poll() is None, f"campaign ended before the signal: {proc.communicate()}"
-        assert time.monotonic() < deadline, "no trial task finished within 120 s"
-        time.sleep(0.05)
+    poll_until(lambda: done_trials(store) > 0, 120, "a finished trial task in the store", proc=proc)
     sent = time.monotonic()
     if to_group:
         os.killpg(proc.pid, signum)
@@ -123,10 +120,8 @@ def test_sigterm_during_start_up_stops_cleanly(tmp_path, reference):
     completes the campaign."""
     store = tmp_path / "s.h5"
     proc = subprocess.Popen(command(store, 1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while not _catches_sigterm(proc.pid):
-        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
-        time.sleep(0.001)
+    poll_until(lambda: _catches_sigterm(proc.pid), 60, "a SIGTERM handler in the command", proc=proc,
+               every_s=0.001)
     early = not _mpi_loaded(proc.pid)       # read after the handler was seen: it came first
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)

@@ -10,22 +10,22 @@ skip, saying so, except the check that forcing mpio there is refused."""
 import json
 import os
 import subprocess
-import time
 
 import h5py
 import numpy as np
 import pytest
-from conftest import BIN, ROOT
+from conftest import BIN, ROOT, journal_counts, poll_until
 
 DEMO = ROOT / "campaigns" / "demo.toml"
+N_COMPRESSIONS, N_TRIAL_TASKS = 60, 20                 # the demo's tasks
 TIMING = {"rank", "started_unix_s", "wall_s"}          # who and when: differ between any two runs
 MPI_H5PY = bool(h5py.get_config().mpi)
 needs_mpio = pytest.mark.skipif(not MPI_H5PY, reason="h5py here was built without MPI "
                                 "(make test-mpi-parallel runs this with .venv-mpio, which has it)")
 
 
-def run(store, ranks, *extra, env=None, wait=True):
-    cmd = [str(BIN / "mpiexec"), "-n", str(ranks), str(BIN / "cortex"), "campaign", "run", str(DEMO),
+def run(store, ranks, *extra, env=None, wait=True, config=DEMO):
+    cmd = [str(BIN / "mpiexec"), "-n", str(ranks), str(BIN / "cortex"), "campaign", "run", str(config),
            "--store", str(store), *extra]
     if not wait:
         return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -88,6 +88,8 @@ def test_mpio_killed_mid_write_then_rerun_gives_the_same_rows(reference, tmp_pat
     store = tmp_path / "demo.h5"
     killed = run(store, 2, env={"CORTEX_TEST_KILL_MID_WRITE": moment})
     assert killed.returncode != 0
+    done, trial_tasks = journal_counts(store)        # killed on its own progress, mid-run
+    assert 0 < done + trial_tasks < N_COMPRESSIONS + N_TRIAL_TASKS
     rerun = run(store, 2)
     assert rerun.returncode == 0, rerun.stderr
     got, _ = rows(store)
@@ -95,18 +97,34 @@ def test_mpio_killed_mid_write_then_rerun_gives_the_same_rows(reference, tmp_pat
     assert (got["attempts"] == 1).all() and (got["trials/attempts"] == 1).all()
 
 
+# The demo with every task sleeping first (a [test] knob that changes no number):
+# 60 x 0.15 s of compressions and 20 x 0.5 s of trials on 2 ranks, so each
+# stage outlasts the 2 s between two journal writes on a machine of any speed.
+SLEEPY = "\n[test]\ncompression_sleep_s = 0.15\ntrial_sleep_s = 0.5\n"
+MOMENTS = {   # journal_counts(store) -> whether to kill now
+    "start-up": lambda n: n == (0, 0),                        # the journal made, nothing in it yet
+    "compressions": lambda n: 0 < n[0] < N_COMPRESSIONS,
+    "trials": lambda n: 0 < n[1] < N_TRIAL_TASKS,
+}
+
+
 @needs_mpio
-@pytest.mark.parametrize("delay_s", [1.0, 1.8, 2.6])
-def test_mpio_sigkill_then_rerun_gives_the_same_rows(reference, tmp_path, delay_s):
-    """SIGKILL to every rank at start-up, among the compressions and among the trials
-    (the demo takes about 3.5 s here)."""
-    store = tmp_path / "demo.h5"
-    proc = run(store, 2, wait=False)
-    time.sleep(delay_s)
-    assert proc.poll() is None, "the run ended before the kill: make delay_s shorter"
-    os.killpg(proc.pid, 9)
-    proc.wait()
-    rerun = run(store, 2)
+@pytest.mark.parametrize("moment", list(MOMENTS))
+def test_mpio_sigkill_then_rerun_gives_the_same_rows(reference, tmp_path, moment):
+    """SIGKILL to every rank at start-up, among the compressions and among the
+    trials, each seen in the journal while the run goes on; the rerun of the
+    same command gives the rows of the uninterrupted run."""
+    store, config = tmp_path / "demo.h5", tmp_path / "demo.toml"
+    config.write_text(DEMO.read_text() + SLEEPY)
+    proc = run(store, 2, wait=False, config=config)
+    try:
+        poll_until(lambda: os.path.exists(f"{store}.journal") and MOMENTS[moment](journal_counts(store)),
+                   300, f"the journal at {moment}", proc=proc)
+    finally:
+        os.killpg(proc.pid, 9)
+        proc.wait()
+    assert sum(journal_counts(store)) < N_COMPRESSIONS + N_TRIAL_TASKS     # killed before the end
+    rerun = run(store, 2, config=config)
     assert rerun.returncode == 0, rerun.stderr
     got, _ = rows(store)
     assert_same_rows(reference[0], got)

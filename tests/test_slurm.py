@@ -11,9 +11,10 @@ left:
 - tests/data/slurm-tiny.toml and its chained analysis: every task of the store
   done exactly once, the analysis started only after the campaign ended
   (afterok) and wrote calibration.json;
-- tests/data/slurm-timelimit.toml (2 to 3 minutes of Monte-Carlo trials) in
-  a one-rank job with a one-minute time limit: SLURM's warning signal
-  (`--signal=B:TERM@1`, sent 30 to 60 s into the job) reaches the job script,
+- tests/data/slurm-timelimit.toml (Monte-Carlo trial tasks that each sleep
+  0.5 s, a [test] knob: at least 100 s on one rank on a machine of any
+  speed) in a one-rank job with a one-minute time limit: SLURM's warning
+  signal (`--signal=B:TERM@1`, sent 30 to 60 s into the job) reaches the job script,
   which passes SIGTERM on to the ranks; the engine stops cleanly, the job
   exits 3 (the engine's "stopped, rerun to resume"), its chained analysis is
   cancelled, the store keeps the finished tasks; jobs/resume.sh submits it
@@ -31,11 +32,11 @@ import json
 import os
 import shutil
 import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import poll_until
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
@@ -117,16 +118,18 @@ def job(env, jobid):
 
 
 def wait(env, jobids, timeout_s):
-    """Poll until every job is in a final state; returns their records."""
-    deadline = time.monotonic() + timeout_s
-    while True:
+    """Poll until every job is in a final state; returns their records (the
+    jobs are cancelled if `timeout_s` pass first)."""
+    jobids = list(jobids)
+
+    def finished():
         records = {j: job(env, j) for j in jobids}
-        if all(r["JobState"] in FINAL for r in records.values()):
-            return records
-        if time.monotonic() > deadline:
-            subprocess.run(["scancel", *jobids], env=env)
-            pytest.fail(f"jobs not finished after {timeout_s} s: { {j: r['JobState'] for j, r in records.items()} }")
-        time.sleep(1)
+        return records if all(r["JobState"] in FINAL for r in records.values()) else None
+    try:
+        return poll_until(finished, timeout_s, f"jobs {', '.join(jobids)} in a final state", every_s=0.5)
+    except BaseException:
+        subprocess.run(["scancel", *jobids], env=env)
+        raise
 
 
 def logs(cwd):
@@ -192,7 +195,7 @@ def test_failed_tasks_then_retry_and_partial_analysis(slurm, tmp_path):
     assert json.loads((tmp_path / "partial" / "calibration.json").read_text())
 
 
-@pytest.mark.slow  # 3 to 4 minutes: a one-minute time limit, then the rest
+@pytest.mark.slow  # about 2 minutes: a one-minute time limit, then the rest (sleeping tasks)
 def test_time_limit_then_resume(slurm, tmp_path):
     config, store = CONFIGS[1], tmp_path / "cut.h5"
     first = submit(slurm, tmp_path, config, "cut.h5", "analysis", "--", "--ntasks=1", "--time=1",
@@ -223,5 +226,5 @@ def test_time_limit_then_resume(slurm, tmp_path):
     assert final["done"] == final["trials"] == partial["trials"]
     assert (trial_attempts(store) == 1).all()  # every task done exactly once over the two jobs
     assert json.loads((tmp_path / "analysis" / "calibration.json").read_text())
-    for f in tmp_path.glob("cut.h5*"):  # ~200 MB of store and journal: do not keep them around
+    for f in tmp_path.glob("cut.h5*"):  # store and journal: do not keep them around
         f.unlink()

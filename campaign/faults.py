@@ -1,0 +1,136 @@
+"""Test-only fault injection: what a campaign's `[test]` section asks for.
+
+Nothing here runs unless a campaign file has a `[test]` section (or, for the
+kill, the environment variable below is set); the scheduler and the store
+only call these hooks. The knobs (`parse`):
+
+    raise_task, hang_task, nan_task   grid indices whose compression raises,
+                                      sleeps past the per-task timeout, or
+                                      returns NaN instead of being solved
+    noop = true       every compression returns zeros at once (throughput benchmark)
+    fake_law = true   every compression returns at once the force of a made-up
+                      smooth law (`fake_law`; tests of the trials and the analysis)
+    compression_sleep_s, trial_sleep_s   every compression / every Monte-Carlo
+                      trial task first sleeps this many seconds (default 0):
+                      a known wall time that uses no CPU, so a test can kill or
+                      signal a run that is surely still going, on a machine of
+                      any speed. The sleep counts towards the task's timeout_s.
+
+`kill_mid_write`: with CORTEX_TEST_KILL_MID_WRITE=ROW (a compression's grid
+index) or =taskJ (trial task J), rank 0 journals that task's entry, writes its
+rows (and marks a compression done), then kills itself with SIGKILL: the
+moment between "rows written" and "the file says the journal is in".
+
+None of these changes a task's numbers or the campaign's fingerprint, so a
+store made with them is resumed (and compared) with or without them.
+"""
+
+import math
+import os
+import signal
+import time
+from dataclasses import dataclass, field
+
+from solver.errors import InputError
+
+FAULTS = ("raise", "hang", "nan", "noop", "fake_law")
+ROW_KEYS = ("raise_task", "hang_task", "nan_task")
+SLEEP_KEYS = ("compression_sleep_s", "trial_sleep_s")
+KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
+HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
+KILL_ENV = "CORTEX_TEST_KILL_MID_WRITE"
+
+# The made-up law of `fake_law`: analysis.synthetic.reference_law("standard")
+# (a test checks they agree), K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S +
+# D(γ̃_a) with K̃_S = K_S/K_B, γ̃_a = γ_a/K_B (SPEC 4). Plausible in shape, not
+# fitted to anything: α between -0.02 and -0.006 over the test grids, so K
+# approaches K_B as the cell flattens; λ = 0.2 is twice the published ~0.1, so
+# this law is never mistaken for a real calibration. Lowest order first.
+FAKE_LAMBDA = 0.2
+FAKE_C = (-0.012, 0.03, -0.2, 0.6)
+FAKE_D = (-0.018, -0.04, 0.3, -1.0)
+
+
+@dataclass(frozen=True)
+class Knobs:
+    """The parsed `[test]` section; the default asks for nothing."""
+    by_row: dict = field(default_factory=dict)    # grid index -> one of FAULTS
+    compression_sleep_s: float = 0.0
+    trial_sleep_s: float = 0.0
+
+
+def parse(path, table, n_rows):
+    """The `[test]` table of campaign file `path` (grid of `n_rows`) as Knobs;
+    InputError with one line if a value is wrong."""
+    table = dict(table)
+    by_row = {}
+    for key in ("noop", "fake_law"):
+        value = table.pop(key, False)
+        if not isinstance(value, bool):
+            raise InputError(f"{path}: [test] {key} must be true or false (got {value!r})")
+        if value and not by_row:
+            by_row = dict.fromkeys(range(n_rows), key)
+    sleeps = {}
+    for key in SLEEP_KEYS:
+        value = table.pop(key, 0.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < math.inf:
+            raise InputError(f"{path}: [test] {key} must be a number of seconds >= 0 (got {value!r})")
+        sleeps[key] = float(value)
+    for key, value in table.items():
+        for row in value if isinstance(value, list) else [value]:
+            if isinstance(row, bool) or not isinstance(row, int) or not 0 <= row < n_rows:
+                raise InputError(f"{path}: [test] {key} must be grid indices 0..{n_rows - 1} (got {row!r})")
+            by_row[row] = key.removesuffix("_task")
+    return Knobs(by_row=by_row, **sleeps)
+
+
+def pause(seconds):
+    """Sleep `seconds` of wall time (no CPU); nothing for 0."""
+    if seconds > 0:
+        time.sleep(seconds)
+
+
+def injected(fault, shell):
+    """The result (or the failure) of `fault` for compression `shell`."""
+    if fault == "raise":
+        raise RuntimeError("injected fault: this task raises")
+    if fault == "hang":
+        time.sleep(HANG_S)
+    if fault == "fake_law":
+        return fake_law(shell)
+    from campaign.store import RESULTS
+    return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
+
+
+def _cubic(coefficients, x):
+    return sum(c * x**i for i, c in enumerate(coefficients))
+
+
+def fake_law(shell):
+    """The result of the made-up law (FAKE_*) instead of a solve, with the force
+    that gives it, F = (γ_a + K ε_A) 2 H(h1) A_c(h1) (SPEC 3 backwards), and
+    K and the rest then from that force exactly as after a solve."""
+    from solver.geometry import droplet
+    from solver.modulus import effective_modulus
+    V, h0, h1, bulk, g = shell.volume_um3, shell.h0_um, shell.h1_um, shell.bulk_mN_per_m, shell.tension_mN_per_m
+    geo = effective_modulus(V, h0, h1, g, 0.0)
+    gt = g / bulk
+    alpha = _cubic(FAKE_C, gt) * math.log(shell.shear_mN_per_m / bulk) + _cubic(FAKE_D, gt)
+    K = bulk * (1.0 + alpha * math.exp(float(geo["h_tilde"]) / FAKE_LAMBDA))
+    force = (g + K * float(geo["area_strain"])) * float(droplet(V, h1).force_per_tension_um)
+    out = {k: float(v) for k, v in effective_modulus(V, h0, h1, g, force).items()}
+    out.update(force_nN=force, area_strain_shell=out["area_strain"], volume_error=0.0,
+               equator_shear_ratio=0.0, iterations=0, wall_s=0.0, converged=True)
+    return out
+
+
+def kill_mid_write(store, entry):
+    """SIGKILL rank 0 right after `entry`'s rows are written, if KILL_ENV names it."""
+    kill = os.environ.get(KILL_ENV)
+    if kill is None or kill != (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
+        return
+    store.flush()                          # written, then killed: the replay must not redo it
+    if "row" in entry:
+        from campaign.store import DONE
+        store.file["state"][entry["row"]] = DONE
+    os.kill(os.getpid(), signal.SIGKILL)
