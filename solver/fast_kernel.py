@@ -38,7 +38,7 @@ L_SLOT, P_SLOT, NO_SLOT = -1, -2, -3
 _Work = namedtuple("_Work", "ds gds hds th gth hth g h J F T b gb hb Hi Hij Ai")
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _work(N):
     return _Work(np.empty(N), np.empty((N, 4)), np.empty((N, 4, 4)), np.zeros(N),
                  np.zeros((N, 4)), np.zeros((N, 4, 4)), np.empty(6), np.empty((6, 6)),
@@ -46,7 +46,7 @@ def _work(N):
                  np.empty((5, 5)), np.empty(5), np.empty((5, 5)), np.empty(5))
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _block(h, p00, p01, p11):
     """h = [[P, -P], [-P, P]] with the symmetric 2×2 P = [[p00, p01], [p01, p11]]."""
     for i in range(4):
@@ -55,7 +55,7 @@ def _block(h, p00, p01, p11):
             h[i, j] = p if (i < 2) == (j < 2) else -p
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _length(dx, dy, g, h):
     """ds = |(dx, dy)|; fills g (4,) and h (4, 4), its gradient and Hessian in
     (x1, y1, x2, y2)."""
@@ -66,7 +66,7 @@ def _length(dx, dy, g, h):
     return d
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _angle(dr, dz, g, h):
     """θ = atan2(-dz, dr), the tangent angle to the plate; fills g and h."""
     q = dr * dr + dz * dz
@@ -75,7 +75,7 @@ def _angle(dr, dz, g, h):
     return np.arctan2(-dz, dr)
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _sandwich(J, F, out, T):
     """out += J^T F J, through T = F J (zeros in J skipped)."""
     nk, na = J.shape
@@ -93,7 +93,7 @@ def _sandwich(J, F, out, T):
                     out[a, b] += J[k, a] * T[k, b]
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _bending(Hd, kappa, w, want_h):
     """κ (H - H_d)² r ℓ with H = (1/2)[(θ_b - θ_a)/ℓ + sin((θ_a+θ_b)/2)/r],
     ℓ = (ds_a + ds_b)/2, in b = (θ_a, θ_b, ds_a, ds_b, r) = w.b: the value;
@@ -126,7 +126,7 @@ def _bending(Hd, kappa, w, want_h):
     return kappa * u * u * A
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _element(e, x, ref, t, w, want_h):
     """Tension, stretching and volume terms of element e at x = (r, z, p):
     the value; fills w.g (6,), w.h (6, 6) in (r_k, z_k, r_k+1, z_k+1, l, p)."""
@@ -198,7 +198,7 @@ def _element(e, x, ref, t, w, want_h):
     return value
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _add_block(h, factor, block, offset=0):
     """h[o:o+4, o:o+4] += factor × block (4, 4)."""
     for i in range(4):
@@ -206,7 +206,7 @@ def _add_block(h, factor, block, offset=0):
             h[offset + i, offset + j] += factor * block[i, j]
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _bend_node(k, r, t, w, want_h):
     """Bending at free node k between elements a = k-1 and b = k: its value;
     fills w.g (6,), w.h (6, 6) in (r_k-1, z_k-1, r_k, z_k, r_k+1, z_k+1)."""
@@ -230,7 +230,7 @@ def _bend_node(k, r, t, w, want_h):
     return value
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _bend_equator(r, t, w, want_h):
     """Half the bending term at the equator node N, closed by mirror symmetry:
     b = M (θ, ds, r_N) = (θ, π - θ, ds, ds, r_N) of the last element e. Its
@@ -262,7 +262,7 @@ def _bend_equator(r, t, w, want_h):
     return 0.5 * value
 
 
-@njit(inline="always")
+@njit(inline="always", error_model="numpy")
 def _scatter(grad, mat, idx, t, w, want_h):
     """Add the local gradient w.g at the global indices idx, and the local
     Hessian w.h into the Newton matrix mat = (band, lp): entries between
@@ -286,7 +286,7 @@ def _scatter(grad, mat, idx, t, w, want_h):
                 lp[1, I] += w.h[a, b]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def evaluate(x, ref, t, n, want_h):
     """L - p V0 at x = (r, z, p) of all nodes, with ref = (r0, z0, dr0/dl,
     dz0/dl, d²r0/dl², d²z0/dl²) and the terms t, for n unknowns (the last two
