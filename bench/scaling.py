@@ -14,10 +14,12 @@
    min_task_ms_90: for 64, 256 and 1024 ranks, the shortest task that keeps
    them 90 % busy.
 3. The check: --ranks (16) ranks oversubscribed on this machine, every task a
-   sleep of T (the [test] hang_task fault cut by the per-task timeout_s = T,
-   so it costs no CPU and ends as a failed task), --check-small and
-   --check-large tasks; measured_busy = T ΔM / (R Δwall), against
-   predicted_busy = f(R).
+   sleep of T_c = --check-task-ms (the [test] hang_task fault cut by the
+   per-task timeout_s = T_c, so it costs no CPU and ends as a failed task),
+   --check-small and --check-large tasks (task counts: multiples of 100);
+   measured_busy = T_c ΔM / (R Δwall), against predicted_busy = f(R) for T_c.
+   (On a loaded machine a 30 ms timeout can fire before the scheduler's
+   try block is entered, which kills the rank: hence the longer default.)
 """
 
 import argparse
@@ -80,6 +82,7 @@ def main():
     ap.add_argument("--large", type=int, default=20000)
     ap.add_argument("--task-ms", type=float, default=30.0)
     ap.add_argument("--ranks", type=int, default=16)
+    ap.add_argument("--check-task-ms", type=float, default=100.0)
     ap.add_argument("--check-small", type=int, default=500)
     ap.add_argument("--check-large", type=int, default=2000)
     args = ap.parse_args()
@@ -90,8 +93,9 @@ def main():
         tmp = pathlib.Path(tmp)
         w_small, w_large = _wall(tmp, args.small, 2), _wall(tmp, args.large, 2)
         cost = (w_large - w_small) / (args.large - args.small)
-        c_small, c_large = (_wall(tmp, m, args.ranks, T) for m in (args.check_small, args.check_large))
-    measured = T * (args.check_large - args.check_small) / (args.ranks * (c_large - c_small))
+        Tc = args.check_task_ms / 1e3
+        c_small, c_large = (_wall(tmp, m, args.ranks, Tc) for m in (args.check_small, args.check_large))
+    measured = Tc * (args.check_large - args.check_small) / (args.ranks * (c_large - c_small))
     max_ranks = 1
     while busy(max_ranks + 1, T, cost) >= 0.9:
         max_ranks += 1
@@ -107,9 +111,10 @@ def main():
         "noop_tasks": [args.small, args.large], "noop_wall_s": [round(w_small, 2), round(w_large, 2)],
         "master_cost_us": round(1e6 * cost, 1), "task_ms": args.task_ms,
         "max_ranks_90": max_ranks, "min_task_ms_90": min_task,
-        "check_ranks": args.ranks, "check_tasks": [args.check_small, args.check_large],
+        "check_ranks": args.ranks, "check_task_ms": args.check_task_ms,
+        "check_tasks": [args.check_small, args.check_large],
         "check_wall_s": [round(c_small, 2), round(c_large, 2)],
-        "measured_busy": round(measured, 3), "predicted_busy": round(busy(args.ranks, T, cost), 3)}))
+        "measured_busy": round(measured, 3), "predicted_busy": round(busy(args.ranks, Tc, cost), 3)}))
 
 
 if __name__ == "__main__":
