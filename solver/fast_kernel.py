@@ -130,6 +130,14 @@ def _bending(Hd, kappa, w, want_h):
 def _element(e, x, ref, t, w, want_h):
     """Tension, stretching and volume terms of element e at x = (r, z, p):
     the value; fills w.g (6,), w.h (6, 6) in (r_k, z_k, r_k+1, z_k+1, l, p)."""
+    value = _surface(e, x, ref, t, w, want_h)
+    return value - _volume(e, x, w, want_h)
+
+
+@njit(inline="always", error_model="numpy")
+def _surface(e, x, ref, t, w, want_h):
+    """Tension and stretching of element e: 4π [c_e r̄ ds + w r̄0 dS]; fills
+    w.g (6,) and w.h (6, 6) with its derivatives (the p entries zero)."""
     r, z, p = x
     R, Z, Rl, Zl, Rll, Zll = ref
     gds, ge, he = w.gds[e], w.g, w.h
@@ -150,17 +158,12 @@ def _element(e, x, ref, t, w, want_h):
     wa, wb, k4 = KB + KS, KB - KS, 4.0 * np.pi
     fa0, fa1 = k4 * (c * rm + w1 * r0m), k4 * (c * ds + w2 * dS)
     fa2, fa3 = k4 * (r0m * (wv - w1 * l1)), k4 * (dS * (wv - w2 * l2))
-    ra, rb, dz = r[e], r[e + 1], z[e] - z[e + 1]
-    sq = rb**2 + rb * ra + ra**2
-    vol = np.pi * dz * sq / 3.0
-    s1, s2 = np.pi / 3.0 * (2 * ra + rb), np.pi / 3.0 * (ra + 2 * rb)
-    gv0, gv1, gv2, gv3 = dz * s1, np.pi / 3.0 * sq, dz * s2, -(np.pi / 3.0 * sq)
-    ge[0] = fa0 * gds[0] + 0.5 * fa1 - 2.0 * p * gv0
-    ge[1] = fa0 * gds[1] - 2.0 * p * gv1
-    ge[2] = fa0 * gds[2] + 0.5 * fa1 - 2.0 * p * gv2
-    ge[3] = fa0 * gds[3] - 2.0 * p * gv3
-    ge[4], ge[5] = fa2 * dS_l + fa3 * r0m_l, -2.0 * vol
-    value = k4 * (c * rm * ds + wv * r0m * dS) - 2.0 * p * vol
+    ge[0] = fa0 * gds[0] + 0.5 * fa1
+    ge[1] = fa0 * gds[1]
+    ge[2] = fa0 * gds[2] + 0.5 * fa1
+    ge[3] = fa0 * gds[3]
+    ge[4], ge[5] = fa2 * dS_l + fa3 * r0m_l, 0.0
+    value = k4 * (c * rm * ds + wv * r0m * dS)
     if not want_h:
         return value
     J, F = w.J[:4], w.F[:4, :4]
@@ -180,22 +183,41 @@ def _element(e, x, ref, t, w, want_h):
     F[3, 3] = k4 * (wa * dS * l2**2 / r0m)
     he[:, :] = 0.0
     _sandwich(J, F, he, w.T[:4])
-    # the length's curvature times ∂f/∂ds, and the volume's second derivatives
-    _add_block(he, fa0, w.hds[e])
-    zz = -2.0 * p * (dz * np.pi / 3.0)
-    he[0, 0] += 2 * zz
-    he[2, 2] += 2 * zz
-    he[0, 2] += zz
-    he[2, 0] += zz
-    for a, b, v in ((0, 1, s1), (0, 3, -s1), (2, 1, s2), (2, 3, -s2)):
-        he[a, b] -= 2.0 * p * v
-        he[b, a] -= 2.0 * p * v
-    he[0, 5] = he[5, 0] = -2.0 * gv0
-    he[1, 5] = he[5, 1] = -2.0 * gv1
-    he[2, 5] = he[5, 2] = -2.0 * gv2
-    he[3, 5] = he[5, 3] = -2.0 * gv3
+    _add_block(he, fa0, w.hds[e])            # the length's curvature times ∂f/∂ds
     he[4, 4] += fa2 * dS_ll + fa3 * r0m_ll
     return value
+
+
+@njit(inline="always", error_model="numpy")
+def _volume(e, x, w, want_h):
+    """2 p V_e of element e (the term subtracted from L): returns it and
+    subtracts its derivatives from w.g and w.h (p entries: -2 ∂V_e)."""
+    r, z, p = x
+    ge, he = w.g, w.h
+    ra, rb, dz = r[e], r[e + 1], z[e] - z[e + 1]
+    sq = rb**2 + rb * ra + ra**2
+    vol = np.pi * dz * sq / 3.0
+    s1, s2 = np.pi / 3.0 * (2 * ra + rb), np.pi / 3.0 * (ra + 2 * rb)
+    gv0, gv1, gv2, gv3 = dz * s1, np.pi / 3.0 * sq, dz * s2, -(np.pi / 3.0 * sq)
+    ge[0] -= 2.0 * p * gv0
+    ge[1] -= 2.0 * p * gv1
+    ge[2] -= 2.0 * p * gv2
+    ge[3] -= 2.0 * p * gv3
+    ge[5] = -2.0 * vol
+    if want_h:
+        zz = -2.0 * p * (dz * np.pi / 3.0)
+        he[0, 0] += 2 * zz
+        he[2, 2] += 2 * zz
+        he[0, 2] += zz
+        he[2, 0] += zz
+        for a, b, v in ((0, 1, s1), (0, 3, -s1), (2, 1, s2), (2, 3, -s2)):
+            he[a, b] -= 2.0 * p * v
+            he[b, a] -= 2.0 * p * v
+        he[0, 5] = he[5, 0] = -2.0 * gv0
+        he[1, 5] = he[5, 1] = -2.0 * gv1
+        he[2, 5] = he[5, 2] = -2.0 * gv2
+        he[3, 5] = he[5, 3] = -2.0 * gv3
+    return 2.0 * p * vol
 
 
 @njit(inline="always", error_model="numpy")
