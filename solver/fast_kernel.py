@@ -322,7 +322,7 @@ def evaluate(x, ref, t, n, want_h):
     w = _work(N)
     for e in range(N):
         w.ds[e] = _length(r[e + 1] - r[e], z[e + 1] - z[e], w.gds[e], w.hds[e])
-        if e >= t.kc:                 # elements on the plate are flat: θ = 0
+        if t.B > 0 and e >= t.kc:     # angles for bending only; on the plate θ = 0
             w.th[e] = _angle(r[e + 1] - r[e], z[e + 1] - z[e], w.gth[e], w.hth[e])
     value = 0.0
     for e in range(N):
