@@ -36,6 +36,7 @@ the solution (virtual work), in nN (energies in mN/m·µm², lengths in µm).
 """
 
 import numpy as np
+from numba import njit
 
 from solver.compression import Solution
 from solver.errors import SolverError
@@ -54,11 +55,21 @@ def _admissible(lag, u, zp):
     """Nodes in order along the plate, off the axis, no element of zero
     length, and no fold: neighbouring elements turn by less than π/2."""
     r, z = lag.nodes(u, zp)[:2]
-    if not (np.all(np.isfinite(u)) and np.all(r[1:] > 0) and np.all(np.diff(r[: lag.kc + 1]) > 0)):
-        return False
-    dr, dz = np.diff(r), np.diff(z)
-    return bool(np.all(np.hypot(dr, dz) > 0)
-                and np.all(dr[1:] * dr[:-1] + dz[1:] * dz[:-1] > 0))
+    return bool(np.all(np.isfinite(u))) and _shape_ok(r, z, lag.kc)
+
+
+@njit(cache=True)
+def _shape_ok(r, z, kc):
+    """`_admissible` on the nodes (r, z), compiled: r > 0 off the pole,
+    increasing along the plate (nodes up to kc), every element of nonzero
+    length, dr_e dr_e+1 + dz_e dz_e+1 > 0 between neighbours."""
+    for k in range(1, r.size):
+        dr, dz = r[k] - r[k - 1], z[k] - z[k - 1]
+        if not r[k] > 0 or (k <= kc and not dr > 0) or not np.hypot(dr, dz) > 0:
+            return False
+        if k >= 2 and not dr * (r[k - 1] - r[k - 2]) + dz * (z[k - 1] - z[k - 2]) > 0:
+            return False
+    return True
 
 
 def _gap(lag, u, zp):
@@ -82,7 +93,7 @@ def _newton(lag, u, zp, tol=1e-6, maxit=30):
     steps are halved while they leave the admissible shapes or multiply the
     residual. Returns the solution, its Newton matrix and the iterations."""
     keep = np.r_[0: lag.size - 2, lag.size - 1]
-    _, g, _, H = lag.evaluate(u, zp)
+    _, g, _, H = lag.newton_system(u, zp)
     for it in range(1, maxit + 1):
         try:
             dx = lag.solve(H, -g[keep])[:, 0]
@@ -93,7 +104,7 @@ def _newton(lag, u, zp, tol=1e-6, maxit=30):
             ut = u.copy()
             ut[keep] += t * dx
             if _admissible(lag, ut, zp):
-                _, gt, _, Ht = lag.evaluate(ut, zp)
+                _, gt, _, Ht = lag.newton_system(ut, zp)
                 if np.all(np.isfinite(gt)) and np.linalg.norm(gt[:-2]) < 100.0 * norm0:
                     break
             t *= 0.5
@@ -112,9 +123,9 @@ def _reduced(lag, g, H):
     and the equilibrium's tangent dx/dl: G = g_l (g_x = 0 at equilibrium),
     dx/dl = -H_xx⁻¹ h_xl, k = H_ll + h_xl·dx/dl."""
     keep = np.r_[0: lag.size - 2, lag.size - 1]
-    hxl = H[keep, -2]
+    hxl = H.lcol[keep]
     tangent = -lag.solve(H, hxl)[:, 0]
-    return g[-2], H[-2, -2] + hxl @ tangent, tangent
+    return g[-2], H.lcol[-2] + hxl @ tangent, tangent
 
 
 def _contact(lag, u, zp, tol=1e-6, maxit=40):

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 from numpy.polynomial import chebyshev
 
 from solver.geometry import droplet, meridian
@@ -49,47 +50,60 @@ class Reference:
     zcoef: np.ndarray   # Chebyshev series of z0(ψ0) on [0, π/2] (from the mid-plane)
     scale: float = 1.0  # S
 
-    def r0(self, psi):
-        s = np.sin(psi)
-        return self.scale * (s + np.sqrt(s * s + self.beta**2)) / (2.0 * self.H)
-
-    def _free(self, psi):
-        """r0, z0 and their first and second ψ0-derivatives on the free surface:
-        with q = sqrt(sin² ψ0 + β²), dr0/dψ0 = r0 cos ψ0 / q and, as
-        dz/dr = -tan ψ0 on the droplet, dz0/dψ0 = -(r0/S) sin ψ0 / q."""
-        s, c = np.sin(psi), np.cos(psi)
-        q = np.sqrt(s * s + self.beta**2)
-        r = self.r0(psi)
-        r1 = r * c / q
-        r2 = r * c * c / q**2 - r * s / q - r * c * c * s / q**3
-        z = chebyshev.chebval(4.0 * psi / np.pi - 1.0, self.zcoef)
-        z1 = -r * s / (q * self.scale)
-        z2 = -(r1 * s + r * c - r * s * s * c / q**2) / (q * self.scale)
-        return r, z, r1, z1, r2, z2
-
     def positions(self, logpsic):
         """(r0, z0, dr0/dl, dz0/dl, d²r0/dl², d²z0/dl²) of every node, pole first
         (the last call's result is kept: Newton's inner steps keep l)."""
         last = self.__dict__.get("_last")
         if last is not None and last[0] == logpsic:
             return last[1]
-        out = self._positions(logpsic)
+        shape = np.array([self.a0, self.H, self.beta, self.scale, self.h0])
+        out = _positions(float(logpsic), (self.eta, self.zeta, self.xi, self.zcoef), shape)
         object.__setattr__(self, "_last", (logpsic, out))
         return out
 
-    def _positions(self, logpsic):
-        psic = np.exp(logpsic)
-        psi = np.concatenate([psic * self.zeta, psic + (np.pi / 2 - psic) * self.xi])
-        dpsi = np.concatenate([psic * self.zeta, psic * (1.0 - self.xi)])
-        r, z, r1, z1, r2, z2 = self._free(psi)
-        nd = len(self.eta) + 1
-        disc = self.scale * self.a0 * np.concatenate([[0.0], self.eta])
-        zero = np.zeros(nd)
-        return (np.concatenate([disc, r]),
-                np.concatenate([np.full(nd, 0.5 * self.h0), z]),
-                np.concatenate([zero, r1 * dpsi]), np.concatenate([zero, z1 * dpsi]),
-                np.concatenate([zero, r2 * dpsi**2 + r1 * dpsi]),
-                np.concatenate([zero, z2 * dpsi**2 + z1 * dpsi]))
+
+@njit(cache=True)
+def _positions(logpsic, labels, shape):
+    """`Reference.positions` compiled: labels = (η, ζ, ξ, Chebyshev series of
+    z0), shape = (a0, H_d, β, S, h0). On the free surface, with
+    q = sqrt(sin² ψ0 + β²), dr0/dψ0 = r0 cos ψ0 / q and, as dz/dr = -tan ψ0 on
+    the droplet, dz0/dψ0 = -(r0/S) sin ψ0 / q; then the chain rule through
+    ∂ψ0/∂l = ∂²ψ0/∂l² = dψ (module docstring)."""
+    eta, zeta, xi, zcoef = labels
+    a0, H, beta, S, h0 = shape[0], shape[1], shape[2], shape[3], shape[4]
+    psic = np.exp(logpsic)
+    nd, nn = eta.size + 1, zeta.size
+    n = nd + nn + xi.size
+    out = np.zeros((6, n))
+    out[0, 1:nd] = S * a0 * eta
+    out[1, :nd] = 0.5 * h0
+    for j in range(nn + xi.size):
+        if j < nn:
+            psi = dpsi = psic * zeta[j]
+        else:
+            psi = psic + (np.pi / 2 - psic) * xi[j - nn]
+            dpsi = psic * (1.0 - xi[j - nn])
+        s, c = np.sin(psi), np.cos(psi)
+        q = np.sqrt(s * s + beta**2)
+        r = S * (s + q) / (2.0 * H)
+        r1 = r * c / q
+        r2 = r * c * c / q**2 - r * s / q - r * c * c * s / q**3
+        z1 = -r * s / (q * S)
+        z2 = -(r1 * s + r * c - r * s * s * c / q**2) / (q * S)
+        k = nd + j
+        out[0, k], out[1, k] = r, _chebval(4.0 * psi / np.pi - 1.0, zcoef)
+        out[2, k], out[3, k] = r1 * dpsi, z1 * dpsi
+        out[4, k], out[5, k] = r2 * dpsi**2 + r1 * dpsi, z2 * dpsi**2 + z1 * dpsi
+    return out[0], out[1], out[2], out[3], out[4], out[5]
+
+
+@njit(cache=True)
+def _chebval(x, c):
+    """Σ c_i T_i(x) by Clenshaw's recurrence (numpy's chebval, compiled)."""
+    b1, b2 = 0.0, 0.0
+    for i in range(c.size - 1, 0, -1):
+        b1, b2 = 2.0 * x * b1 - b2 + c[i], b1
+    return x * b1 - b2 + c[0]
 
 
 def _ramp(first, largest, total, growth=1.15):

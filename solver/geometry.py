@@ -21,15 +21,18 @@ the free area are
 
     h/2 = ∫ dz,   V/2 = ∫ π r² dz,   A_free/2 = ∫ 2π r ds    (ψ from 0 to π/2),
 
-evaluated by composite Gauss-Legendre quadrature on intervals graded
-geometrically towards ψ = 0, where sin ψ / q turns over on the scale β (tiny
-near the free sphere). The arc length has a closed form,
+evaluated by composite Gauss-Legendre quadrature (12 points) on [0, lo],
+lo = β/8, and on intervals from lo growing geometrically by at most a factor
+2 (as few as that allows, at most 24) up to the end: the integrands' only
+singularities near the path are at ψ = ±i asinh β, where sin ψ / q turns over
+on the scale β (tiny near the free sphere), and on [a, 2a] they lie far
+enough outside Gauss-Legendre's ellipse that the error is below round-off. The arc length has a closed form,
 s(ψ) = [ψ + asin(1/√(1+β²)) - asin(cos ψ/√(1+β²))] / (2H).
 
 With R_eq = 1 the shape depends on k = R_c / R_eq alone, so the normalised
 height h̃ = h / (2 R_cell), R_cell = (3V/4π)^(1/3), is a function of k. Given
 (V, h), k solves h̃(k) = h / (2 R_cell): a tabulated inverse gives the start,
-two Newton steps finish it; then R_eq = h / η(k) with η = h/R_eq.
+one or two Newton steps finish it (`_solve_k`); then R_eq = h / η(k) with η = h/R_eq.
 
 Total area A = A_free + 2π R_c² (the cortex covers both contact discs);
 contact area A_c = π R_c²; the force of a tension-only cell on each plate
@@ -49,7 +52,8 @@ from scipy.interpolate import CubicSpline
 from solver.errors import InputError
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(12)
-_INTERVALS = 24          # geometric intervals from β/8 to the upper limit
+_INTERVALS = 24          # most geometric intervals from β/8 to the upper limit
+_GROWTH = 2.0            # largest size ratio of neighbouring intervals
 _K_MAX = 0.995           # h̃ ≈ 0.026: far flatter than any cell is squeezed
 
 
@@ -66,8 +70,9 @@ def sphere_height(volume):
 @njit(cache=True)
 def _integrate(k, psi_end, gl_x, gl_w):
     """The quadrature of `_half_integrals`, one (k, ψ_end) at a time, fused
-    (no (points × nodes) temporaries): on [0, lo] and on _INTERVALS intervals
-    from lo = min(β/8, ψ_end/2) to ψ_end growing geometrically."""
+    (no (points × nodes) temporaries): on [0, lo] and on m ≤ _INTERVALS
+    intervals from lo = min(β/8, ψ_end/2) to ψ_end growing geometrically by
+    (ψ_end/lo)^(1/m) ≤ _GROWTH."""
     n = k.size
     z, vol, area = np.empty(n), np.empty(n), np.empty(n)
     for i in range(n):
@@ -75,13 +80,14 @@ def _integrate(k, psi_end, gl_x, gl_w):
         beta = 2.0 * H * k[i]
         lo = min(max(beta, 1e-14) / 8.0, psi_end[i] / 2.0)
         ratio = psi_end[i] / lo
+        m = min(max(int(np.ceil(np.log(ratio) / np.log(_GROWTH))), 1), _INTERVALS)
         zi, vi, ai, a = 0.0, 0.0, 0.0, 0.0
-        for j in range(_INTERVALS + 1):
-            b = lo * ratio ** (j / _INTERVALS) if j < _INTERVALS else psi_end[i]
+        for j in range(m + 1):
+            b = lo * ratio ** (j / m) if j < m else psi_end[i]
             mid, half = 0.5 * (a + b), 0.5 * (b - a)
-            for m in range(gl_x.size):
-                psi = mid + half * gl_x[m]
-                w = half * gl_w[m]
+            for node in range(gl_x.size):
+                psi = mid + half * gl_x[node]
+                w = half * gl_w[node]
                 s = np.sin(psi)
                 q = np.sqrt(s * s + beta * beta)
                 g = (1.0 + s / q) / (2.0 * H)            # ds/dψ
@@ -122,15 +128,22 @@ def _inverse_table():
 
 
 def _solve_k(h_tilde):
-    """k with h̃(k) = h_tilde: spline start, then Newton steps on u = sqrt(1 - h̃)."""
+    """k with h̃(k) = h_tilde: spline start, then Newton steps on u = sqrt(1 - h̃).
+    The start is within ~3e-12 of k for h̃ < 0.95, and a step that moves k by
+    less than 1e-9 (relative) leaves it converged to round-off, so a second
+    step is taken only where the first moved k more (near the sphere)."""
     spline, u_max = _inverse_table()
-    u = np.sqrt(np.clip(1.0 - h_tilde, 0.0, None))
+    u = np.sqrt(np.clip(1.0 - np.ravel(h_tilde), 0.0, None))
     k = spline(u)
     dk_du = spline(u, 1)
+    todo = np.ones(k.shape, bool)
     for _ in range(2):
-        uk = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k), 0.0, None))
-        k = np.clip(k + (u - uk) * dk_du, 0.0, _K_MAX)
-    return k, u_max
+        uk = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k[todo]), 0.0, None))
+        step = np.clip(k[todo] + (u[todo] - uk) * dk_du[todo], 0.0, _K_MAX)
+        moved = np.abs(step - k[todo]) > 1e-9 * step
+        k[todo] = step
+        todo[todo] = moved
+    return k.reshape(np.shape(h_tilde)), u_max
 
 
 def _check(volume, height):

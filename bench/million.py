@@ -1,0 +1,109 @@
+"""Memory and store access at a million tasks; prints one JSON object.
+
+For each size in --tasks (default 100,000 and 1,000,000), a campaign of that
+many no-op tasks ([test] noop = true: each returns zeros at once; a grid of
+100 heights × 100 shear moduli × tasks/10,000 tensions) runs under
+`mpiexec -n --ranks cortex campaign run` into a fresh store. Every rank runs
+under /usr/bin/time, so `peak_rss_rank0_mb` is rank 0's own peak resident
+memory (MB) and `peak_rss_other_mb` the largest other rank's; `run_wall_s`
+is the whole command's wall time. Then `status_wall_s` is the wall time of
+`cortex campaign status STORE --json` (a process of its own, start-up
+included; `status_cpu_s` its user + system time, which a loaded machine
+does not inflate), `open_wall_s` that of opening the store and reading its result
+table (`campaign.store.read_results`, in a fresh process, start-up
+excluded), and `store_mb` the store's size on disk. From two sizes,
+`rss_rank0_per_task_bytes` is the growth of rank 0's peak per task.
+"""
+
+import argparse
+import json
+import os
+import pathlib
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+BIN = pathlib.Path(sys.executable).parent
+NOOP = """
+[campaign]
+name = "million"
+[grid]
+h0_um = [{h0}]
+bulk_mN_per_m = 25.0
+shear_mN_per_m = [{shear}]
+tension_mN_per_m = [{tension}]
+[test]
+noop = true
+"""
+OPEN = """
+import sys, time
+started = time.perf_counter()
+from campaign.store import read_results
+rows = read_results(sys.argv[1])
+print(time.perf_counter() - started, len(rows))
+"""
+
+
+def _grid(lo, hi, n):
+    return ", ".join(f"{lo + (hi - lo) * i / max(n - 1, 1):.6f}" for i in range(n))
+
+
+def _run(cmd, **kw):
+    """Wall and CPU (user + system) seconds of the command, and its output."""
+    cpu0, started = _children_cpu(), time.perf_counter()
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, **kw)
+    wall = time.perf_counter() - started
+    if out.returncode != 0:
+        raise SystemExit(f"bench: {' '.join(map(str, cmd))} failed ({out.returncode}): {out.stderr.strip()[-500:]}")
+    return wall, _children_cpu() - cpu0, out.stdout
+
+
+def _children_cpu():
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
+def one_size(tmp, tasks, ranks):
+    """Run, status and open for a campaign of `tasks` no-op tasks."""
+    cfg, store = tmp / f"noop{tasks}.toml", tmp / f"noop{tasks}.h5"
+    cfg.write_text(NOOP.format(h0=_grid(10.0, 15.0, 100), shear=_grid(5.0, 25.0, 100),
+                               tension=_grid(0.5, 3.0, max(tasks // 10_000, 1))))
+    rss = tmp / f"rss{tasks}"
+    # each rank under /usr/bin/time, its peak RSS (KB) in a file named by its MPI rank
+    per_rank = (f'exec /usr/bin/time -f %M -o "{rss}.$PMI_RANK" "{BIN / "cortex"}" campaign run '
+                f'"{cfg}" --store "{store}" --quiet')
+    run_wall, _, _ = _run([str(BIN / "mpiexec"), "-n", str(ranks), "sh", "-c", per_rank])
+    peaks = {int(p.suffix[1:]): int(p.read_text().split()[-1]) / 1024 for p in tmp.glob(f"rss{tasks}.*")}
+    status_wall, status_cpu, status = _run([str(BIN / "cortex"), "campaign", "status", str(store), "--json"])
+    info = json.loads(status)
+    _, _, opened = _run([sys.executable, "-c", OPEN, str(store)], env={**os.environ, "PYTHONPATH": str(ROOT)})
+    open_wall, rows = opened.split()
+    return {"tasks": tasks, "done": info["done"], "rows_read": int(rows), "run_wall_s": round(run_wall, 2),
+            "tasks_per_s": round(tasks / run_wall, 1), "peak_rss_rank0_mb": round(peaks[0], 1),
+            "peak_rss_other_mb": round(max((v for k, v in peaks.items() if k), default=0.0), 1),
+            "status_wall_s": round(status_wall, 3), "status_cpu_s": round(status_cpu, 3),
+            "open_wall_s": round(float(open_wall), 3),
+            "store_mb": round(store.stat().st_size / 2**20, 1)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tasks", default="100000,1000000", help="comma-separated campaign sizes")
+    ap.add_argument("--ranks", type=int, default=2)
+    args = ap.parse_args()
+    sizes = [int(x) for x in args.tasks.split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = [one_size(pathlib.Path(tmp), n, args.ranks) for n in sizes]
+    out = {"ranks": args.ranks, "runs": runs}
+    if len(runs) >= 2:
+        a, b = runs[0], runs[-1]
+        out["rss_rank0_per_task_bytes"] = round((b["peak_rss_rank0_mb"] - a["peak_rss_rank0_mb"]) * 2**20
+                                                / (b["tasks"] - a["tasks"]), 1)
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
