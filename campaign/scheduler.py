@@ -85,12 +85,18 @@ class _NonFinite(Exception):
 
 
 def _guarded(work, timeout_s):
-    """work() under the per-task timeout; a failure becomes (failed, {}, message)."""
+    """work() under the per-task timeout; a failure becomes (failed, {}, message).
+    The timer is armed and disarmed inside the handled block, so an alarm that
+    fires at any moment (even while disarming) is this task's timeout."""
     started = time.time()
     signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        return "done", work(), "", started
+        try:
+            signal.setitimer(signal.ITIMER_REAL, timeout_s)
+            result = work()
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        return "done", result, "", started
     except _NonFinite:
         return "failed", {}, "non-finite result", started
     except TaskTimeout:
@@ -100,8 +106,6 @@ def _guarded(work, timeout_s):
         if not isinstance(err, (ArithmeticError, RuntimeError, ValueError)):
             msg += " | " + traceback.format_exc(limit=2).splitlines()[-1]
         return "failed", {}, msg, started
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
 
 
 def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):

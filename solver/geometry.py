@@ -221,7 +221,9 @@ def meridian(volume, height, psi):
     """The upper free surface at tangent angles ψ (0 at the contact line, π/2 at
     the equator) of the shape for one (V, h): returns (r, z, s) in µm with z
     measured from the mid-plane (h/2 at the plate, 0 at the equator) and s the
-    arc length from the contact line. The lower half is its mirror image."""
+    arc length from the contact line. The lower half is its mirror image.
+    At ψ = π/2 z is 0 by definition (the rise there is h/2), not the
+    quadrature's round-off of it."""
     d = droplet(float(volume), float(height))
     R_eq, H = float(d.equator_radius_um), float(d.mean_curvature_per_um)
     k = float(d.contact_radius_um) / R_eq
@@ -233,7 +235,7 @@ def meridian(volume, height, psi):
     q = np.sqrt(s_ * s_ + beta * beta)
     r = (s_ + q) / (2.0 * H)
     rise, _, _ = _half_integrals(np.full(psi.shape, k), np.clip(psi, 1e-300, None))
-    z = float(height) / 2.0 - rise * R_eq
+    z = np.where(psi >= np.pi / 2, 0.0, float(height) / 2.0 - rise * R_eq)
     m = np.sqrt(1.0 + beta * beta)
     s = (psi + np.arcsin(1.0 / m) - np.arcsin(np.cos(psi) / m)) / (2.0 * H)
     return r, z, s
