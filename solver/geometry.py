@@ -47,7 +47,6 @@ from functools import lru_cache
 
 import numpy as np
 from numba import njit
-from scipy.interpolate import CubicSpline
 
 from solver.errors import InputError
 
@@ -120,7 +119,10 @@ def _h_tilde_of_k(k):
 
 @lru_cache(maxsize=1)
 def _inverse_table():
-    """Cubic spline k(u) with u = sqrt(1 - h̃): smooth at the sphere, where k ∝ u."""
+    """Cubic spline k(u) with u = sqrt(1 - h̃): smooth at the sphere, where k ∝ u.
+    (scipy.interpolate is imported here, on first use: a command that only
+    reads a campaign file, e.g. to refuse it, need not pay its 0.8 s.)"""
+    from scipy.interpolate import CubicSpline
     t = np.linspace(0.0, 1.0, 801)
     k = _K_MAX * np.sin(0.5 * np.pi * t) ** 1.5  # dense near both ends
     u = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k), 0.0, None))
