@@ -16,11 +16,14 @@ def register(sub):
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     g.add_argument("--bending", default="standard", help="bending variant of the forward model")
     g.set_defaults(handler="analysis.afm.cli:synth")
-    a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md")
+    a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
+                     description="Invert every cell and frequency (default: on the emulator of the shipped "
+                                 "calibration, with 95 %% intervals), population statistics, figures and "
+                                 "DIR/report.md.")
     a.add_argument("data", metavar="DATA", help="experiment (.h5) or single-cell CSV")
-    a.add_argument("--calibration", required=True, metavar="CAL.json")
     a.add_argument("--out", required=True, metavar="DIR")
-    a.add_argument("--bending", default="standard", help="calibration variant for summary.json")
+    from analysis.cli import add_inversion_options
+    add_inversion_options(a)
     a.set_defaults(handler="analysis.afm.cli:analyze")
 
 
@@ -52,6 +55,9 @@ def synth(args):
 
 def analyze(args):
     from analysis.afm.report import run
-    result = run(args.data, args.calibration, args.out, args.bending)
+    from analysis.invert_table import Errors
+    errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
+                    seed=args.seed).check()
+    result = run(args.data, args.calibration, args.out, args.bending, method=args.method, errors=errors)
     print(f"report: {result['report']}")
     return 0
