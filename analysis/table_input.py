@@ -25,6 +25,9 @@ def read_table(path):
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a table")
     try:
+        with open(path, "rb") as fh:
+            if b"\0" in fh.read(65536):
+                raise InputError(f"{path}: not a text (CSV) file")
         frame = pd.read_csv(path, dtype={"cell_id": str}, skipinitialspace=True)
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
