@@ -44,10 +44,11 @@ def add_inversion_options(p):
     """--calibration, --method, --bending and the interval's error options (shared with `cortex afm analyze`)."""
     p.add_argument("--calibration", metavar="CAL.json",
                    help="calibration file (default: the one shipped with the package)")
-    p.add_argument("--method", choices=("emulator", "law"), default="emulator",
-                   help="emulator (default: K_B and K_S/K_B fitted on the solver's tables) or law "
-                        "(the paper's phenomenological law, for comparison)")
-    p.add_argument("--bending", choices=("standard", "double", "none"), default="standard")
+    p.add_argument("--method", choices=("emulator", "law"), default=None,
+                   help="emulator (the default: K_B and K_S/K_B fitted on the solver's tables) or law "
+                        "(the paper's phenomenological law, for comparison); a calibration file without "
+                        "emulator tables (from `cortex analysis calibrate`) defaults to law")
+    p.add_argument("--bending", default="standard", help="bending variant: standard (default), double, none")
     p.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default 0.075)")
     p.add_argument("--height-sd", type=float, default=0.5, metavar="UM",
@@ -61,6 +62,8 @@ def inversion_settings(args):
     from analysis.invert_table import Errors
     from analysis.shipped import load
     cal, emu, prov = load(args.calibration)
+    if args.method is None:
+        args.method = "emulator" if emu is not None else "law"
     errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
                     seed=args.seed).check()
     return cal, emu, prov, errors

@@ -83,11 +83,14 @@ def test_invert_refuses_a_folder_and_a_law_only_calibration(tmp_path, table):
     cal, _, _ = load()
     law_only = tmp_path / "law.json"
     cal.save(law_only)
-    run = cortex("analysis", "invert", table, "--out", tmp_path / "out", "--calibration", law_only)
+    run = cortex("analysis", "invert", table, "--out", tmp_path / "out", "--calibration", law_only,
+                 "--method", "emulator")
     assert run.returncode == 2 and "no emulator tables" in run.stderr and len(run.stderr.splitlines()) == 1
-    run = cortex("analysis", "invert", table, "--out", tmp_path / "out2", "--calibration", law_only,
-                 "--method", "law")
+    run = cortex("analysis", "invert", table, "--out", tmp_path / "out2", "--calibration", law_only, "--json")
     assert run.returncode == 0, run.stderr
+    assert {r["method"] for r in json.loads(run.stdout)} == {"law"}       # a law-only file: the law
+    run = cortex("analysis", "invert", table, "--out", tmp_path / "out3", "--bending", "triple")
+    assert run.returncode == 2 and "no 'triple' bending variant" in run.stderr
 
 
 def test_afm_analyze_needs_no_calibration(tmp_path):

@@ -55,9 +55,8 @@ def synth(args):
 
 def analyze(args):
     from analysis.afm.report import run
-    from analysis.invert_table import Errors
-    errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
-                    seed=args.seed).check()
+    from analysis.cli import inversion_settings
+    _, _, _, errors = inversion_settings(args)          # also settles the default --method
     result = run(args.data, args.calibration, args.out, args.bending, method=args.method, errors=errors)
     print(f"report: {result['report']}")
     return 0
