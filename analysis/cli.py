@@ -99,8 +99,6 @@ def invert(args):
     import json
     from pathlib import Path
 
-    import pandas as pd
-
     from analysis.invert_table import invert_rows
     from analysis.table_input import read_table
     from solver.errors import InputError

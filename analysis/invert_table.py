@@ -21,7 +21,6 @@ the method's other columns.
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from analysis import intervals
 from analysis.emulator_fit import invert_curves_emulator

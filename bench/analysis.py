@@ -7,8 +7,8 @@ reconstruction, Monte-Carlo, figures, report) of the paper store
 does not exist. `emulator_inversion`: 100 cells x 4 frequencies (8 heights each, K(h̃)
 from the shipped emulator, K̃_S and γ_a spread like the synthetic
 population) inverted by the emulator with their 95 % intervals (100 draws),
-best of 3 (target 10 s on one core; wall and CPU time both given). `synthetic_paper_size`: the same run on tables of the paper
-size (540 compressions, 3 true ν x 2 height-error modes x 100 studies x 55
+best of 3 (target 10 s on one core; wall and CPU time both given).
+`synthetic_paper_size`: the same run on tables of the paper size (540 compressions, 3 true ν x 2 height-error modes x 100 studies x 55
 cells) generated from the laws (`analysis.synthetic`), reading excluded —
 the analysis cost alone, measurable before any campaign has run.
 
