@@ -28,7 +28,7 @@ def register(sub):
     b.add_argument("--out", required=True, metavar="CAL.json", help="file to write (refused if it exists "
                    "and is not a calibration file)")
     b.set_defaults(handler="analysis.cli:build_calibration")
-    i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 % intervals",
+    i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
                      description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
                                  "tension_mN_per_m (optional frequency_hz, volume_um3; one row per cell "
                                  "and height) into nu per cell and frequency. Writes DIR/cells.csv; with "

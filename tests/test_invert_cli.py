@@ -111,3 +111,11 @@ def test_afm_analyze_needs_no_calibration(tmp_path):
     assert all("median_nu_lo95" in r for r in summary["frequencies"])
     assert (tmp_path / "an" / "nu_intervals.png").stat().st_size > 0
     assert "bootstrap 95 % interval" in (tmp_path / "an" / "report.md").read_text()
+
+
+def test_help_of_every_new_command_renders():
+    for args in (("analysis", "--help"), ("analysis", "invert", "--help"), ("analysis", "build-calibration", "--help"),
+                 ("afm", "--help"), ("afm", "analyze", "--help")):
+        run = cortex(*args)
+        assert run.returncode == 0 and "exit status" in run.stdout, (args, run.stderr)
+    assert "95 % intervals" in cortex("afm", "analyze", "--help").stdout

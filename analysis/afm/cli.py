@@ -18,7 +18,7 @@ def register(sub):
     g.set_defaults(handler="analysis.afm.cli:synth")
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
-                                 "calibration, with 95 %% intervals), population statistics, figures and "
+                                 "calibration, with 95 % intervals), population statistics, figures and "
                                  "DIR/report.md.")
     a.add_argument("data", metavar="DATA", help="experiment (.h5) or single-cell CSV")
     a.add_argument("--out", required=True, metavar="DIR")
