@@ -59,26 +59,18 @@ def _law(calibration, bending):
     return calibration[bending] if isinstance(calibration, Calibration) else calibration
 
 
-def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
-    """Invert many cells: `h_tilde`, `modulus` (mN/m) of shape (cells, heights),
-    NaN where a cell has no value; `tension` γ_a (mN/m) of shape (cells,).
-    `calibration`: a `Calibration` (then `bending` picks the variant) or one
-    variant's `Law`. Returns a DataFrame with the fields of `CellInversion`."""
-    law = _law(calibration, bending)
-    h = np.atleast_2d(np.asarray(h_tilde, float))
-    k = np.atleast_2d(np.asarray(modulus, float))
-    tension = np.broadcast_to(np.asarray(tension, float), h.shape[:1])
-    finite = np.isfinite(h) & np.isfinite(k)
-    use = finite & (h >= H_TILDE_MIN) & (h <= H_TILDE_MAX)
-    n = use.sum(axis=1)
-    top = np.where(use, h, -np.inf).max(axis=1)
-    bulk, alpha, r2 = fit_bulk_alpha(h, k, law.lam, mask=use)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gamma_tilde = tension / bulk
-        ks = law.invert(alpha, gamma_tilde)
-        nu = poisson(ks)
+def used_heights(h, k):
+    """Mask of the heights an inversion uses (finite, H_TILDE_MIN ≤ h̃ ≤ H_TILDE_MAX),
+    their count and the highest of them (-inf where none), per row."""
+    use = np.isfinite(h) & np.isfinite(k) & (h >= H_TILDE_MIN) & (h <= H_TILDE_MAX)
+    return use, use.sum(axis=1), np.where(use, h, -np.inf).max(axis=1)
 
-    reasons = np.full(h.shape[0], None, dtype=object)
+
+def exclusions(n, top, bulk, tension, nu, r2, extra=()):
+    """The published filters (module docstring) as one reason per cell (None: passes),
+    the first that applies; `extra`: (mask, reason(i)) checks of the method,
+    applied before the R² filter."""
+    reasons = np.full(len(n), None, dtype=object)
 
     def exclude(where, text):
         for i in np.flatnonzero(where & (reasons == None)):  # noqa: E711 (elementwise)
@@ -89,10 +81,32 @@ def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
     exclude(top <= H_TILDE_TOP, lambda i: f"highest h~ = {top[i]:.3f} is not above {H_TILDE_TOP}")
     exclude(~(bulk > 0), lambda i: f"fitted K_B = {bulk[i]:.3g} mN/m is not positive")
     exclude(~(tension > 0), lambda i: f"active tension {tension[i]:.3g} mN/m is not positive")
-    exclude(~np.isfinite(nu), lambda i: "the calibration cannot be inverted here "
-                                        f"(alpha = {alpha[i]:.3g}, gamma_a/K_B = {gamma_tilde[i]:.3g})")
+    for where, text in extra:
+        exclude(where, text)
     exclude(~(r2 > R2_MIN) & ~(nu > NU_FLAT),
             lambda i: f"R^2 = {r2[i]:.2f} is not above {R2_MIN} (and nu = {nu[i]:.2f} <= {NU_FLAT})")
+    return reasons
+
+
+def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
+    """Invert many cells: `h_tilde`, `modulus` (mN/m) of shape (cells, heights),
+    NaN where a cell has no value; `tension` γ_a (mN/m) of shape (cells,).
+    `calibration`: a `Calibration` (then `bending` picks the variant) or one
+    variant's `Law`. Returns a DataFrame with the fields of `CellInversion`."""
+    law = _law(calibration, bending)
+    h = np.atleast_2d(np.asarray(h_tilde, float))
+    k = np.atleast_2d(np.asarray(modulus, float))
+    tension = np.broadcast_to(np.asarray(tension, float), h.shape[:1])
+    use, n, top = used_heights(h, k)
+    bulk, alpha, r2 = fit_bulk_alpha(h, k, law.lam, mask=use)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gamma_tilde = tension / bulk
+        ks = law.invert(alpha, gamma_tilde)
+        nu = poisson(ks)
+
+    not_inverted = (~np.isfinite(nu), lambda i: "the calibration cannot be inverted here "
+                    f"(alpha = {alpha[i]:.3g}, gamma_a/K_B = {gamma_tilde[i]:.3g})")
+    reasons = exclusions(n, top, bulk, tension, nu, r2, [not_inverted])
     return pd.DataFrame({"nu": nu, "ks_tilde": ks, "bulk_mN_per_m": bulk, "alpha": alpha, "r2": r2,
                          "gamma_tilde": gamma_tilde, "n_heights": n,
                          "h_tilde_max": np.where(n > 0, top, np.nan),

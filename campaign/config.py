@@ -6,7 +6,12 @@
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
                 optional viscosity_Pa_s and frequency_hz (both or neither): a
-                viscous interior oscillated at f, K*(ω) (`solver.viscous`)
+                viscous interior oscillated at f, K*(ω) (`solver.viscous`).
+                Dimensionless axes in place of the absolute ones (one of each
+                pair): h_tilde for h0_um (h0 = 2 R_cell(V) h̃ + Δh/2, so the
+                compression's mean height is h̃), ks_tilde for shear_mN_per_m
+                (K_S = K̃_S K_B), gamma_tilde for tension_mN_per_m
+                (γ_a = γ̃_a K_B): a grid over (h̃, K̃_S, γ̃_a) at any V and K_B
     [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
     [montecarlo] the Monte-Carlo error trials (SPEC 5, `campaign.trials`):
                 nu (true Poisson ratios, each mapped to the grid's K_S closest to
@@ -49,14 +54,16 @@ from dataclasses import dataclass
 from campaign import faults
 from campaign.trials import MODES, Study, grid_shear
 from solver.errors import InputError
+from solver.geometry import cell_radius
 from solver.model import BENDING_VARIANTS, Shell
 
 GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
              "tension_mN_per_m", "thickness_um", "bending", "viscosity_Pa_s", "frequency_hz")
+RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # absent: an elastic cell
 MAX_TASKS = 100_000
-SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS),
+SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
@@ -124,11 +131,14 @@ def load(path):
     if "grid" not in data:
         raise InputError(f"{path}: no [grid] section")
     grid = {**DEFAULTS, **data["grid"]}
-    for key in ("h0_um", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"):
-        if key not in grid:
-            raise InputError(f"{path}: [grid] needs {key}")
+    if "bulk_mN_per_m" not in grid:
+        raise InputError(f"{path}: [grid] needs bulk_mN_per_m")
+    ratios = _ratio_axes(path, grid)
     axes = {}
     for key in GRID_KEYS:
+        if key in ratios:
+            axes[key] = ratios[key]
+            continue
         if key == "bending":
             names = grid[key] if isinstance(grid[key], list) else [grid[key]]
             bad = [n for n in names if n not in BENDING_VARIANTS]
@@ -152,7 +162,7 @@ def load(path):
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
     shells = []
     for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
-        p = dict(zip(GRID_KEYS, combo))
+        p = _absolute(dict(zip(GRID_KEYS, combo)), ratios)
         try:
             shells.append(Shell(volume_um3=p["volume_um3"], h0_um=p["h0_um"], dh_um=p["dh_um"],
                                 bulk_mN_per_m=p["bulk_mN_per_m"], shear_mN_per_m=p["shear_mN_per_m"],
@@ -169,6 +179,9 @@ def load(path):
     if mc is not None and any(key in grid for key in OPTIONAL):
         raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
                          "frequency_hz from [grid] (or the [montecarlo] section)")
+    if mc is not None and ratios:
+        raise InputError(f"{path}: [montecarlo] needs the absolute [grid] axes h0_um, shear_mN_per_m and "
+                         f"tension_mN_per_m (got {', '.join(RATIO_AXES[k] for k in ratios)})")
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
     return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
@@ -188,6 +201,30 @@ def _refuse_above(path, count, limit, what):
     if count > limit:
         raise InputError(f"{path}: {count:,} {what} exceed the limit of {limit:,} tasks; make the grid "
                          "smaller, or raise [campaign] max_tasks if this machine can hold it")
+
+
+def _ratio_axes(path, grid):
+    """The dimensionless axes given in place of absolute ones: {absolute key: values}."""
+    ratios = {}
+    for key, ratio in RATIO_AXES.items():
+        if (key in grid) == (ratio in grid):
+            raise InputError(f"{path}: [grid] needs exactly one of {key} and {ratio}")
+        if ratio in grid:
+            values = _numbers(path, ratio, grid[ratio])
+            if any(v <= 0 for v in values):
+                raise InputError(f"{path}: [grid] {ratio} must be > 0 (got {min(values):g})")
+            ratios[key] = values
+    return ratios
+
+
+def _absolute(p, ratios):
+    """A grid point with its dimensionless coordinates turned into absolute ones."""
+    if "h0_um" in ratios:
+        p["h0_um"] = 2.0 * float(cell_radius(p["volume_um3"])) * p["h0_um"] + 0.5 * p["dh_um"]
+    for key in ("shear_mN_per_m", "tension_mN_per_m"):
+        if key in ratios:
+            p[key] = p[key] * p["bulk_mN_per_m"]
+    return p
 
 
 def _mc_number(path, key, value, low, high=float("inf"), integer=False):

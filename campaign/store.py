@@ -712,3 +712,15 @@ def summary(path, now=time.time):
                           **{s: int(np.sum(a["state"] == i)) for i, s in enumerate(STATES)},
                           "failures": sorted({e for e in a["error"][failed]})[:10]}
     return info
+
+
+def read_provenance(path):
+    """What made a store: its campaign file's text, fingerprint, code and library
+    versions, host and creation time (the attributes written when it was created)."""
+    keys = ("name", "config_text", "fingerprint", "code_version", "versions", "host", "created")
+    with _open_read(path) as f:
+        if "fingerprint" not in f.attrs:
+            raise InputError(f"{path}: not a campaign store")
+        out = {k: f.attrs[k] for k in keys if k in f.attrs}
+    return {k: (v.decode() if isinstance(v, bytes) else v.item() if hasattr(v, "item") else v)
+            for k, v in out.items()}

@@ -10,6 +10,10 @@ filters and the fit are those of `analysis.inversion`.
 `outside_calibration` flags a result whose K̃_S or γ̃_a lies outside the
 calibration grid (the law's α-table axes): there ν rests on the log law's
 extrapolation (no flag, None, for a law without a table).
+
+`method="emulator"` inverts all cells at once on the emulator with 95 %
+intervals (`analysis.invert_table`); the same filters, `outside_calibration`
+then says the fit left the emulator's grid.
 """
 
 import numpy as np
@@ -55,11 +59,38 @@ def _outside(law, ks, gamma):
                 or not min(law.gamma_tilde) <= gamma <= max(law.gamma_tilde))
 
 
-def analyze(cells, calibration, bending="standard"):
+def analyze(cells, calibration, bending="standard", method="law", emulator=None, errors=None):
     """All cells: (per cell-and-frequency DataFrame, per-segment DataFrame)."""
+    if method == "emulator":
+        return _analyze_emulator(cells, emulator, bending, errors)
     rows, segs = [], []
     for c in cells:
         r, s = analyze_cell(c, calibration, bending)
         rows += r
         segs.append(s)
     return pd.DataFrame(rows), pd.concat(segs, ignore_index=True)
+
+
+def _analyze_emulator(cells, emulator, bending, errors):
+    from analysis.invert_table import invert_rows
+    segs, dev = [], {}
+    for c in cells:
+        s = pd.DataFrame(segment_moduli(c))
+        s.insert(0, "cell_id", c.cell_id)
+        s["volume_um3"] = c.volume_um3
+        med = float(np.median(s["tension_mN_per_m"]))
+        dev[c.cell_id] = float(np.max(np.abs(s["tension_mN_per_m"] - med)) / med) if med > 0 else np.inf
+        segs.append(s)
+    segs = pd.concat(segs, ignore_index=True)
+    table = invert_rows(segs, "emulator", None, emulator, bending, errors)
+    table["tension_deviation"] = table["cell_id"].map(dev)
+    grouped = segs.groupby(["cell_id", "frequency_hz"])
+    idx = pd.MultiIndex.from_frame(table[["cell_id", "frequency_hz"]])
+    table["n_segments"] = grouped.size().reindex(idx).to_numpy()
+    table["loss_angle_rad"] = grouped["loss_angle_rad"].median().reindex(idx).to_numpy()
+    table["outside_calibration"] = table["outside_emulator"]
+    bad = table["tension_deviation"] > TENSION_TOLERANCE
+    table.loc[bad, "excluded_reason"] = [
+        f"average tension not constant: deviates {100 * d:.0f} % from its median (limit "
+        f"{100 * TENSION_TOLERANCE:.0f} %)" for d in table.loc[bad, "tension_deviation"]]
+    return table, segs.drop(columns=["volume_um3"])

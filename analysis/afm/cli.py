@@ -50,13 +50,17 @@ def register(sub):
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
                    "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
     m.set_defaults(handler="analysis.afm.cli:import_")
-    a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md")
+    a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
+                     description="Invert every cell and frequency (default: on the emulator of the shipped "
+                                 "calibration, with 95 % intervals), population statistics, figures and "
+                                 "DIR/report.md. Recordings without a modulation segment are listed in the "
+                                 "report (exit status 1).")
     a.add_argument("data", nargs="+", metavar="DATA",
                    help="experiment (.h5), single-cell CSV, or JPK files and folders of them")
-    a.add_argument("--calibration", required=True, metavar="CAL.json")
     a.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing); a "
                    "non-empty folder cortex did not write is refused (DIR/.cortex-outputs lists what it wrote)")
-    a.add_argument("--bending", default="standard", help="calibration variant for summary.json")
+    from analysis.cli import add_inversion_options
+    add_inversion_options(a)
     _jpk_options(a)
     a.set_defaults(handler="analysis.afm.cli:analyze")
 
@@ -139,8 +143,11 @@ def _is_our_truth(path):
 
 def analyze(args):
     from analysis.afm.report import run
+    from analysis.cli import inversion_settings
     from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
-    result = run(args.data, args.calibration, args.out, args.bending, jpk_options(args))
+    _, _, _, errors = inversion_settings(args)          # also settles the default --method
+    result = run(args.data, args.calibration, args.out, args.bending, jpk_options(args),
+                 method=args.method, errors=errors)
     for cell, reason in result["skipped"].items():
         print(f"not analysed: {cell}: {reason}")
     print(f"report: {result['report']}")

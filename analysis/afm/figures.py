@@ -68,3 +68,25 @@ def figures(tables, sums, segs, out):
     ax.set_ylabel("K / K_B (1)")
     paths.append(_save(fig, out, "k_curves.png"))
     return paths
+
+
+def nu_intervals(table, out):
+    """ν of every included cell with its 95 % interval, one panel per frequency,
+    cells sorted by ν."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ok = table[table["excluded_reason"].isna()]
+    freqs = sorted(ok["frequency_hz"].unique())
+    fig, axes = plt.subplots(1, max(len(freqs), 1), figsize=(3.2 * max(len(freqs), 1), 3.2), squeeze=False,
+                             sharey=True)
+    for ax, f in zip(axes[0], freqs):
+        g = ok[ok["frequency_hz"] == f].sort_values("nu")
+        x = np.arange(len(g))
+        ax.errorbar(x, g["nu"], yerr=[g["nu"] - g["nu_lo95"], g["nu_hi95"] - g["nu"]], fmt="o", ms=2,
+                    lw=0.6, capsize=0)
+        ax.axhline(0.5, color="grey", lw=0.5, ls="--")
+        ax.set_title(f"{f:g} Hz", fontsize=8)
+        ax.set_xlabel("cell, sorted by nu (1)")
+    axes[0, 0].set_ylabel("Poisson ratio nu with 95 % interval (1)")
+    return _save(fig, out, "nu_intervals.png")

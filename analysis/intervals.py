@@ -1,0 +1,160 @@
+"""95 % intervals: per cell by a parametric bootstrap through the emulator, per
+frequency for the median ν by resampling cells.
+
+Per cell (fitted θ* = (ln K_B, ln K̃_S), measured V, mean heights h_j = h̃_j 2 R_cell(V),
+tension γ_a, residual RMS s over n used heights), draw m = 1..M:
+
+1. the truth this cell could have had: V_m = V (1 + σ_V ε_m), one height
+   offset h_j,m = h_j + σ_h η_m (an uneven wedge), ε, η ~ N(0, 1);
+   h̃_j,m = h_j,m / (2 R_cell(V_m)); its tension γ_m such that the resting force
+   is the one measured, γ_m = γ_a · mean_j g(V, h_j) / g(V_m, h_j,m);
+2. its moduli K_j,m = K_B f(h̃_j,m, K̃_S, γ_m/K_B; V_m) (the emulator) and what the
+   analysis would have made of them at the measured V and heights (SPEC 3 with
+   h0/h1 = h ± Δh/2, g = 2 H A_c and A from the droplet shape):
+   F_j = (γ_m + K_j,m ε_A(V_m, h_j,m)) g(V_m, h1_j,m),
+   γ_seen,j = γ_m g(V_m, h0_j,m) / g(V, h0_j),
+   K_seen,j = (F_j / g(V, h1_j) - γ_seen,j) / ε_A(V, h_j), plus noise N(0, s² n/(n-2));
+3. refit θ_m to K_seen at the measured h̃_j with γ = mean_j γ_seen,j, starting from θ*:
+   GN_STEPS damped Gauss-Newton steps on the 2 x 2 normal equations (vectorised
+   over all cells and draws; from θ* they converge well inside the spread of the draws).
+
+The interval of ln K̃_S is the basic bootstrap one, [2 l* - q_97.5, 2 l* - q_2.5]
+of the refitted l_m = ln K̃_S,m (it corrects the bias the errors cause), and ν's
+is its image through ν = (1 - K̃_S)/(1 + K̃_S) (decreasing: the ends swap).
+
+The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(h̃), A(V, h) = R_cell² Â(h̃),
+so ĝ and Â are tabulated once (`solver.geometry.droplet` at R_cell = 1 on a fine
+h̃ grid, cubic splines) and every draw costs array arithmetic only.
+
+Per frequency: the median ν of the included cells with a percentile bootstrap
+95 % interval (`scipy.stats.bootstrap`, cells resampled).
+"""
+
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.stats import bootstrap
+
+from analysis.calibration import poisson
+from analysis.emulator_fit import _filled, _ks_bounds
+from solver.geometry import cell_radius, droplet
+
+DRAWS = 100
+GN_STEPS = 4
+MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
+VOLUME_SD = 0.075            # relative
+HEIGHT_SD_UM = 0.5           # one offset per cell
+DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
+LEVEL = 0.95
+
+
+@lru_cache(maxsize=1)
+def _unit_droplet():
+    """Splines ĝ(h̃), Â(h̃) of the droplet at R_cell = 1."""
+    v1 = 4.0 * np.pi / 3.0
+    ht = np.linspace(0.2, 0.999, 800)
+    d = droplet(v1, 2.0 * ht)
+    return CubicSpline(ht, d.force_per_tension_um), CubicSpline(ht, d.surface_area_um2)
+
+
+def _shape(radius, heights):
+    """(g, A) = (2 H A_c, A) for cells of radius R_cell at heights (µm), broadcast."""
+    g, a = _unit_droplet()
+    ht = heights / (2.0 * radius)
+    return radius * g(ht), radius**2 * a(ht)
+
+
+def _seen(radius_t, h_t, radius_s, h_s, tension_t, modulus_t, dh):
+    """What the analysis makes of a true cell (radius_t, mean heights h_t, γ, K) measured
+    at radius_s and heights h_s: (K_seen, γ_seen) per height (SPEC 3, see module doc)."""
+    g_t0, a_t0 = _shape(radius_t, h_t + dh / 2)
+    g_t1, a_t1 = _shape(radius_t, h_t - dh / 2)
+    g_s0, a_s0 = _shape(radius_s, h_s + dh / 2)
+    g_s1, a_s1 = _shape(radius_s, h_s - dh / 2)
+    force = (tension_t + modulus_t * (a_t1 - a_t0) / a_t0) * g_t1
+    seen = tension_t * g_t0 / g_s0
+    return (force / g_s1 - seen) / ((a_s1 - a_s0) / a_s0), seen
+
+
+def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, draws=DRAWS,
+                   volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
+                   steps=GN_STEPS):
+    """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (NaN where θ is not finite)."""
+    n_cells, m = h.shape
+    out = np.full((4, n_cells), np.nan)
+    ok = np.isfinite(theta).all(axis=1) & (use.sum(axis=1) >= 3)
+    if not ok.any():
+        return tuple(out)
+    rng = np.random.default_rng(seed)
+    th, hs, us = theta[ok], _filled(h[ok], use[ok]), use[ok]
+    ts, vs, ss = tension[ok], volume[ok], np.nan_to_num(rms[ok])
+    c = th.shape[0]
+    radius = cell_radius(vs)[:, None, None]                                   # (c, 1, 1)
+    heights = (hs * 2.0 * cell_radius(vs)[:, None])[:, None, :]                # (c, 1, m)
+    v_true = vs[:, None] * (1.0 + volume_sd * rng.standard_normal((c, draws)))  # (c, M)
+    h_true = heights + height_sd_um * rng.standard_normal((c, draws))[:, :, None]
+    r_true = cell_radius(np.clip(v_true, 1.0, None))[:, :, None]
+    g_s, _ = _shape(radius, heights)
+    g_t, _ = _shape(r_true, h_true)
+    w = us[:, None, :]
+    gamma_t = ts[:, None] * np.sum(np.where(w, g_s / g_t, 0), axis=2) / us.sum(axis=1)[:, None]
+    flat = lambda a: a.reshape(c * draws, *a.shape[2:])                      # noqa: E731
+    theta_rep = np.repeat(th, draws, axis=0)
+    bulk_rep = np.exp(theta_rep[:, 0])[:, None]
+    K_t = bulk_rep * emulator.ratio(flat(h_true / (2.0 * r_true)), np.exp(theta_rep[:, 1])[:, None],
+                                    gamma_t.ravel()[:, None] / bulk_rep, v_true.ravel()[:, None], bending)
+    K_seen, gamma_seen = _seen(flat(r_true), flat(h_true), flat(np.broadcast_to(radius, (c, draws, 1))),
+                               flat(np.broadcast_to(heights, (c, draws, m))), gamma_t.ravel()[:, None],
+                               K_t, dh_um)
+    n_used = us.sum(axis=1)
+    noise_sd = ss * np.sqrt(n_used / np.maximum(n_used - 2, 1))
+    K_seen = K_seen + np.repeat(noise_sd, draws)[:, None] * rng.standard_normal(K_seen.shape)
+    use_rep = np.repeat(us, draws, axis=0)
+    gamma_fit = np.sum(np.where(use_rep, gamma_seen, 0), axis=1) / use_rep.sum(axis=1)
+    h_rep, v_rep = np.repeat(hs, draws, axis=0), np.repeat(vs, draws)
+    x = _gauss_newton(emulator[bending], theta_rep, h_rep, K_seen, use_rep, gamma_fit, v_rep, steps,
+                      _ks_bounds(emulator, bending))
+    lks = x[:, 1].reshape(c, draws)
+    q_lo, q_hi = np.nanpercentile(lks, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
+    lo, hi = 2 * th[:, 1] - q_hi, 2 * th[:, 1] - q_lo
+    out[0, ok], out[1, ok] = np.exp(lo), np.exp(hi)
+    out[2, ok], out[3, ok] = poisson(np.exp(hi)), poisson(np.exp(lo))
+    return tuple(out)
+
+
+def _gauss_newton(table, x, h, k, use, tension, volume, steps, bounds):
+    """Refit θ = (ln K_B, ln K̃_S) of every row from its start `x`: damped Gauss-Newton
+    steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
+    ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""
+    x = x.copy()
+    for v in np.unique(volume):
+        rows = volume == v
+        sl = table.at_volume(v)
+        xr, hr, kr, ur, tr = x[rows], h[rows], k[rows], use[rows], tension[rows]
+        for _ in range(steps):
+            bulk = np.exp(xr[:, 0])[:, None]
+            lr, d_ks, d_g = sl.grad_log(hr, np.exp(xr[:, 1])[:, None], tr[:, None] / bulk)
+            K = bulk * np.exp(lr)
+            r = np.nan_to_num(np.where(ur, kr - K, 0.0))
+            J = np.stack([np.where(ur, K * (1.0 - d_g), 0.0), np.where(ur, K * d_ks, 0.0)], axis=-1)
+            JtJ = np.einsum("nji,njk->nik", J, J) + 1e-9 * np.eye(2)
+            step = np.linalg.solve(JtJ, np.einsum("nji,nj->ni", J, r)[..., None])[..., 0]
+            xr = xr + np.clip(np.nan_to_num(step), -MAX_STEP, MAX_STEP)
+            xr[:, 1] = np.clip(xr[:, 1], *bounds)
+        x[rows] = xr
+    return x
+
+
+def median_interval(nu, resamples=2000, seed=0):
+    """(median, lo, hi): the median of `nu` (finite values) and its percentile
+    bootstrap 95 % interval; NaN ends with fewer than 2 values."""
+    nu = np.asarray(nu, float)
+    nu = nu[np.isfinite(nu)]
+    if nu.size == 0:
+        return float("nan"), float("nan"), float("nan")
+    if nu.size < 2:
+        return float(nu[0]), float("nan"), float("nan")
+    res = bootstrap((nu,), np.median, confidence_level=LEVEL, n_resamples=resamples, method="percentile",
+                    random_state=np.random.default_rng(seed), vectorized=True)
+    return float(np.median(nu)), float(res.confidence_interval.low), float(res.confidence_interval.high)

@@ -1,0 +1,95 @@
+"""The calibration file: the emulator tables and the paper law in one versioned
+JSON document, and the default one shipped inside the package.
+
+Layout (a superset of `calibration.json`, so `Calibration.load` reads it too):
+
+    format      "cortex-calibration"
+    version     2 (1: law only, as `cortex analysis calibrate` writes)
+    variants    the paper law per bending variant (λ, C, D, α table, goodness)
+    emulator    per bending variant: axes volume_um3, h_tilde, ks_tilde, gamma_tilde,
+                k_over_kb (nested lists in that axis order), dh_um, thickness_um
+    provenance  per part (`emulator`, `law`): the campaign file's text, the
+                store's fingerprint, the code version that ran it and when;
+                `built`: the date and code version of this file
+
+`build` makes the document from two finished stores (`make calibration`);
+`load` reads one (None: the shipped default, `SHIPPED`), returning a
+`Calibration` (or None) and an `Emulator` (or None, for a law-only file).
+"""
+
+import json
+import time
+from importlib import resources
+from pathlib import Path
+
+from analysis.calibration import FORMAT, Calibration, _nan_to_none
+from analysis.emulator import Emulator, from_results
+from solver.errors import InputError
+
+VERSION = 2
+SHIPPED_NAME = "calibration.json"
+
+
+def shipped_path():
+    """The default calibration file inside the installed package."""
+    return Path(str(resources.files("analysis") / "data" / SHIPPED_NAME))
+
+
+def _store_provenance(path):
+    from campaign.store import read_provenance
+    p = read_provenance(path)
+    return {"store": Path(path).name, "campaign_text": p.get("config_text", ""),
+            "fingerprint": p.get("fingerprint", ""), "code_version": p.get("code_version", ""),
+            "run_date": p.get("created", ""), "versions": p.get("versions", "")}
+
+
+def build(emulator_store, law_store=None, progress=None):
+    """The calibration document from an emulator campaign's store and (optionally)
+    the paper campaign's store (its law fitted by `analysis.calibration.calibrate`)."""
+    from analysis.calibration import calibrate
+    from analysis.report import read_store
+    from cortex import __version__
+    results, _ = read_store(emulator_store)
+    emulator = from_results(results, progress)
+    doc = {"format": FORMAT, "version": VERSION, "variants": {},
+           "emulator": emulator.to_json(),
+           "provenance": {"emulator": _store_provenance(emulator_store),
+                          "built": {"date": time.strftime("%Y-%m-%d"), "code_version": __version__}}}
+    if law_store is not None:
+        law_results, _ = read_store(law_store)
+        done = law_results[law_results["state"] == "done"]
+        if len(done) < len(law_results):
+            raise InputError(f"{law_store}: {len(law_results) - len(done)} task(s) not done")
+        cal, _, _ = calibrate(done, progress)
+        doc["variants"] = cal.to_json()["variants"]
+        doc["provenance"]["law"] = _store_provenance(law_store)
+    return _nan_to_none(doc)
+
+
+def write(doc, path):
+    """Write the document (atomic replace, `outputs.writing`: a full disk is a
+    WriteError naming `path`; the caller has checked that `path` is ours)."""
+    from outputs.writing import write_atomically
+    text = json.dumps(doc, indent=None, separators=(",", ":")) + "\n"
+    return Path(write_atomically(path, text.encode()))
+
+
+def load(path=None):
+    """(Calibration or None, Emulator or None, provenance dict) of a calibration file;
+    `path` None reads the shipped default. Malformed: InputError (one line)."""
+    path = Path(path) if path is not None else shipped_path()
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a calibration file")
+    try:
+        doc = json.loads(path.read_text())
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a calibration file (not text)") from None
+    except json.JSONDecodeError as err:
+        raise InputError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{path}: not a calibration file (no \"format\": \"{FORMAT}\")")
+    cal = Calibration.load(path) if doc.get("variants") else None
+    emu = Emulator.from_json(doc["emulator"], str(path)) if doc.get("emulator") else None
+    if cal is None and emu is None:
+        raise InputError(f"{path}: holds neither a calibration law ('variants') nor an emulator")
+    return cal, emu, doc.get("provenance", {})

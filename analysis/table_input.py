@@ -1,0 +1,58 @@
+"""The input table of `cortex analysis invert`: K(h̃) per cell from other software.
+
+CSV with a header; columns `cell_id, h_tilde, modulus_mN_per_m, tension_mN_per_m`
+(required) and `frequency_hz`, `volume_um3` (optional), one row per cell (and
+frequency) and height. Every value must be a finite number (cell_id: any
+text), h̃ in (0, 1), the modulus finite, tension and volume > 0. Anything else
+is an InputError naming the file, the line and the column.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from solver.errors import InputError
+
+REQUIRED = ("cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m")
+OPTIONAL = ("frequency_hz", "volume_um3")
+POSITIVE = ("tension_mN_per_m", "volume_um3", "frequency_hz")
+
+
+def read_table(path):
+    """The rows of `path` as a DataFrame (InputError, one line, if malformed)."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a table")
+    try:
+        with open(path, "rb") as fh:
+            if b"\0" in fh.read(65536):
+                raise InputError(f"{path}: not a text (CSV) file")
+        frame = pd.read_csv(path, dtype={"cell_id": str}, skipinitialspace=True)
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text (CSV) file") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as err:
+        raise InputError(f"{path}: not a readable CSV table ({str(err).splitlines()[0]})") from None
+    missing = [c for c in REQUIRED if c not in frame.columns]
+    if missing:
+        raise InputError(f"{path}: missing column(s) {', '.join(missing)} (need {', '.join(REQUIRED)})")
+    if frame.empty:
+        raise InputError(f"{path}: no rows")
+    if frame["cell_id"].isna().any():
+        raise InputError(f"{path}: line {int(np.flatnonzero(frame['cell_id'].isna())[0]) + 2}: empty cell_id")
+    for col in REQUIRED[1:] + tuple(c for c in OPTIONAL if c in frame.columns):
+        values = pd.to_numeric(frame[col], errors="coerce")
+        bad = ~np.isfinite(values.to_numpy(float))
+        if col in POSITIVE:
+            bad |= ~(values.to_numpy(float) > 0)
+        if col == "h_tilde":
+            bad |= ~((values > 0) & (values < 1)).to_numpy()
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            want = "a number in (0, 1)" if col == "h_tilde" else "a number > 0" if col in POSITIVE \
+                else "a finite number"
+            raise InputError(f"{path}: line {i + 2}: {col} must be {want} (got {frame[col].iloc[i]!r})")
+        frame[col] = values.astype(float)
+    return frame[[c for c in REQUIRED + OPTIONAL if c in frame.columns]]

@@ -1,0 +1,72 @@
+"""The measured-cell round trip (issue 13, "what it must show"): synthetic
+experiments of 85 cells with the fast solver as the forward model
+(`analysis.afm.synth`), analysed with the shipped calibration by both methods.
+Prints one JSON object.
+
+Per seed and errors off/on, per method: the medians of ν per frequency
+(recovered and true, over the included non-blebbing cells), the fraction of
+included cells with |Δν| ≤ 0.03, and (emulator) the fraction whose 95 %
+interval holds the true ν.
+
+    python bench/roundtrip.py [SEED ...]        (default: 6 7 8 9)
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+import numpy as np  # noqa: E402
+
+from analysis.afm.analyze import analyze  # noqa: E402
+from analysis.afm.synth import generate, solver_forward  # noqa: E402
+from analysis.shipped import load  # noqa: E402
+
+
+def score(table, truth):
+    rows = []
+    for r in table.itertuples():
+        t = truth["frequencies"][str(float(r.frequency_hz))]["cells"][r.cell_id]
+        rows.append((r.frequency_hz, t["nu"], r.nu, getattr(r, "nu_lo95", np.nan), getattr(r, "nu_hi95", np.nan),
+                     isinstance(r.excluded_reason, str), t["blebbing"]))
+    a = np.array([x[:5] for x in rows], float)
+    excluded = np.array([x[5] for x in rows])
+    ok = ~excluded
+    err = np.abs(a[:, 2] - a[:, 1])
+    out = {"n_curves": len(rows), "n_included": int(ok.sum()),
+           "frac_abs_err_le_0.03": float(np.mean(err[ok] <= 0.03)),
+           "max_abs_err": float(np.max(err[ok])), "per_frequency": {}}
+    if np.isfinite(a[ok, 3]).any():
+        out["coverage_95"] = float(np.mean((a[ok, 3] <= a[ok, 1]) & (a[ok, 1] <= a[ok, 4])))
+    for f in sorted(set(a[:, 0])):
+        sel = ok & (a[:, 0] == f)
+        out["per_frequency"][f"{f:g}"] = {"median_nu": float(np.median(a[sel, 2])),
+                                          "median_nu_true": float(np.median(a[sel, 1])),
+                                          "n": int(sel.sum())}
+    return out
+
+
+def main():
+    seeds = [int(s) for s in sys.argv[1:]] or [6, 7, 8, 9]
+    cal, emu, _ = load()
+    forward = solver_forward("standard")
+    out = {"benchmark": "roundtrip", "cells": 85, "runs": []}
+    for seed in seeds:
+        for errors in (False, True):
+            start = time.perf_counter()
+            cells, truth = generate(85, seed, errors=errors, forward=forward)
+            synth_s = time.perf_counter() - start
+            run = {"seed": seed, "errors": errors, "synth_s": round(synth_s, 1)}
+            for method in ("emulator", "law"):
+                start = time.perf_counter()
+                table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
+                run[method] = {**score(table, truth), "analyze_s": round(time.perf_counter() - start, 2)}
+            out["runs"].append(run)
+            print(json.dumps(run), file=sys.stderr, flush=True)
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
