@@ -122,19 +122,33 @@ class Calibration:
     @classmethod
     def load(cls, path):
         """Read a calibration.json; a malformed file raises InputError (one line)."""
-        path = Path(path)
-        try:
-            doc = json.loads(path.read_text())
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not a calibration file (not text)") from None
-        except json.JSONDecodeError as err:
-            raise InputError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
-        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-            raise InputError(f"{path}: not a calibration file (no \"format\": \"{FORMAT}\")")
+        return cls.from_document(path, read_document(path))
+
+    @classmethod
+    def from_document(cls, path, doc):
+        """The laws of a calibration document (`read_document`) read from `path`."""
         variants = doc.get("variants")
         if not isinstance(variants, dict) or not variants:
             raise InputError(f"{path}: 'variants' must be a non-empty object")
         return cls({name: _law_from_json(path, name, v) for name, v in variants.items()})
+
+
+def read_document(path):
+    """The JSON object of a calibration file (our `format` key checked);
+    InputError (one line) for a folder, a file that is not text or not JSON,
+    or another format."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, not a calibration file")
+    try:
+        doc = json.loads(path.read_text())
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a calibration file (not text)") from None
+    except json.JSONDecodeError as err:
+        raise InputError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{path}: not a calibration file (no \"format\": \"{FORMAT}\")")
+    return doc
 
 
 def _number(path, where, value, finite=True):

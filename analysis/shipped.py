@@ -22,7 +22,7 @@ import time
 from importlib import resources
 from pathlib import Path
 
-from analysis.calibration import FORMAT, Calibration, _nan_to_none
+from analysis.calibration import FORMAT, Calibration, _nan_to_none, read_document
 from analysis.emulator import Emulator, from_results
 from solver.errors import InputError
 
@@ -78,17 +78,8 @@ def load(path=None):
     """(Calibration or None, Emulator or None, provenance dict) of a calibration file;
     `path` None reads the shipped default. Malformed: InputError (one line)."""
     path = Path(path) if path is not None else shipped_path()
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, not a calibration file")
-    try:
-        doc = json.loads(path.read_text())
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a calibration file (not text)") from None
-    except json.JSONDecodeError as err:
-        raise InputError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise InputError(f"{path}: not a calibration file (no \"format\": \"{FORMAT}\")")
-    cal = Calibration.load(path) if doc.get("variants") else None
+    doc = read_document(path)
+    cal = Calibration.from_document(path, doc) if doc.get("variants") else None
     emu = Emulator.from_json(doc["emulator"], str(path)) if doc.get("emulator") else None
     if cal is None and emu is None:
         raise InputError(f"{path}: holds neither a calibration law ('variants') nor an emulator")
