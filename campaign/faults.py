@@ -90,6 +90,20 @@ def pause(seconds):
         time.sleep(seconds)
 
 
+def prepare(fault, shell):
+    """Load, before the task's timer starts, what `injected(fault, shell)` needs
+    (the imports and the compiled droplet geometry of the fake law): a short
+    test timeout then times the fault itself, not a process's start-up, on a
+    machine of any speed. Once per process and shape."""
+    if fault == "fake_law":
+        from solver.geometry import droplet
+        from solver.modulus import effective_modulus
+        effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
+        droplet(shell.volume_um3, shell.h1_um)
+    if fault in ("noop", "nan"):
+        import campaign.store  # noqa: F401  (RESULTS)
+
+
 def injected(fault, shell):
     """The result (or the failure) of `fault` for compression `shell`."""
     if fault == "raise":

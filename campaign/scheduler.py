@@ -58,6 +58,8 @@ def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
     """Run one compression: (state, results, error, started); `fault` and
     `sleep_s` are the test knobs of `campaign.faults`."""
     from solver.compression import compress
+    if fault:
+        faults.prepare(fault, shell)   # start-up costs outside the task's timer
 
     def work():
         faults.pause(sleep_s)
