@@ -13,7 +13,7 @@ the cell's offset δ (recorded minus true height, read off the recording's
 first sample, 0.78 D), the coverage and the mean of (l* − l_true) against the
 draws' own shift (q_lo + q_hi)/2 − l* (the bias the basic interval removes).
 
-    python bench/height_coverage.py [SEED ...] [--draws N ...]   (default seeds 6 7 8 9, draws 100 1000)
+    python bench/height_coverage.py [SEED ...] [--draws N ...]   (default seeds 6 7 8 9, draws 100)
 """
 
 import argparse
@@ -73,7 +73,7 @@ def summary(a):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("seeds", nargs="*", type=int, default=[6, 7, 8, 9])
-    p.add_argument("--draws", nargs="+", type=int, default=[100, 1000])
+    p.add_argument("--draws", nargs="+", type=int, default=[100])
     a = p.parse_args()
     _, emu, _ = load()
     out = {"benchmark": "height_coverage", "seeds": a.seeds, "cells": 85, "runs": []}
