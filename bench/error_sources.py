@@ -2,23 +2,36 @@
 experiment's measurement errors switched on one at a time. Prints one JSON
 object.
 
-The forward model is the shipped emulator itself (within 0.05 % of the
-solver, and instant), so what moves the medians is the error switched on and
-the analysis, not the forward model. Per configuration and method: recovered
-minus true median ν per frequency (true median over the included cells), the
-included count, and (emulator) how often the 95 % interval holds the true ν.
-Configurations: none; volume (SD 7.5 %); height offset (SD 0.5 µm); force
-noise (0.2 nN); drift (±0.001 nN/s); blebbing (8 % of cells, with the others
-off; the tension filter should exclude them); all.
+Configurations: none; volume (SD 7.5 %); height offset (SD 0.5 µm, one per
+cell); force noise (0.2 nN); drift (±0.001 nN/s); blebbing (8 % of cells,
+with the others off; the tension filter should exclude them); all. Per seed,
+configuration and method: recovered minus true median ν per frequency (true
+median over the included cells), the included count, (emulator) how often
+the 95 % interval holds the true ν (and how often the percentile interval of
+the same draws would), and what the filters' exclusions alone do
+(`exclusion_shift`: the true median over the included cells minus the true
+median over all non-blebbing cells); then the mean over the seeds.
 
-    python bench/error_sources.py [SEED]        (default 6)
+The forward model is the fast solver (`--forward solver`, the default) or the
+shipped emulator (`--forward emulator`, within 0.05 % of the solver and
+instant). A seed's cells draw the same random numbers whatever errors are on
+(an error switched off is multiplied by 0), so the seven configurations of a
+seed ask the forward model the same questions: the answers are memoised, and
+with `--cache FILE` kept in FILE (a pickle this script writes) for reruns.
+
+    python bench/error_sources.py [SEED ...] [--forward solver|emulator] [--cache FILE]
+        (default seeds 6 7 8 9)
 """
 
+import argparse
 import json
+import pickle
 import sys
 from pathlib import Path
 
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+
+import numpy as np  # noqa: E402
 
 from analysis.afm import synth  # noqa: E402
 from analysis.afm.analyze import analyze  # noqa: E402
@@ -39,26 +52,94 @@ def emulator_forward(emu, bending="standard"):
     return forward
 
 
-def main():
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+def memoised(forward, cache):
+    """`forward` answering repeated questions from the dict `cache`."""
+    def ask(volume, heights, bulk, shear, tension):
+        key = (float(volume), tuple(np.asarray(heights, float)), float(bulk), float(shear), float(tension))
+        if key not in cache:
+            cache[key] = np.asarray(forward(volume, heights, bulk, shear, tension))
+        return cache[key]
+    return ask
+
+
+def percentile_coverage(table, truth):
+    """How often the percentile interval of the same draws, [2 l* - hi, 2 l* - lo] in
+    l = ln K̃_S ([lo, hi] the basic interval the analysis reports), holds the true K̃_S."""
+    ok = table[table["excluded_reason"].isna()]
+    lt = np.log([truth["frequencies"][str(float(r.frequency_hz))]["cells"][r.cell_id]["ks_tilde"]
+                 for r in ok.itertuples()])
+    l, lo, hi = (np.log(ok[c].to_numpy(float)) for c in ("ks_tilde", "ks_lo95", "ks_hi95"))
+    return float(np.mean((2 * l - hi <= lt) & (lt <= 2 * l - lo)))
+
+
+def run_seed(seed, cal, emu, forward):
     from roundtrip import score
-    seed = int(sys.argv[1]) if len(sys.argv) > 1 else 6
-    cal, emu, _ = load()
-    out = {"benchmark": "error_sources", "seed": seed, "cells": 85, "rows": []}
+    rows, table_emu = [], None
     for name, keep in ONLY.items():
         synth.ERRORS.update({k: (v if k in keep else 0.0) for k, v in ALL.items()})
-        cells, truth = synth.generate(85, seed, errors=True, forward=emulator_forward(emu))
-        row = {"errors_on": name}
+        try:
+            cells, truth = synth.generate(85, seed, errors=True, forward=forward)
+        finally:
+            synth.ERRORS.update(ALL)
+        row = {"seed": seed, "errors_on": name}
         for method in ("emulator", "law"):
             table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
             s = score(table, truth)
-            row[method] = {"n_included": s["n_included"], "coverage_95": s.get("coverage_95"),
+            table_emu = table if method == "emulator" else table_emu
+            row[method] = {"n_included": s["n_included"], "n_curves": s["n_curves"],
+                           "coverage_95": s.get("coverage_95"),
                            "median_error": {f: round(v["median_nu"] - v["median_nu_true"], 4)
-                                            for f, v in s["per_frequency"].items()}}
-        out["rows"].append(row)
+                                            for f, v in s["per_frequency"].items()},
+                           "exclusion_shift": {f: round(v["median_nu_true"] - truth["frequencies"][str(float(f))]
+                                                        ["median_nu_true"], 4) for f, v in s["per_frequency"].items()}}
+        row["emulator"]["coverage_95_percentile"] = percentile_coverage(table_emu, truth)
+        rows.append(row)
         print(json.dumps(row), file=sys.stderr, flush=True)
-    synth.ERRORS.update(ALL)
-    print(json.dumps(out))
+    return rows
+
+
+def mean_over_seeds(rows):
+    out = []
+    for name in ONLY:
+        sel = [r for r in rows if r["errors_on"] == name]
+        row = {"errors_on": name, "seeds": len(sel)}
+        for method in ("emulator", "law"):
+            m = [r[method] for r in sel]
+            freqs = m[0]["median_error"]
+            cov = [x["coverage_95"] for x in m if x["coverage_95"] is not None]
+            row[method] = {"n_included": sum(x["n_included"] for x in m), "n_curves": sum(x["n_curves"] for x in m),
+                           "coverage_95": (float(np.sum([c * x["n_included"] for c, x in zip(cov, m)])
+                                                 / sum(x["n_included"] for x in m)) if cov else None),
+                           "coverage_95_percentile": (float(np.mean([x["coverage_95_percentile"] for x in m]))
+                                                      if method == "emulator" else None),
+                           "median_error_mean": {f: round(float(np.mean([x["median_error"][f] for x in m])), 4)
+                                                 for f in freqs},
+                           "median_error_max_abs": {f: round(float(np.max([abs(x["median_error"][f]) for x in m])), 4)
+                                                    for f in freqs},
+                           "exclusion_shift_mean": {f: round(float(np.mean([x["exclusion_shift"][f] for x in m])), 4)
+                                                    for f in freqs}}
+        out.append(row)
+    return out
+
+
+def main():
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("seeds", nargs="*", type=int, default=[6, 7, 8, 9])
+    p.add_argument("--forward", choices=("solver", "emulator"), default="solver")
+    p.add_argument("--cache", type=Path, help="pickle of the forward model's answers (read if present, written)")
+    a = p.parse_args()
+    cal, emu, _ = load()
+    base = synth.solver_forward("standard") if a.forward == "solver" else emulator_forward(emu)
+    cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
+    forward = memoised(base, cache)
+    rows = []
+    for seed in a.seeds:
+        rows += run_seed(seed, cal, emu, forward)
+        if a.cache:
+            a.cache.write_bytes(pickle.dumps(cache))
+    print(json.dumps({"benchmark": "error_sources", "forward": a.forward, "seeds": a.seeds, "cells": 85,
+                      "rows": rows, "mean_over_seeds": mean_over_seeds(rows)}))
 
 
 if __name__ == "__main__":
