@@ -45,7 +45,9 @@ if ((${#missing[@]})); then
     apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-libmpich=$(ldconfig -p | awk '$1 == "libmpich.so.12" {print $NF; exit}')
+# awk reads to the end (no early `exit`): under pipefail an early exit can kill ldconfig with
+# SIGPIPE mid-write and fail this line with status 141, depending on timing.
+libmpich=$(ldconfig -p | awk '$1 == "libmpich.so.12" && !found {print $NF; found = 1}')
 [[ -n $libmpich ]] || { echo "setup-parallel: libmpich.so.12 not found after installing mpich" >&2; exit 1; }
 
 # 2. The venv, the MPI link and the wrapper.
