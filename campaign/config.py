@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 from campaign import faults
 from campaign.trials import MODES, Study, grid_shear
+from solver.compression import METHODS
 from solver.errors import InputError
 from solver.geometry import cell_radius
 from solver.model import BENDING_VARIANTS, Shell
@@ -112,12 +113,34 @@ def _numbers(path, key, value):
 
 def load(path):
     """Read and validate a campaign file; InputError with one line if it is wrong."""
+    raw, data = _read_toml(path)
+    grid = _grid_section(path, data)
+    ratios = _ratio_axes(path, grid)
+    axes = _axes(path, grid, ratios)
+    method, resolution, timeout = _solver_section(path, data.get("solver", {}))
+    meta = _campaign_section(path, data.get("campaign", {}))
+    limit = _max_tasks(path, meta)
+    _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
+    shells = _shells(path, axes, ratios, resolution)
+    test = faults.parse(path, data.get("test", {}), len(shells))
+    mc = data.get("montecarlo")
+    _check_montecarlo_grid(path, mc, grid, ratios)
+    studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
+    return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
+                    resolution=resolution, timeout_s=timeout, shells=tuple(shells),
+                    text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
+
+
+def _read_toml(path):
+    """The file's bytes and its TOML tables, every section and key a known one."""
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
         data = tomllib.loads(raw.decode())
     except FileNotFoundError:
         raise InputError(f"{path}: no such campaign file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder, not a campaign file") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
         raise InputError(f"{path}: not valid TOML ({err})") from None
     for section, value in data.items():
@@ -128,18 +151,26 @@ def load(path):
         unknown = set(value) - SECTIONS[section]
         if unknown:
             raise InputError(f"{path}: unknown key {sorted(unknown)[0]!r} in [{section}]")
+    return raw, data
+
+
+def _grid_section(path, data):
+    """[grid] with the defaults filled in."""
     if "grid" not in data:
         raise InputError(f"{path}: no [grid] section")
     grid = {**DEFAULTS, **data["grid"]}
     if "bulk_mN_per_m" not in grid:
         raise InputError(f"{path}: [grid] needs bulk_mN_per_m")
-    ratios = _ratio_axes(path, grid)
+    return grid
+
+
+def _axes(path, grid, ratios):
+    """Each grid key's list of values (dimensionless ones where given in their place)."""
     axes = {}
     for key in GRID_KEYS:
         if key in ratios:
             axes[key] = ratios[key]
-            continue
-        if key == "bending":
+        elif key == "bending":
             names = grid[key] if isinstance(grid[key], list) else [grid[key]]
             bad = [n for n in names if n not in BENDING_VARIANTS]
             if bad or not names:
@@ -149,43 +180,48 @@ def load(path):
             axes[key] = [None]
         else:
             axes[key] = _numbers(path, key, grid[key])
-    solver = data.get("solver", {})
+    return axes
+
+
+def _solver_section(path, solver):
+    """[solver]: method (one of `solver.compression.METHODS`), resolution, timeout_s."""
     method = solver.get("method", "fast")
-    if method not in ("fast", "explicit"):
-        raise InputError(f"{path}: [solver] method must be fast or explicit (got {method!r})")
+    if method not in METHODS:
+        raise InputError(f"{path}: [solver] method must be one of {', '.join(METHODS)} (got {method!r})")
     resolution, timeout = solver.get("resolution", 1.0), solver.get("timeout_s", 600.0)
     for key, value in (("resolution", resolution), ("timeout_s", timeout)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
             raise InputError(f"{path}: [solver] {key} must be a positive number (got {value!r})")
-    meta = data.get("campaign", {})
-    limit = _max_tasks(path, meta)
-    _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
+    return method, float(resolution), float(timeout)
+
+
+def _campaign_section(path, meta):
+    for key in ("name", "store"):
+        if key in meta and not isinstance(meta[key], str):
+            raise InputError(f"{path}: [campaign] {key} must be a string")
+    return meta
+
+
+def _shells(path, axes, ratios, resolution):
+    """Every point of the grid's Cartesian product as a checked `Shell`."""
     shells = []
     for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
         p = _absolute(dict(zip(GRID_KEYS, combo)), ratios)
         try:
-            shells.append(Shell(volume_um3=p["volume_um3"], h0_um=p["h0_um"], dh_um=p["dh_um"],
-                                bulk_mN_per_m=p["bulk_mN_per_m"], shear_mN_per_m=p["shear_mN_per_m"],
-                                tension_mN_per_m=p["tension_mN_per_m"], thickness_um=p["thickness_um"],
-                                bending=p["bending"], resolution=float(resolution),
-                                viscosity_Pa_s=p["viscosity_Pa_s"], frequency_hz=p["frequency_hz"]))
+            shells.append(Shell(**p, resolution=resolution))
         except InputError as err:
             raise InputError(f"{path}: [grid] {err}") from None
-    for key in ("name", "store"):
-        if key in meta and not isinstance(meta[key], str):
-            raise InputError(f"{path}: [campaign] {key} must be a string")
-    test = faults.parse(path, data.get("test", {}), len(shells))
-    mc = data.get("montecarlo")
+    return shells
+
+
+def _check_montecarlo_grid(path, mc, grid, ratios):
+    """Trials need elastic cells on absolute axes."""
     if mc is not None and any(key in grid for key in OPTIONAL):
         raise InputError(f"{path}: [montecarlo] trials use elastic cells: drop viscosity_Pa_s and "
                          "frequency_hz from [grid] (or the [montecarlo] section)")
     if mc is not None and ratios:
         raise InputError(f"{path}: [montecarlo] needs the absolute [grid] axes h0_um, shear_mN_per_m and "
                          f"tension_mN_per_m (got {', '.join(RATIO_AXES[k] for k in ratios)})")
-    studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
-    return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
-                    resolution=float(resolution), timeout_s=float(timeout), shells=tuple(shells),
-                    text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
 
 
 def _max_tasks(path, meta):

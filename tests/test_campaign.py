@@ -123,6 +123,14 @@ def test_bad_campaign_file_one_line_exit_2_store_untouched(reference_store, tmp_
     assert (reference_store.read_bytes(), reference_store.stat().st_mtime_ns) == before
 
 
+
+def test_a_folder_as_campaign_file_is_one_line_exit_2(reference_store, tmp_path):
+    before = reference_store.read_bytes()
+    out = cortex("campaign", "run", str(tmp_path), "--store", str(reference_store))
+    assert out.returncode == 2 and "is a folder" in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert reference_store.read_bytes() == before
+
 def test_injected_faults_are_recorded_and_the_rest_completes(tmp_path):
     """A task that raises, one that hangs past its timeout and one that returns
     NaN are each failed with their message; the fourth is done; exit status 1.
