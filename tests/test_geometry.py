@@ -231,7 +231,7 @@ def test_cli_json_several_heights():
         for key in keys - {"h_tilde"}:
             assert row[key] == pytest.approx(float(getattr(d, key)[i]), rel=1e-14)
         assert row["h_tilde"] == pytest.approx(float(d.h_tilde[i]), rel=1e-14)
-    # the README's example
+    # the example of docs/cli.md
     assert rows[1]["force_per_tension_um"] == pytest.approx(31.1427, abs=1e-4)
 
 
