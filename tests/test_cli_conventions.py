@@ -130,3 +130,35 @@ def test_campaign_json_and_a_reader_that_stops_early(tmp_path):
         proc.stdout.close()                          # the reader stops before the first line
         err = proc.stderr.read().decode()
         assert proc.wait(timeout=120) == 0 and err == "", err
+
+
+def test_the_command_line_is_the_top_floor():
+    """Nothing below cortex/ imports `cortex` (the version comes from package metadata)."""
+    import ast
+    offenders = []
+    for path in ROOT.glob("*/**/*.py"):
+        top = path.relative_to(ROOT).parts[0]
+        if top in ("cortex", "tests", ".venv", "build") or top.startswith(".venv"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            offenders += [f"{path.relative_to(ROOT)}:{node.lineno}" for n in names if n.split(".")[0] == "cortex"]
+    assert not offenders, offenders
+
+
+def test_help_and_the_packages_load_no_numpy():
+    """`cortex --help` (the whole parser) and `import solver, campaign, analysis` stay light;
+    each package's public names (`__all__`) resolve when asked for."""
+    code = ("import sys; import cortex.cli, solver, campaign, analysis, analysis.afm, outputs; "
+            "cortex.cli.build_parser(); print(sorted(m for m in ('numpy', 'numba', 'h5py', 'mpi4py') "
+            "if m in sys.modules))")
+    done = subprocess.run([str(CORTEX.with_name("python")), "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", (done.stdout, done.stderr)
+    import importlib
+    for name in ("solver", "campaign", "analysis", "analysis.afm", "outputs", "cortex"):
+        package = importlib.import_module(name)
+        assert package.__all__, name
+        for public in package.__all__:
+            assert getattr(package, public) is not None, (name, public)
