@@ -17,6 +17,11 @@ def register(sub):
                        description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_invert):
+        add(s)
+
+
+def _add_calibrate(s):
     c = s.add_parser("calibrate", help="fit the calibration laws, check them, write DIR/report.md",
                      description="Fit K(h~) = K_B (1 + alpha exp(h~/lambda)) per bending variant, "
                                  "alpha = C ln(K_S/K_B) + D with cubic C, D in gamma_a/K_B; check the "
@@ -29,6 +34,9 @@ def register(sub):
     c.add_argument("--json", action="store_true", help="one JSON object: report, lambda per bending variant, "
                    "left_out, wall_s")
     c.set_defaults(handler="analysis.cli:calibrate")
+
+
+def _add_viscosity(s):
     v = s.add_parser("viscosity", help="|K*|/K and loss angle of a viscous-interior campaign",
                      description="Tabulate and plot the viscous-interior study (SPEC 7) of a campaign "
                                  "with viscosity_Pa_s and frequency_hz grid axes: |K*|/K and the loss "
@@ -39,6 +47,9 @@ def register(sub):
     v.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     v.add_argument("--json", action="store_true", help="one JSON object: report and the rows of viscosity.csv")
     v.set_defaults(handler="analysis.cli:viscosity")
+
+
+def _add_build_calibration(s):
     b = s.add_parser("build-calibration", help="the calibration file: emulator tables + paper law + provenance",
                      description="Build DIR/calibration.json (format version 2) from a finished emulator "
                                  "campaign store (campaigns/emulator.toml) and, optionally, the paper "
@@ -50,6 +61,9 @@ def register(sub):
                    "calibration.json cortex wrote (like analysis/data) is accepted")
     b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
     b.set_defaults(handler="analysis.cli:build_calibration")
+
+
+def _add_invert(s):
     i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
                      description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
                                  "tension_mN_per_m (optional frequency_hz, volume_um3; one row per cell "

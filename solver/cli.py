@@ -40,6 +40,11 @@ def add_bending(p, what="bending variant"):
 
 
 def register(sub):
+    for add in (_add_geometry, _add_compress, _add_poroelastic):
+        add(sub)
+
+
+def _add_geometry(sub):
     p = sub.add_parser(
         "geometry", help="the droplet shape of a confined cell (SPEC section 1)",
         description="Solve the stress-free droplet shape of a cell of volume V between plates "
@@ -51,6 +56,8 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="one JSON object per height")
     p.set_defaults(handler="solver.cli:geometry")
 
+
+def _add_compress(sub):
     p = sub.add_parser(
         "compress", help="one compression h0 -> h0 - dh of the elastic cortical shell",
         description="Compress the elastic cortex shell (SPEC section 2) from gap h0 to h0 - dh at "
@@ -81,6 +88,8 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(handler="solver.cli:compress")
 
+
+def _add_poroelastic(sub):
     p = sub.add_parser(
         "poroelastic", help="the poroelastic layer's effective modulus (SPEC section 8)",
         description="Effective compression modulus of a poroelastic layer of thickness t_c "

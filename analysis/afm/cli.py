@@ -36,11 +36,17 @@ def jpk_options(args):
 
 
 def register(sub):
-    from analysis.cli import OUT_HELP, add_inversion_options
-    from solver.cli import SOLVERS, add_bending, names_of
     p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics",
                        description="AFM recordings of confined cells (SPEC 6).")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    _add_synth(s)
+    _add_import(s)
+    _add_analyze(s)
+
+
+def _add_synth(s):
+    from analysis.cli import OUT_HELP
+    from solver.cli import SOLVERS, add_bending, names_of
     g = s.add_parser("synth", help="write a synthetic experiment: DIR/experiment.h5 and DIR/truth.json",
                      description="Simulate AFM recordings of --cells cells of known Poisson ratio (SPEC 6) "
                                  "into DIR/experiment.h5 and their true values into DIR/truth.json.")
@@ -56,6 +62,10 @@ def register(sub):
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler="analysis.afm.cli:synth")
+
+
+def _add_import(s):
+    from analysis.cli import OUT_HELP
     m = s.add_parser("import", help="JPK text exports and binary JPK files into DIR/experiment.h5",
                      description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data (-series) "
                                  "files (each map or QI pixel its own recording) into the native experiment "
@@ -66,6 +76,10 @@ def register(sub):
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
                    "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
     m.set_defaults(handler="analysis.afm.cli:import_")
+
+
+def _add_analyze(s):
+    from analysis.cli import OUT_HELP, add_inversion_options
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
                                  "calibration, with 95 % intervals), population statistics, figures and "
