@@ -48,9 +48,8 @@ demo: setup
 	@echo "demo store: results/demo.h5 (cortex campaign status results/demo.h5); report: results/demo-analysis/report.md"
 	@# a small synthetic experiment (12 cells, the solver as forward model, errors on; kept once made),
 	@# analysed with the calibration shipped in the package: nu per frequency with 95 % intervals
-	@mkdir -p results/demo-cells
-	@[ -e results/demo-cells/experiment.h5 ] || $(BIN)/cortex afm synth --cells 12 --seed 7 --out results/demo-cells/experiment.h5
-	$(BIN)/cortex afm analyze results/demo-cells/experiment.h5 --out results/demo-cells/analysis
+	@[ -e results/demo-cells/experiment.h5 ] || $(BIN)/cortex afm synth --cells 12 --seed 7 --out results/demo-cells
+	$(BIN)/cortex afm analyze results/demo-cells --out results/demo-cells/analysis
 	@sed -n '/^Median/,/^Each cell/p' results/demo-cells/analysis/report.md
 	@echo "true medians: results/demo-cells/truth.json; per cell: results/demo-cells/analysis/cells.csv"
 
@@ -92,8 +91,8 @@ analysis: setup
 
 # The shipped calibration: the emulator campaign and the paper campaign under
 # mpiexec (about 4-5 min on 2 shared cores; reruns resume), then one file with
-# both and their provenance.
-CALIBRATION := analysis/data/calibration.json
+# both and their provenance ($(CALIBRATION)/calibration.json).
+CALIBRATION := analysis/data
 .PHONY: calibration
 calibration: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/emulator.toml --store results/emulator.h5 || [ $$? = 1 ]  # a failed point is solved again by build-calibration

@@ -5,4 +5,28 @@ the Monte-Carlo error study (SPEC 5), figures and reports.
 Modules: `laws` (the law and its fits), `calibration` (steps 1-4, the
 `Calibration` file), `inversion` (one cell, or many at once), `reconstruction`,
 `montecarlo`, `figures`, `report` (the whole run), `cli`, `synthetic` (store
-tables generated from the laws, for tests and benchmarks)."""
+tables generated from the laws, for tests and benchmarks).
+
+Public API (imported on first use):
+
+- `calibrate(results)` -> `Calibration` (a `Law` per bending variant), from
+  `campaign.read_results(store)`; `Calibration.load(path)`.
+- `load_calibration(path=None)` -> (Calibration or None, Emulator or None,
+  provenance): a calibration file, by default the one shipped in the package
+  (`shipped_path()`).
+- `invert_cell(h_tilde, K, gamma_a, calibration, bending)` -> `CellInversion`
+  (ν of one cell by the law); `invert_rows(rows, method, ...)`: a table of
+  K(h̃) per cell by either method, with 95 % intervals (`Errors`); `METHODS`,
+  the inversion methods.
+"""
+
+from solver.lazy_exports import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "calibrate": "analysis.calibration", "Calibration": "analysis.calibration", "Law": "analysis.calibration",
+    "load_calibration": "analysis.shipped:load", "shipped_path": "analysis.shipped",
+    "Emulator": "analysis.emulator",
+    "invert_cell": "analysis.inversion", "CellInversion": "analysis.inversion",
+    "invert_rows": "analysis.invert_table", "Errors": "analysis.invert_table", "METHODS": "analysis.invert_table",
+    "reconstruct": "analysis.reconstruction",
+})

@@ -1,7 +1,15 @@
 """`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
-viscosity STORE --out DIR`, `cortex analysis build-calibration` and `cortex
-analysis invert TABLE.csv --out DIR` (argparse only; the work is imported when
-the command runs)."""
+viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR` and
+`cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
+imported when the command runs). Every one takes `--json` (its results as one
+JSON object or list on stdout) and writes into its `--out` folder under the
+manifest rules of `outputs.ownership.OutputDir`."""
+
+from solver.cli import add_bending, names_of
+
+OUT_HELP = ("output folder (created if missing); a non-empty folder cortex did not write is refused "
+            "(DIR/.cortex-outputs lists what cortex wrote there, which a rerun may replace)")
+CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
 
 
 def register(sub):
@@ -9,18 +17,26 @@ def register(sub):
                        description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_invert):
+        add(s)
+
+
+def _add_calibrate(s):
     c = s.add_parser("calibrate", help="fit the calibration laws, check them, write DIR/report.md",
                      description="Fit K(h~) = K_B (1 + alpha exp(h~/lambda)) per bending variant, "
                                  "alpha = C ln(K_S/K_B) + D with cubic C, D in gamma_a/K_B; check the "
                                  "reconstruction of nu; summarise the Monte-Carlo trials. Writes "
                                  "DIR/calibration.json, CSV tables, figures and DIR/report.md.")
     c.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
-    c.add_argument("--out", required=True, metavar="DIR",
-                   help="output directory (created if missing); a non-empty folder cortex did not write is "
-                        "refused (DIR/.cortex-outputs lists what cortex wrote there)")
+    c.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     c.add_argument("--partial", action="store_true",
                    help="analyse an unfinished store with what is done, saying what was left out")
+    c.add_argument("--json", action="store_true", help="one JSON object: report, lambda per bending variant, "
+                   "left_out, wall_s")
     c.set_defaults(handler="analysis.cli:calibrate")
+
+
+def _add_viscosity(s):
     v = s.add_parser("viscosity", help="|K*|/K and loss angle of a viscous-interior campaign",
                      description="Tabulate and plot the viscous-interior study (SPEC 7) of a campaign "
                                  "with viscosity_Pa_s and frequency_hz grid axes: |K*|/K and the loss "
@@ -28,25 +44,33 @@ def register(sub):
                                  "per frequency at which the elastic calibration holds to 1 %. Writes "
                                  "DIR/viscosity.csv, DIR/viscosity.png/.pdf and DIR/viscosity.md.")
     v.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
-    v.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing)")
+    v.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    v.add_argument("--json", action="store_true", help="one JSON object: report and the rows of viscosity.csv")
     v.set_defaults(handler="analysis.cli:viscosity")
+
+
+def _add_build_calibration(s):
     b = s.add_parser("build-calibration", help="the calibration file: emulator tables + paper law + provenance",
-                     description="Build a calibration file (format version 2) from a finished emulator "
+                     description="Build DIR/calibration.json (format version 2) from a finished emulator "
                                  "campaign store (campaigns/emulator.toml) and, optionally, the paper "
                                  "campaign's store (its law, for --method law). `make calibration` "
                                  "rebuilds the one shipped in the package this way.")
     b.add_argument("--emulator-store", required=True, metavar="STORE.h5")
     b.add_argument("--law-store", metavar="STORE.h5", help="store of campaigns/paper.toml (optional)")
-    b.add_argument("--out", required=True, metavar="CAL.json", help="file to write (refused if it exists "
-                   "and is not a calibration file)")
+    b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP + "; a folder holding only a "
+                   "calibration.json cortex wrote (like analysis/data) is accepted")
+    b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
     b.set_defaults(handler="analysis.cli:build_calibration")
+
+
+def _add_invert(s):
     i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
                      description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
                                  "tension_mN_per_m (optional frequency_hz, volume_um3; one row per cell "
                                  "and height) into nu per cell and frequency. Writes DIR/cells.csv; with "
                                  "--json also a JSON list on stdout.")
     i.add_argument("table", metavar="TABLE.csv")
-    i.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing)")
+    i.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(i)
     i.add_argument("--json", action="store_true", help="print the per-cell results as a JSON list")
     i.set_defaults(handler="analysis.cli:invert")
@@ -56,11 +80,12 @@ def add_inversion_options(p):
     """--calibration, --method, --bending and the interval's error options (shared with `cortex afm analyze`)."""
     p.add_argument("--calibration", metavar="CAL.json",
                    help="calibration file (default: the one shipped with the package)")
-    p.add_argument("--method", choices=("emulator", "law"), default=None,
-                   help="emulator (the default: K_B and K_S/K_B fitted on the solver's tables) or law "
+    p.add_argument("--method", choices=names_of("analysis.invert_table:METHODS"), default=None, metavar="METHOD",
+                   help="inversion method, %(choices)s: emulator (the default: K_B and K_S/K_B fitted on the "
+                        "solver's tables) or law "
                         "(the paper's phenomenological law, for comparison); a calibration file without "
                         "emulator tables (from `cortex analysis calibrate`) defaults to law")
-    p.add_argument("--bending", default="standard", help="bending variant: standard (default), double, none")
+    add_bending(p, "bending variant of the calibration")
     p.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default 0.075)")
     p.add_argument("--height-sd", type=float, default=0.5, metavar="UM",
@@ -84,31 +109,48 @@ def inversion_settings(args):
 def calibrate(args):
     from analysis.report import run
     result = run(args.store, args.out, partial=args.partial)
-    print(f"report: {result['report']}")
+    laws = result["calibration"].laws
+    say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},
+                      "left_out": list(result["left_out"]), "wall_s": result["wall_s"]},
+               f"report: {result['report']}")
     return 0
 
 
 def viscosity(args):
+    import pandas as pd
+
     from analysis.viscosity import run
-    print(f"report: {run(args.store, args.out)}")
+    report = run(args.store, args.out)
+    rows = pd.read_csv(report.with_name("viscosity.csv")).to_dict("records") if args.json else []
+    say_result(args, {"report": str(report), "rows": rows}, f"report: {report}")
     return 0
 
 
 def build_calibration(args):
     from analysis import shipped
-    from outputs.ownership import check_file
+    from outputs.ownership import OutputDir
     from solver.errors import InputError
 
     def ours(path):
         try:
-            return shipped.load(path) is not None
+            return path.is_file() and shipped.load(path) is not None
         except InputError:
             return False
-    out = check_file(args.out, ours, "--out")       # a file that is not a calibration file is left alone
+    out = OutputDir(args.out, written_before_manifests=lambda d: ours(d / CALIBRATION_FILE))
+    out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
     doc = shipped.build(args.emulator_store, args.law_store, progress=_say)
-    shipped.write(doc, out)
-    print(f"wrote {out} (emulator: {', '.join(doc['emulator'])}; law: {', '.join(doc['variants']) or 'none'})")
+    with out.writing(CALIBRATION_FILE) as path:
+        shipped.write(doc, path)
+    say_result(args, {"calibration": str(path), "emulator_variants": list(doc["emulator"]),
+                      "law_variants": list(doc["variants"])},
+               f"wrote {path} (emulator: {', '.join(doc['emulator'])}; law: {', '.join(doc['variants']) or 'none'})")
     return 0
+
+
+def say_result(args, result, line):
+    """A command's result: `result` as one JSON object on stdout with --json, else `line`."""
+    import json
+    print(json.dumps(plain(result)) if args.json else line)
 
 
 def invert(args):
@@ -127,17 +169,20 @@ def invert(args):
     if args.json:
         keys = ["cell_id", "frequency_hz", "nu", "nu_lo95", "nu_hi95", "ks_tilde", "bulk_mN_per_m", "r2",
                 "method", "excluded_reason"]
-        records = [{k: _plain(r[k]) for k in keys} for _, r in table.iterrows()]
+        records = [{k: plain(r[k]) for k in keys} for _, r in table.iterrows()]
         print(json.dumps(records))
     else:
         print(f"wrote {path} ({len(table)} curves, {int(table['excluded_reason'].isna().sum())} included)")
     return 0
 
 
-def _plain(x):
+def plain(x):
+    """`x` with numpy scalars as Python numbers and NaN as None, in dicts and lists too (for json.dumps)."""
     import math
-    if x is None or (isinstance(x, float) and math.isnan(x)):
-        return None
+    if isinstance(x, dict):
+        return {k: plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
     if hasattr(x, "item"):
         x = x.item()
     return None if isinstance(x, float) and math.isnan(x) else x

@@ -188,8 +188,9 @@ def _table(header, rows):
 
 def render(store, calibration, recon_summary, mc_records, checks, left_out, figs, n_done, notes=()):
     """report.md as text."""
-    from cortex import __version__
+    from importlib.metadata import version             # the code version, as campaign stores record it
     from analysis.figures import ORDER
+    __version__ = version("cortex-poisson")
     L = [f"# Calibration and Monte-Carlo analysis of `{store}`", "",
          f"cortex {__version__}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
          f"{n_done} finished compressions used.", ""]

@@ -48,7 +48,8 @@ def build(emulator_store, law_store=None, progress=None):
     the paper campaign's store (its law fitted by `analysis.calibration.calibrate`)."""
     from analysis.calibration import calibrate
     from analysis.report import read_store
-    from cortex import __version__
+    from importlib.metadata import version             # the code version, as campaign stores record it
+    __version__ = version("cortex-poisson")
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
     doc = {"format": FORMAT, "version": VERSION, "variants": {},

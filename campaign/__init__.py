@@ -1,2 +1,23 @@
 """The campaign engine: campaign files, the task grid, the MPI master/worker
-scheduler and the resumable HDF5 store."""
+scheduler and the resumable HDF5 store.
+
+Public API (imported on first use):
+
+- `load_config(path)` -> `Campaign`: a campaign file, checked (its shells,
+  studies, solver method).
+- `run(campaign, store_path, ...)`: run or resume it under MPI (every rank
+  calls it; the exit status is returned).
+- `read_results(store)`, `read_trials(store)`: the store's compressions and
+  Monte-Carlo trials as pandas DataFrames; `summary(store)`: counts, failures,
+  throughput (what `cortex campaign status --json` prints);
+  `read_provenance(store)`: what made it.
+"""
+
+from solver.lazy_exports import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "load_config": "campaign.config:load", "Campaign": "campaign.config",
+    "run": "campaign.scheduler",
+    "read_results": "campaign.store", "read_trials": "campaign.store", "summary": "campaign.store",
+    "read_provenance": "campaign.store",
+})

@@ -1,4 +1,6 @@
-"""`cortex campaign run|status`."""
+"""`cortex campaign run|status`. Both take `--json`: the store's summary (the
+object `cortex campaign status --json` prints) on stdout; progress and
+messages go to stderr."""
 
 
 def register(sub):
@@ -20,6 +22,8 @@ def register(sub):
     r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
     r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
     r.add_argument("--quiet", action="store_true", help="no progress output")
+    r.add_argument("--json", action="store_true", help="at the end, the store's summary as one JSON object "
+                   "(as `cortex campaign status --json`)")
     r.add_argument("--write-path", choices=("auto", "mpio", "rank0"), default="auto",
                    help="how rows reach the store: mpio (every rank writes its own rows by parallel "
                         "HDF5; needs h5py built with MPI), rank0 (rank 0 writes all), auto (mpio where "
@@ -29,7 +33,8 @@ def register(sub):
     s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
                       description="Summarise a store (also while its campaign is running).")
     s.add_argument("store", metavar="STORE.h5")
-    s.add_argument("--json", action="store_true", help="one JSON object")
+    s.add_argument("--json", action="store_true", help="one JSON object: tasks, done, failed, running, pending, "
+                   "tasks_per_s, eta_s, failures (and trials)")
     s.set_defaults(handler="campaign.cli:status")
 
 
@@ -48,7 +53,11 @@ def run(args):
     status = scheduler.run(campaign, store, new=args.new, retry_failed=args.retry_failed,
                            progress=not args.quiet, writes=args.write_path)
     from mpi4py import MPI
-    if MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
+    if MPI.COMM_WORLD.Get_rank() == 0 and args.json:
+        import json
+        from campaign.store import summary
+        print(json.dumps({"store": store, "exit_status": status, **summary(store)}))
+    elif MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
         print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
     return status
 

@@ -529,8 +529,8 @@ def _clip(text):
 
 
 def _code_version():
-    from cortex import __version__
-    return __version__
+    from importlib.metadata import version      # package metadata: campaign/ never imports cortex/
+    return version("cortex-poisson")
 
 
 def _trial_columns(entry, N, m):

@@ -9,16 +9,25 @@ Errors from bad input (`solver.errors.InputError`, missing or unreadable files)
 become one line on stderr and exit status 2; a solver that finds no
 equilibrium, status 4; a write that fails (disk full), status 5; SIGTERM
 or Ctrl-C, status 3 (`cortex campaign run` handles them itself and stops
-cleanly). The whole table is in `solver.errors` and in every `--help`.
+cleanly). The whole table is in `solver.errors` and in every `--help`. A
+reader that stops early (`cortex campaign status STORE | head -1`) ends the
+command quietly, status 0.
+
+Conventions of every command (docs/cli.md): results on stdout, as one JSON
+object or list (JSON lines for `geometry` and `afm import`) with `--json`;
+`--out DIR` is always a folder; the same option names for the same things
+(`--solver`, `--bending`, `--method`, `--calibration`), their choices taken
+from the name lists' homes.
 """
 
 import argparse
 import importlib
+import os
 import signal
 import sys
 
 from cortex import __version__
-from solver.errors import (EXIT_BAD_INPUT, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
+from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
 
 REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
@@ -66,17 +75,37 @@ def _handler(spec):
     return getattr(importlib.import_module(module), func)
 
 
+def _silence_stdout():
+    """Point stdout at /dev/null, so that the interpreter's last flush at exit
+    does not meet the closed pipe again (and print a traceback)."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):   # not a file (captured): nothing to flush at exit
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, fd)
+    os.close(null)
+
+
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
 
 
 def main(argv=None):
+    """Run `cortex ARGV`; returns the exit status (also of a usage error, --help or --version)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:      # argparse has printed its one line (or the help): its status
+        return stop.code if isinstance(stop.code, int) else EXIT_BAD_INPUT * bool(stop.code)
     where = " ".join(a for a in (args.command, getattr(args, "subcommand", None)) if a)
     previous = signal.signal(signal.SIGTERM, _interrupt)   # SIGTERM stops like Ctrl-C: status 3
     try:
         status = _handler(args.handler)(args)
+        sys.stdout.flush()          # here, so that a closed pipe is met inside this try
+    except BrokenPipeError:         # the reader of stdout stopped early: nothing more to say
+        _silence_stdout()
+        return EXIT_DONE
     except InputError as err:
         print(f"cortex {where}: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -1,2 +1,27 @@
 """Physics only: droplet geometry, the elastic shell model, its solvers and the
-effective modulus. Imports nothing of `campaign` or `analysis`; no MPI, no files."""
+effective modulus. Imports nothing of `campaign` or `analysis`; no MPI, no files.
+
+Public API (imported on first use):
+
+- `droplet(V, h)` -> `Droplet`: the stress-free confined shape (SPEC 1);
+  `cell_radius(V)`, `sphere_height(V)`.
+- `Shell(...)`: one compression's parameters (SPEC 2); `BENDING_VARIANTS`
+  (name -> factor on B).
+- `compress(shell, method)` -> `Compression` (force, K, stretches); `METHODS`,
+  the solver names (`--solver` on the command line, `[solver] method` in a
+  campaign file).
+- `effective_modulus(V, h0, h1, gamma_a, F)`: SPEC 3.
+- `InputError`, `SolverError`, `WriteError` and the `EXIT_*` statuses live in
+  `solver.errors`.
+"""
+
+from solver.lazy_exports import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "droplet": "solver.geometry", "Droplet": "solver.geometry", "cell_radius": "solver.geometry",
+    "sphere_height": "solver.geometry", "profile": "solver.geometry",
+    "Shell": "solver.model", "BENDING_VARIANTS": "solver.model",
+    "compress": "solver.compression", "Compression": "solver.compression", "METHODS": "solver.compression",
+    "effective_modulus": "solver.modulus",
+    "InputError": "solver.errors", "SolverError": "solver.errors", "WriteError": "solver.errors",
+})

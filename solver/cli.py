@@ -1,11 +1,50 @@
 """Command-line entry points of the physics: `cortex geometry`, `cortex compress`,
-`cortex poroelastic`."""
+`cortex poroelastic`; and `names_of`, the choices of an option taken from the
+name list's one home without importing it before a parser needs it."""
 
+import importlib
 import json
 import sys
 
 
+class names_of:
+    """The names of `module.attr` (a dict or tuple, e.g. `solver.model.BENDING_VARIANTS`)
+    as argparse `choices`, imported only when a parser checks a value or prints its
+    help: `cortex --help` stays free of numpy. Extra names may follow (`extra`)."""
+
+    def __init__(self, spec, extra=()):
+        self.spec, self.extra = spec, tuple(extra)
+
+    def _names(self):
+        module, _, attr = self.spec.partition(":")
+        return (*getattr(importlib.import_module(module), attr), *self.extra)
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __contains__(self, name):
+        return name in self._names()
+
+    def __len__(self):
+        return len(self._names())
+
+
+BENDING = "solver.model:BENDING_VARIANTS"
+SOLVERS = "solver.compression:METHODS"
+
+
+def add_bending(p, what="bending variant"):
+    """`--bending VARIANT`, checked against solver.model.BENDING_VARIANTS (default standard)."""
+    p.add_argument("--bending", choices=names_of(BENDING), default="standard", metavar="VARIANT",
+                   help=f"{what}: %(choices)s (default %(default)s)")
+
+
 def register(sub):
+    for add in (_add_geometry, _add_compress, _add_poroelastic):
+        add(sub)
+
+
+def _add_geometry(sub):
     p = sub.add_parser(
         "geometry", help="the droplet shape of a confined cell (SPEC section 1)",
         description="Solve the stress-free droplet shape of a cell of volume V between plates "
@@ -17,6 +56,8 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="one JSON object per height")
     p.set_defaults(handler="solver.cli:geometry")
 
+
+def _add_compress(sub):
     p = sub.add_parser(
         "compress", help="one compression h0 -> h0 - dh of the elastic cortical shell",
         description="Compress the elastic cortex shell (SPEC section 2) from gap h0 to h0 - dh at "
@@ -29,13 +70,13 @@ def register(sub):
     p.add_argument("--bulk", type=float, required=True, metavar="MN_PER_M", help="area bulk modulus K_B, mN/m")
     p.add_argument("--shear", type=float, required=True, metavar="MN_PER_M", help="area shear modulus K_S, mN/m")
     p.add_argument("--tension", type=float, required=True, metavar="MN_PER_M", help="active tension gamma_a, mN/m")
-    p.add_argument("--bending", choices=("standard", "double", "none"), default="standard",
-                   help="bending variant: B = t^2 (K_B + K_S)/24, twice that, or 0 (standard)")
+    add_bending(p, "bending variant, B = t^2 (K_B + K_S)/24 (standard), twice that (double) or 0 (none)")
     p.add_argument("--bending-pN-um", type=float, default=None, metavar="B",
                    help="explicit bending stiffness, pN um (overrides --bending)")
     p.add_argument("--thickness", type=float, default=0.2, metavar="UM", help="cortex thickness t_c, um (0.2)")
-    p.add_argument("--solver", choices=("fast", "explicit"), default="fast",
-                   help="fast: direct equilibrium (default); explicit: the published gradient flow")
+    p.add_argument("--solver", choices=names_of(SOLVERS), default="fast", metavar="SOLVER",
+                   help="%(choices)s; fast: direct equilibrium (default); explicit: the published gradient "
+                        "flow (the campaign file's [solver] method)")
     p.add_argument("--resolution", type=float, default=1.0, help="mesh refinement factor (1)")
     p.add_argument("--viscosity", type=float, default=None, metavar="PA_S",
                    help="interior viscosity eta, Pa s: also oscillate around h0 - dh/2 at --frequency "
@@ -47,6 +88,8 @@ def register(sub):
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(handler="solver.cli:compress")
 
+
+def _add_poroelastic(sub):
     p = sub.add_parser(
         "poroelastic", help="the poroelastic layer's effective modulus (SPEC section 8)",
         description="Effective compression modulus of a poroelastic layer of thickness t_c "
@@ -68,7 +111,7 @@ def register(sub):
 
 
 def geometry(args):
-    from solver.geometry import Droplet, droplet
+    from solver.geometry import droplet
     d = droplet(args.volume, args.height)
     rows = [d.row(i) for i in range(len(args.height))]
     for row, ht in zip(rows, d.h_tilde):

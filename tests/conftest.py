@@ -1,9 +1,12 @@
 """What the tests share: ROOT, the project checkout (commands run there), and
-BIN, the virtual environment's bin directory (`cortex`, `mpiexec`); and the
+BIN, the virtual environment's bin directory (`cortex`, `mpiexec`); `cortex`,
+the one way a test runs the installed command (optionally under mpiexec); and the
 one way a test waits for something: `poll_until` a condition it can observe
 (a journal entry, a state in the store, a job's state), never a guessed
 number of seconds. `journal_counts` is the progress a campaign test observes."""
 
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -13,6 +16,22 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 POLL_S = 0.01           # between two looks: short against any task a test waits for
+CORTEX = BIN / "cortex"
+
+
+def cortex(*args, env=None, mpi=0, timeout=600):
+    """`cortex ARGS` as a user runs it (the installed command, from ROOT, stdin
+    closed), under `mpiexec -n MPI` if `mpi`; `env` adds to the environment.
+    The CompletedProcess, with text stdout and stderr."""
+    cmd = ([str(BIN / "mpiexec"), "-n", str(mpi)] if mpi else []) + [str(CORTEX), *map(str, args)]
+    return subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})},
+                          cwd=ROOT, timeout=timeout, stdin=subprocess.DEVNULL)
+
+
+@pytest.fixture(name="cortex")
+def cortex_fixture():
+    """The `cortex` helper as a fixture, for tests that take it as an argument."""
+    return cortex
 
 
 def poll_until(condition, timeout_s, what, proc=None, every_s=POLL_S):

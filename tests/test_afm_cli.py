@@ -27,10 +27,10 @@ def setup(tmp_path_factory):
 
 def test_synth_and_analyze(setup, tmp_path, capsys):
     d, cal, _, _ = setup
-    data = tmp_path / "exp.h5"
-    assert main(["afm", "synth", "--cells", "6", "--seed", "1", "--out", str(data), "--forward", "law",
+    data = tmp_path / "exp"
+    assert main(["afm", "synth", "--cells", "6", "--seed", "1", "--out", str(data), "--solver", "law",
                  "--calibration", str(cal)]) == 0
-    truth = json.loads((tmp_path / "truth.json").read_text())
+    truth = json.loads((data / "truth.json").read_text())
     assert len(truth["cells"]) == 6
     assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out")]) == 0
     s = json.loads((tmp_path / "out/summary.json").read_text())
@@ -41,7 +41,7 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
         assert (tmp_path / "out" / name).is_file()
     # refuses to overwrite
     capsys.readouterr()
-    assert main(["afm", "synth", "--cells", "2", "--out", str(data), "--forward", "law",
+    assert main(["afm", "synth", "--cells", "2", "--out", str(data), "--solver", "law",
                  "--calibration", str(cal)]) == 2
 
 
@@ -130,5 +130,5 @@ def test_bad_calibration_and_variant(setup, tmp_path, capsys):
     assert main(["afm", "analyze", str(good), "--calibration", str(tmp_path / "c.json"), "--out", str(tmp_path)]) == 2
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--out", str(tmp_path),
                  "--bending", "triple"]) == 2
-    assert main(["afm", "synth", "--cells", "0", "--out", str(tmp_path / "z.h5")]) == 2
+    assert main(["afm", "synth", "--cells", "0", "--out", str(tmp_path / "z")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 3

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from campaign.store import read_results, summary
-from conftest import BIN, ROOT, journal_counts, poll_until
+from conftest import BIN, ROOT, cortex, journal_counts, poll_until
 
 TINY = """
 [campaign]
@@ -23,12 +23,6 @@ bending = "none"
 timeout_s = 120.0
 """
 RESULT_COLUMNS = ["force_nN", "modulus_mN_per_m", "h_tilde", "volume_error"]
-
-
-def cortex(*args, env=None, mpi=0):
-    cmd = ([str(BIN / "mpiexec"), "-n", str(mpi)] if mpi else []) + [str(BIN / "cortex"), *args]
-    return subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})},
-                          cwd=ROOT, timeout=600)
 
 
 @pytest.fixture(scope="module")

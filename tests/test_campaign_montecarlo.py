@@ -15,7 +15,7 @@ import pytest
 from campaign import config
 from campaign.store import TRIAL_COLUMNS, read_results, read_trials
 from campaign.trials import Study, draws, grid_shear, run_study
-from conftest import BIN, ROOT, journal_counts, poll_until
+from conftest import BIN, ROOT, cortex, journal_counts, poll_until
 
 # fake_law: every compression returns at once the force of a smooth made-up law
 FAKE = """
@@ -39,12 +39,6 @@ fake_law = true
 """
 TRIAL_VALUES = ["volume_used_um3", "h0_used_um", "h1_used_um", "h_tilde", "modulus_mN_per_m",
                 "gamma_eff_mN_per_m", "tension_seen_mN_per_m", "tension_mN_per_m"]
-
-
-def cortex(*args, env=None, mpi=0):
-    cmd = ([str(BIN / "mpiexec"), "-n", str(mpi)] if mpi else []) + [str(BIN / "cortex"), *args]
-    return subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})},
-                          cwd=ROOT, timeout=600)
 
 
 def run(tmp, text, name="s.h5", mpi=0, env=None, extra=()):

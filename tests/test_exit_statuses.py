@@ -20,7 +20,7 @@ def _signalled(args):
     raise AssertionError("SIGTERM was not delivered")
 
 
-@pytest.mark.parametrize("command", [["afm", "synth", "--cells", "1", "--out", "x.h5"],
+@pytest.mark.parametrize("command", [["afm", "synth", "--cells", "1", "--out", "x"],
                                      ["analysis", "calibrate", "s.h5", "--out", "o"]])
 def test_sigterm_during_a_command_gives_status_3(command, monkeypatch, capsys):
     module = "analysis.afm.cli" if command[0] == "afm" else "analysis.cli"

@@ -4,20 +4,17 @@ curvature balance, the outline from `profile()`/`meridian()`, bad input, and
 the `cortex geometry` command."""
 
 import json
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import quad, simpson
 
+from conftest import cortex
 from solver.errors import InputError
 from solver.geometry import cell_radius, droplet, meridian, profile, sphere_height
 
 VOLUMES = [500.0, 1500.0, 4300.0, 9000.0, 20000.0]          # µm³
 H_TILDES = [0.3, 0.45, 0.6, 0.75, 0.9, 0.99, 0.999]
-CORTEX = Path(sys.executable).with_name("cortex")
 
 
 def integrate_in_r(R_c, R_eq):
@@ -217,11 +214,6 @@ def test_height_just_below_the_sphere_is_accepted():
 
 # -- the command line ---------------------------------------------------------
 
-def cortex(*args):
-    return subprocess.run([str(CORTEX), *args], capture_output=True, text=True, timeout=60,
-                          stdin=subprocess.DEVNULL)
-
-
 def test_cli_json_several_heights():
     heights = ["15", "12", "10"]
     done = cortex("geometry", "--volume", "4300", "--height", *heights, "--json")
@@ -239,7 +231,7 @@ def test_cli_json_several_heights():
         for key in keys - {"h_tilde"}:
             assert row[key] == pytest.approx(float(getattr(d, key)[i]), rel=1e-14)
         assert row["h_tilde"] == pytest.approx(float(d.h_tilde[i]), rel=1e-14)
-    # the README's example
+    # the example of docs/cli.md
     assert rows[1]["force_per_tension_um"] == pytest.approx(31.1427, abs=1e-4)
 
 

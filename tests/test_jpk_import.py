@@ -78,10 +78,10 @@ def test_written_map_pixels_import_to_the_cells(exp, tmp_path, at_top, suffix):
 
 def test_native_round_trip(exp, tmp_path, capsys):
     _, cells, folder, vol, _ = exp
-    out = tmp_path / "e.h5"
+    out = tmp_path / "e"
     assert main(["afm", "import", str(folder), "--volumes", str(vol), "--dish-height-um", "3", "--out",
                  str(out)]) == 0
-    back = read_experiment(out)
+    back = read_experiment(out / "experiment.h5")
     _, direct = import_cells([folder], volumes_csv=vol, dish_um=3.0)
     def plan(cell):
         return [(s.kind, s.start, s.stop, *np.nan_to_num([s.frequency_hz, s.amplitude_um], nan=-1.0))
@@ -200,14 +200,14 @@ def test_bad_files_one_line_status_2_nothing_written(exp, tmp_path, capsys, case
         args = ["--volumes", str(tmp_path / "v.csv")]
     else:
         path = _bad_archive(case, src, tmp_path, cells[0])
-    for cmd in (["afm", "import", str(path), "--out", str(tmp_path / "out.h5")],
+    for cmd in (["afm", "import", str(path), "--out", str(tmp_path / "out")],
                 ["afm", "analyze", str(path), "--calibration", str(cal), "--out", str(tmp_path / "o")]):
         capsys.readouterr()
         status = main(cmd + args)
         err = capsys.readouterr().err
         assert status == 2, err
         assert len(err.strip().splitlines()) == 1 and "error" in err and "Traceback" not in err
-    assert not (tmp_path / "out.h5").exists() and not (tmp_path / "o").exists()
+    assert not (tmp_path / "out").exists() and not (tmp_path / "o").exists()
 
 
 def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_path, capsys):
@@ -272,5 +272,5 @@ def test_text_export_modulation_segment(tmp_path, capsys):
     np.testing.assert_allclose(cell.height_um[osc.start:osc.stop], mod.height_um + 20.0 * 1e-3 / 0.5)
     capsys.readouterr()
     assert main(["afm", "import", str(_text_export(tmp_path / "bad.txt", False)), "--volume", "4000",
-                 "--out", str(tmp_path / "o.h5")]) == 2
-    assert "modulation without" in capsys.readouterr().err and not (tmp_path / "o.h5").exists()
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "modulation without" in capsys.readouterr().err and not (tmp_path / "o").exists()

@@ -141,7 +141,7 @@ def test_force_rises_as_the_height_falls_on_approach(path):
 def test_import_json_summary_of_each_real_file(tmp_path, capsys):
     for i, path in enumerate([TEXT, BRAIN, JPKFILE]):
         capsys.readouterr()
-        assert main(["afm", "import", str(path), "--volume", "4000", "--out", str(tmp_path / f"{i}.h5"),
+        assert main(["afm", "import", str(path), "--volume", "4000", "--out", str(tmp_path / f"{i}"),
                      "--json"]) == 0
         obj, = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
         assert obj["cell_id"] == path.stem

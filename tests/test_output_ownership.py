@@ -185,24 +185,39 @@ def test_afm_analyze_reruns_into_its_own_folder_but_keeps_a_stranger(afm, tmp_pa
 
 def test_afm_synth_refuses_a_foreign_truth_file(afm, tmp_path, capsys):
     cal, _ = afm
-    truth = tmp_path / "truth.json"
+    out = tmp_path / "a"
+    out.mkdir()
+    (out / MANIFEST).write_text("experiment.h5\n")                   # ours, but truth.json is not
+    truth = out / "truth.json"
     truth.write_text('{"my": "experiment"}\n')
     before = snapshot(truth)
-    args = ["afm", "synth", "--cells", "2", "--forward", "law", "--calibration", str(cal)]
-    assert main(args + ["--out", str(tmp_path / "a.h5")]) == 2
+    args = ["afm", "synth", "--cells", "2", "--solver", "law", "--calibration", str(cal)]
+    assert main(args + ["--out", str(out)]) == 2
     assert "truth.json" in _refused(capsys, "afm synth")
-    assert snapshot(truth) == before and not (tmp_path / "a.h5").exists()
+    assert snapshot(truth) == before and not (out / "experiment.h5").exists()
     truth.unlink()
-    assert main(args + ["--out", str(tmp_path / "a.h5")]) == 0
-    assert main(args + ["--out", str(tmp_path / "b.h5")]) == 0        # our own truth.json: replaced
+    assert main(args + ["--out", str(out)]) == 0
+    (out / "experiment.h5").unlink()
+    assert main(args + ["--out", str(out)]) == 0                      # our own truth.json: replaced
     capsys.readouterr()
+
+
+def test_afm_synth_never_replaces_an_experiment(afm, tmp_path, capsys):
+    cal, _ = afm
+    args = ["afm", "synth", "--cells", "2", "--solver", "law", "--calibration", str(cal), "--out", str(tmp_path / "e")]
+    assert main(args) == 0
+    before = snapshot(tmp_path / "e")
+    capsys.readouterr()
+    assert main(args) == 2                                            # even ours: measurements are kept
+    assert "experiment.h5" in _refused(capsys, "afm synth")
+    assert snapshot(tmp_path / "e") == before
 
 
 def test_afm_synth_refuses_a_folder(afm, tmp_path, capsys):
     cal, _ = afm
     out = make_folder(tmp_path / "exp.h5")
     before = snapshot(out)
-    assert main(["afm", "synth", "--cells", "2", "--forward", "law", "--calibration", str(cal),
+    assert main(["afm", "synth", "--cells", "2", "--solver", "law", "--calibration", str(cal),
                  "--out", str(out)]) == 2
     _refused(capsys, "afm synth")
     assert snapshot(out) == before

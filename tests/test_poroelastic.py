@@ -4,19 +4,15 @@ diffusion equation, its large-λ limit, the published inputs, and the
 `cortex poroelastic` command (JSON keys, bad input: one line, exit 2)."""
 
 import json
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.sparse import diags
 from scipy.sparse.linalg import spsolve
 
+from conftest import cortex as run_cortex
 from solver import poroelastic as pe
 from solver.errors import InputError
-
-CORTEX = Path(sys.executable).with_name("cortex")
 
 
 def layer_stress_fd(K, k_perm, eta, t, omega, n=4000):
@@ -90,8 +86,8 @@ def test_impossible_parameters(args):
 
 
 def cortex(*args):
-    return subprocess.run([str(CORTEX), "poroelastic", *args], capture_output=True, text=True,
-                          timeout=60, stdin=subprocess.DEVNULL)
+    """`cortex poroelastic ARGS`, run as a user runs it (the shared helper)."""
+    return run_cortex("poroelastic", *args, timeout=60)
 
 
 def test_cli_json():

@@ -36,9 +36,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import poll_until
+from conftest import ROOT, poll_until
 
-ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data"
 SETUP = ROOT / "scripts" / "setup-slurm.sh"
 SUBMIT = ROOT / "jobs" / "submit.sh"

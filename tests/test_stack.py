@@ -10,7 +10,6 @@ import importlib.metadata
 import json
 import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
@@ -18,13 +17,12 @@ import h5py
 import pytest
 
 import cortex
+from conftest import cortex as cortex_command    # the package `cortex` is tested here too
 
-CORTEX = Path(sys.executable).with_name("cortex")
 
 
 def run_cortex(*args):
-    done = subprocess.run([str(CORTEX), *args], capture_output=True, text=True, timeout=120,
-                          stdin=subprocess.DEVNULL)
+    done = cortex_command(*args, timeout=120)
     assert done.returncode == 0, done.stderr
     return done.stdout
 

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from conftest import cortex as run_cortex
 from solver import fast, viscous
 from solver.errors import InputError
 from solver.geometry import droplet
@@ -83,13 +84,9 @@ def test_bad_viscosity_or_frequency(prepared, eta, f):
 
 
 def cortex(*args):
-    import subprocess
-    import sys
-    from pathlib import Path
-    exe = Path(sys.executable).with_name("cortex")
-    return subprocess.run([str(exe), "compress", "--h0", "12", "--bulk", "25", "--shear", "8.33",
-                           "--tension", "1.5", *args], capture_output=True, text=True, timeout=300,
-                          stdin=subprocess.DEVNULL)
+    """`cortex compress` of one cell with ARGS added, run as a user runs it (the shared helper)."""
+    return run_cortex("compress", "--h0", "12", "--bulk", "25", "--shear", "8.33", "--tension", "1.5", *args,
+                      timeout=300)
 
 
 def test_cli_compress_with_viscosity(prepared):

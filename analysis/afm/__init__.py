@@ -1,2 +1,28 @@
 """Measured cells (SPEC 6): AFM recording formats, synthetic recordings,
-per-cell inversion and population statistics."""
+per-cell inversion and population statistics.
+
+Public API (imported on first use):
+
+- `read_experiment(path)` / `write_experiment(path, cells)`: the native
+  experiment file (HDF5) of `Cell`s; `load_cells(paths)`: cells from an
+  experiment, a single-cell CSV, or JPK files and folders.
+- `import_cells(paths, volume_um3=..., volumes_csv=...)`: JPK files ->
+  (recordings, cells), as `cortex afm import`.
+- `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic
+  recordings, as `cortex afm synth`.
+- `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell
+  table, per-segment table); `analyze_experiment(data, calibration_path, out,
+  ...)`: the whole `cortex afm analyze` into a folder; `population_summary(table)`.
+"""
+
+from solver.lazy_exports import lazy_exports
+
+__all__, __getattr__, __dir__ = lazy_exports(__name__, {
+    "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
+    "read_experiment": "analysis.afm.h5format", "write_experiment": "analysis.afm.h5format",
+    "load_cells": "analysis.afm.report:load",
+    "import_cells": "analysis.afm.jpk_import",
+    "synthesize": "analysis.afm.synth:generate",
+    "analyze_cells": "analysis.afm.analyze:analyze", "analyze_cell": "analysis.afm.analyze",
+    "analyze_experiment": "analysis.afm.report:run", "population_summary": "analysis.afm.population:summary",
+})

@@ -1,5 +1,15 @@
 """`cortex afm synth`, `cortex afm import` and `cortex afm analyze` (argparse
-only; the work is imported when the command runs)."""
+only; the work is imported when the command runs).
+
+Conventions shared with every command: `--out` is a folder (synth and import
+write DIR/experiment.h5, synth also DIR/truth.json, under the folder's
+manifest rules of `outputs.ownership.OutputDir`); `--json` prints the results
+on stdout; `--solver` names the forward model as in `cortex compress`
+(`solver.compression.METHODS`, plus `law`); `--bending` is one of
+`solver.model.BENDING_VARIANTS`."""
+
+EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
+TRUTH = "truth.json"
 
 
 def _jpk_options(p):
@@ -29,93 +39,126 @@ def register(sub):
     p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics",
                        description="AFM recordings of confined cells (SPEC 6).")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
-    g = s.add_parser("synth", help="write a synthetic experiment (HDF5) and truth.json beside it")
+    _add_synth(s)
+    _add_import(s)
+    _add_analyze(s)
+
+
+def _add_synth(s):
+    from analysis.cli import OUT_HELP
+    from solver.cli import SOLVERS, add_bending, names_of
+    g = s.add_parser("synth", help="write a synthetic experiment: DIR/experiment.h5 and DIR/truth.json",
+                     description="Simulate AFM recordings of --cells cells of known Poisson ratio (SPEC 6) "
+                                 "into DIR/experiment.h5 and their true values into DIR/truth.json.")
     g.add_argument("--cells", type=int, default=85, help="number of cells (default 85, the published size)")
     g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--out", required=True, metavar="FILE", help="experiment file (.h5), new: an existing one "
-                   "is never overwritten; truth.json beside it is replaced only if cortex wrote it")
+    g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--forward", choices=("fast", "law"), default="fast",
-                   help="forward model: the fast solver (default) or a calibration law (needs --calibration)")
+    g.add_argument("--solver", "--forward", dest="solver", choices=names_of(SOLVERS, extra=("law",)),
+                   default="fast", metavar="SOLVER",
+                   help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
+                        "calibration law (needs --calibration); --forward is the older name")
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
-    g.add_argument("--bending", default="standard", help="bending variant of the forward model")
+    add_bending(g, "bending variant of the forward model")
+    g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler="analysis.afm.cli:synth")
-    m = s.add_parser("import", help="JPK text exports and binary JPK files into an experiment file (HDF5)",
+
+
+def _add_import(s):
+    from analysis.cli import OUT_HELP
+    m = s.add_parser("import", help="JPK text exports and binary JPK files into DIR/experiment.h5",
                      description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data (-series) "
                                  "files (each map or QI pixel its own recording) into the native experiment "
-                                 "format. Every cell needs a volume. See docs/jpk.md.")
+                                 "format, DIR/experiment.h5. Every cell needs a volume. See docs/jpk.md.")
     m.add_argument("files", nargs="+", metavar="FILES", help="JPK files or folders of them")
-    m.add_argument("--out", required=True, metavar="EXPERIMENT.h5", help="experiment file to write (new)")
+    m.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     _jpk_options(m)
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
                    "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
     m.set_defaults(handler="analysis.afm.cli:import_")
+
+
+def _add_analyze(s):
+    from analysis.cli import OUT_HELP, add_inversion_options
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
                                  "calibration, with 95 % intervals), population statistics, figures and "
                                  "DIR/report.md. Recordings without a modulation segment are listed in the "
                                  "report (exit status 1).")
     a.add_argument("data", nargs="+", metavar="DATA",
-                   help="experiment (.h5), single-cell CSV, or JPK files and folders of them")
-    a.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing); a "
-                   "non-empty folder cortex did not write is refused (DIR/.cortex-outputs lists what it wrote)")
-    from analysis.cli import add_inversion_options
+                   help="experiment (.h5, or the folder `afm synth`/`afm import` wrote it to), "
+                        "single-cell CSV, or JPK files and folders of them")
+    a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(a)
     _jpk_options(a)
+    a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
+                   "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler="analysis.afm.cli:analyze")
 
 
 def synth(args):
     import json
-    from pathlib import Path
-
-    import os
 
     from analysis.afm import synth as sy
     from analysis.afm.h5format import write_experiment
-    from outputs.ownership import check_file
+    from analysis.cli import say_result
     from outputs.writing import write_atomically
     from solver.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
-    out = Path(args.out)
-    if os.path.lexists(out):
-        raise InputError(f"{out}: exists; refusing to overwrite (it is left as it is)")
-    truth_path = check_file(out.parent / "truth.json", _is_our_truth, "truth.json beside --out")
-    if args.forward == "law":
-        if not args.calibration:
-            raise InputError("--forward law needs --calibration CAL.json")
-        from analysis.calibration import Calibration
-        forward = sy.law_forward(Calibration.load(args.calibration)[args.bending])
-    else:
-        forward = sy.solver_forward(args.bending)
-    cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=forward)
-    write_experiment(out, cells)
+    out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
+    cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
+    with out.writing(EXPERIMENT) as experiment:
+        write_experiment(experiment, cells)
     text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
-    write_atomically(truth_path, text.encode())
-    print(f"wrote {out} ({len(cells)} cells) and {truth_path}")
+    with out.writing(TRUTH) as truth_path:
+        write_atomically(truth_path, text.encode())
+    say_result(args, {"experiment": str(experiment), "truth": str(truth_path), "n_cells": len(cells)},
+          f"wrote {experiment} ({len(cells)} cells) and {truth_path}")
     return 0
+
+
+def new_experiment_folder(path, names):
+    """The --out folder (`OutputDir`) that will hold a new DIR/experiment.h5:
+    refused before any work if a file of `names` there is not ours, or if the
+    folder already holds an experiment (measurements are never replaced, even ours)."""
+    import os
+
+    from outputs.ownership import OutputDir
+    from solver.errors import InputError
+    out = OutputDir(path)
+    out.check(names)
+    if os.path.lexists(out.path / EXPERIMENT):
+        raise InputError(f"--out {out.path}: holds {EXPERIMENT} already; an experiment is never replaced "
+                         "(it is left as it is; choose another folder)")
+    return out
+
+
+def _forward(args):
+    """The forward model that `--solver`, `--bending` and `--calibration` name."""
+    from analysis.afm import synth as sy
+    from solver.errors import InputError
+    if args.solver != "law":
+        return sy.solver_forward(args.bending, method=args.solver)
+    if not args.calibration:
+        raise InputError("--solver law needs --calibration CAL.json")
+    from analysis.calibration import Calibration
+    return sy.law_forward(Calibration.load(args.calibration)[args.bending])
 
 
 def import_(args):
     import json
-    from pathlib import Path
 
     from analysis.afm.h5format import write_experiment
     from analysis.afm.jpk_import import import_cells
-    from solver.errors import InputError
-    out = Path(args.out)
-    if out.exists() or out.with_name(out.name + ".tmp").exists():
-        raise InputError(f"{out}: exists; refusing to overwrite")
+    out = new_experiment_folder(args.out, [EXPERIMENT])
     recs, cells = import_cells(args.files, **jpk_options(args))
-    write_experiment(out, cells)
+    with out.writing(EXPERIMENT) as path:
+        write_experiment(path, cells)
     for r in recs:
-        if args.json:
-            print(json.dumps(r.summary()))
-        else:
-            print(_summary_line(r))
+        print(json.dumps(r.summary()) if args.json else _summary_line(r))
     if not args.json:
-        print(f"wrote {out} ({len(cells)} cells)")
+        print(f"wrote {path} ({len(cells)} cells)")
     return 0
 
 
@@ -141,14 +184,29 @@ def _is_our_truth(path):
     return json_document(path).get("format") == TRUTH_FORMAT
 
 
+def experiment_in(paths):
+    """DATA as given, except that a single folder holding DIR/experiment.h5 (what
+    `afm synth` and `afm import` write) stands for that file."""
+    from pathlib import Path
+    if len(paths) == 1 and Path(paths[0]).is_dir() and (Path(paths[0]) / EXPERIMENT).is_file():
+        return [str(Path(paths[0]) / EXPERIMENT)]
+    return paths
+
+
 def analyze(args):
+    import json
+
     from analysis.afm.report import run
-    from analysis.cli import inversion_settings
+    from analysis.cli import inversion_settings, plain
     from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
-    result = run(args.data, args.calibration, args.out, args.bending, jpk_options(args),
+    result = run(experiment_in(args.data), args.calibration, args.out, args.bending, jpk_options(args),
                  method=args.method, errors=errors)
-    for cell, reason in result["skipped"].items():
-        print(f"not analysed: {cell}: {reason}")
-    print(f"report: {result['report']}")
+    if args.json:
+        print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
+                                **(result["summary"] or {})})))
+    else:
+        for cell, reason in result["skipped"].items():
+            print(f"not analysed: {cell}: {reason}")
+        print(f"report: {result['report']}")
     return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
