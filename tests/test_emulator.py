@@ -1,7 +1,8 @@
 """The emulator (SPEC 9): the campaign grid's dimensionless axes, the shipped
 calibration rebuilt in part from a fresh campaign, the interpolant against
 off-grid solver runs, and the inversion by the emulator of noise-free solver
-curves (K_B and K̃_S recovered; ν inside its 95 % interval)."""
+curves (K_B and K̃_S recovered; ν inside its 95 % interval), and the intervals of
+cells whose heights are recorded with an offset (the truth still inside)."""
 
 import subprocess
 
