@@ -8,9 +8,10 @@
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
 #   make calibration     rebuild the shipped calibration (analysis/data/calibration.json)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
-#   make bench-full      every script in bench/ (the slow ones take 2-90 min each: the solver-forward
-#                        round trip and error sources, the Monte-Carlo study by both methods, a million
-#                        no-op tasks, the campaign's throughput and scaling, the mesh convergence)
+#   make bench-full      every script in bench/; the others take minutes to an hour and more each
+#                        (the solver-forward round trip and error sources, the Monte-Carlo study by
+#                        both methods, a million no-op tasks, the campaign's throughput and scaling,
+#                        the solvers' speed and mesh convergence, the viscous solver, height coverage)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -106,8 +107,9 @@ calibration: setup
 # Benchmarks: one JSON object each on stdout; every script runs (python -P: bench/ itself is not
 # on the path, so bench/solver.py cannot hide the solver package) and the target fails if one did.
 # BENCH_QUICK: under about a minute of one core each (CPU time measured on the shared 2-core
-# machine: geometry 1 s, emulator 3 s, reconstruction 3 s, offgrid_invert 9 s, afm 11 s; trials and
-# analysis are sized for seconds). reconstruction needs results/paper.h5 (make calibration).
+# machine with /usr/bin/time: geometry 1 s, emulator 3 s, reconstruction 3 s, offgrid_invert 9 s,
+# afm 11 s, analysis 34 s; trials is sized for seconds). reconstruction needs results/paper.h5
+# (make calibration).
 BENCH_QUICK ?= geometry emulator reconstruction offgrid_invert afm trials analysis
 run_benches = status=0; for b in $(1); do $(BIN)/python -P $$b || { echo "bench: $$b failed" >&2; status=1; }; done; \
 	exit $$status
