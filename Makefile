@@ -106,10 +106,10 @@ calibration: setup
 
 # Benchmarks: one JSON object each on stdout; every script runs (python -P: bench/ itself is not
 # on the path, so bench/solver.py cannot hide the solver package) and the target fails if one did.
-# BENCH_QUICK: under about a minute of one core each (CPU time measured on the shared 2-core
-# machine with /usr/bin/time: geometry 1 s, emulator 3 s, reconstruction 3 s, offgrid_invert 9 s,
-# afm 11 s, analysis 34 s; trials is sized for seconds). reconstruction needs results/paper.h5
-# (make calibration).
+# BENCH_QUICK: under about a minute of one core each (CPU time with /usr/bin/time on the shared
+# 2-core machine: emulator 3 s, reconstruction 3 s, offgrid_invert 9 s, afm 11 s, analysis 34 s;
+# geometry 13 s wall, mostly compiling; trials is sized for seconds). reconstruction needs
+# results/paper.h5 (make calibration).
 BENCH_QUICK ?= geometry emulator reconstruction offgrid_invert afm trials analysis
 run_benches = status=0; for b in $(1); do $(BIN)/python -P $$b || { echo "bench: $$b failed" >&2; status=1; }; done; \
 	exit $$status
