@@ -107,7 +107,7 @@ def _truth_moduli(k_seen, r_true, h_true, radius, heights, gamma_t, *, dh):
     return (k_seen - c0) / c1
 
 
-def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, draws=DRAWS,
+def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, *, draws=DRAWS,
                    volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
                    steps=GN_STEPS):
     """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (NaN where θ is not finite)."""
@@ -131,7 +131,8 @@ def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, dr
                         flat(np.broadcast_to(heights, (c, draws, m))), gamma_t.ravel(), dh=dh_um)
     use_rep = np.repeat(us, draws, axis=0)
     x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), flat(h_true / (2.0 * r_true)), K_t,
-                      use_rep, gamma_t.ravel(), np.repeat(vs, draws), steps, _ks_bounds(emulator, bending))
+                      use_rep, gamma_t.ravel(), np.repeat(vs, draws), steps=steps,
+                      bounds=_ks_bounds(emulator, bending))
     lks = x[:, 1].reshape(c, draws)
     lo, hi = np.nanpercentile(lks, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
     out[0, ok], out[1, ok] = np.exp(lo), np.exp(hi)
@@ -139,7 +140,7 @@ def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, dr
     return tuple(out)
 
 
-def _gauss_newton(table, x, h, k, use, tension, volume, steps, bounds):
+def _gauss_newton(table, x, h, k, use, tension, volume, *, steps, bounds):
     """Refit θ = (ln K_B, ln K̃_S) of every row from its start `x`: damped Gauss-Newton
     steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
     ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""
