@@ -7,8 +7,8 @@ cell); force noise (0.2 nN); drift (±0.001 nN/s); blebbing (8 % of cells,
 with the others off; the tension filter should exclude them); all. Per seed,
 configuration and method: recovered minus true median ν per frequency (true
 median over the included cells), the included count, (emulator) how often
-the 95 % interval holds the true ν (and how often the percentile interval of
-the same draws would), and what the filters' exclusions alone do
+the 95 % interval (`analysis.intervals`) holds the true ν, and what the
+filters' exclusions alone do
 (`exclusion_shift`: the true median over the included cells minus the true
 median over all non-blebbing cells); then the mean over the seeds.
 
@@ -62,19 +62,9 @@ def memoised(forward, cache):
     return ask
 
 
-def percentile_coverage(table, truth):
-    """How often the percentile interval of the same draws, [2 l* - hi, 2 l* - lo] in
-    l = ln K̃_S ([lo, hi] the basic interval the analysis reports), holds the true K̃_S."""
-    ok = table[table["excluded_reason"].isna()]
-    lt = np.log([truth["frequencies"][str(float(r.frequency_hz))]["cells"][r.cell_id]["ks_tilde"]
-                 for r in ok.itertuples()])
-    l, lo, hi = (np.log(ok[c].to_numpy(float)) for c in ("ks_tilde", "ks_lo95", "ks_hi95"))
-    return float(np.mean((2 * l - hi <= lt) & (lt <= 2 * l - lo)))
-
-
 def run_seed(seed, cal, emu, forward):
     from roundtrip import score
-    rows, table_emu = [], None
+    rows = []
     for name, keep in ONLY.items():
         synth.ERRORS.update({k: (v if k in keep else 0.0) for k, v in ALL.items()})
         try:
@@ -85,14 +75,12 @@ def run_seed(seed, cal, emu, forward):
         for method in ("emulator", "law"):
             table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
             s = score(table, truth)
-            table_emu = table if method == "emulator" else table_emu
             row[method] = {"n_included": s["n_included"], "n_curves": s["n_curves"],
                            "coverage_95": s.get("coverage_95"),
                            "median_error": {f: round(v["median_nu"] - v["median_nu_true"], 4)
                                             for f, v in s["per_frequency"].items()},
                            "exclusion_shift": {f: round(v["median_nu_true"] - truth["frequencies"][str(float(f))]
                                                         ["median_nu_true"], 4) for f, v in s["per_frequency"].items()}}
-        row["emulator"]["coverage_95_percentile"] = percentile_coverage(table_emu, truth)
         rows.append(row)
         print(json.dumps(row), file=sys.stderr, flush=True)
     return rows
@@ -110,8 +98,6 @@ def mean_over_seeds(rows):
             row[method] = {"n_included": sum(x["n_included"] for x in m), "n_curves": sum(x["n_curves"] for x in m),
                            "coverage_95": (float(np.sum([c * x["n_included"] for c, x in zip(cov, m)])
                                                  / sum(x["n_included"] for x in m)) if cov else None),
-                           "coverage_95_percentile": (float(np.mean([x["coverage_95_percentile"] for x in m]))
-                                                      if method == "emulator" else None),
                            "median_error_mean": {f: round(float(np.mean([x["median_error"][f] for x in m])), 4)
                                                  for f in freqs},
                            "median_error_max_abs": {f: round(float(np.max([abs(x["median_error"][f]) for x in m])), 4)

@@ -8,10 +8,18 @@ Per seed and errors off/on, per method: the medians of ν per frequency
 included cells with |Δν| ≤ 0.03, and (emulator) the fraction whose 95 %
 interval holds the true ν.
 
-    python bench/roundtrip.py [SEED ...]        (default: 6 7 8 9)
+With `--cache FILE` the solver's answers are memoised in FILE (the pickle
+`bench/error_sources.py --cache` writes: its `all` configuration asks the same
+questions as errors on here), so a rerun of the analysis alone takes minutes,
+not the solver's ~11 min per seed and errors setting; `--errors on` (or off)
+runs one setting only.
+
+    python bench/roundtrip.py [SEED ...] [--errors off on] [--cache FILE]   (default: 6 7 8 9, both)
 """
 
+import argparse
 import json
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -49,12 +57,19 @@ def score(table, truth):
 
 
 def main():
-    seeds = [int(s) for s in sys.argv[1:]] or [6, 7, 8, 9]
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from error_sources import memoised
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("seeds", nargs="*", type=int, default=[6, 7, 8, 9])
+    p.add_argument("--errors", nargs="+", choices=("off", "on"), default=["off", "on"])
+    p.add_argument("--cache", type=Path, help="pickle of the solver's answers (read if present, written)")
+    a = p.parse_args()
     cal, emu, _ = load()
-    forward = solver_forward("standard")
+    cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
+    forward = memoised(solver_forward("standard"), cache)
     out = {"benchmark": "roundtrip", "cells": 85, "runs": []}
-    for seed in seeds:
-        for errors in (False, True):
+    for seed in a.seeds:
+        for errors in (e == "on" for e in a.errors):
             start = time.perf_counter()
             cells, truth = generate(85, seed, errors=errors, forward=forward)
             synth_s = time.perf_counter() - start
@@ -65,6 +80,8 @@ def main():
                 run[method] = {**score(table, truth), "analyze_s": round(time.perf_counter() - start, 2)}
             out["runs"].append(run)
             print(json.dumps(run), file=sys.stderr, flush=True)
+        if a.cache:
+            a.cache.write_bytes(pickle.dumps(cache))
     print(json.dumps(out))
 
 

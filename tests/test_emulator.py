@@ -1,11 +1,13 @@
 """The emulator (SPEC 9): the campaign grid's dimensionless axes, the shipped
 calibration rebuilt in part from a fresh campaign, the interpolant against
 off-grid solver runs, and the inversion by the emulator of noise-free solver
-curves (K_B and K̃_S recovered; ν inside its 95 % interval)."""
+curves (K_B and K̃_S recovered; ν inside its 95 % interval), and the intervals of
+cells whose heights are recorded with an offset (the truth still inside)."""
 
 import subprocess
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis.afm.synth import solver_forward
@@ -17,7 +19,8 @@ from campaign.config import load as load_campaign
 from campaign.store import read_results
 from conftest import BIN, ROOT
 from solver.errors import InputError
-from solver.geometry import cell_radius
+from solver.geometry import cell_radius, droplet
+from solver.modulus import effective_modulus
 
 GRID = """
 [campaign]
@@ -115,7 +118,6 @@ def test_interpolation_error_off_grid_is_below_0_2_percent(shipped, bending, h, 
 @pytest.fixture(scope="module")
 def solver_curves():
     """Three noise-free cells from the solver: (rows, truth)."""
-    import pandas as pd
     forward = solver_forward("standard")
     heights_tilde = np.linspace(0.745, 0.5, 6)
     rows, truth = [], {}
@@ -151,6 +153,44 @@ def test_intervals_widen_with_the_errors(shipped, solver_curves):
                                                                       draws=60))
     large = invert_rows(rows, "emulator", cal, emu, "standard", Errors(draws=60))
     assert np.all((large["nu_hi95"] - large["nu_lo95"]) > 2 * (small["nu_hi95"] - small["nu_lo95"]))
+
+
+def _recorded_with_offset(emu, cid, ks, bulk, tension, offset_um, volume=4300.0, dh=0.5):
+    """Rows of a noise-free cell (emulator moduli at its true heights) whose heights are
+    recorded `offset_um` too high, read as the analysis reads them (SPEC 3): the force at
+    the true gap, the resting force taken as a tension and K from both at the recorded gaps."""
+    h_rec = np.linspace(0.745, 0.5, 8) * 2 * float(cell_radius(volume))
+    h_true = h_rec - offset_um
+    K = emu.modulus(h_true / (2 * float(cell_radius(volume))), bulk, ks, tension, volume)
+    d0, d1 = droplet(volume, h_true + dh / 2), droplet(volume, h_true - dh / 2)
+    strain = (d1.surface_area_um2 - d0.surface_area_um2) / d0.surface_area_um2
+    force = (tension + K * strain) * d1.force_per_tension_um
+    seen = tension * d0.force_per_tension_um / droplet(volume, h_rec + dh / 2).force_per_tension_um
+    em = effective_modulus(volume, h_rec + dh / 2, h_rec - dh / 2, seen, force)
+    return [{"cell_id": cid, "h_tilde": a, "modulus_mN_per_m": k, "tension_mN_per_m": t, "volume_um3": volume}
+            for a, k, t in zip(em["h_tilde"], em["modulus_mN_per_m"], seen)]
+
+
+def test_intervals_hold_the_truth_of_cells_with_a_height_offset(shipped):
+    """Heights recorded 0.8 µm (1.6 SD) too high or too low bias K̃_S by a factor ~2; the
+    95 % interval (default errors) must still hold the true K̃_S and ν of every included
+    cell. (The basic bootstrap interval held none of the five recorded too high.)"""
+    emu = shipped[1]
+    cells = [(0.1, 20.0, 0.8), (0.3, 25.0, 1.5), (0.6, 30.0, 2.4), (1.5, 22.0, 1.0), (3.0, 28.0, 3.0)]
+    rows, truth = [], {}
+    for offset in (0.8, -0.8):
+        for i, (ks, bulk, tension) in enumerate(cells):
+            cid = f"{offset:+}-{i}"
+            rows += _recorded_with_offset(emu, cid, ks, bulk, tension, offset)
+            truth[cid] = ks
+    out = invert_rows(pd.DataFrame(rows), "emulator", shipped[0], emu, "standard", Errors()).set_index("cell_id")
+    included = out[out["excluded_reason"].isna()]
+    assert len(included) >= 8
+    biased = [cid for cid in included.index if abs(np.log(included.loc[cid, "ks_tilde"] / truth[cid])) > 0.3]
+    assert len(biased) >= 6                                   # the offset matters: the fits are off
+    for cid, r in included.iterrows():
+        ks = truth[cid]
+        assert r.ks_lo95 <= ks <= r.ks_hi95 and r.nu_lo95 <= (1 - ks) / (1 + ks) <= r.nu_hi95, cid
 
 
 def test_fit_at_the_bound_is_excluded(shipped):
