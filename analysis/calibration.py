@@ -26,24 +26,13 @@ import numpy as np
 import pandas as pd
 
 from analysis import laws
+from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio
 from solver.errors import InputError
 
 FORMAT = "cortex-calibration"
 NEEDED = ("bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "h_tilde",
           "modulus_mN_per_m")
 MIN_HEIGHTS = 3   # a curve with fewer heights cannot constrain α and c
-
-
-def poisson(ks_tilde):
-    """ν = (1 - K̃_S) / (1 + K̃_S)."""
-    ks_tilde = np.asarray(ks_tilde, float)
-    return (1.0 - ks_tilde) / (1.0 + ks_tilde)
-
-
-def shear_ratio(nu):
-    """K̃_S = (1 - ν) / (1 + ν), the inverse of `poisson`."""
-    nu = np.asarray(nu, float)
-    return (1.0 - nu) / (1.0 + nu)
 
 
 @dataclass
@@ -211,7 +200,7 @@ def calibrate_variant(results, bending="standard"):
         rows.append({"bending": bending, "bulk_mN_per_m": bulk, "shear_mN_per_m": shear,
                      "tension_mN_per_m": tension, "ks_tilde": shear / bulk,
                      "gamma_tilde": round(tension / bulk, 12),
-                     "nu_true": (bulk - shear) / (bulk + shear), "n_heights": len(curve),
+                     "nu_true": poisson_ratio(bulk, shear), "n_heights": len(curve),
                      "h_tilde_min": curve["h_tilde"].min(), "h_tilde_max": curve["h_tilde"].max(),
                      "c_free": free["c"], "c_free_sd": free["c_sd"], "alpha_free": free["alpha"],
                      "alpha_free_sd": free["alpha_sd"], "r2_free": free["r2"],

@@ -28,8 +28,8 @@ import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from analysis.calibration import poisson
 from analysis.inversion import exclusions, used_heights
+from solver.elasticity import poisson_of_ratio
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25
@@ -119,7 +119,7 @@ def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending=
     use &= (tension > 0)[:, None] & (volume > 0)[:, None]
     theta = fit(emulator, bending, h, k, use, tension, volume)
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])
-    nu = poisson(ks)
+    nu = poisson_of_ratio(ks)
     r2, rms = _goodness(emulator, bending, theta, h, k, use, tension, volume)
     lo, hi = _ks_bounds(emulator, bending)
     at_bound = np.isfinite(theta[:, 1]) & ((theta[:, 1] <= lo + 1e-6) | (theta[:, 1] >= hi - 1e-6))

@@ -23,8 +23,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Calibration, poisson
+from analysis.calibration import Calibration
 from analysis.laws import fit_bulk_alpha
+from solver.elasticity import poisson_of_ratio
 
 H_TILDE_MIN, H_TILDE_MAX = 0.5, 0.75   # heights used
 MIN_HEIGHTS = 4                         # at least this many of them
@@ -102,7 +103,7 @@ def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
     with np.errstate(divide="ignore", invalid="ignore"):
         gamma_tilde = tension / bulk
         ks = law.invert(alpha, gamma_tilde)
-        nu = poisson(ks)
+        nu = poisson_of_ratio(ks)
 
     not_inverted = (~np.isfinite(nu), lambda i: "the calibration cannot be inverted here "
                     f"(alpha = {alpha[i]:.3g}, gamma_a/K_B = {gamma_tilde[i]:.3g})")

@@ -16,7 +16,8 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Law, shear_ratio
+from analysis.calibration import Law
+from solver.elasticity import poisson_of_ratio, shear_ratio
 from solver.geometry import droplet
 from solver.modulus import effective_modulus
 
@@ -52,7 +53,7 @@ def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
     fpt = droplet(V, h0 - dh).force_per_tension_um
     dgamma = K * geo["area_strain"]
     gamma_eff = df["tension_mN_per_m"].to_numpy() + dgamma
-    nu = (1.0 - ks) / (1.0 + ks)
+    nu = poisson_of_ratio(ks)
     df["task_id"] = [f"c{i:05d}" for i in range(len(df))]
     df["state"] = "done"
     df["thickness_um"] = 0.2

@@ -33,6 +33,7 @@ import numpy as np
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.timeseries import shape_of
+from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
 
 POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
@@ -90,7 +91,7 @@ def _cell(i, freqs, rng, forward, errors):
         bulk = bulk1 * f**BETA
         ks = float(np.exp(POPULATIONS[f][0] + POPULATIONS[f][1] * z))
         K[f] = forward(V, h_means, bulk, ks * bulk, tension)
-        truth["frequencies"][f] = {"nu": (1 - ks) / (1 + ks), "ks_tilde": ks, "bulk_mN_per_m": bulk}
+        truth["frequencies"][f] = {"nu": float(poisson_of_ratio(ks)), "ks_tilde": ks, "bulk_mN_per_m": bulk}
     delta = BETA * np.pi / 2
     t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * D
     for j, h_m in enumerate(h_means):
