@@ -40,6 +40,7 @@ import numpy as np
 from solver import surface_forces as sf
 from solver.compression import Solution
 from solver.errors import SolverError
+from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 from solver.model import Shell
 
@@ -99,7 +100,7 @@ def mesh(shell: Shell):
     r0 = np.concatenate([S_disc, r_f])
     z0 = np.concatenate([np.full(S_disc.size, h0 / 2.0), z_f])
     z0[-1] = 0.0
-    r0 *= np.sqrt(0.5 * V / sf.half_volume(r0, z0))     # chords enclose exactly V
+    r0 *= np.sqrt(V / enclosed_volume(r0, z0))     # chords enclose exactly V
     kind = np.full(r0.size, sf.FREE, dtype=np.int64)
     kind[: S_disc.size] = sf.PLATE
     kind[0] = sf.POLE
@@ -138,17 +139,11 @@ def relax(shell: Shell):
     if not settled:
         raise SolverError(f"plate force did not settle to {TOL:g} per relaxation time within "
                           f"{max_steps} steps ({MAX_TIMES:g} relaxation times); F = {F:.6g} nN")
-    l, _ = sf._elements(r, z)
-    lam1_e = l / l0
-    lam1 = np.concatenate([[lam1_e[0]], 0.5 * (lam1_e[1:] + lam1_e[:-1]), [lam1_e[-1]]])
-    lam2 = np.empty_like(r)
-    lam2[1:] = r[1:] / r0[1:]
-    lam2[0] = lam2[1]
-    volume = 2.0 * sf.half_volume(r, z)
+    lam1, lam2 = nodal_stretches(r, z, r0, z0)
+    volume = enclosed_volume(r, z)
     msg = (f"settled after {steps} steps (dt = {dt:.3g} s, {r.size} nodes, ds_min = {ds_min:.3g} um); "
            f"pressure {p:.6g} mN/m/um, residual force density {res:.3g} mN/m/um")
     return Solution(force_nN=float(F), volume_um3=float(volume),
-                    area_um2=float(2.0 * sf.half_area(r, z)),
-                    area0_um2=float(2.0 * sf.half_area(r0, z0)),
+                    area_um2=float(surface_area(r, z)), area0_um2=float(surface_area(r0, z0)),
                     r_um=r, z_um=z, lambda1=lam1, lambda2=lam2,
                     converged=True, iterations=int(steps), message=msg), float(p), (r0, z0)

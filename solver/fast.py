@@ -41,7 +41,8 @@ from numba import njit
 from solver.compression import Solution
 from solver.errors import SolverError
 from solver.fast_energy import Lagrangian
-from solver.fast_mesh import enclosed_volume, reference
+from solver.fast_mesh import reference
+from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
@@ -238,7 +239,7 @@ def problem(shell):
     lag = Lagrangian(shell, ref)
     r0, z0 = ref.positions(np.log(1e-12))[:2]
     lag.V0 = enclosed_volume(r0, z0)        # = V by the mesh's scale
-    lag.area0 = 2.0 * np.sum(np.pi * (r0[1:] + r0[:-1]) * np.hypot(np.diff(r0), np.diff(z0)))
+    lag.area0 = surface_area(r0, z0)
     return lag
 
 
@@ -281,9 +282,7 @@ def solve(shell):
         raise SolverError("non-finite plate force")
     r, z, psic, p = lag.nodes(u, zp)
     r0, z0 = lag.ref.positions(u[-2])[:2]
-    lam_e = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0))
-    lam1 = np.concatenate([[lam_e[0]], 0.5 * (lam_e[1:] + lam_e[:-1]), [lam_e[-1]]])
-    lam2 = np.concatenate([[lam1[0]], r[1:] / r0[1:]])
+    lam1, lam2 = nodal_stretches(r, z, r0, z0)
     return Solution(force_nN=float(force), volume_um3=lag.volume(u, zp),
                     area_um2=lag.area(u, zp), area0_um2=lag.area0, r_um=r, z_um=z,
                     lambda1=lam1, lambda2=lam2, converged=True, iterations=iterations,

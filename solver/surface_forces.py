@@ -18,7 +18,7 @@ Discrete energy of the upper half (mirror symmetry gives the rest):
 At the equator the mirror element has angle π - ψ_{N-1}, so ψ̄_N = π/2,
 κ1 = (π - 2ψ_{N-1}) / l_{N-1}, κ2 = 1/r_N and the half node has A_N = π r_N l_{N-1}.
 The pole lies on the plate, where the surface is flat (no bending term).
-Half volume V/2 = Σ_j (π/3)(z_j - z_{j+1})(r_j² + r_j r_{j+1} + r_{j+1}²).
+Half volume V/2 = Σ_j V_j of the frustums (`solver.frustum.half_volume`).
 
 The nodal forces are f = -∂E/∂x + p ∂V/∂x, the exact gradient of the
 discrete energy; divided by the nodal area they are the discretisation of
@@ -34,6 +34,8 @@ Units: µm, mN/m, nN (mN/m·µm), mN/m/µm for pressures and force densities, s.
 
 import numpy as np
 from numba import njit
+
+from solver.frustum import half_volume
 
 FREE, PLATE, EQUATOR, POLE = 0, 1, 2, 3
 
@@ -84,22 +86,6 @@ def energy(r, z, l0, rb0, H0, gamma, KB, KS, B):
             E += 2.0 * B * (H[i] - H0[i]) ** 2 * 2.0 * np.pi * r[i] * 0.5 * (l[i - 1] + l[i])
         E += 2.0 * B * (H[n] - H0[n]) ** 2 * np.pi * r[n] * l[n - 1]
     return E
-
-
-@njit(cache=True)
-def half_volume(r, z):
-    v = 0.0
-    for j in range(r.size - 1):
-        v += np.pi / 3.0 * (z[j] - z[j + 1]) * (r[j] ** 2 + r[j] * r[j + 1] + r[j + 1] ** 2)
-    return v
-
-
-@njit(cache=True)
-def half_area(r, z):
-    a = 0.0
-    for j in range(r.size - 1):
-        a += np.pi * (r[j] + r[j + 1]) * np.hypot(r[j + 1] - r[j], z[j + 1] - z[j])
-    return a
 
 
 @njit(cache=True)
