@@ -82,7 +82,7 @@ def inversion_settings(args):
 
 
 def calibrate(args):
-    from analysis.report import run
+    from analysis.calibrate_pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     print(f"report: {result['report']}")
     return 0

@@ -142,12 +142,12 @@ def _is_our_truth(path):
 
 
 def analyze(args):
-    from analysis.afm.report import run
+    from analysis.afm.analyze_pipeline import Settings, run
     from analysis.cli import inversion_settings
     from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
-    result = run(args.data, args.calibration, args.out, args.bending, jpk_options(args),
-                 method=args.method, errors=errors)
+    result = run(args.data, args.calibration, args.out, Settings(bending=args.bending, method=args.method,
+                                                                 errors=errors, jpk_options=jpk_options(args)))
     for cell, reason in result["skipped"].items():
         print(f"not analysed: {cell}: {reason}")
     print(f"report: {result['report']}")
