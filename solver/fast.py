@@ -38,12 +38,12 @@ the solution (virtual work), in nN (energies in mN/m·µm², lengths in µm).
 import numpy as np
 from numba import njit
 
-from solver.compression import Solution
 from solver.errors import SolverError
 from solver.fast_energy import Lagrangian
 from solver.fast_mesh import reference
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
+from solver.solution import Solution
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
 LOG_PSI_MAX = np.log(1.0)        # at most a radian of the free surface on the plate
@@ -129,6 +129,11 @@ def _reduced(lag, g, H):
     return g[-2], H.lcol[-2] + hxl @ tangent, tangent
 
 
+def contact_at_least(u):
+    """Whether the unknowns u have the least contact label, l = log ψ_min."""
+    return u[-2] <= LOG_PSI_MIN + 1e-12
+
+
 def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l. Safeguarded Newton on G(l) = dE*/dl = 0
@@ -151,7 +156,7 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
             lo, step = l, TRUST_L
         else:
             G, k, tangent = _reduced(lag, g, H)
-            if abs(G) < tol * lag.force_scale or (G > 0 and l <= LOG_PSI_MIN + 1e-12):
+            if abs(G) < tol * lag.force_scale or (G > 0 and contact_at_least(u)):
                 return u, iterations
             if G > 0:
                 hi = l
@@ -243,7 +248,7 @@ def problem(shell):
     return lag
 
 
-def _equilibrium(shell):
+def equilibrium(shell):
     """The solved problem, its unknowns and the Newton iterations, trying
     the starts in turn until one reaches an admissible equilibrium."""
     lag = problem(shell)
@@ -267,7 +272,7 @@ def _equilibrium(shell):
 def energy(shell):
     """E* = min E at fixed volume and gap h1 (mN/m·µm², = 1e-15 J): the energy
     whose derivative -dE*/dh1 is the plate force (virtual work)."""
-    lag, u, _ = _equilibrium(shell)
+    lag, u, _ = equilibrium(shell)
     zp = 0.5 * shell.h1_um
     value = lag.evaluate(u, zp, hessian=False)[0]
     return value + u[-1] * (lag.volume(u, zp) - lag.V0)
@@ -275,7 +280,7 @@ def energy(shell):
 
 def solve(shell):
     """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
-    lag, u, iterations = _equilibrium(shell)
+    lag, u, iterations = equilibrium(shell)
     zp = 0.5 * shell.h1_um
     force = -0.5 * lag.evaluate(u, zp, hessian=False)[2]
     if not np.isfinite(force):

@@ -77,8 +77,7 @@ class Shell:
         if (self.viscosity_Pa_s is None) != (self.frequency_hz is None):
             raise InputError("viscosity and frequency go together (a viscous cell needs both)")
         if self.viscosity_Pa_s is not None:
-            from solver.viscous import check_inputs
-            check_inputs(self.viscosity_Pa_s, self.frequency_hz)
+            check_viscous_inputs(self.viscosity_Pa_s, self.frequency_hz)
 
     @property
     def h1_um(self):
@@ -105,3 +104,11 @@ class Shell:
             if out[key] is None:
                 del out[key]
         return out
+
+
+def check_viscous_inputs(viscosity_Pa_s, frequency_hz):
+    """η ≥ 0 and f > 0, finite, or InputError."""
+    for name, value, zero in (("viscosity", viscosity_Pa_s, True), ("frequency", frequency_hz, False)):
+        if not np.isfinite(value) or value < 0 or (value == 0 and not zero):
+            raise InputError(f"{name} must be a finite number {'>=' if zero else '>'} 0 "
+                             f"({'Pa s' if zero else 'Hz'}; got {value:g})")
