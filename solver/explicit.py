@@ -38,11 +38,11 @@ plate's normal reactions on the nodes it holds (exact for the discrete energy).
 import numpy as np
 
 from solver import surface_forces as sf
-from solver.compression import Solution
 from solver.errors import SolverError
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 from solver.model import Shell
+from solver.solution import Solution
 
 MU = 1.0              # µm² / (s · mN/m)
 C_DT = 0.8            # fraction of the explicit stability limit
@@ -108,6 +108,20 @@ def mesh(shell: Shell):
     return r0, z0, kind, ds_min
 
 
+def _run(shell, mat, ds_min):
+    """The time loop's `surface_forces.Run`: dt from the stability bound of the
+    module docstring, the plate compressed over one relaxation time τ, the
+    force checked every τ/10, at most 1 + MAX_TIMES relaxation times."""
+    gamma, KB, KS, B = mat
+    dt = C_DT / (2.0 * (KB + KS + gamma) / ds_min**2 + 8.0 * B / ds_min**4) / MU
+    R_cell = float(droplet(shell.volume_um3, shell.h0_um).cell_radius_um)
+    tau = R_cell**2 / (4.0 * MU * (gamma + KB + KS))
+    return sf.Run(mu=MU, dt=dt, V0half=0.5 * shell.volume_um3, h0=float(shell.h0_um),
+                  dh=float(shell.dh_um), t_comp=tau, check_every=max(1, int(0.1 * tau / dt)),
+                  tau_relax=tau, tol=TOL, max_steps=int((1.0 + MAX_TIMES) * tau / dt),
+                  release_tol=RELEASE if KB + KS + B > 0 else np.inf)
+
+
 def solve(shell: Shell) -> Solution:
     """Compress `shell` from h0 to h1 by the explicit gradient flow; raise
     SolverError if the plate force does not settle within the step budget."""
@@ -118,22 +132,12 @@ def relax(shell: Shell):
     """`solve`, also returning the final pressure p (mN/m/µm, the volume's
     Lagrange multiplier) and the reference nodes (r0, z0) in µm."""
     r0, z0, kind, ds_min = mesh(shell)
-    l0, _ = sf._elements(r0, z0)
-    rb0 = 0.5 * (r0[1:] + r0[:-1])
-    H0 = sf.mean_curvature(r0, z0)
-    gamma, KB, KS = shell.tension_mN_per_m, shell.bulk_mN_per_m, shell.shear_mN_per_m
-    B = shell.bending_stiffness
-    dt = C_DT / (2.0 * (KB + KS + gamma) / ds_min**2 + 8.0 * B / ds_min**4) / MU
-    R_cell = float(droplet(shell.volume_um3, shell.h0_um).cell_radius_um)
-    tau = R_cell**2 / (4.0 * MU * (gamma + KB + KS))
-    check_every = max(1, int(0.1 * tau / dt))
-    max_steps = int((1.0 + MAX_TIMES) * tau / dt)
+    mat = sf.Material(float(shell.tension_mN_per_m), float(shell.bulk_mN_per_m),
+                      float(shell.shear_mN_per_m), float(shell.bending_stiffness))
     r, z = r0.copy(), z0.copy()
-    V0half = 0.5 * shell.volume_um3
-    F, p, steps, settled, res = sf.flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, MU, dt,
-                                        V0half, shell.h0_um, shell.dh_um, tau, check_every,
-                                        tau, TOL, max_steps,
-                                        RELEASE if KB + KS + B > 0 else np.inf)
+    run = _run(shell, mat, ds_min)
+    F, p, steps, settled, res = sf.flow(r, z, kind, sf.reference(r0, z0), mat, run)
+    dt, max_steps = run.dt, run.max_steps
     if not np.isfinite(F) or not np.all(np.isfinite(r)):
         raise SolverError(f"explicit scheme went unstable (dt = {dt:.3g} s, ds_min = {ds_min:.3g} um)")
     if not settled:
