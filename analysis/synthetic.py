@@ -77,7 +77,7 @@ def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
     return df
 
 
-def trials_table(law, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_height"), n_cells=55,
+def trials_table(law, *, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_height"), n_cells=55,
                  n_studies=10, volume_rel_sd=0.075, height_sd_um=0.5, volume=4300.0, bulk=25.0,
                  heights=(15.0, 14.0, 13.0, 12.0, 11.0, 10.0), tensions=(0.5, 1.0, 1.5, 2.0, 2.5, 3.0),
                  dh=0.5, seed=0):
