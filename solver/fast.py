@@ -134,6 +134,27 @@ def contact_at_least(u):
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
+def _touching_label(touching, lo):
+    """Where the free surface touches the plate: the secant of the gap through
+    the last two labels (l, gap, u) above it (`lo` if their gaps are equal)."""
+    (l1, g1, _), (l2, g2, _) = touching
+    return l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
+
+
+def _predicted(lag, u, zp, tangent, target):
+    """A copy of u moved to the label `target`, its other unknowns along the
+    equilibrium's `tangent` dx/dl (kept if that leaves the admissible shapes;
+    tangent None: not moved)."""
+    u, l = u.copy(), u[-2]
+    if tangent is not None:
+        keep = np.r_[0: lag.size - 2, lag.size - 1]
+        u[keep] += tangent * (target - l)
+        if not _admissible(lag, u, zp):
+            u[keep] -= tangent * (target - l)
+    u[-2] = target
+    return u
+
+
 def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l. Safeguarded Newton on G(l) = dE*/dl = 0
@@ -146,8 +167,7 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
     label whose free surface crosses the plate and one with G > 0, the
     admissible minimum is the label at which the free surface touches the
     plate, and that is the answer. Returns the solution and the Newton iterations."""
-    lo, hi, iterations, touching = LOG_PSI_MIN, LOG_PSI_MAX, 0, []
-    keep, tangent = np.r_[0: lag.size - 2, lag.size - 1], None
+    lo, hi, iterations, touching, tangent = LOG_PSI_MIN, LOG_PSI_MAX, 0, [], None
     for _ in range(maxit):
         u, g, H, it = _newton(lag, u, zp)
         iterations += it
@@ -170,22 +190,15 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
             # less contact would lift the free surface through the plate: the
             # minimum over the admissible labels is where it touches, found
             # by the secant of the gap through the last two labels above it
-            (l1, g1, u1), (l2, g2, _) = touching
-            touch = l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
-            if abs(touch - l1) < TOL_L:
-                return u1, iterations
+            touch = _touching_label(touching, lo)
+            if abs(touch - touching[0][0]) < TOL_L:
+                return touching[0][2], iterations
             target = max(target, touch + 0.3 * TOL_L)
         if hi - lo < TOL_L and touching:
             return touching[0][2], iterations
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        u = u.copy()
-        target = max(target, LOG_PSI_MIN)
-        if gap <= 0:                  # predict the equilibrium at the new label
-            u[keep] += tangent * (target - l)
-            if not _admissible(lag, u, zp):
-                u[keep] -= tangent * (target - l)
-        u[-2] = target
+        u = _predicted(lag, u, zp, tangent if gap <= 0 else None, max(target, LOG_PSI_MIN))
     raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
                       f"{maxit} steps)")
 
