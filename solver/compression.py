@@ -52,6 +52,8 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
     """Solve one compression with `method` (`fast` or `explicit`)."""
     if method not in METHODS:
         raise InputError(f"solver must be one of {', '.join(METHODS)} (got {method!r})")
+    if shell.viscosity_Pa_s is not None and method != "fast":     # refused before any work
+        raise InputError("a viscous cell needs the fast solver (its linear response uses the Hessian)")
     solve = importlib.import_module(METHODS[method]).solve
     start = time.perf_counter()
     sol = solve(shell)
@@ -63,8 +65,6 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
     derived["volume_error"] = abs(sol.volume_um3 - shell.volume_um3) / shell.volume_um3
     derived["equator_shear_ratio"] = equator_shear_ratio(sol.lambda1, sol.lambda2)
     if shell.viscosity_Pa_s is not None:        # the oscillated viscous cell (solver.viscous)
-        if method != "fast":
-            raise InputError("a viscous cell needs the fast solver (its linear response uses the Hessian)")
         from solver.viscous import viscous_keys     # only here: it loads scikit-fem
         derived["compression_modulus_mN_per_m"] = derived["modulus_mN_per_m"]
         derived.update(viscous_keys(shell))
