@@ -111,20 +111,13 @@ def energy(r, z, ref, mat):
 
 
 @njit(cache=True)
-def gradients(r, z, ref, mat, gE, gV):
-    """Fill gE (N+1, 2) with ∂E/∂(r, z) and gV with ∂(V/2)/∂(r, z); returns the
-    nodal areas A_i (half node at the equator, π (l_0/2)² at the pole)."""
-    l0, rb0, H0 = ref
-    gamma, KB, KS, B = mat
-    n = r.size - 1
-    l, psi = elements(r, z)
-    gE[:, :] = 0.0
-    gV[:, :] = 0.0
-    gl = np.zeros(n)      # ∂E/∂l_j
-    gp = np.zeros(n)      # ∂E/∂ψ_j
-    A = np.empty(n + 1)
-    A[0] = np.pi * (0.5 * l[0]) ** 2
-    for j in range(n):
+def _stretch_and_volume(r, z, l, ref, mat, acc):
+    """Per element: tension and stretching as ∂E/∂l_j (into gl) and ∂E/∂r̄_j
+    (half onto each node's r), and ∂(V_j)/∂(r, z) of its frustum (into gV)."""
+    l0, rb0, _ = ref
+    gamma, KB, KS, _ = mat
+    gE, gV, gl, _, _ = acc
+    for j in range(r.size - 1):
         rb = 0.5 * (r[j] + r[j + 1])
         e1 = l[j] / l0[j] - 1.0
         e2 = rb / rb0[j] - 1.0
@@ -142,6 +135,15 @@ def gradients(r, z, ref, mat, gE, gV):
         gV[j + 1, 1] -= c * S
         gV[j, 0] += c * dz * (2.0 * r[j] + r[j + 1])
         gV[j + 1, 0] += c * dz * (r[j] + 2.0 * r[j + 1])
+
+
+@njit(cache=True)
+def _bending_and_areas(r, l, psi, ref, B, acc):
+    """The nodal areas A_i, and per node the bending term's ∂E/∂ψ (into gp),
+    ∂E/∂l (into gl) and ∂E/∂r_i; the equator closed by mirror symmetry."""
+    H0 = ref[2]
+    gE, _, gl, gp, A = acc
+    n = r.size - 1
     for i in range(1, n):
         L = 0.5 * (l[i - 1] + l[i])
         A[i] = 2.0 * np.pi * r[i] * L
@@ -168,7 +170,13 @@ def gradients(r, z, ref, mat, gE, gV):
         gp[n - 1] += q * (-2.0 / L)
         gl[n - 1] += q * (-k1 / L) + 2.0 * B * d * d * np.pi * r[n]
         gE[n, 0] += q * (-k2 / r[n]) + 2.0 * B * d * d * np.pi * L
-    for j in range(n):
+
+
+@njit(cache=True)
+def _chain(r, z, l, acc):
+    """∂E/∂l_j and ∂E/∂ψ_j through the element's end nodes onto gE."""
+    gE, _, gl, gp, _ = acc
+    for j in range(r.size - 1):
         dr = r[j + 1] - r[j]
         dzz = z[j + 1] - z[j]
         ll = l[j] * l[j]
@@ -178,7 +186,22 @@ def gradients(r, z, ref, mat, gE, gV):
         gE[j + 1, 1] += fz
         gE[j, 0] -= fr
         gE[j, 1] -= fz
-    return A
+
+
+@njit(cache=True)
+def gradients(r, z, ref, mat, gE, gV):
+    """Fill gE (N+1, 2) with ∂E/∂(r, z) and gV with ∂(V/2)/∂(r, z); returns the
+    nodal areas A_i (half node at the equator, π (l_0/2)² at the pole)."""
+    n = r.size - 1
+    l, psi = elements(r, z)
+    gE[:, :] = 0.0
+    gV[:, :] = 0.0
+    acc = (gE, gV, np.zeros(n), np.zeros(n), np.empty(n + 1))   # + ∂E/∂l_j, ∂E/∂ψ_j, A_i
+    acc[4][0] = np.pi * (0.5 * l[0]) ** 2
+    _stretch_and_volume(r, z, l, ref, mat, acc)
+    _bending_and_areas(r, l, psi, ref, mat[3], acc)
+    _chain(r, z, l, acc)
+    return acc[4]
 
 
 @njit(cache=True)
@@ -216,9 +239,11 @@ def _pressure(kind, gE, gV, A, dV, run):
 
 
 @njit(cache=True)
-def _move(r, z, kind, gE, gV, A, p, h, run):
-    """One explicit step v = μ f / A at the plate height h: nodes crossing the
-    plate are put on it, plate nodes the plate would have to pull lift off."""
+def _move(r, z, kind, forces, p, h, run):
+    """One explicit step v = μ f / A at the plate height h, forces = (∂E/∂x,
+    ∂(V/2)/∂x, A): nodes crossing the plate are put on it, plate nodes the
+    plate would have to pull lift off."""
+    gE, gV, A = forces
     for i in range(kind.size):
         if kind[i] == POLE:
             z[i] = 0.5 * h
@@ -274,7 +299,7 @@ def flow(r, z, kind, ref, mat, run):
             if kind[i] == PLATE or kind[i] == POLE:
                 dVplate += gV[i, 1] * 0.5 * (h_new - h_old)
         p = _pressure(kind, gE, gV, A, (run.V0half - half_volume(r, z)) / 10.0 - dVplate, run)
-        _move(r, z, kind, gE, gV, A, p, h_new, run)
+        _move(r, z, kind, (gE, gV, A), p, h_new, run)
         step += 1
         if t > run.t_comp and step % run.check_every == 0:
             F = plate_force(kind, gE, gV, p)

@@ -171,11 +171,12 @@ def write(out, rec, fitted, settings):
     from analysis.afm.analyze_report import markdown, markdown_skipped
     from analysis.afm.figures import figures, nu_intervals      # matplotlib: only now
     bending = settings.bending
-    for variant in rec.variants:
+    for variant in rec.variants:        # the selected one first (the manifest's order)
         _write(out, f"cells_{variant}.csv", _csv(fitted.tables[variant]))
         _write(out, f"summary_{variant}.json", _json(fitted.sums[variant]))
-    _write(out, "segments.csv", _csv(fitted.segments))
-    _write(out, "cells.csv", _csv(fitted.tables[bending]))
+        if variant == bending:
+            _write(out, "segments.csv", _csv(fitted.segments))
+            _write(out, "cells.csv", _csv(fitted.tables[bending]))
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if settings.method == "emulator":
