@@ -239,10 +239,11 @@ def _pressure(kind, gE, gV, A, dV, run):
 
 
 @njit(cache=True)
-def _move(r, z, kind, forces, p, h, run):
-    """One explicit step v = μ f / A at the plate height h, forces = (∂E/∂x,
-    ∂(V/2)/∂x, A): nodes crossing the plate are put on it, plate nodes the
-    plate would have to pull lift off."""
+def _move(nodes, forces, p, h, run):
+    """One explicit step v = μ f / A of nodes = (r, z, kind), in place, at the
+    plate height h, forces = (∂E/∂x, ∂(V/2)/∂x, A): nodes crossing the plate
+    are put on it, plate nodes the plate would have to pull lift off."""
+    r, z, kind = nodes
     gE, gV, A = forces
     for i in range(kind.size):
         if kind[i] == POLE:
@@ -299,7 +300,7 @@ def flow(r, z, kind, ref, mat, run):
             if kind[i] == PLATE or kind[i] == POLE:
                 dVplate += gV[i, 1] * 0.5 * (h_new - h_old)
         p = _pressure(kind, gE, gV, A, (run.V0half - half_volume(r, z)) / 10.0 - dVplate, run)
-        _move(r, z, kind, (gE, gV, A), p, h_new, run)
+        _move((r, z, kind), (gE, gV, A), p, h_new, run)
         step += 1
         if t > run.t_comp and step % run.check_every == 0:
             F = plate_force(kind, gE, gV, p)
