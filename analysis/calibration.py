@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import laws
-from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio
+from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio  # noqa: F401 (poisson, shear_ratio: this module's names for them)
 from solver.errors import InputError
 
 FORMAT = "cortex-calibration"
