@@ -26,24 +26,13 @@ import numpy as np
 import pandas as pd
 
 from analysis import laws
+from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio  # noqa: F401 (poisson, shear_ratio: this module's names for them)
 from solver.errors import InputError
 
 FORMAT = "cortex-calibration"
 NEEDED = ("bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "h_tilde",
           "modulus_mN_per_m")
 MIN_HEIGHTS = 3   # a curve with fewer heights cannot constrain α and c
-
-
-def poisson(ks_tilde):
-    """ν = (1 - K̃_S) / (1 + K̃_S)."""
-    ks_tilde = np.asarray(ks_tilde, float)
-    return (1.0 - ks_tilde) / (1.0 + ks_tilde)
-
-
-def shear_ratio(nu):
-    """K̃_S = (1 - ν) / (1 + ν), the inverse of `poisson`."""
-    nu = np.asarray(nu, float)
-    return (1.0 - nu) / (1.0 + nu)
 
 
 @dataclass
@@ -196,10 +185,9 @@ def _nan_to_none(x):
     return x
 
 
-def calibrate_variant(results, bending="standard"):
-    """Steps 1-4 for one bending variant. `results`: rows with the columns of
-    `NEEDED` (one per simulation). Returns (Law, per-curve fits DataFrame,
-    per-γ̃_a log-law DataFrame)."""
+def _free_fits(results, bending):
+    """Step 1 per (K_B, K_S, γ_a) curve with at least MIN_HEIGHTS heights: α and c
+    free. One row per curve (its heights and moduli kept in `_h`, `_k`)."""
     df = results.dropna(subset=["h_tilde", "modulus_mN_per_m"])
     rows = []
     for (bulk, shear, tension), curve in df.groupby(["bulk_mN_per_m", "shear_mN_per_m",
@@ -211,7 +199,7 @@ def calibrate_variant(results, bending="standard"):
         rows.append({"bending": bending, "bulk_mN_per_m": bulk, "shear_mN_per_m": shear,
                      "tension_mN_per_m": tension, "ks_tilde": shear / bulk,
                      "gamma_tilde": round(tension / bulk, 12),
-                     "nu_true": (bulk - shear) / (bulk + shear), "n_heights": len(curve),
+                     "nu_true": poisson_ratio(bulk, shear), "n_heights": len(curve),
                      "h_tilde_min": curve["h_tilde"].min(), "h_tilde_max": curve["h_tilde"].max(),
                      "c_free": free["c"], "c_free_sd": free["c_sd"], "alpha_free": free["alpha"],
                      "alpha_free_sd": free["alpha_sd"], "r2_free": free["r2"],
@@ -220,15 +208,20 @@ def calibrate_variant(results, bending="standard"):
     if len(rows) < 2:
         raise InputError(f"bending variant '{bending}': {len(rows)} complete K(h~) curve(s) "
                          f"(at least {MIN_HEIGHTS} heights each); a calibration needs at least 2")
-    fits = pd.DataFrame(rows)
-    lam = float(fits["c_free"].mean())                                   # step 1
-    step2 = [laws.fit_alpha(h, k, b, lam) for h, k, b in
-             zip(fits["_h"], fits["_k"], fits["bulk_mN_per_m"])]         # step 2
+    return pd.DataFrame(rows)
+
+
+def _alpha_at_lambda(fits, lam):
+    """Step 2: α of every curve with c = λ (columns added to `fits`)."""
+    step2 = [laws.fit_alpha(h, k, b, lam) for h, k, b in zip(fits["_h"], fits["_k"], fits["bulk_mN_per_m"])]
     fits["alpha"] = [f["alpha"] for f in step2]
     fits["r2_alpha"] = [f["r2"] for f in step2]
     fits["max_residual_alpha_mN_per_m"] = [f["max_residual_mN_per_m"] for f in step2]
 
-    per_gamma = []                                                       # step 3
+
+def _log_laws(fits, bending):
+    """Step 3: α = C ln K̃_S + D per γ̃_a with at least two K_S; one row each."""
+    per_gamma = []
     for g, group in fits.groupby("gamma_tilde", sort=True):
         if group["ks_tilde"].nunique() < 2:
             continue
@@ -239,22 +232,33 @@ def calibrate_variant(results, bending="standard"):
     if not per_gamma:
         raise InputError(f"bending variant '{bending}': the log law needs at least two K_S values "
                          "at one tension")
-    loglaw = pd.DataFrame(per_gamma)
-    fit_C = laws.fit_polynomial(loglaw["gamma_tilde"], loglaw["C"])      # step 4
+    return pd.DataFrame(per_gamma)
+
+
+def _polynomials(loglaw):
+    """Step 4: C(γ̃_a) and D(γ̃_a) as polynomials (`C_poly`, `D_poly` added to `loglaw`)."""
+    fit_C = laws.fit_polynomial(loglaw["gamma_tilde"], loglaw["C"])
     fit_D = laws.fit_polynomial(loglaw["gamma_tilde"], loglaw["D"])
     loglaw["C_poly"] = np.polynomial.polynomial.polyval(loglaw["gamma_tilde"], fit_C["coefficients"])
     loglaw["D_poly"] = np.polynomial.polynomial.polyval(loglaw["gamma_tilde"], fit_D["coefficients"])
+    return fit_C, fit_D
 
-    law = Law(bending=bending, lam=lam, C=fit_C["coefficients"], D=fit_D["coefficients"])
+
+def _check_law(law, fits):
+    """The whole law against the curves: α_law, K's residual, K̃_S and ν
+    inverted (columns added to `fits`); returns the R² and largest error of α and K."""
     fits["alpha_law"] = law.alpha_of(fits["ks_tilde"], fits["gamma_tilde"])
-    k_law = [laws.modulus_law(h, b, a, lam) for h, b, a in
+    k_law = [laws.modulus_law(h, b, a, law.lam) for h, b, a in
              zip(fits["_h"], fits["bulk_mN_per_m"], fits["alpha_law"])]
     fits["max_residual_law_mN_per_m"] = [float(np.max(np.abs(k - kl))) for k, kl in zip(fits["_k"], k_law)]
     fits["ks_tilde_law"] = law.invert(fits["alpha"], fits["gamma_tilde"])
     fits["nu_law"] = poisson(fits["ks_tilde_law"])
-    r2_alpha_law, worst_alpha_law = laws.goodness(fits["alpha"], fits["alpha_law"])
-    r2_k_law, worst_k_law = laws.goodness(np.concatenate(list(fits["_k"])), np.concatenate(k_law))
+    return (laws.goodness(fits["alpha"], fits["alpha_law"]),
+            laws.goodness(np.concatenate(list(fits["_k"])), np.concatenate(k_law)))
 
+
+def _alpha_table(law, fits):
+    """The fitted α on the (γ̃_a, K̃_S) grid, stored in `law`."""
     ks_axis = sorted(fits["ks_tilde"].unique())
     g_axis = sorted(fits["gamma_tilde"].unique())
     table = fits.pivot_table(index="gamma_tilde", columns="ks_tilde", values="alpha", aggfunc="mean")
@@ -262,7 +266,12 @@ def calibrate_variant(results, bending="standard"):
     law.ks_tilde = [float(v) for v in ks_axis]
     law.gamma_tilde = [float(v) for v in g_axis]
     law.alpha = [[float(a) for a in row] for row in table.to_numpy()]
-    law.goodness = {
+
+
+def _goodness(fits, loglaw, polys, law_fit):
+    """The `goodness` document of a Law: every stage's R² and largest residual."""
+    (fit_C, fit_D), ((r2_alpha_law, worst_alpha_law), (r2_k_law, worst_k_law)) = polys, law_fit
+    return {
         "step1_free_c": {"r2_min": float(fits["r2_free"].min()),
                          "max_residual_mN_per_m": float(fits["max_residual_free_mN_per_m"].max()),
                          "c_min": float(fits["c_free"].min()), "c_max": float(fits["c_free"].max()),
@@ -278,6 +287,21 @@ def calibrate_variant(results, bending="standard"):
         "law_K": {"r2": r2_k_law, "max_residual_mN_per_m": worst_k_law},
         "law_nu": {"max_abs_error": float(np.nanmax(np.abs(fits["nu_law"] - fits["nu_true"])))},
     }
+
+
+def calibrate_variant(results, bending="standard"):
+    """Steps 1-4 for one bending variant. `results`: rows with the columns of
+    `NEEDED` (one per simulation). Returns (Law, per-curve fits DataFrame,
+    per-γ̃_a log-law DataFrame)."""
+    fits = _free_fits(results, bending)                              # step 1
+    lam = float(fits["c_free"].mean())
+    _alpha_at_lambda(fits, lam)                                      # step 2
+    loglaw = _log_laws(fits, bending)                                # step 3
+    fit_C, fit_D = _polynomials(loglaw)                              # step 4
+    law = Law(bending=bending, lam=lam, C=fit_C["coefficients"], D=fit_D["coefficients"])
+    law_fit = _check_law(law, fits)
+    _alpha_table(law, fits)
+    law.goodness = _goodness(fits, loglaw, (fit_C, fit_D), law_fit)
     bulks = fits["bulk_mN_per_m"].unique()
     law.info = {"bulk_mN_per_m": float(bulks[0]) if len(bulks) == 1 else None,
                 "n_simulations": int(fits["n_heights"].sum()), "n_curves": int(len(fits)),

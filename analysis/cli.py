@@ -107,7 +107,7 @@ def inversion_settings(args):
 
 
 def calibrate(args):
-    from analysis.report import run
+    from analysis.calibrate_pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     laws = result["calibration"].laws
     say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},

@@ -23,17 +23,24 @@ spline extrapolates there); `nu_beyond_isotropic` flags ν > 0.5, the limit of
 an isotropic 3-D material (reported as it is).
 """
 
+from collections import namedtuple
+
 import numpy as np
 import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from analysis.calibration import poisson
 from analysis.inversion import exclusions, used_heights
+from solver.elasticity import poisson_of_ratio
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25
 NU_ISOTROPIC_MAX = 0.5
+
+
+# Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
+# γ_a (mN/m) and V (µm³) per cell.
+Curves = namedtuple("Curves", "h k use tension volume")
 
 
 def _ks_bounds(emulator, bending):
@@ -46,7 +53,10 @@ def _filled(h, use):
     return np.where(use, h, 0.6)
 
 
-def _start(emulator, bending, h, k, use, tension, volume):
+def _start(emulator, bending, curves):
+    """θ0 per cell: the best of START_POINTS values of ln K̃_S, K_B by three
+    fixed-point steps of the linear least squares at each."""
+    h, k, use, tension, volume = curves
     lo, hi = _ks_bounds(emulator, bending)
     best_ss = np.full(h.shape[0], np.inf)
     best = np.zeros((h.shape[0], 2))
@@ -73,15 +83,17 @@ def model(emulator, bending, theta, h, tension, volume):
     return K, K * (1.0 - d_g), K * d_ks
 
 
-def fit(emulator, bending, h, k, use, tension, volume):
-    """θ = (ln K_B, ln K̃_S) per cell (rows), least squares over all cells at once.
-    Cells without usable heights get NaN."""
+def fit(emulator, bending, curves):
+    """θ = (ln K_B, ln K̃_S) per cell (rows of `Curves`), least squares over all
+    cells at once. Cells without usable heights get NaN."""
+    h, k, use, tension, volume = curves
     n, m = h.shape
     ok = use.sum(axis=1) >= 2
     theta = np.full((n, 2), np.nan)
     if not ok.any():
         return theta
-    hs, ks, us, ts, vs = _filled(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok]
+    sub = Curves(_filled(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok])
+    hs, ks, us, ts, vs = sub
     cells = hs.shape[0]
     rows = np.repeat(np.arange(cells * m), 2)
     cols = (np.repeat(np.arange(cells), m)[:, None] * 2 + np.arange(2)).ravel()
@@ -96,7 +108,7 @@ def fit(emulator, bending, h, k, use, tension, volume):
         return sparse.csr_matrix((vals, (rows, cols)), shape=(cells * m, cells * 2))
 
     lo, hi = _ks_bounds(emulator, bending)
-    x0 = _start(emulator, bending, hs, ks, us, ts, vs)
+    x0 = _start(emulator, bending, sub)
     lower = np.tile([np.log(1e-3), lo], cells)
     upper = np.tile([np.log(1e4), hi], cells)
     x0 = np.clip(x0.ravel(), lower + 1e-9, upper - 1e-9)
@@ -117,10 +129,11 @@ def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending=
     volume = np.broadcast_to(np.asarray(volume, float), h.shape[:1]).copy()
     use, n, top = used_heights(h, k)
     use &= (tension > 0)[:, None] & (volume > 0)[:, None]
-    theta = fit(emulator, bending, h, k, use, tension, volume)
+    curves = Curves(h, k, use, tension, volume)
+    theta = fit(emulator, bending, curves)
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])
-    nu = poisson(ks)
-    r2, rms = _goodness(emulator, bending, theta, h, k, use, tension, volume)
+    nu = poisson_of_ratio(ks)
+    r2, rms = _goodness(emulator, bending, theta, curves)
     lo, hi = _ks_bounds(emulator, bending)
     at_bound = np.isfinite(theta[:, 1]) & ((theta[:, 1] <= lo + 1e-6) | (theta[:, 1] >= hi - 1e-6))
     gamma_tilde = tension / bulk
@@ -130,7 +143,7 @@ def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending=
     extra = [(at_bound, lambda i: f"K_S/K_B = {ks[i]:.3g} lies at the limit of the fit "
                                   f"({np.exp(lo):.3g}-{np.exp(hi):.3g}): nu beyond the tabulated range"),
              (~np.isfinite(nu), lambda i: "the emulator fit found no solution")]
-    reasons = exclusions(n, top, bulk, tension, nu, r2, extra)
+    reasons = exclusions(n, top, bulk=bulk, tension=tension, nu=nu, r2=r2, extra=extra)
     return pd.DataFrame({"nu": nu, "ks_tilde": ks, "bulk_mN_per_m": bulk, "alpha": np.nan, "r2": r2,
                          "gamma_tilde": gamma_tilde, "n_heights": n,
                          "h_tilde_max": np.where(n > 0, top, np.nan), "rms_mN_per_m": rms,
@@ -139,8 +152,9 @@ def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending=
                          "excluded_reason": pd.Series(reasons, dtype=object)})
 
 
-def _goodness(emulator, bending, theta, h, k, use, tension, volume):
+def _goodness(emulator, bending, theta, curves):
     """R² and the RMS residual (mN/m, n - 2 degrees of freedom) per cell."""
+    h, k, use, tension, volume = curves
     with np.errstate(invalid="ignore", divide="ignore"):
         K, _, _ = model(emulator, bending, np.nan_to_num(theta), _filled(h, use), tension, volume)
         res = np.where(use, K - np.nan_to_num(k), 0.0)

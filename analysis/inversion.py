@@ -23,8 +23,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Calibration, poisson
+from analysis.calibration import Calibration
 from analysis.laws import fit_bulk_alpha
+from solver.elasticity import poisson_of_ratio
 
 H_TILDE_MIN, H_TILDE_MAX = 0.5, 0.75   # heights used
 MIN_HEIGHTS = 4                         # at least this many of them
@@ -66,7 +67,7 @@ def used_heights(h, k):
     return use, use.sum(axis=1), np.where(use, h, -np.inf).max(axis=1)
 
 
-def exclusions(n, top, bulk, tension, nu, r2, extra=()):
+def exclusions(n, top, *, bulk, tension, nu, r2, extra=()):
     """The published filters (module docstring) as one reason per cell (None: passes),
     the first that applies; `extra`: (mask, reason(i)) checks of the method,
     applied before the R² filter."""
@@ -102,11 +103,11 @@ def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
     with np.errstate(divide="ignore", invalid="ignore"):
         gamma_tilde = tension / bulk
         ks = law.invert(alpha, gamma_tilde)
-        nu = poisson(ks)
+        nu = poisson_of_ratio(ks)
 
     not_inverted = (~np.isfinite(nu), lambda i: "the calibration cannot be inverted here "
                     f"(alpha = {alpha[i]:.3g}, gamma_a/K_B = {gamma_tilde[i]:.3g})")
-    reasons = exclusions(n, top, bulk, tension, nu, r2, [not_inverted])
+    reasons = exclusions(n, top, bulk=bulk, tension=tension, nu=nu, r2=r2, extra=[not_inverted])
     return pd.DataFrame({"nu": nu, "ks_tilde": ks, "bulk_mN_per_m": bulk, "alpha": alpha, "r2": r2,
                          "gamma_tilde": gamma_tilde, "n_heights": n,
                          "h_tilde_max": np.where(n > 0, top, np.nan),

@@ -13,8 +13,8 @@ of the log law and the cubics alone.
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import poisson
 from analysis.inversion import invert_curves, to_curves
+from solver.elasticity import poisson_of_ratio
 
 KEYS = ["bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"]
 
@@ -33,7 +33,7 @@ def reconstruct(results, calibration, fits=None):
         inv = inv.rename(columns={"bulk_mN_per_m": "bulk_fit_mN_per_m"})
         parts.append(pd.concat([keys.loc[idx].reset_index(drop=True), inv], axis=1))
     out = pd.concat(parts, ignore_index=True).drop(columns="n_rows")
-    out["nu_true"] = poisson(out["shear_mN_per_m"] / out["bulk_mN_per_m"])
+    out["nu_true"] = poisson_of_ratio(out["shear_mN_per_m"] / out["bulk_mN_per_m"])
     out["nu_error"] = out["nu"] - out["nu_true"]
     if fits is not None:
         law = fits[KEYS + ["nu_law"]]

@@ -20,6 +20,7 @@ Layout (a superset of `calibration.json`, so `Calibration.load` reads it too):
 import json
 import time
 from importlib import resources
+from importlib.metadata import version
 from pathlib import Path
 
 from analysis.calibration import FORMAT, Calibration, _nan_to_none, read_document
@@ -47,15 +48,13 @@ def build(emulator_store, law_store=None, progress=None):
     """The calibration document from an emulator campaign's store and (optionally)
     the paper campaign's store (its law fitted by `analysis.calibration.calibrate`)."""
     from analysis.calibration import calibrate
-    from analysis.report import read_store
-    from importlib.metadata import version             # the code version, as campaign stores record it
-    __version__ = version("cortex-poisson")
+    from analysis.calibrate_pipeline import read_store
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
     doc = {"format": FORMAT, "version": VERSION, "variants": {},
            "emulator": emulator.to_json(),
            "provenance": {"emulator": _store_provenance(emulator_store),
-                          "built": {"date": time.strftime("%Y-%m-%d"), "code_version": __version__}}}
+                          "built": {"date": time.strftime("%Y-%m-%d"), "code_version": version("cortex-poisson")}}}
     if law_store is not None:
         law_results, _ = read_store(law_store)
         done = law_results[law_results["state"] == "done"]

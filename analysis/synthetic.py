@@ -16,7 +16,8 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Law, shear_ratio
+from analysis.calibration import Law
+from solver.elasticity import poisson_of_ratio, shear_ratio
 from solver.geometry import droplet
 from solver.modulus import effective_modulus
 
@@ -52,7 +53,7 @@ def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
     fpt = droplet(V, h0 - dh).force_per_tension_um
     dgamma = K * geo["area_strain"]
     gamma_eff = df["tension_mN_per_m"].to_numpy() + dgamma
-    nu = (1.0 - ks) / (1.0 + ks)
+    nu = poisson_of_ratio(ks)
     df["task_id"] = [f"c{i:05d}" for i in range(len(df))]
     df["state"] = "done"
     df["thickness_um"] = 0.2
@@ -76,7 +77,7 @@ def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
     return df
 
 
-def trials_table(law, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_height"), n_cells=55,
+def trials_table(law, *, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_height"), n_cells=55,
                  n_studies=10, volume_rel_sd=0.075, height_sd_um=0.5, volume=4300.0, bulk=25.0,
                  heights=(15.0, 14.0, 13.0, 12.0, 11.0, 10.0), tensions=(0.5, 1.0, 1.5, 2.0, 2.5, 3.0),
                  dh=0.5, seed=0):

@@ -26,7 +26,7 @@ from pathlib import Path
 # `analysis` is the package, not this script.
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-import analysis.report as report  # noqa: E402
+import analysis.calibrate_pipeline as report  # noqa: E402
 from analysis.synthetic import reference_law, results_table, trials_table  # noqa: E402
 
 

@@ -39,6 +39,7 @@ sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 import numpy as np
 
 from solver.compression import compress
+from solver.elasticity import poisson_ratio
 from solver.errors import InputError, SolverError
 from solver.model import Shell
 
@@ -92,7 +93,7 @@ def study(point, resolutions, default, method, cache, log):
     q = resolutions[-1] / resolutions[-2]
     out = dict(h0_um=point[0], bulk_mN_per_m=BULK, shear_mN_per_m=point[1],
                tension_mN_per_m=point[2], bending=point[3],
-               poisson_ratio=round((BULK - point[1]) / (BULK + point[1]), 3),
+               poisson_ratio=round(poisson_ratio(BULK, point[1]), 3),
                resolution=list(resolutions), modulus_mN_per_m=[float(k) for k in K],
                wall_s=[row["wall_s"] for row in rows], nodes=[row.get("nodes") for row in rows],
                errors=[row["error"] for row in rows if row["error"]])

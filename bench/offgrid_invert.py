@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from analysis.afm.synth import solver_forward  # noqa: E402
+from solver.elasticity import poisson_of_ratio  # noqa: E402
 from solver.geometry import cell_radius  # noqa: E402
 
 H_TILDES = np.linspace(0.745, 0.5, 8)
@@ -38,7 +39,7 @@ def curves(n, rng):
         heights = H_TILDES * 2.0 * float(cell_radius(V))
         K = forward(V, heights, bulk, ks * bulk, gt * bulk)
         cid = f"c{i:02d}"
-        truth[cid] = {"nu": (1 - ks) / (1 + ks), "ks_tilde": ks, "gamma_tilde": gt, "volume_um3": V,
+        truth[cid] = {"nu": float(poisson_of_ratio(ks)), "ks_tilde": ks, "gamma_tilde": gt, "volume_um3": V,
                       "bulk_mN_per_m": bulk}
         rows += [{"cell_id": cid, "h_tilde": h, "modulus_mN_per_m": k, "tension_mN_per_m": gt * bulk,
                   "volume_um3": V} for h, k in zip(H_TILDES, K)]

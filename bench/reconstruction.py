@@ -16,8 +16,9 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.invert_table import Errors, invert_rows  # noqa: E402
-from analysis.report import read_store  # noqa: E402
+from analysis.calibrate_pipeline import read_store  # noqa: E402
 from analysis.shipped import load  # noqa: E402
+from solver.elasticity import poisson_ratio  # noqa: E402
 
 
 def main():
@@ -28,7 +29,7 @@ def main():
     out = {"benchmark": "reconstruction", "store": str(store), "variants": {}}
     for bending, g in results.groupby("bending"):
         rows = g.assign(cell_id=[f"{s:g}/{t:g}" for s, t in zip(g["shear_mN_per_m"], g["tension_mN_per_m"])])
-        truth = {c: (b - s) / (b + s) for c, b, s in zip(rows["cell_id"], rows["bulk_mN_per_m"],
+        truth = {c: poisson_ratio(b, s) for c, b, s in zip(rows["cell_id"], rows["bulk_mN_per_m"],
                                                          rows["shear_mN_per_m"])}
         rows = rows[["cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m", "volume_um3"]]
         res = {}

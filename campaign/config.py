@@ -54,6 +54,7 @@ from dataclasses import dataclass
 from campaign import faults
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
+from solver.elasticity import poisson_ratio, shear_modulus
 from solver.errors import InputError
 from solver.geometry import cell_radius
 from solver.model import BENDING_VARIANTS, Shell
@@ -300,7 +301,7 @@ def _studies(path, mc, axes, shells, limit=MAX_TASKS):
         _mc_number(path, "nu", nu, -1.0, 1.0)
         hit = grid_shear(nu, bulk, axes["shear_mN_per_m"])
         if hit is None:
-            want = bulk * (1 - nu) / (1 + nu)
+            want = shear_modulus(nu, bulk)
             raise InputError(f"{path}: [montecarlo] nu = {nu:g} has no [grid] shear_mN_per_m within "
                              f"0.01 in nu; add K_S = {want:.4g} mN/m (K_B (1-nu)/(1+nu)) to the grid")
         if hit[0] in shears:
@@ -329,7 +330,7 @@ def _studies(path, mc, axes, shells, limit=MAX_TASKS):
     for bending, (shear, nu), mode in itertools.product(bendings, shears.items(), modes):
         for rep in range(repeats):
             studies.append(Study(
-                bending=bending, nu_true=(bulk - shear) / (bulk + shear), height_error_mode=mode, study=rep,
+                bending=bending, nu_true=poisson_ratio(bulk, shear), height_error_mode=mode, study=rep,
                 n_cells=cells, volume_um3=axes["volume_um3"][0], dh_um=axes["dh_um"][0],
                 bulk_mN_per_m=bulk, shear_mN_per_m=shear, heights_um=heights,
                 tensions_mN_per_m=tuple(float(t) for t in tensions), volume_error_rel_sd=sd_v,

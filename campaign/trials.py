@@ -5,7 +5,7 @@ with errors.
 A model cell is one grid point except h0: (V, Δh, K_B, K_S, γ_a, bending) at
 every height h0_j of the grid, with the simulated plate forces F_j at
 h1_j = h0_j - Δh (the campaign's compressions). Its true Poisson ratio is
-ν = (K_B - K_S)/(K_B + K_S); a configured ν uses the grid's K_S closest to
+ν = (K_B - K_S)/(K_B + K_S) (`solver.elasticity`); a configured ν uses the grid's K_S closest to
 K_B (1 - ν)/(1 + ν) (`grid_shear`).
 
 One trial task is one *study*: N cells of one (bending, ν, height-error
@@ -43,22 +43,19 @@ from functools import cached_property
 
 import numpy as np
 
+from solver.elasticity import poisson_ratio
 from solver.geometry import droplet, sphere_height
 
 MODES = ("per_cell", "per_height")
 NU_TOLERANCE = 0.01     # |ν of the grid's K_S - ν asked| allowed
 
 
-def poisson(bulk, shear):
-    """ν = (K_B - K_S) / (K_B + K_S)."""
-    return (bulk - shear) / (bulk + shear)
-
-
 def grid_shear(nu, bulk, shears):
     """The grid's K_S whose ν is closest to `nu`, and that ν; None if none is
     within NU_TOLERANCE."""
-    best = min(shears, key=lambda s: abs(poisson(bulk, s) - nu))
-    return (best, poisson(bulk, best)) if abs(poisson(bulk, best) - nu) <= NU_TOLERANCE else None
+    best = min(shears, key=lambda s: abs(poisson_ratio(bulk, s) - nu))
+    nu_best = poisson_ratio(bulk, best)
+    return (best, nu_best) if abs(nu_best - nu) <= NU_TOLERANCE else None
 
 
 @dataclass(frozen=True)

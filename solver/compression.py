@@ -14,31 +14,12 @@ import importlib
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from solver.errors import InputError
 from solver.model import Shell
 from solver.modulus import effective_modulus
+from solver.solution import Solution
 
 METHODS = {"fast": "solver.fast", "explicit": "solver.explicit"}
-
-
-@dataclass
-class Solution:
-    """What a solver computes. Arrays run along the upper half meridian from the
-    pole on the plate (r = 0) to the equator; z is measured from the mid-plane."""
-
-    force_nN: float           # F_tot, force on one plate
-    volume_um3: float         # enclosed volume of the final shape
-    area_um2: float           # total area of the final shape (both halves, contact discs included)
-    area0_um2: float          # total area of the reference shape at h0, same mesh
-    r_um: np.ndarray
-    z_um: np.ndarray
-    lambda1: np.ndarray       # meridional stretch ds/ds0 at the nodes
-    lambda2: np.ndarray       # circumferential stretch r/r0 at the nodes
-    converged: bool
-    iterations: int
-    message: str = ""
 
 
 @dataclass
@@ -71,6 +52,8 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
     """Solve one compression with `method` (`fast` or `explicit`)."""
     if method not in METHODS:
         raise InputError(f"solver must be one of {', '.join(METHODS)} (got {method!r})")
+    if shell.viscosity_Pa_s is not None and method != "fast":     # refused before any work
+        raise InputError("a viscous cell needs the fast solver (its linear response uses the Hessian)")
     solve = importlib.import_module(METHODS[method]).solve
     start = time.perf_counter()
     sol = solve(shell)
@@ -82,9 +65,7 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
     derived["volume_error"] = abs(sol.volume_um3 - shell.volume_um3) / shell.volume_um3
     derived["equator_shear_ratio"] = equator_shear_ratio(sol.lambda1, sol.lambda2)
     if shell.viscosity_Pa_s is not None:        # the oscillated viscous cell (solver.viscous)
-        if method != "fast":
-            raise InputError("a viscous cell needs the fast solver (its linear response uses the Hessian)")
-        from solver.viscous import viscous_keys
+        from solver.viscous import viscous_keys     # only here: it loads scikit-fem
         derived["compression_modulus_mN_per_m"] = derived["modulus_mN_per_m"]
         derived.update(viscous_keys(shell))
     return Compression(shell=shell, method=method, solution=sol, wall_s=wall, derived=derived)

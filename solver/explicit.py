@@ -38,10 +38,11 @@ plate's normal reactions on the nodes it holds (exact for the discrete energy).
 import numpy as np
 
 from solver import surface_forces as sf
-from solver.compression import Solution
 from solver.errors import SolverError
+from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 from solver.model import Shell
+from solver.solution import Solution
 
 MU = 1.0              # µm² / (s · mN/m)
 C_DT = 0.8            # fraction of the explicit stability limit
@@ -99,12 +100,26 @@ def mesh(shell: Shell):
     r0 = np.concatenate([S_disc, r_f])
     z0 = np.concatenate([np.full(S_disc.size, h0 / 2.0), z_f])
     z0[-1] = 0.0
-    r0 *= np.sqrt(0.5 * V / sf.half_volume(r0, z0))     # chords enclose exactly V
+    r0 *= np.sqrt(V / enclosed_volume(r0, z0))     # chords enclose exactly V
     kind = np.full(r0.size, sf.FREE, dtype=np.int64)
     kind[: S_disc.size] = sf.PLATE
     kind[0] = sf.POLE
     kind[-1] = sf.EQUATOR
     return r0, z0, kind, ds_min
+
+
+def _run(shell, mat, ds_min):
+    """The time loop's `surface_forces.Run`: dt from the stability bound of the
+    module docstring, the plate compressed over one relaxation time τ, the
+    force checked every τ/10, at most 1 + MAX_TIMES relaxation times."""
+    gamma, KB, KS, B = mat
+    dt = C_DT / (2.0 * (KB + KS + gamma) / ds_min**2 + 8.0 * B / ds_min**4) / MU
+    R_cell = float(droplet(shell.volume_um3, shell.h0_um).cell_radius_um)
+    tau = R_cell**2 / (4.0 * MU * (gamma + KB + KS))
+    return sf.Run(mu=MU, dt=dt, V0half=0.5 * shell.volume_um3, h0=float(shell.h0_um),
+                  dh=float(shell.dh_um), t_comp=tau, check_every=max(1, int(0.1 * tau / dt)),
+                  tau_relax=tau, tol=TOL, max_steps=int((1.0 + MAX_TIMES) * tau / dt),
+                  release_tol=RELEASE if KB + KS + B > 0 else np.inf)
 
 
 def solve(shell: Shell) -> Solution:
@@ -117,38 +132,22 @@ def relax(shell: Shell):
     """`solve`, also returning the final pressure p (mN/m/µm, the volume's
     Lagrange multiplier) and the reference nodes (r0, z0) in µm."""
     r0, z0, kind, ds_min = mesh(shell)
-    l0, _ = sf._elements(r0, z0)
-    rb0 = 0.5 * (r0[1:] + r0[:-1])
-    H0 = sf.mean_curvature(r0, z0)
-    gamma, KB, KS = shell.tension_mN_per_m, shell.bulk_mN_per_m, shell.shear_mN_per_m
-    B = shell.bending_stiffness
-    dt = C_DT / (2.0 * (KB + KS + gamma) / ds_min**2 + 8.0 * B / ds_min**4) / MU
-    R_cell = float(droplet(shell.volume_um3, shell.h0_um).cell_radius_um)
-    tau = R_cell**2 / (4.0 * MU * (gamma + KB + KS))
-    check_every = max(1, int(0.1 * tau / dt))
-    max_steps = int((1.0 + MAX_TIMES) * tau / dt)
+    mat = sf.Material(float(shell.tension_mN_per_m), float(shell.bulk_mN_per_m),
+                      float(shell.shear_mN_per_m), float(shell.bending_stiffness))
     r, z = r0.copy(), z0.copy()
-    V0half = 0.5 * shell.volume_um3
-    F, p, steps, settled, res = sf.flow(r, z, kind, l0, rb0, H0, gamma, KB, KS, B, MU, dt,
-                                        V0half, shell.h0_um, shell.dh_um, tau, check_every,
-                                        tau, TOL, max_steps,
-                                        RELEASE if KB + KS + B > 0 else np.inf)
+    run = _run(shell, mat, ds_min)
+    F, p, steps, settled, res = sf.flow(r, z, kind, sf.reference(r0, z0), mat, run)
+    dt, max_steps = run.dt, run.max_steps
     if not np.isfinite(F) or not np.all(np.isfinite(r)):
         raise SolverError(f"explicit scheme went unstable (dt = {dt:.3g} s, ds_min = {ds_min:.3g} um)")
     if not settled:
         raise SolverError(f"plate force did not settle to {TOL:g} per relaxation time within "
                           f"{max_steps} steps ({MAX_TIMES:g} relaxation times); F = {F:.6g} nN")
-    l, _ = sf._elements(r, z)
-    lam1_e = l / l0
-    lam1 = np.concatenate([[lam1_e[0]], 0.5 * (lam1_e[1:] + lam1_e[:-1]), [lam1_e[-1]]])
-    lam2 = np.empty_like(r)
-    lam2[1:] = r[1:] / r0[1:]
-    lam2[0] = lam2[1]
-    volume = 2.0 * sf.half_volume(r, z)
+    lam1, lam2 = nodal_stretches(r, z, r0, z0)
+    volume = enclosed_volume(r, z)
     msg = (f"settled after {steps} steps (dt = {dt:.3g} s, {r.size} nodes, ds_min = {ds_min:.3g} um); "
            f"pressure {p:.6g} mN/m/um, residual force density {res:.3g} mN/m/um")
     return Solution(force_nN=float(F), volume_um3=float(volume),
-                    area_um2=float(2.0 * sf.half_area(r, z)),
-                    area0_um2=float(2.0 * sf.half_area(r0, z0)),
+                    area_um2=float(surface_area(r, z)), area0_um2=float(surface_area(r0, z0)),
                     r_um=r, z_um=z, lambda1=lam1, lambda2=lam2,
                     converged=True, iterations=int(steps), message=msg), float(p), (r0, z0)

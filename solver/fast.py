@@ -38,11 +38,12 @@ the solution (virtual work), in nN (energies in mN/m·µm², lengths in µm).
 import numpy as np
 from numba import njit
 
-from solver.compression import Solution
 from solver.errors import SolverError
 from solver.fast_energy import Lagrangian
-from solver.fast_mesh import enclosed_volume, reference
+from solver.fast_mesh import reference
+from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
+from solver.solution import Solution
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
 LOG_PSI_MAX = np.log(1.0)        # at most a radian of the free surface on the plate
@@ -128,6 +129,32 @@ def _reduced(lag, g, H):
     return g[-2], H.lcol[-2] + hxl @ tangent, tangent
 
 
+def contact_at_least(u):
+    """Whether the unknowns u have the least contact label, l = log ψ_min."""
+    return u[-2] <= LOG_PSI_MIN + 1e-12
+
+
+def _touching_label(touching, lo):
+    """Where the free surface touches the plate: the secant of the gap through
+    the last two labels (l, gap, u) above it (`lo` if their gaps are equal)."""
+    (l1, g1, _), (l2, g2, _) = touching
+    return l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
+
+
+def _predicted(lag, u, zp, tangent, target):
+    """A copy of u moved to the label `target`, its other unknowns along the
+    equilibrium's `tangent` dx/dl (kept if that leaves the admissible shapes;
+    tangent None: not moved)."""
+    u, l = u.copy(), u[-2]
+    if tangent is not None:
+        keep = np.r_[0: lag.size - 2, lag.size - 1]
+        u[keep] += tangent * (target - l)
+        if not _admissible(lag, u, zp):
+            u[keep] -= tangent * (target - l)
+    u[-2] = target
+    return u
+
+
 def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l. Safeguarded Newton on G(l) = dE*/dl = 0
@@ -140,8 +167,7 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
     label whose free surface crosses the plate and one with G > 0, the
     admissible minimum is the label at which the free surface touches the
     plate, and that is the answer. Returns the solution and the Newton iterations."""
-    lo, hi, iterations, touching = LOG_PSI_MIN, LOG_PSI_MAX, 0, []
-    keep, tangent = np.r_[0: lag.size - 2, lag.size - 1], None
+    lo, hi, iterations, touching, tangent = LOG_PSI_MIN, LOG_PSI_MAX, 0, [], None
     for _ in range(maxit):
         u, g, H, it = _newton(lag, u, zp)
         iterations += it
@@ -150,7 +176,7 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
             lo, step = l, TRUST_L
         else:
             G, k, tangent = _reduced(lag, g, H)
-            if abs(G) < tol * lag.force_scale or (G > 0 and l <= LOG_PSI_MIN + 1e-12):
+            if abs(G) < tol * lag.force_scale or (G > 0 and contact_at_least(u)):
                 return u, iterations
             if G > 0:
                 hi = l
@@ -164,22 +190,15 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
             # less contact would lift the free surface through the plate: the
             # minimum over the admissible labels is where it touches, found
             # by the secant of the gap through the last two labels above it
-            (l1, g1, u1), (l2, g2, _) = touching
-            touch = l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
-            if abs(touch - l1) < TOL_L:
-                return u1, iterations
+            touch = _touching_label(touching, lo)
+            if abs(touch - touching[0][0]) < TOL_L:
+                return touching[0][2], iterations
             target = max(target, touch + 0.3 * TOL_L)
         if hi - lo < TOL_L and touching:
             return touching[0][2], iterations
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        u = u.copy()
-        target = max(target, LOG_PSI_MIN)
-        if gap <= 0:                  # predict the equilibrium at the new label
-            u[keep] += tangent * (target - l)
-            if not _admissible(lag, u, zp):
-                u[keep] -= tangent * (target - l)
-        u[-2] = target
+        u = _predicted(lag, u, zp, tangent if gap <= 0 else None, max(target, LOG_PSI_MIN))
     raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
                       f"{maxit} steps)")
 
@@ -238,11 +257,11 @@ def problem(shell):
     lag = Lagrangian(shell, ref)
     r0, z0 = ref.positions(np.log(1e-12))[:2]
     lag.V0 = enclosed_volume(r0, z0)        # = V by the mesh's scale
-    lag.area0 = 2.0 * np.sum(np.pi * (r0[1:] + r0[:-1]) * np.hypot(np.diff(r0), np.diff(z0)))
+    lag.area0 = surface_area(r0, z0)
     return lag
 
 
-def _equilibrium(shell):
+def equilibrium(shell):
     """The solved problem, its unknowns and the Newton iterations, trying
     the starts in turn until one reaches an admissible equilibrium."""
     lag = problem(shell)
@@ -266,7 +285,7 @@ def _equilibrium(shell):
 def energy(shell):
     """E* = min E at fixed volume and gap h1 (mN/m·µm², = 1e-15 J): the energy
     whose derivative -dE*/dh1 is the plate force (virtual work)."""
-    lag, u, _ = _equilibrium(shell)
+    lag, u, _ = equilibrium(shell)
     zp = 0.5 * shell.h1_um
     value = lag.evaluate(u, zp, hessian=False)[0]
     return value + u[-1] * (lag.volume(u, zp) - lag.V0)
@@ -274,16 +293,14 @@ def energy(shell):
 
 def solve(shell):
     """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
-    lag, u, iterations = _equilibrium(shell)
+    lag, u, iterations = equilibrium(shell)
     zp = 0.5 * shell.h1_um
     force = -0.5 * lag.evaluate(u, zp, hessian=False)[2]
     if not np.isfinite(force):
         raise SolverError("non-finite plate force")
     r, z, psic, p = lag.nodes(u, zp)
     r0, z0 = lag.ref.positions(u[-2])[:2]
-    lam_e = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0))
-    lam1 = np.concatenate([[lam_e[0]], 0.5 * (lam_e[1:] + lam_e[:-1]), [lam_e[-1]]])
-    lam2 = np.concatenate([[lam1[0]], r[1:] / r0[1:]])
+    lam1, lam2 = nodal_stretches(r, z, r0, z0)
     return Solution(force_nN=float(force), volume_um3=lag.volume(u, zp),
                     area_um2=lag.area(u, zp), area0_um2=lag.area0, r_um=r, z_um=z,
                     lambda1=lam1, lambda2=lam2, converged=True, iterations=iterations,

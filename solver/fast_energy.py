@@ -32,6 +32,7 @@ from collections import namedtuple
 import numpy as np
 from scipy.linalg.lapack import dgbsv
 
+from solver.frustum import enclosed_volume, surface_area
 from solver.fast_kernel import L_SLOT, NO_SLOT, P_SLOT, Terms, evaluate
 
 BAND = 5    # half-bandwidth of the position block in node order
@@ -139,12 +140,12 @@ class Lagrangian:
         return r, z, np.exp(u[-2]), u[-1]
 
     def volume(self, u, zp):
-        r, z = self.nodes(u, zp)[:2]
-        return 2.0 * np.sum(np.pi * (-np.diff(z)) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3.0)
+        """Enclosed volume V(u) (µm³, `solver.frustum`)."""
+        return enclosed_volume(*self.nodes(u, zp)[:2])
 
     def area(self, u, zp):
-        r, z = self.nodes(u, zp)[:2]
-        return 2.0 * np.sum(np.pi * (r[1:] + r[:-1]) * np.hypot(np.diff(r), np.diff(z)))
+        """Total area A(u) (µm², contact discs included; `solver.frustum`)."""
+        return surface_area(*self.nodes(u, zp)[:2])
 
     def newton_system(self, u, zp, hessian=True):
         """L, ∇L (size), ∂L/∂z_p, and the Hessian as a `NewtonMatrix` if asked

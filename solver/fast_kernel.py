@@ -6,7 +6,7 @@ nodes instead of numpy arrays of (elements × 6 × 6) temporaries. Per element
 e = (k, k+1), in the local unknowns (r_k, z_k, r_k+1, z_k+1, l, p):
 
     f_e = 4π [c_e r̄ ds + w(e1, e2) r̄0 dS] - 2 p V_e,
-    V_e = π (z_k - z_k+1)(r_k² + r_k r_k+1 + r_k+1²)/3,
+    V_e = π (z_k - z_k+1)(r_k² + r_k r_k+1 + r_k+1²)/3     (`solver.frustum`),
 
 through the intermediate quantities a = (ds, r̄, dS, r̄0) with Jacobian J:
 ∇f = (∂f/∂a) J and ∇²f = J^T (∂²f/∂a²) J + Σ ∂f/∂a ∇²a. Per free node k

@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 from numpy.polynomial import chebyshev
 
+from solver.frustum import enclosed_volume
 from solver.geometry import droplet, meridian
 
 FIRST = 0.01      # µm, element size at the contact line (resolution 1)
@@ -123,12 +124,6 @@ def _meridian_series(volume, h0):
     """Chebyshev series of the droplet's z0(ψ0) on [0, π/2] (60th degree)."""
     return chebyshev.chebinterpolate(
         lambda x: meridian(volume, h0, np.clip((x + 1.0) * np.pi / 4.0, 0.0, np.pi / 2))[1], 60)
-
-
-def enclosed_volume(r, z):
-    """Volume of the closed surface of revolution through the upper-half nodes,
-    mirrored: 2 Σ_e π (z_k - z_k+1)(r_k² + r_k r_k+1 + r_k+1²)/3."""
-    return 2.0 * np.sum(np.pi * (-np.diff(z)) * (r[1:] ** 2 + r[1:] * r[:-1] + r[:-1] ** 2) / 3.0)
 
 
 @lru_cache(maxsize=256)

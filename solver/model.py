@@ -1,8 +1,8 @@
 """One compression of the elastic cortical shell (SPEC section 2), as data.
 
-Isotropic material of thickness t_c: K_B = t E / (2(1-ν)), K_S = t E / (2(1+ν)),
-so ν = (K_B - K_S)/(K_B + K_S). Bending stiffness B = t_c² (K_B + K_S) / 24
-for the `standard` variant, 2B for `double`, 0 for `none`, or given explicitly.
+Isotropic material of thickness t_c (`solver.elasticity`): ν = (K_B - K_S)/(K_B + K_S),
+bending stiffness B = t_c² (K_B + K_S) / 24 for the `standard` variant, 2B for
+`double`, 0 for `none` (`BENDING_VARIANTS`), or given explicitly.
 
 Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 """
@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from solver.elasticity import bending_stiffness, poisson_ratio
 from solver.errors import InputError
 from solver.geometry import sphere_height
 
@@ -76,8 +77,7 @@ class Shell:
         if (self.viscosity_Pa_s is None) != (self.frequency_hz is None):
             raise InputError("viscosity and frequency go together (a viscous cell needs both)")
         if self.viscosity_Pa_s is not None:
-            from solver.viscous import check_inputs
-            check_inputs(self.viscosity_Pa_s, self.frequency_hz)
+            check_viscous_inputs(self.viscosity_Pa_s, self.frequency_hz)
 
     @property
     def h1_um(self):
@@ -88,14 +88,15 @@ class Shell:
         """B in mN/m·µm²: t_c² (K_B + K_S)/24 times the variant's factor."""
         if self.bending_pN_um is not None:
             return self.bending_pN_um / PN_UM_PER_MN_PER_M_UM2
-        base = self.thickness_um**2 * (self.bulk_mN_per_m + self.shear_mN_per_m) / 24.0
+        base = bending_stiffness(self.thickness_um, self.bulk_mN_per_m, self.shear_mN_per_m)
         return BENDING_VARIANTS[self.bending] * base
 
     @property
     def poisson_ratio(self):
         """ν = (K_B - K_S)/(K_B + K_S); NaN for a tension-only cell."""
-        total = self.bulk_mN_per_m + self.shear_mN_per_m
-        return (self.bulk_mN_per_m - self.shear_mN_per_m) / total if total > 0 else float("nan")
+        if self.bulk_mN_per_m + self.shear_mN_per_m > 0:
+            return poisson_ratio(self.bulk_mN_per_m, self.shear_mN_per_m)
+        return float("nan")
 
     def to_dict(self):
         out = asdict(self)
@@ -103,3 +104,11 @@ class Shell:
             if out[key] is None:
                 del out[key]
         return out
+
+
+def check_viscous_inputs(viscosity_Pa_s, frequency_hz):
+    """η ≥ 0 and f > 0, finite, or InputError."""
+    for name, value, zero in (("viscosity", viscosity_Pa_s, True), ("frequency", frequency_hz, False)):
+        if not np.isfinite(value) or value < 0 or (value == 0 and not zero):
+            raise InputError(f"{name} must be a finite number {'>=' if zero else '>'} 0 "
+                             f"({'Pa s' if zero else 'Hz'}; got {value:g})")

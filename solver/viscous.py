@@ -45,9 +45,10 @@ from functools import lru_cache
 import numpy as np
 from scipy.sparse import coo_matrix, csc_matrix
 
-from solver.errors import InputError, SolverError
-from solver.fast import LOG_PSI_MIN, _equilibrium
+from solver.errors import SolverError
+from solver.fast import contact_at_least, equilibrium
 from solver.geometry import droplet
+from solver.model import check_viscous_inputs
 from solver.stokes import Interior
 
 NN_PER_PA_UM2 = 1e-3    # 1 Pa·µm² = 1e-3 nN
@@ -86,10 +87,10 @@ def linearise(shell):
     gauge (tension-only shell) or at its least value. Raises SolverError
     where it is held by the free surface touching the plate (not smooth)."""
     mean = replace(shell, dh_um=0.5 * shell.dh_um, viscosity_Pa_s=None, frequency_hz=None)
-    lag, u, _ = _equilibrium(mean)
+    lag, u, _ = equilibrium(mean)
     zp = 0.5 * mean.h1_um
     _, g, dzp, H = lag.evaluate(u, zp)
-    held = not lag.elastic or u[-2] <= LOG_PSI_MIN + 1e-12     # a gauge, or at its bound
+    held = not lag.elastic or contact_at_least(u)     # a gauge, or at its bound
     if not held and abs(g[-2]) > 1e-4 * lag.force_scale:
         raise SolverError("the contact line is held at the touching label (dE*/dl = "
                           f"{g[-2]:.3g}): no smooth linear response")
@@ -189,14 +190,6 @@ def _droplet_slopes(shell, h):
     return g[1], (g[2] - g[0]) / (2 * STEP_H), A[1], (A[2] - A[0]) / (2 * STEP_H)
 
 
-def check_inputs(viscosity_Pa_s, frequency_hz):
-    """η ≥ 0 and f > 0, finite, or InputError."""
-    for name, value, zero in (("viscosity", viscosity_Pa_s, True), ("frequency", frequency_hz, False)):
-        if not np.isfinite(value) or value < 0 or (value == 0 and not zero):
-            raise InputError(f"{name} must be a finite number {'>=' if zero else '>'} 0 "
-                             f"({'Pa s' if zero else 'Hz'}; got {value:g})")
-
-
 def shell_response(lin, viscosity_Pa_s, frequency_hz):
     """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`."""
     n = lin.lag.size
@@ -216,7 +209,7 @@ def respond(lin, viscosity_Pa_s, frequency_hz):
         (H_uu + c D_uu) δu = -(H_u,zp + c D_u,zp) δz_p,   c = 2·1e-3 iωη,
 
     and δF = -(1/2) (H_zp,q + c D_zp,q) δq."""
-    check_inputs(viscosity_Pa_s, frequency_hz)
+    check_viscous_inputs(viscosity_Pa_s, frequency_hz)
     start = time.perf_counter()
     omega = 2 * np.pi * frequency_hz
     dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz)
@@ -254,7 +247,7 @@ def prepare(shell, h_max=H_MAX):
 
 def complex_modulus(shell, viscosity_Pa_s, frequency_hz, h_max=H_MAX):
     """K*(ω) of `shell` (a `solver.model.Shell`) oscillated around h0 - Δh/2."""
-    check_inputs(viscosity_Pa_s, frequency_hz)
+    check_viscous_inputs(viscosity_Pa_s, frequency_hz)
     return respond(prepare(shell, h_max)[0], viscosity_Pa_s, frequency_hz)
 
 
@@ -272,7 +265,7 @@ def viscous_keys(shell, h_max=H_MAX):
     same linearisation), the energy balance and the wall time."""
     start = time.perf_counter()
     eta, f = shell.viscosity_Pa_s, shell.frequency_hz
-    check_inputs(eta, f)
+    check_viscous_inputs(eta, f)
     lin = _prepared(replace(shell, viscosity_Pa_s=None, frequency_hz=None), h_max)
     out = {"viscosity_Pa_s": float(eta), "frequency_hz": float(f)}
     out.update(respond(lin, eta, f).to_dict(respond(lin, 0.0, f).complex_modulus.real))

@@ -19,7 +19,8 @@ import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
 from solver.errors import InputError
-from solver.viscous import NN_PER_PA_UM2, check_inputs, shell_response
+from solver.model import check_viscous_inputs
+from solver.viscous import NN_PER_PA_UM2, shell_response
 
 
 def _damping(lin, viscosity_Pa_s):
@@ -38,7 +39,7 @@ def _damping(lin, viscosity_Pa_s):
 def integrate(lin, viscosity_Pa_s, t, dh):
     """δF(t) (nN) for the gap change δh(t) (µm) sampled at the equally spaced
     times t (s), starting from rest at h_m (δh(t[0]) should be 0)."""
-    check_inputs(viscosity_Pa_s, 1.0)
+    check_viscous_inputs(viscosity_Pa_s, 1.0)
     t, dh = np.asarray(t, float), np.asarray(dh, float)
     if t.ndim != 1 or len(t) < 3 or t.shape != dh.shape or not np.allclose(np.diff(t), t[1] - t[0]):
         raise InputError("times must be at least 3 equally spaced samples, one δh each")
@@ -74,7 +75,7 @@ def periodic_response(lin, viscosity_Pa_s, t, dh):
     Σ_k T(ω_k) ĥ_k e^{iω_k t}, with ĥ the discrete Fourier transform of δh over
     the window t (equally spaced, one period) and T(ω) = δF/δh from
     `solver.viscous.shell_response` at every harmonic (T(0) the elastic one)."""
-    check_inputs(viscosity_Pa_s, 1.0)
+    check_viscous_inputs(viscosity_Pa_s, 1.0)
     t, dh = np.asarray(t, float), np.asarray(dh, float)
     dt = t[1] - t[0]
     spectrum = np.fft.rfft(dh)

@@ -52,10 +52,10 @@ def test_nodal_forces_are_the_spec_force_densities(moduli):
     t = np.linspace(0.0, np.pi / 2, n + 1)
     r, z = _ellipsoid(t)
     r0, z0 = R0 * np.sin(t), R0 * np.cos(t)
-    l0, _ = sf._elements(r0, z0)
+    l0, _ = sf.elements(r0, z0)
     gE, gV = np.zeros((n + 1, 2)), np.zeros((n + 1, 2))
-    A = sf.gradients(r, z, l0, 0.5 * (r0[1:] + r0[:-1]), np.full(n + 1, 1 / R0),
-                     gamma, KB, KS, B, gE, gV)
+    A = sf.gradients(r, z, sf.Reference(l0, 0.5 * (r0[1:] + r0[:-1]), np.full(n + 1, 1 / R0)),
+                     sf.Material(gamma, KB, KS, B), gE, gV)
     inner = slice(40, 260)      # away from the pole (flat-plate closure) and the equator
     f_mesh = (-gE / A[:, None])[inner]
     f_spec = _spec_density(t, R0, gamma, KB, KS, B, 1 / R0)[inner]
@@ -74,10 +74,10 @@ def test_forces_are_minus_the_energy_gradient_on_a_small_mesh():
     r[0] = 0.0
     z = z0 + 0.02 * rng.standard_normal(z0.size)
     z[-1] = 0.0
-    l0, _ = sf._elements(r0, z0)
+    l0, _ = sf.elements(r0, z0)
     rb0 = 0.5 * (r0[1:] + r0[:-1])
     H0 = sf.mean_curvature(r0, z0) + 0.03
-    args = (l0, rb0, H0, 1.5, 25.0, 10.0, shell.bending_stiffness * 5)
+    args = (sf.Reference(l0, rb0, H0), sf.Material(1.5, 25.0, 10.0, shell.bending_stiffness * 5))
     gE, gV = np.zeros((r.size, 2)), np.zeros((r.size, 2))
     sf.gradients(r, z, *args, gE, gV)
     eps = 1e-6
@@ -137,8 +137,8 @@ def test_elastic_compression_balances_across_the_equator():
     KB, KS, gamma = 25.0, 8.33, 3.0
     shell = Shell(4300, 10, KB, KS, gamma, bending="none")
     sol, p, (r0, z0) = explicit.relax(shell)
-    l, _ = sf._elements(sol.r_um, sol.z_um)
-    l0, _ = sf._elements(r0, z0)
+    l, _ = sf.elements(sol.r_um, sol.z_um)
+    l0, _ = sf.elements(r0, z0)
     e1, e2 = l[-1] / l0[-1] - 1, sol.lambda2[-1] - 1
     sigma1 = ((KB + KS) * e1 + (KB - KS) * e2) / (1 + e2)
     Req = sol.r_um[-1]
@@ -162,9 +162,9 @@ def test_plate_force_is_minus_the_energy_derivative():
     energies, forces = {}, {}
     for dh in (0.48, 0.5, 0.52):
         sol, _, (r0, z0) = explicit.relax(Shell(4300, 15, 25, 25, 3, bending="none", dh_um=dh))
-        l0, _ = sf._elements(r0, z0)
-        energies[dh] = 2 * sf.energy(sol.r_um, sol.z_um, l0, 0.5 * (r0[1:] + r0[:-1]),
-                                     sf.mean_curvature(r0, z0), 3.0, 25.0, 25.0, 0.0)
+        l0, _ = sf.elements(r0, z0)
+        energies[dh] = 2 * sf.energy(sol.r_um, sol.z_um, sf.Reference(l0, 0.5 * (r0[1:] + r0[:-1]),
+                                     sf.mean_curvature(r0, z0)), sf.Material(3.0, 25.0, 25.0, 0.0))
         forces[dh] = sol.force_nN
     assert forces[0.5] == pytest.approx((energies[0.52] - energies[0.48]) / 0.04, rel=1e-3)
     # and F_tot varies smoothly with the compression (no jumps with the contact position)

@@ -12,7 +12,8 @@ Public API (imported on first use):
   recordings, as `cortex afm synth`.
 - `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell
   table, per-segment table); `analyze_experiment(data, calibration_path, out,
-  ...)`: the whole `cortex afm analyze` into a folder; `population_summary(table)`.
+  AnalyzeSettings(bending, method, errors, jpk_options))`: the whole `cortex afm
+  analyze` into a folder; `population_summary(table)`.
 """
 
 from solver.lazy_exports import lazy_exports
@@ -20,9 +21,9 @@ from solver.lazy_exports import lazy_exports
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
     "read_experiment": "analysis.afm.h5format", "write_experiment": "analysis.afm.h5format",
-    "load_cells": "analysis.afm.report:load",
+    "load_cells": "analysis.afm.analyze_pipeline:load",
     "import_cells": "analysis.afm.jpk_import",
     "synthesize": "analysis.afm.synth:generate",
     "analyze_cells": "analysis.afm.analyze:analyze", "analyze_cell": "analysis.afm.analyze",
-    "analyze_experiment": "analysis.afm.report:run", "population_summary": "analysis.afm.population:summary",
+    "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings", "population_summary": "analysis.afm.population:summary",
 })

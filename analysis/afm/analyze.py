@@ -28,7 +28,7 @@ TENSION_TOLERANCE = 0.10
 
 def analyze_cell(cell, calibration, bending="standard"):
     """Returns (per-frequency rows, per-segment rows) for one cell (InputError without oscillations:
-    `report.run` lists such recordings instead)."""
+    `analysis.afm.analyze_pipeline.read` sets such recordings aside)."""
     if not cell.oscillations():
         raise InputError(f"cell '{cell.cell_id}': no oscillation segment to analyse")
     segs = pd.DataFrame(segment_moduli(cell))

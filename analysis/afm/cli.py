@@ -196,12 +196,12 @@ def experiment_in(paths):
 def analyze(args):
     import json
 
-    from analysis.afm.report import run
+    from analysis.afm.analyze_pipeline import Settings, run
     from analysis.cli import inversion_settings, plain
     from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
-    result = run(experiment_in(args.data), args.calibration, args.out, args.bending, jpk_options(args),
-                 method=args.method, errors=errors)
+    result = run(experiment_in(args.data), args.calibration, args.out,
+                 Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args)))
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
                                 **(result["summary"] or {})})))

@@ -39,10 +39,8 @@ def write_csv_cell(path, cell):
     return path
 
 
-def read_csv_cell(path):
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+def _read_table(path):
+    """The '# key: value' metadata lines and the table below them, checked."""
     meta, n_head = {}, 0
     try:
         with open(path) as fh:
@@ -65,28 +63,42 @@ def read_csv_cell(path):
     for c in ("time_s", "force_nN", "height_um"):
         if not pd.api.types.is_numeric_dtype(df[c]):
             raise InputError(f"{path}: column {c} is not numeric")
-    if "volume_um3" not in meta:
-        raise InputError(f"{path}: metadata line '# volume_um3: ...' missing")
-    try:
-        volume = float(meta["volume_um3"])
-    except ValueError:
-        raise InputError(f"{path}: volume_um3 = {meta['volume_um3']!r} is not a number") from None
+    return meta, df
+
+
+def _segments(df):
+    """One `Segment` per run of equal values in the `segment` column."""
     seg = df["segment"].to_numpy()
-    if len(seg) == 0:
-        raise InputError(f"{path}: no samples")
     edges = np.r_[0, np.flatnonzero(np.diff(seg) != 0) + 1, len(seg)]
     segments = []
     for a, b in zip(edges[:-1], edges[1:]):
         kind = str(df["kind"].iat[a])
         freq = float(df["frequency_hz"].iat[a]) if kind == "oscillation" else float("nan")
         segments.append(Segment(kind=kind, start=int(a), stop=int(b), frequency_hz=freq))
+    return segments
+
+
+def read_csv_cell(path):
+    """One cell of the single-cell CSV format (module docstring); InputError for bad input."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    meta, df = _read_table(path)
+    if "volume_um3" not in meta:
+        raise InputError(f"{path}: metadata line '# volume_um3: ...' missing")
+    try:
+        volume = float(meta["volume_um3"])
+    except ValueError:
+        raise InputError(f"{path}: volume_um3 = {meta['volume_um3']!r} is not a number") from None
+    if len(df) == 0:
+        raise InputError(f"{path}: no samples")
     try:
         spring = float(meta.get("spring_constant_N_per_m", "nan"))
     except ValueError:
         spring = float("nan")
     cell = Cell(cell_id=meta.get("cell_id", path.stem), volume_um3=volume,
                 time_s=df["time_s"].to_numpy(float), force_nN=df["force_nN"].to_numpy(float),
-                height_um=df["height_um"].to_numpy(float), segments=segments,
+                height_um=df["height_um"].to_numpy(float), segments=_segments(df),
                 volume_source=meta.get("volume_source", ""), spring_constant_N_per_m=spring,
                 date=meta.get("date", ""))
     return cell.validate(f"{path}: ")

@@ -86,6 +86,82 @@ def _float(path, seg, header, key):
         raise InputError(f"{path}: segment {seg}: {key} = {header[key]!r} is not a number") from None
 
 
+def _numbers(path, seg, h, block, cols):
+    """The segment's data lines as a (rows, columns) array, checked against the header."""
+    rows = []
+    for lineno, line in block["data"]:
+        parts = line.split()
+        if len(parts) != len(cols):
+            raise InputError(f"{path}:{lineno}: {len(parts)} values, the header names {len(cols)} columns")
+        try:
+            rows.append([float(p) for p in parts])
+        except ValueError:
+            raise InputError(f"{path}:{lineno}: not a number in {line[:40]!r}") from None
+    a = np.array(rows, float).reshape(-1, len(cols))
+    if "recorded-num-points" in h and int(float(h["recorded-num-points"])) != len(a):
+        raise InputError(f"{path}: segment {seg}: {len(a)} rows, header says recorded-num-points "
+                         f"{h['recorded-num-points']} (truncated file?)")
+    if not np.all(np.isfinite(a)):
+        r = np.argwhere(~np.isfinite(a))[0]
+        raise InputError(f"{path}: segment {seg}: NaN or infinite value in column {cols[r[1]]}, row {r[0]}")
+    return a
+
+
+def _force_nN(where, deflection, u, k, sens):
+    """The deflection column in nN: a force, a voltage (× sensitivity m/V × k N/m)
+    or a length (× k N/m)."""
+    if u in FORCE_TO_NN:
+        return deflection * FORCE_TO_NN[u]
+    if u == "V":
+        if not np.isfinite(sens):
+            raise InputError(f"{where}: vDeflection in V but no sensitivity header")
+        return deflection * sens * k * 1e9
+    if u in LENGTH_TO_UM:
+        return deflection * LENGTH_TO_UM[u] * 1e-6 * k * 1e9
+    raise InputError(f"{where}: vDeflection in unknown unit {u!r} (expected N, V or m)")
+
+
+def _columns(where, raw, unit, cols, k, sens):
+    """{column name with unit: values}: time, force and every height column in µm."""
+    out = {}
+    if "time" not in raw:
+        raise InputError(f"{where}: no 'time' column")
+    out["time_s"] = raw["time"]
+    if "seriesTime" in raw:
+        out["series_time_s"] = raw["seriesTime"]
+    if "vDeflection" not in raw:
+        raise InputError(f"{where}: no 'vDeflection' column")
+    out["force_nN"] = _force_nN(where, raw["vDeflection"], unit["vDeflection"], k, sens)
+    for c in cols:
+        if c in HEIGHT_COLUMNS:
+            if unit[c] not in LENGTH_TO_UM:
+                raise InputError(f"{where}: column {c} in unit {unit[c]!r} (expected a length)")
+            out[f"{c}_um"] = raw[c] * LENGTH_TO_UM[unit[c]]
+    hcol = next((c for c in HEIGHT_COLUMNS if c in raw), None)
+    if hcol is None:
+        raise InputError(f"{where}: no height column ({', '.join(HEIGHT_COLUMNS)})")
+    out["height_um"] = out[f"{hcol}_um"]
+    return out
+
+
+def _segment(path, block, position):
+    """One `JpkSegment` of a parsed block (`position`: its place, if the header has no index)."""
+    h = block["header"]
+    seg = h.get("segmentIndex", "?")
+    cols, units = h.get("columns", "").split(), h.get("units", "").split()
+    if not cols or len(cols) != len(units):
+        raise InputError(f"{path}: segment {seg}: 'columns' and 'units' headers missing or of "
+                         f"different length ({len(cols)} vs {len(units)})")
+    k = _float(path, seg, h, "springConstant")
+    sens = _float(path, seg, h, "sensitivity") if "sensitivity" in h else float("nan")
+    a = _numbers(path, seg, h, block, cols)
+    unit = dict(zip(cols, units))
+    out = _columns(f"{path}: segment {seg}", dict(zip(cols, a.T)), unit, cols, k, sens)
+    return JpkSegment(index=int(float(seg)) if seg != "?" else position,
+                      name=h.get("segment", ""), header=h, data=pd.DataFrame(out),
+                      spring_constant_N_per_m=k, sensitivity_m_per_V=sens, units=unit)
+
+
 def read_jpk(path):
     """Parse a JPK text export into a `JpkExport` (units µm, nN, s)."""
     path = Path(path)
@@ -100,63 +176,7 @@ def read_jpk(path):
         raise InputError(f"{path}: no segments (no '# segmentIndex:' header)")
     segments = []
     for b in blocks:
-        h = b["header"]
-        seg = h.get("segmentIndex", "?")
-        cols, units = h.get("columns", "").split(), h.get("units", "").split()
-        if not cols or len(cols) != len(units):
-            raise InputError(f"{path}: segment {seg}: 'columns' and 'units' headers missing or of "
-                             f"different length ({len(cols)} vs {len(units)})")
-        k = _float(path, seg, h, "springConstant")
-        sens = _float(path, seg, h, "sensitivity") if "sensitivity" in h else float("nan")
-        rows = []
-        for lineno, s in b["data"]:
-            parts = s.split()
-            if len(parts) != len(cols):
-                raise InputError(f"{path}:{lineno}: {len(parts)} values, the header names {len(cols)} columns")
-            try:
-                rows.append([float(p) for p in parts])
-            except ValueError:
-                raise InputError(f"{path}:{lineno}: not a number in {s[:40]!r}") from None
-        a = np.array(rows, float).reshape(-1, len(cols))
-        if "recorded-num-points" in h and int(float(h["recorded-num-points"])) != len(a):
-            raise InputError(f"{path}: segment {seg}: {len(a)} rows, header says recorded-num-points "
-                             f"{h['recorded-num-points']} (truncated file?)")
-        if not np.all(np.isfinite(a)):
-            r = np.argwhere(~np.isfinite(a))[0]
-            raise InputError(f"{path}: segment {seg}: NaN or infinite value in column {cols[r[1]]}, row {r[0]}")
-        raw = dict(zip(cols, a.T))
-        unit = dict(zip(cols, units))
-        out = {}
-        if "time" not in raw:
-            raise InputError(f"{path}: segment {seg}: no 'time' column")
-        out["time_s"] = raw["time"]
-        if "seriesTime" in raw:
-            out["series_time_s"] = raw["seriesTime"]
-        if "vDeflection" not in raw:
-            raise InputError(f"{path}: segment {seg}: no 'vDeflection' column")
-        u = unit["vDeflection"]
-        if u in FORCE_TO_NN:
-            out["force_nN"] = raw["vDeflection"] * FORCE_TO_NN[u]
-        elif u == "V":
-            if not np.isfinite(sens):
-                raise InputError(f"{path}: segment {seg}: vDeflection in V but no sensitivity header")
-            out["force_nN"] = raw["vDeflection"] * sens * k * 1e9
-        elif u in LENGTH_TO_UM:
-            out["force_nN"] = raw["vDeflection"] * LENGTH_TO_UM[u] * 1e-6 * k * 1e9
-        else:
-            raise InputError(f"{path}: segment {seg}: vDeflection in unknown unit {u!r} (expected N, V or m)")
-        for c in cols:
-            if c in HEIGHT_COLUMNS:
-                if unit[c] not in LENGTH_TO_UM:
-                    raise InputError(f"{path}: segment {seg}: column {c} in unit {unit[c]!r} (expected a length)")
-                out[f"{c}_um"] = raw[c] * LENGTH_TO_UM[unit[c]]
-        hcol = next((c for c in HEIGHT_COLUMNS if c in raw), None)
-        if hcol is None:
-            raise InputError(f"{path}: segment {seg}: no height column ({', '.join(HEIGHT_COLUMNS)})")
-        out["height_um"] = out[f"{hcol}_um"]
-        segments.append(JpkSegment(index=int(float(seg)) if seg != "?" else len(segments),
-                                   name=h.get("segment", ""), header=h, data=pd.DataFrame(out),
-                                   spring_constant_N_per_m=k, sensitivity_m_per_V=sens, units=unit))
+        segments.append(_segment(path, b, len(segments)))
     return JpkExport(path=path, header=glob, segments=segments)
 
 

@@ -2,7 +2,7 @@
 
 ML lognormal fit of K̃_S (scipy.stats.lognorm.fit with loc = 0: μ = ln scale,
 σ = shape); the induced ν density p_ν(ν) = p_K(K̃) |dK̃/dν| with
-K̃ = (1 - ν)/(1 + ν), |dK̃/dν| = 2/(1 + ν)²; median and IQR of ν of the
+K̃ = (1 - ν)/(1 + ν), |dK̃/dν| = 2/(1 + ν)² (`solver.elasticity`); median and IQR of ν of the
 included cells; two-sided Mann-Whitney U between every pair of frequencies.
 """
 
@@ -10,6 +10,8 @@ import itertools
 
 import numpy as np
 from scipy import stats
+
+from solver.elasticity import shear_ratio, shear_ratio_slope
 
 
 def lognormal_fit(ks):
@@ -24,8 +26,7 @@ def lognormal_fit(ks):
 def nu_density(nu, mu, sigma):
     """Density of ν = (1 - K̃)/(1 + K̃) for K̃ ~ lognormal(μ, σ)."""
     nu = np.asarray(nu, float)
-    k = (1 - nu) / (1 + nu)
-    return stats.lognorm.pdf(k, sigma, scale=np.exp(mu)) * 2.0 / (1 + nu) ** 2
+    return stats.lognorm.pdf(shear_ratio(nu), sigma, scale=np.exp(mu)) * shear_ratio_slope(nu)
 
 
 def summary(table):

@@ -33,6 +33,7 @@ import numpy as np
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.timeseries import shape_of
+from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
 
 POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
@@ -73,27 +74,40 @@ def subset_sizes(n_cells):
     return [(freqs, n) for (freqs, _), n in zip(SUBSETS, sizes)]
 
 
-def _cell(i, freqs, rng, forward, errors):
+def _parameters(i, rng):
+    """The cell's drawn truth: diameter D, V = π D³/6, γ_a, K_B at 1 Hz, the
+    population draw z, the height step and heights, blebbing, spring constant."""
     D = rng.uniform(19.0, 23.0)
-    V = np.pi * D**3 / 6.0
-    tension = rng.uniform(0.5, 3.0)
-    bulk1 = BULK_1HZ * np.exp(0.15 * rng.standard_normal())
-    z = rng.standard_normal()
-    step = rng.choice([0.5, 1.0])
-    h_means = np.arange(rng.uniform(0.70, 0.745) * D, 0.49 * D, -step)
-    blebbing = rng.random() < ERRORS["bleb_fraction"]
-    spring = rng.uniform(0.3, 0.8)
-    truth = {"cell_id": f"cell{i:03d}", "diameter_um": D, "volume_um3": V, "tension_mN_per_m": tension,
-             "step_um": step, "blebbing": bool(blebbing), "frequencies": {}}
+    p = {"D": D, "V": np.pi * D**3 / 6.0, "tension": rng.uniform(0.5, 3.0),
+         "bulk1": BULK_1HZ * np.exp(0.15 * rng.standard_normal()), "z": rng.standard_normal()}
+    p["step"] = rng.choice([0.5, 1.0])
+    p["h_means"] = np.arange(rng.uniform(0.70, 0.745) * D, 0.49 * D, -p["step"])
+    p["blebbing"] = rng.random() < ERRORS["bleb_fraction"]
+    p["spring"] = rng.uniform(0.3, 0.8)
+    truth = {"cell_id": f"cell{i:03d}", "diameter_um": D, "volume_um3": p["V"], "tension_mN_per_m": p["tension"],
+             "step_um": p["step"], "blebbing": bool(p["blebbing"]), "frequencies": {}}
+    return p, truth
+
+
+def _moduli(p, freqs, forward, truth):
+    """K (mN/m) at every mean height per frequency: K_B = K_B(1 Hz) f^β,
+    K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B."""
     K = {}
     for f in freqs:
-        bulk = bulk1 * f**BETA
-        ks = float(np.exp(POPULATIONS[f][0] + POPULATIONS[f][1] * z))
-        K[f] = forward(V, h_means, bulk, ks * bulk, tension)
-        truth["frequencies"][f] = {"nu": (1 - ks) / (1 + ks), "ks_tilde": ks, "bulk_mN_per_m": bulk}
+        bulk = p["bulk1"] * f**BETA
+        ks = float(np.exp(POPULATIONS[f][0] + POPULATIONS[f][1] * p["z"]))
+        K[f] = forward(p["V"], p["h_means"], bulk, ks * bulk, p["tension"])
+        truth["frequencies"][f] = {"nu": float(poisson_of_ratio(ks)), "ks_tilde": ks, "bulk_mN_per_m": bulk}
+    return K
+
+
+def _protocol(rng, p, freqs, K):
+    """The recording's time s, height µm and elastic Δγ (mN/m; NaN on the
+    approaches) and its segments: per mean height an approach and a wait, then
+    the oscillations at every frequency (the area lags by δ = β π/2)."""
     delta = BETA * np.pi / 2
-    t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * D
-    for j, h_m in enumerate(h_means):
+    t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * p["D"]
+    for j, h_m in enumerate(p["h_means"]):
         move = (h_prev - h_m) / SPEED_UM_PER_S
         wait = rng.uniform(50.0, 150.0)
         t = t0 + np.arange(0.0, move + wait, 1.0 / APPROACH_RATE_HZ)
@@ -106,30 +120,36 @@ def _cell(i, freqs, rng, forward, errors):
             s = np.arange(0.0, periods / f, 1.0 / RATE_HZ)
             w = 2 * np.pi * f
             h = h_m - AMPLITUDE_UM * np.sin(w * s)
-            fpt, area = shape_of(V, np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
+            fpt, area = shape_of(p["V"], np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
             a_lag, a_mean = area[s.size:2 * s.size], area[-1]
             g_chunks.append(K[f][j] * (a_lag - a_mean) / a_mean)
             t_chunks.append(t0 + s), h_chunks.append(h)
             segs.append(Segment("oscillation", n0, n0 + s.size, f))
             n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
-    t, h, dg = np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks)
-    gamma_a = np.full(t.size, tension)
-    if blebbing:
+    return np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks), segs
+
+
+def _cell(i, freqs, rng, forward, errors):
+    p, truth = _parameters(i, rng)
+    K = _moduli(p, freqs, forward, truth)
+    t, h, dg, segs = _protocol(rng, p, freqs, K)
+    gamma_a = np.full(t.size, p["tension"])
+    if p["blebbing"]:
         t_jump = rng.uniform(0.3, 0.7) * t[-1]
         gamma_a[t >= t_jump] *= rng.uniform(1.25, 1.6)
         truth["bleb_time_s"] = float(t_jump)
-    fpt, _ = shape_of(V, h)
+    fpt, _ = shape_of(p["V"], h)
     force = (gamma_a + np.nan_to_num(dg)) * fpt
-    V_rec, h_rec = V, h
+    V_rec, h_rec = p["V"], h
     if errors:
         force = force + ERRORS["force_noise_nN"] * rng.standard_normal(t.size) \
             + rng.uniform(-1, 1) * ERRORS["drift_nN_per_s"] * t
         h_rec = h + ERRORS["height_offset_sd_um"] * rng.standard_normal()
-        V_rec = V * (1.0 + ERRORS["volume_rel_sd"] * rng.standard_normal())
+        V_rec = p["V"] * (1.0 + ERRORS["volume_rel_sd"] * rng.standard_normal())
     cell = Cell(cell_id=truth["cell_id"], volume_um3=float(V_rec), time_s=t, force_nN=force, height_um=h_rec,
                 segments=segs, volume_source="synthetic (confocal-like, "
                                              f"{'with' if errors else 'no'} volume error)",
-                spring_constant_N_per_m=float(spring), date="2026-01-01")
+                spring_constant_N_per_m=float(p["spring"]), date="2026-01-01")
     return cell, truth
 
 

@@ -1,0 +1,204 @@
+"""`cortex afm analyze DATA --out DIR`: read -> fit -> write.
+
+    read(data, calibration_path, settings)   the recordings (`load`) and the
+                                             calibration that serves the method;
+                                             recordings without any oscillation
+                                             segment are set aside (`skipped`);
+    fit(recordings, settings)                every cell analysed with every bending
+                                             variant (`analysis.afm.analyze`) and
+                                             each variant's population summary;
+    write(out, recordings, fitted, settings) the files below, figures and report.md
+                                             (`analysis.afm.analyze_report`).
+
+DIR gets cells.csv, segments.csv, summary.json (the selected variant),
+cells_<variant>.csv and summary_<variant>.json for every variant, figures and
+report.md, which also lists the recordings not analysed.
+
+Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK files and
+folders of them (`jpk_import.import_cells`, with the volume and dish options
+of `cortex afm import`).
+
+With the emulator (the default method) every cell and frequency has a 95 %
+interval of ν and K̃_S (`nu_lo95`, `nu_hi95`, `ks_lo95`, `ks_hi95` in cells.csv),
+and every frequency's median ν a bootstrap 95 % interval (`median_nu_lo95`,
+`median_nu_hi95` in the summaries); figure `nu_intervals.png`."""
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from analysis.afm.analyze import analyze
+from analysis.afm.figures import FIGURES
+from analysis.afm.population import summary
+from outputs.ownership import OutputDir, json_document
+from solver.errors import InputError
+
+
+NO_OSCILLATION = "no modulation (oscillation) segment"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """How to analyse: the selected bending variant, the inversion method,
+    the error model of the emulator's intervals, the JPK import options."""
+
+    bending: str = "standard"
+    method: str = "law"
+    errors: object = None
+    jpk_options: dict | None = None
+
+
+@dataclass
+class Recordings:
+    """What `read` found: the cells to analyse, the skipped ones {id: reason},
+    the data's name, the calibration and emulator, and the variants to run
+    (the selected one first)."""
+
+    name: str
+    cells: list
+    skipped: dict
+    calibration: object
+    emulator: object
+    variants: list
+
+
+@dataclass
+class Fitted:
+    """Per variant: the cells table and the summary; the segments table."""
+
+    tables: dict = field(default_factory=dict)
+    sums: dict = field(default_factory=dict)
+    segments: object = None
+
+
+def load(paths, jpk_options=None):
+    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK
+    files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
+    from analysis.afm.jpk_import import import_cells, is_jpk
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    if all(is_jpk(p) for p in paths):
+        return import_cells(paths, **(jpk_options or {}))[1]
+    if len(paths) != 1:
+        raise InputError("give one experiment (.h5) or CSV file, or JPK files and folders (not a mixture)")
+    given = [k for k, v in (jpk_options or {}).items() if v is not None]
+    if given:
+        raise InputError(f"{paths[0]}: --volume(s) and --dish-* apply to JPK files only; the experiment "
+                         "and CSV formats carry their own volumes and heights")
+    path = Path(paths[0])
+    suffix = path.suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        from analysis.afm.h5format import read_experiment
+        return read_experiment(path)
+    if suffix == ".csv":
+        from analysis.afm.csvformat import read_csv_cell
+        return [read_csv_cell(path)]
+    raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
+                     "a JPK file or a folder of them)")
+
+
+def _calibration(path, method, bending):
+    """(Calibration or None, Emulator or None, bending variants) for `method`;
+    InputError if the file cannot serve it. `path` None: the shipped one."""
+    from analysis.shipped import load as load_calibration
+    cal, emu, _ = load_calibration(path)
+    where = path or "the shipped calibration"
+    if method == "emulator" and emu is None:
+        raise InputError(f"{where}: holds no emulator tables; use --method law")
+    if method == "law" and cal is None:
+        raise InputError(f"{where}: holds no paper law; use --method emulator")
+    variants = list(emu.tables) if method == "emulator" else list(cal.laws)
+    if bending not in variants:
+        raise InputError(f"{where}: no bending variant '{bending}' (has {', '.join(variants)})")
+    return cal, emu, variants
+
+
+def read(data, calibration_path, settings):
+    """`Recordings` of `data` (a path or a list of paths); `calibration_path`
+    None: the shipped calibration. InputError for bad input."""
+    cells = load(data, settings.jpk_options)
+    cal, emu, variants = _calibration(calibration_path, settings.method, settings.bending)
+    skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
+    name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
+    variants = [settings.bending] + [v for v in variants if v != settings.bending]
+    return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
+                      calibration=cal, emulator=emu, variants=variants)
+
+
+def _with_medians(summ, table, method):
+    """The summary with each frequency's bootstrap 95 % interval of the median ν (emulator)."""
+    if method != "emulator":
+        return summ
+    from analysis.invert_table import median_table
+    meds = {r["frequency_hz"]: r for r in median_table(table)}
+    for r in summ["frequencies"]:
+        m = meds.get(r["frequency_hz"], {})
+        r["median_nu_lo95"], r["median_nu_hi95"] = m.get("median_nu_lo95"), m.get("median_nu_hi95")
+        r["n_nu_beyond_isotropic"] = int(((table["frequency_hz"] == r["frequency_hz"])
+                                          & table["excluded_reason"].isna() & table["nu_beyond_isotropic"]).sum())
+    return summ
+
+
+def fit(rec, settings):
+    """Every cell of `rec` with every variant: a `Fitted`."""
+    fitted = Fitted()
+    for variant in rec.variants:
+        tab, segs = analyze(rec.cells, rec.calibration, variant, method=settings.method,
+                            emulator=rec.emulator, errors=settings.errors)
+        fitted.tables[variant] = tab
+        fitted.sums[variant] = _with_medians(summary(tab), tab, settings.method)
+        if variant == settings.bending:
+            fitted.segments = segs
+    return fitted
+
+
+def _write(out, name, write):
+    """`write(path)` for file `name` of the output folder `out` (`OutputDir`); its path."""
+    with out.writing(name) as path:
+        write(path)
+    return path
+
+
+def _json(document):
+    return lambda p: p.write_text(json.dumps(document, indent=1) + "\n")
+
+
+def _csv(table):
+    return lambda p: table.to_csv(p, index=False)
+
+
+def write(out, rec, fitted, settings):
+    """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
+    from analysis.afm.analyze_report import markdown, markdown_skipped
+    from analysis.afm.figures import figures, nu_intervals      # matplotlib: only now
+    bending = settings.bending
+    for variant in rec.variants:        # the selected one first (the manifest's order)
+        _write(out, f"cells_{variant}.csv", _csv(fitted.tables[variant]))
+        _write(out, f"summary_{variant}.json", _json(fitted.sums[variant]))
+        if variant == bending:
+            _write(out, "segments.csv", _csv(fitted.segments))
+            _write(out, "cells.csv", _csv(fitted.tables[bending]))
+    _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
+    figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
+    if settings.method == "emulator":
+        figs.append(nu_intervals(fitted.tables[bending], out))
+    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs) + markdown_skipped(None, rec.skipped)
+    return _write(out, "report.md", lambda p: p.write_text(text))
+
+
+def run(data, calibration_path, out, settings=Settings()):
+    """Analyse `data` (a path or a list of paths) into DIR `out` (read -> fit ->
+    write); the result has the report's path, the summary, the table and the
+    skipped recordings. `calibration_path` None: the shipped calibration."""
+    from analysis.afm.analyze_report import markdown_skipped
+    rec = read(data, calibration_path, settings)
+    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
+                    <= set(json_document(d / "summary.json")))   # refused now if not ours
+    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES]
+              + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
+    if not rec.cells:
+        report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
+        return {"report": report, "summary": None, "table": None, "skipped": rec.skipped}
+    fitted = fit(rec, settings)
+    report = write(out, rec, fitted, settings)
+    return {"report": report, "summary": fitted.sums[settings.bending],
+            "table": fitted.tables[settings.bending], "skipped": rec.skipped}

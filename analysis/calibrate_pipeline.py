@@ -1,0 +1,224 @@
+"""`cortex analysis calibrate STORE --out DIR`: read -> fit -> write.
+
+The three stages are one function each, and the data passes through them once:
+
+    read(store, partial)        the store's finished compressions and trials (through
+                                `read_store`, the one place that touches the store),
+                                refusing an unfinished store unless `partial`;
+    fit(inputs, say)            calibration (SPEC 4), reconstruction check, Monte-Carlo
+                                study (SPEC 5), all in memory;
+    write(out, inputs, result)  the tables, the figures and report.md
+                                (`analysis.calibrate_report`) into DIR.
+
+Nothing is written before the input is checked and fitted. DIR gets:
+
+    calibration.json          per bending variant: lambda, C, D, alpha table, goodness
+    calibration_fits.csv      every fitted value of steps 1-2, one row per (K_S, gamma_a) curve
+    calibration_log_law.csv   steps 3-4, one row per gamma_a/K_B
+    reconstruction.csv        nu recovered from every simulated curve vs the true nu
+    montecarlo.json           per (bending, true nu, height-error mode): median, IQR and spreads
+    montecarlo_studies.csv    per study: median and IQR of the recovered nu
+    montecarlo_cells.csv      per trial: the inversion of its curve
+    *.png, *.pdf              figures
+    report.md                 numbers, tables, figures
+    .cortex-outputs           the manifest of these files (`outputs.ownership`): a rerun
+                              replaces only them; someone else's folder is refused
+"""
+
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis import calibration as cal_mod
+from outputs.ownership import OutputDir, json_document
+from solver.errors import InputError
+
+
+@dataclass
+class Inputs:
+    """What `read` found: the usable finished compressions, the trials (or
+    None), and what was left out (one text per reason)."""
+
+    store: Path
+    done: pd.DataFrame
+    trials: pd.DataFrame | None
+    left_out: list = field(default_factory=list)
+
+
+@dataclass
+class Fitted:
+    """What `fit` computed; the Monte-Carlo parts are None without trials."""
+
+    calibration: object
+    fits: pd.DataFrame
+    loglaw: pd.DataFrame
+    recon: pd.DataFrame
+    recon_summary: list
+    mc_records: list | None = None
+    studies: pd.DataFrame | None = None
+    cells: pd.DataFrame | None = None
+
+
+def read_store(path):
+    """(results, trials) DataFrames of a campaign store, via `campaign.store`."""
+    try:
+        from campaign import store
+    except ModuleNotFoundError as err:
+        raise InputError(f"cannot read {path}: the campaign package is not installed ({err.name})") from None
+    try:
+        results = store.read_results(path)
+        trials = store.read_trials(path)
+    except InputError:
+        raise
+    except (OSError, KeyError, ValueError) as err:
+        raise InputError(f"{path}: not a readable campaign store ({type(err).__name__}: {err})") from None
+    return results, trials
+
+
+def _progress(start):
+    def say(message):
+        print(f"[analysis {time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
+    return say
+
+
+def _missing(frame, unit, id_column):
+    """(how many not done, how many in all, 'a pending, b failed' text)."""
+    if frame is None or not len(frame):
+        return 0, 0, ""
+    states = frame.drop_duplicates(id_column)["state"]
+    counts = states[states != "done"].value_counts()
+    text = ", ".join(f"{n} {state}" for state, n in counts.items())
+    return int(counts.sum()), int(len(states)), f"{int(counts.sum())} of {len(states)} {unit} not done ({text})"
+
+
+def read(store, partial=False):
+    """The store's usable compressions and trials as `Inputs`; InputError for
+    a missing, unreadable or (unless `partial`) unfinished store."""
+    results, trials = read_store(store)      # no output before the input is checked
+    missing_cols = [c for c in cal_mod.NEEDED + ("state",) if c not in results.columns]
+    if missing_cols:
+        raise InputError(f"{store}: results lack column(s) {', '.join(missing_cols)}")
+    has_trials = trials is not None and len(trials) > 0
+    n_res, _, text_res = _missing(results, "compression tasks", "task_id")
+    n_tri, _, text_tri = _missing(trials, "Monte-Carlo trials", "trial_id") if has_trials else (0, 0, "")
+    left_out = [t for n, t in ((n_res, text_res), (n_tri, text_tri)) if n]
+    if left_out and not partial:
+        raise InputError(f"{store} is unfinished: {'; '.join(left_out)}; finish the campaign "
+                         "or pass --partial")
+    done = results[(results["state"] == "done")]
+    unusable = done[done[["h_tilde", "modulus_mN_per_m"]].isna().any(axis=1) |
+                    ~np.isfinite(done["modulus_mN_per_m"])]
+    if len(unusable):
+        left_out.append(f"{len(unusable)} done compression task(s) without a finite modulus")
+    done = done.drop(unusable.index)
+    if not len(done):
+        raise InputError(f"{store}: no finished compression with a finite modulus to calibrate")
+    return Inputs(store=store, done=done, trials=trials if has_trials else None, left_out=left_out)
+
+
+def fit(inputs, say, marks):
+    """Calibration, reconstruction check and Monte-Carlo study of `inputs` as
+    `Fitted` (bad data is refused here, before any output); adds to
+    inputs.left_out what could not be used and to `marks` the stage times."""
+    from analysis import montecarlo as mc_mod
+    from analysis import reconstruction as rec_mod
+
+    done, trials, left_out = inputs.done, inputs.trials, inputs.left_out
+    calibration, fits, loglaw = cal_mod.calibrate(done)
+    marks.append(("calibrate_s", time.perf_counter()))
+    say(f"read {inputs.store}: {len(done)} finished compressions"
+        + (f", {trials['trial_id'].nunique()} Monte-Carlo trials" if trials is not None else "")
+        + f"; calibrated bending variant(s) {', '.join(calibration.laws)}")
+    for bending, group in done.groupby("bending"):
+        used = fits.loc[fits["bending"] == bending, "n_heights"].sum()
+        if used < len(group):
+            left_out.append(f"{bending}: {len(group) - used} simulation(s) in curves with fewer than "
+                            f"{cal_mod.MIN_HEIGHTS} heights")
+    say("reconstruction check: inverting every simulated curve")
+    recon = rec_mod.reconstruct(done, calibration, fits)
+    result = Fitted(calibration, fits, loglaw, recon, rec_mod.summarise(recon))
+    if trials is not None:
+        usable = trials[trials["bending"].isin(calibration.laws)]
+        if len(usable) < len(trials):
+            left_out.append(f"{trials.loc[~trials['bending'].isin(calibration.laws), 'trial_id'].nunique()} "
+                            "Monte-Carlo trial(s) of a bending variant without calibration")
+        if len(usable):
+            say(f"Monte-Carlo study: inverting {usable['trial_id'].nunique()} trial curves")
+            result.mc_records, result.studies, result.cells = mc_mod.montecarlo(usable, calibration)
+    marks.append(("reconstruction_montecarlo_s", time.perf_counter()))
+    return result
+
+
+def _tables(result):
+    """{file name: DataFrame} of the CSV tables."""
+    tables = {"calibration_fits.csv": result.fits, "calibration_log_law.csv": result.loglaw,
+              "reconstruction.csv": result.recon}
+    if result.mc_records is not None:
+        tables.update({"montecarlo_studies.csv": result.studies, "montecarlo_cells.csv": result.cells})
+    return tables
+
+
+def _figures(done, result, out):
+    """The figures' paths (PNG; a PDF beside each)."""
+    from analysis import figures
+    cal = result.calibration
+    figs = [figures.modulus_curves(done, cal, result.fits, out)[0],
+            figures.alpha_law(cal, result.fits, out)[0],
+            figures.reconstruction(result.recon, out)[0]]
+    if "equator_shear_ratio" in done and done["equator_shear_ratio"].notna().any():
+        figs.append(figures.equator_shear(done, out)[0])
+    if result.mc_records is not None:
+        figs.append(figures.montecarlo_boxes(result.cells, result.studies, out)[0])
+    return figs
+
+
+def write(out, inputs, result, say):
+    """Write every output of the module docstring into the `OutputDir` out;
+    returns the report's path."""
+    from analysis.calibrate_report import render, solver_checks
+
+    say(f"writing {out.path}/")
+    tables = _tables(result)
+    out.check(["calibration.json", "montecarlo.json", "report.md", *tables])
+    with out.writing("calibration.json") as path:
+        result.calibration.save(path)
+    for name, table in tables.items():
+        with out.writing(name) as path:
+            table.to_csv(path, index=False)
+    if result.mc_records is not None:
+        with out.writing("montecarlo.json") as path:
+            path.write_text(json.dumps(result.mc_records, indent=1) + "\n")
+    say("figures")
+    figs = _figures(inputs.done, result, out)
+    text = render(inputs, result, solver_checks(inputs.done), figs)
+    with out.writing("report.md") as path:
+        path.write_text(text)
+    return path
+
+
+def run(store, out, partial=False, progress=None):
+    """The whole analysis (read -> fit -> write); returns a dict of the headline numbers."""
+    start = time.perf_counter()
+    say = progress or _progress(start)
+    store, out = Path(store), Path(out)
+    if not store.exists():
+        raise InputError(f"{store}: no such store")
+    out = OutputDir(out, written_before_manifests=lambda d: json_document(d / "calibration.json").get("format")
+                    == cal_mod.FORMAT)    # refused now if not ours (a file, someone else's folder)
+    marks = [("start", time.perf_counter())]
+    inputs = read(store, partial)
+    marks.append(("read_s", time.perf_counter()))
+    result = fit(inputs, say, marks)
+    path = write(out, inputs, result, say)
+    marks.append(("figures_report_s", time.perf_counter()))
+    timings = {name: round(t - t0, 3) for (_, t0), (name, t) in zip(marks, marks[1:])}
+    left_out = inputs.left_out
+    say(f"done: {path}" + (f" (partial: {'; '.join(left_out)})" if left_out else ""))
+    return {"calibration": result.calibration, "reconstruction": result.recon_summary,
+            "montecarlo": result.mc_records, "left_out": left_out,
+            "wall_s": time.perf_counter() - start, "timings_s": timings, "report": path}
