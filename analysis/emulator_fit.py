@@ -43,12 +43,12 @@ NU_ISOTROPIC_MAX = 0.5
 Curves = namedtuple("Curves", "h k use tension volume")
 
 
-def _ks_bounds(emulator, bending):
+def ks_bounds(emulator, bending):
     lo, hi = emulator.domain(bending)["ks_tilde"]
     return np.log(lo / KS_MARGIN), np.log(hi * KS_MARGIN)
 
 
-def _filled(h, use):
+def filled_heights(h, use):
     """h̃ with unused entries replaced by a harmless value (they are masked out)."""
     return np.where(use, h, 0.6)
 
@@ -57,7 +57,7 @@ def _start(emulator, bending, curves):
     """θ0 per cell: the best of START_POINTS values of ln K̃_S, K_B by three
     fixed-point steps of the linear least squares at each."""
     h, k, use, tension, volume = curves
-    lo, hi = _ks_bounds(emulator, bending)
+    lo, hi = ks_bounds(emulator, bending)
     best_ss = np.full(h.shape[0], np.inf)
     best = np.zeros((h.shape[0], 2))
     mean_k = np.nanmean(np.where(use, k, np.nan), axis=1)
@@ -92,7 +92,7 @@ def fit(emulator, bending, curves):
     theta = np.full((n, 2), np.nan)
     if not ok.any():
         return theta
-    sub = Curves(_filled(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok])
+    sub = Curves(filled_heights(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok])
     hs, ks, us, ts, vs = sub
     cells = hs.shape[0]
     rows = np.repeat(np.arange(cells * m), 2)
@@ -107,7 +107,7 @@ def fit(emulator, bending, curves):
         vals = np.stack([np.where(us, dkb, 0.0), np.where(us, dks, 0.0)], axis=-1).ravel()
         return sparse.csr_matrix((vals, (rows, cols)), shape=(cells * m, cells * 2))
 
-    lo, hi = _ks_bounds(emulator, bending)
+    lo, hi = ks_bounds(emulator, bending)
     x0 = _start(emulator, bending, sub)
     lower = np.tile([np.log(1e-3), lo], cells)
     upper = np.tile([np.log(1e4), hi], cells)
@@ -134,7 +134,7 @@ def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending=
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])
     nu = poisson_of_ratio(ks)
     r2, rms = _goodness(emulator, bending, theta, curves)
-    lo, hi = _ks_bounds(emulator, bending)
+    lo, hi = ks_bounds(emulator, bending)
     at_bound = np.isfinite(theta[:, 1]) & ((theta[:, 1] <= lo + 1e-6) | (theta[:, 1] >= hi - 1e-6))
     gamma_tilde = tension / bulk
     hmin = np.where(use, h, np.inf).min(axis=1)
@@ -156,7 +156,7 @@ def _goodness(emulator, bending, theta, curves):
     """R² and the RMS residual (mN/m, n - 2 degrees of freedom) per cell."""
     h, k, use, tension, volume = curves
     with np.errstate(invalid="ignore", divide="ignore"):
-        K, _, _ = model(emulator, bending, np.nan_to_num(theta), _filled(h, use), tension, volume)
+        K, _, _ = model(emulator, bending, np.nan_to_num(theta), filled_heights(h, use), tension, volume)
         res = np.where(use, K - np.nan_to_num(k), 0.0)
         n = use.sum(axis=1)
         mean = np.sum(np.where(use, k, 0), axis=1) / n

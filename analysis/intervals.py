@@ -43,8 +43,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
-from analysis.calibration import poisson
-from analysis.emulator_fit import _filled, _ks_bounds
+from analysis.emulator_fit import Curves, filled_heights, ks_bounds
+from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
 
 DRAWS = 100
@@ -72,9 +72,11 @@ def _shape(radius, heights):
     return radius * g(ht), radius**2 * a(ht)
 
 
-def _seen(radius_t, h_t, radius_s, h_s, tension_t, modulus_t, dh):
-    """What the analysis makes of a true cell (radius_t, mean heights h_t, γ, K) measured
-    at radius_s and heights h_s: (K_seen, γ_seen) per height (SPEC 3, see module doc)."""
+def _seen(true, measured, tension_t, modulus_t, *, dh):
+    """What the analysis makes of a true cell (`true` = (radius_t, mean heights h_t),
+    tension γ, modulus K) measured at `measured` = (radius_s, heights h_s):
+    (K_seen, γ_seen) per height (SPEC 3, see module doc)."""
+    (radius_t, h_t), (radius_s, h_s) = true, measured
     g_t0, a_t0 = _shape(radius_t, h_t + dh / 2)
     g_t1, a_t1 = _shape(radius_t, h_t - dh / 2)
     g_s0, a_s0 = _shape(radius_s, h_s + dh / 2)
@@ -98,26 +100,29 @@ def _draw_truths(rng, volume, heights, tension, use, *, draws, volume_sd, height
     return r_true, h_true, gamma_t
 
 
-def _truth_moduli(k_seen, r_true, h_true, radius, heights, gamma_t, *, dh):
+def _truth_moduli(k_seen, true, measured, gamma_t, *, dh):
     """Step 2: the true moduli K_j,m that make the analysis see `k_seen` (rows: cell x draw),
-    inverting the affine map K_seen = c1 K + c0 of `_seen` (c0 = K_seen at K = 0)."""
-    args = (r_true, h_true, radius, heights, gamma_t[:, None])
-    c0 = _seen(*args, 0.0, dh)[0]
-    c1 = _seen(*args, 1.0, dh)[0] - c0
+    inverting the affine map K_seen = c1 K + c0 of `_seen` (c0 = K_seen at K = 0);
+    `true` = (radii, mean heights) of the drawn truths, `measured` the same as measured."""
+    c0 = _seen(true, measured, gamma_t[:, None], 0.0, dh=dh)[0]
+    c1 = _seen(true, measured, gamma_t[:, None], 1.0, dh=dh)[0] - c0
     return (k_seen - c0) / c1
 
 
-def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, *, draws=DRAWS,
+def cell_intervals(emulator, bending, theta, curves, rms, *, draws=DRAWS,
                    volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
                    steps=GN_STEPS):
-    """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (NaN where θ is not finite)."""
+    """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (rows of `curves`, an
+    `analysis.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
+    NaN where θ is not finite)."""
+    h, k, use, tension, volume = curves
     n_cells, m = h.shape
     out = np.full((4, n_cells), np.nan)
     ok = np.isfinite(theta).all(axis=1) & (use.sum(axis=1) >= 3)
     if not ok.any():
         return tuple(out)
     rng = np.random.default_rng(seed)
-    th, hs, us, ks = theta[ok], _filled(h[ok], use[ok]), use[ok], np.where(use[ok], k[ok], 0.0)
+    th, hs, us, ks = theta[ok], filled_heights(h[ok], use[ok]), use[ok], np.where(use[ok], k[ok], 0.0)
     vs, n_used = volume[ok], use[ok].sum(axis=1)
     c = th.shape[0]
     radius = cell_radius(vs)[:, None, None]                                   # (c, 1, 1)
@@ -127,23 +132,24 @@ def cell_intervals(emulator, bending, theta, h, k, use, tension, volume, rms, *,
     noise_sd = np.nan_to_num(rms[ok]) * np.sqrt(n_used / np.maximum(n_used - 2, 1))
     k_seen = ks[:, None, :] + noise_sd[:, None, None] * rng.standard_normal((c, draws, m))
     flat = lambda a: a.reshape(c * draws, *a.shape[2:])                      # noqa: E731
-    K_t = _truth_moduli(flat(k_seen), flat(r_true), flat(h_true), flat(np.broadcast_to(radius, (c, draws, 1))),
-                        flat(np.broadcast_to(heights, (c, draws, m))), gamma_t.ravel(), dh=dh_um)
-    use_rep = np.repeat(us, draws, axis=0)
-    x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), flat(h_true / (2.0 * r_true)), K_t,
-                      use_rep, gamma_t.ravel(), np.repeat(vs, draws), steps=steps,
-                      bounds=_ks_bounds(emulator, bending))
+    measured = (flat(np.broadcast_to(radius, (c, draws, 1))), flat(np.broadcast_to(heights, (c, draws, m))))
+    K_t = _truth_moduli(flat(k_seen), (flat(r_true), flat(h_true)), measured, gamma_t.ravel(), dh=dh_um)
+    drawn = Curves(flat(h_true / (2.0 * r_true)), K_t, np.repeat(us, draws, axis=0), gamma_t.ravel(),
+                   np.repeat(vs, draws))
+    x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), drawn, steps=steps,
+                      bounds=ks_bounds(emulator, bending))
     lks = x[:, 1].reshape(c, draws)
     lo, hi = np.nanpercentile(lks, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
     out[0, ok], out[1, ok] = np.exp(lo), np.exp(hi)
-    out[2, ok], out[3, ok] = poisson(np.exp(hi)), poisson(np.exp(lo))
+    out[2, ok], out[3, ok] = poisson_of_ratio(np.exp(hi)), poisson_of_ratio(np.exp(lo))
     return tuple(out)
 
 
-def _gauss_newton(table, x, h, k, use, tension, volume, *, steps, bounds):
-    """Refit θ = (ln K_B, ln K̃_S) of every row from its start `x`: damped Gauss-Newton
+def _gauss_newton(table, x, curves, *, steps, bounds):
+    """Refit θ = (ln K_B, ln K̃_S) of every row of `curves` from its start `x`: damped Gauss-Newton
     steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
     ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""
+    h, k, use, tension, volume = curves
     x = x.copy()
     for v in np.unique(volume):
         rows = volume == v

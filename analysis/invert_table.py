@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis import intervals
-from analysis.emulator_fit import invert_curves_emulator
+from analysis.emulator_fit import Curves, invert_curves_emulator
 from analysis.inversion import invert_curves, to_curves, used_heights
 from solver.errors import InputError
 
@@ -86,7 +86,7 @@ def invert_rows(rows, method="emulator", calibration=None, emulator=None, bendin
         use, _, _ = used_heights(h, k)
         theta = np.column_stack([np.log(out["bulk_mN_per_m"]), np.log(out["ks_tilde"])])
         ks_lo, ks_hi, nu_lo, nu_hi = intervals.cell_intervals(
-            emulator, bending, theta, h, k, use, tension, volume, out["rms_mN_per_m"].to_numpy(),
+            emulator, bending, theta, Curves(h, k, use, tension, volume), out["rms_mN_per_m"].to_numpy(),
             draws=errors.draws, volume_sd=errors.volume_rel_sd, height_sd_um=errors.height_sd_um,
             seed=errors.seed)
         out["nu_lo95"], out["nu_hi95"], out["ks_lo95"], out["ks_hi95"] = nu_lo, nu_hi, ks_lo, ks_hi
