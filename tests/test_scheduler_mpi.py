@@ -147,3 +147,21 @@ def test_sigterm_stops_cleanly_and_the_rerun_completes(tmp_path_factory, stop_fl
     second = on_rank0(lambda: read_results(store)[["state", "attempts"]].to_dict("list"))
     assert second["state"] == ["done"] * N_TASKS
     assert second["attempts"] == [1] * N_TASKS          # nothing done twice
+
+
+def test_the_scheduler_leaves_the_signal_handlers_to_the_command(tmp_path, stop_flag):
+    """One process, no mpiexec: `scheduler.run` does not install handlers of its
+    own (`cortex campaign run` installs them once, first thing), so a handler
+    set before the run is the one in place during and after it."""
+    from campaign import config, scheduler
+    seen = []
+
+    def mine(signum, frame):
+        seen.append(signum)
+    signal.signal(signal.SIGTERM, mine)
+    (tmp_path / "c.toml").write_text(GRID + "[test]\nnoop = true\n")
+    campaign = config.load(str(tmp_path / "c.toml"))
+    assert scheduler.run(campaign, str(tmp_path / "s.h5"), progress=False) == 0
+    assert signal.getsignal(signal.SIGTERM) is mine
+    os.kill(os.getpid(), signal.SIGTERM)
+    assert seen == [signal.SIGTERM] and not stop_flag.stop["flag"]
