@@ -14,9 +14,10 @@ A trial task is sent with the forces and failure messages of the
 compressions it uses (`campaign.trial_inputs`), so workers never read the
 store. A failing task is recorded as failed with its message; the others go
 on (`campaign.tasks`).
-SIGTERM or SIGINT on any rank (`campaign.signals`): no new tasks are handed
-out, the batches in flight finish and are written, and the run stops saying
-how to resume (exit status 3).
+SIGTERM or SIGINT (`campaign.signals`; mpiexec passes them on to every rank,
+and rank 0's flag is the one read): no new tasks are handed out, the batches
+in flight finish and are written (a batch holds a worker for at most about
+`policy.BATCH_S`), and the run stops saying how to resume (exit status 3).
 
 On the mpio write path (`campaign.store`) a worker also keeps its entries and
 writes their rows when rank 0, after each fsync of the journal, tells it how
