@@ -270,9 +270,10 @@ class _Link:
         workers then write theirs (with TAG_STOP: and stop)."""
         with self.guard():
             self.store.flush()
+        told = dict(self.synced)
         self.synced.update(self.received)
-        for w in self.batches:
-            if self.store.parallel or tag == TAG_STOP:
+        for w in self.batches:       # TAG_WRITE only to the workers with new entries in the journal
+            if tag == TAG_STOP or (self.store.parallel and self.synced[w] != told[w]):
                 self.comm.send(self.received[w], dest=w, tag=tag)
 
     @contextlib.contextmanager
