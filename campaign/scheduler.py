@@ -204,18 +204,18 @@ class _Master:
     def serve(self):
         """Every result batch waiting: each recorded, the store flushed once for
         all of them (once per batch, or less when batches queue up), the
-        workers refilled; the policy told the task time and rank 0's cost per task."""
-        started, count = time.perf_counter(), 0
+        workers refilled; the policy told the task time and rank 0's cost per message."""
+        started, messages = time.perf_counter(), 0
         while (got := self.link.receive()) is not None:
             entries, busy_s = got
             for e in entries:
                 self.record(e)
             self.policy.timed(len(entries), busy_s)
-            count += len(entries)
-        if count:
+            messages += 1
+        if messages:
             self.flush()
             self.refill()
-            self.policy.timed(0, 0.0, (time.perf_counter() - started) / count)
+            self.policy.served(messages, time.perf_counter() - started)
 
     def compute_one(self):
         """Rank 0 computes the next task itself."""

@@ -99,26 +99,49 @@ def test_look_ahead_is_two_batches_and_counts_what_the_worker_holds():
 def test_rank_0_computes_only_while_serving_leaves_it_time():
     p = Policy(range(100), {}, 100, workers=4)
     assert p.master_computes()                          # nothing measured yet
-    p.timed(10, 10 * 0.03, cost_s=300e-6)               # 30 ms tasks, 300 µs per task: rho = 0.04
+    p.timed(10, 10 * 0.03)                              # 30 ms tasks: batches of 6 by time
+    p.served(1, 2e-3)                                   # 2 ms a message: rho = 4 * 2e-3 / (6 * 0.03) = 0.044
+    assert p.batch_size() == 6 and p.load() == pytest.approx(4 * 2e-3 / (6 * 0.03))
     assert p.master_computes() and p.computing() == 5
-    p.timed(0, 0.0, cost_s=300e-6)
-    noop = Policy(range(100), {}, 100, workers=4)
-    noop.timed(10, 10 * 20e-6, cost_s=30e-6)            # 20 µs tasks, 30 µs to serve one: rho = 6
+    noop = Policy(range(100_000), {}, 100_000, workers=4)
+    noop.timed(10, 10 * 20e-6)                          # 20 µs tasks, 20 ms to serve a message
+    noop.served(1, 20e-3)
+    assert noop.batch_size() == BATCH_MAX               # as large as allowed, and still
+    assert noop.load() == pytest.approx(4 * 20e-3 / (BATCH_MAX * 20e-6))    # rho = 7.8
     assert not noop.master_computes() and noop.computing() == 4
     many = Policy(range(100), {}, 100, workers=policy.MASTER_WORKERS_MAX + 1)
-    many.timed(10, 10 * 1.0, cost_s=1e-6)               # long tasks, but too many workers to serve
+    many.timed(10, 10 * 1.0)                            # long tasks, but too many workers to serve
+    many.served(1, 1e-6)
     assert not many.master_computes()
     alone = Policy(range(3), {}, 3, workers=0)
-    alone.timed(1, 1e-6, cost_s=1.0)
+    alone.timed(1, 1e-6)
+    alone.served(1, 1.0)
     assert alone.master_computes()                      # one process: rank 0 is the only one
 
 
+def test_batches_grow_to_keep_rank_0_within_its_load_and_within_the_time_cap():
+    T, c, W = 0.03, 1e-3, 1023                          # 1024 ranks, 30 ms tasks, 1 ms per message
+    p = Policy(range(10**6), {}, 10**6, workers=W)
+    p.timed(1, T)
+    p.served(1, c)
+    b = p.batch_size()
+    assert b == int(np.ceil(W * c / (policy.MASTER_LOAD_MAX * T)))      # 69 > b_time = 6
+    assert p.load() <= policy.MASTER_LOAD_MAX < W * c / ((b - 1) * T)   # the smallest such batch
+    slow = Policy(range(10**6), {}, 10**6, workers=W)
+    slow.timed(1, 1.0)                                  # 1 s tasks, 1 s per message: b_load = 2046
+    slow.served(1, 1.0)
+    assert slow.batch_size() == int(policy.BATCH_S_MAX / 1.0)           # capped at 5 s of work
+
+
 def test_the_threshold_is_the_served_share_of_rank_0s_time():
-    p = Policy(range(100), {}, 100, workers=2)
-    T = 0.01
-    c_edge = policy.MASTER_LOAD_MAX * T / 2             # rho = W c / T exactly at the limit
-    p.timed(1, T, cost_s=c_edge * 0.99)
-    assert p.master_computes()
-    q = Policy(range(100), {}, 100, workers=2)
-    q.timed(1, T, cost_s=c_edge * 1.01)
-    assert not q.master_computes()
+    T, W = 0.01, 2
+    b = int(BATCH_S / T)                                # 20 tasks a batch by time
+    c_edge = policy.MASTER_LOAD_MAX * b * T / W         # rho = W c / (b T) exactly at the limit
+    p = Policy(range(1000), {}, 1000, workers=W)
+    p.timed(1, T)
+    p.served(1, c_edge * 0.99)
+    assert p.batch_size() == b and p.master_computes()
+    q = Policy(range(1000), {}, 1000, workers=W)
+    q.timed(1, T)
+    q.served(1, c_edge * 1.01)                          # b_load = b + 1: the batch grows instead
+    assert q.batch_size() == b + 1 and q.master_computes()
