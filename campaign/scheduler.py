@@ -54,27 +54,19 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
-    rank, size = comm.Get_rank(), comm.Get_size()
-    store, path, error = None, None, None
-    if rank == 0:
-        try:
-            path = write_path(writes, size)
-            store = Store(store_path, campaign, new=new, ranks=size, parallel=path == "mpio")
-        except Exception as err:
-            error = err
-    error, path = comm.bcast((error, path), root=0)
+    store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
-        if rank == 0 or not isinstance(error, (InputError, OSError)):
+        if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
             raise error
         return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
     parallel_file = open_parallel(store_path, comm) if path == "mpio" else None   # every rank
-    if rank != 0:
+    if comm.Get_rank() != 0:
         _worker(comm, campaign, parallel_file and Writer(parallel_file))
         return EXIT_DONE
     if parallel_file:
         store.attach(parallel_file)
     if progress:
-        print(f"campaign: {size} rank{'s' * (size > 1)}, store writes: {path}"
+        print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
               file=sys.stderr, flush=True)
     try:
@@ -87,6 +79,20 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
         raise
     store.close()
     return status
+
+
+def _open_store(comm, campaign, store_path, new, writes):
+    """(store on rank 0 else None, write path, error or None), the same path
+    and error on every rank: rank 0 opens the store, the others wait for it."""
+    store, path, error = None, None, None
+    if comm.Get_rank() == 0:
+        try:
+            path = write_path(writes, comm.Get_size())
+            store = Store(store_path, campaign, new=new, ranks=comm.Get_size(), parallel=path == "mpio")
+        except Exception as err:
+            error = err
+    error, path = comm.bcast((error, path), root=0)
+    return store, path, error
 
 
 def _worker(comm, campaign, writer=None):
