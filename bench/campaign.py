@@ -15,7 +15,8 @@ runs (alternating 1 and 2 ranks; every run's time is printed too, since the
 shared machine's speed drifts by 20-40 % between runs); speedup_2 = their
 ratio.
 paper_wall_s_2_mpio: the 2-rank run on the parallel-HDF5 stack (.venv-mpio,
-`--write-path mpio`), best of --repeat too; null where that stack is not built.
+`--write-path mpio`), best of --repeat too; null where that stack is not built
+(or cannot import this checkout's code: rebuild it with `make setup-parallel`).
 --no-paper skips the paper runs (null); --paper CONFIG times another campaign
 file instead (e.g. a subset of the paper grid; `paper_config` names it).
 The machine is shared: timings noisy.
@@ -99,7 +100,8 @@ def main():
         futures_pool_tasks_per_s = N_NOOP / json.loads(out.strip().splitlines()[-1])["wall_s"]
         config = str(pathlib.Path(args.paper).resolve())
         commands = {1: [cortex], 2: [mpiexec, "-n", "2", cortex]}
-        if (MPIO / "with-mpi").exists():
+        if (MPIO / "with-mpi").exists() and subprocess.run(      # built, and installed with this checkout
+                [str(MPIO / "python"), "-c", "import campaign.store"], capture_output=True, cwd=ROOT).returncode == 0:
             commands["mpio"] = [str(MPIO / "with-mpi"), "mpiexec", "-n", "2", str(MPIO / "cortex")]
         paper, runs, failed = dict.fromkeys(commands), {n: [] for n in commands}, None
         if not args.no_paper:
