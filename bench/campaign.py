@@ -101,7 +101,7 @@ def main():
         config = str(pathlib.Path(args.paper).resolve())
         commands = {1: [cortex], 2: [mpiexec, "-n", "2", cortex]}
         if (MPIO / "with-mpi").exists() and subprocess.run(      # built, and installed with this checkout
-                [str(MPIO / "python"), "-c", "import campaign.store"], capture_output=True, cwd=ROOT).returncode == 0:
+                [str(MPIO / "python"), "-I", "-c", "import campaign.store"], capture_output=True, cwd=ROOT).returncode == 0:
             commands["mpio"] = [str(MPIO / "with-mpi"), "mpiexec", "-n", "2", str(MPIO / "cortex")]
         paper, runs, failed = dict.fromkeys(commands), {n: [] for n in commands}, None
         if not args.no_paper:
