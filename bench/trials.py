@@ -23,7 +23,7 @@ sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 import numpy as np
 
 from campaign import config
-from campaign.scheduler import _fake_law
+from campaign.faults import fake_law as _fake_law
 from campaign.trials import run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -2,7 +2,8 @@
 flag the scheduler reads to stop handing out work. `cortex campaign run`
 installs the handler first thing, before the heavy imports and the store, so
 a signal at any moment after that ends the run cleanly (exit status 3 and a
-line saying how to resume), not with the default 143/130."""
+line saying how to resume), not with the default 143/130. It is installed
+there only, once: the scheduler leaves the handlers as it finds them."""
 
 import signal
 
@@ -14,5 +15,6 @@ def _on_signal(signum, frame):
 
 
 def install():
+    """The flag's handler for SIGTERM and SIGINT in this process."""
     for signum in (signal.SIGTERM, signal.SIGINT):
         signal.signal(signum, _on_signal)

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from campaign import faults
-from campaign.scheduler import compute
+from campaign.tasks import compute
 from solver.errors import InputError
 from solver.model import Shell
 

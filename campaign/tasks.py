@@ -1,0 +1,103 @@
+"""One task, computed where it runs: a compression or a Monte-Carlo trial task,
+under the per-task timeout, and its journal entry.
+
+A task that raises, exceeds the per-task timeout (SIGALRM) or (a compression)
+returns a non-finite result is failed with its message; nothing escapes to
+the scheduler, so one bad task never stops the others. Tasks are numbered:
+the compressions 0..n-1 (grid order), then trial task j is n + j.
+"""
+
+import math
+import signal
+import time
+import traceback
+
+from campaign import faults
+
+
+class TaskTimeout(Exception):
+    pass
+
+
+class _NonFinite(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise TaskTimeout()
+
+
+def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
+    """Run one compression: (state, results, error, started); `fault` and
+    `sleep_s` are the test knobs of `campaign.faults`."""
+    from solver.compression import compress
+    if fault:
+        faults.prepare(fault, shell)   # start-up costs outside the task's timer
+
+    def work():
+        faults.pause(sleep_s)
+        result = faults.injected(fault, shell) if fault else compress(shell, method).to_dict()
+        result.pop("method", None)
+        if not all(math.isfinite(v) for v in result.values() if isinstance(v, float)):
+            raise _NonFinite()
+        return result
+    return _guarded(work, timeout_s)
+
+
+def compute_study(study, forces, errors, timeout_s, sleep_s=0.0):
+    """Run one Monte-Carlo trial task: (state, per-cell lists, error, started)."""
+    from campaign.trials import run_study
+
+    def work():
+        faults.pause(sleep_s)
+        # numbers stay arrays (sent and journalled as raw float64), the strings become lists
+        return {k: v.tolist() if v.dtype.kind in "UO" else v for k, v in run_study(study, forces, errors).items()}
+    return _guarded(work, timeout_s)
+
+
+def _guarded(work, timeout_s):
+    """work() under the per-task timeout; a failure becomes (failed, {}, message).
+    The timer is armed and disarmed inside the handled block, so an alarm that
+    fires at any moment (even while disarming) is this task's timeout."""
+    started = time.time()
+    signal.signal(signal.SIGALRM, _alarm)
+    try:
+        try:
+            signal.setitimer(signal.ITIMER_REAL, timeout_s)
+            result = work()
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+        return "done", result, "", started
+    except _NonFinite:
+        return "failed", {}, "non-finite result", started
+    except TaskTimeout:
+        return "failed", {}, f"timed out after {timeout_s:g} s", started
+    except Exception as err:  # a failed task is recorded, the campaign goes on
+        msg = f"{type(err).__name__}: {err}".splitlines()[0]
+        if not isinstance(err, (ArithmeticError, RuntimeError, ValueError)):
+            msg += " | " + traceback.format_exc(limit=2).splitlines()[-1]
+        return "failed", {}, msg, started
+
+
+def execute(campaign, task, payload):
+    """Task `task` (a compression row, or n + j for trial task j): (state, results, error, started);
+    `payload` is a trial task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
+    n, test = len(campaign.shells), campaign.test
+    if task < n:
+        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, test.by_row.get(task),
+                       test.compression_sleep_s)
+    return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s, test.trial_sleep_s)
+
+
+def entry(campaign, task, attempts, rank, state, results, error, started):
+    """Task `task`'s journal entry: a compression's `row` and `results`, or a
+    trial task's `task` and per-cell `cells`."""
+    n = len(campaign.shells)
+    key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
+    return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
+            "started": started}
+
+
+def run_task(campaign, task, payload, attempts, rank):
+    """Compute task `task` (attempt `attempts`) on `rank`: its journal entry."""
+    return entry(campaign, task, attempts, rank, *execute(campaign, task, payload))
