@@ -10,7 +10,7 @@ is the whole command's wall time. Then `status_wall_s` is the wall time of
 `cortex campaign status STORE --json` (a process of its own, start-up
 included; `status_cpu_s` its user + system time, which a loaded machine
 does not inflate), `open_wall_s` that of opening the store and reading its result
-table (`campaign.store.read_results`, in a fresh process, start-up
+table (`campaign.reader.read_results`, in a fresh process, start-up
 excluded), and `store_mb` the store's size on disk. From two sizes,
 `rss_rank0_per_task_bytes` is the growth of rank 0's peak per task.
 """
@@ -41,7 +41,7 @@ noop = true
 OPEN = """
 import sys, time
 started = time.perf_counter()
-from campaign.store import read_results
+from campaign.reader import read_results
 rows = read_results(sys.argv[1])
 print(time.perf_counter() - started, len(rows))
 """

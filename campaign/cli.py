@@ -55,7 +55,7 @@ def run(args):
 
 def status(args):
     import json
-    from campaign.store import summary
+    from campaign.reader import summary
     info = summary(args.store)
     if args.json:
         print(json.dumps(info))

@@ -21,7 +21,7 @@ SIGTERM or SIGINT on any rank: no new tasks are handed out, the tasks in
 flight finish and are written, and the run stops saying how to resume.
 
 A finished task travels as its journal entry (`entry`), built where it ran.
-On the mpio write path (`campaign.store`) a worker also keeps it and writes
+On the mpio write path (`campaign.mpio_writer`) a worker also keeps it and writes
 its rows when rank 0, after each fsync of the journal, tells it how many of
 its entries the journal holds (TAG_WRITE; the final count comes with
 TAG_STOP, before every rank closes the file together).
@@ -38,7 +38,9 @@ from collections import deque
 from campaign import faults
 from campaign.signals import install as install_signal_handlers
 from campaign.signals import stop as _stop
-from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
+from campaign.mpio_writer import Writer, open_parallel, write_path
+from campaign.schema import DONE, FAILED, PENDING
+from campaign.store import Store
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
 
@@ -112,7 +114,7 @@ def _guarded(work, timeout_s):
 
 def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
     """Run or resume `campaign` into `store_path` with the write path `writes`
-    (auto, mpio or rank0; `campaign.store.write_path`); returns the exit status:
+    (auto, mpio or rank0; `campaign.mpio_writer.write_path`); returns the exit status:
     0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume).
     Bad input and a failed write (disk full) are raised on rank 0 (the command
     line says why, status 2 or 5); the other ranks return that status quietly."""
@@ -124,7 +126,8 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     if rank == 0:
         try:
             path = write_path(writes, size)
-            store = Store(store_path, campaign, new=new, ranks=size, parallel=path == "mpio")
+            store = Store(store_path, campaign, new=new, ranks=size, parallel=path == "mpio",
+                          on_record=faults.record_hook())
         except Exception as err:
             error = err
     error, path = comm.bcast((error, path), root=0)
@@ -226,7 +229,7 @@ class _Trials:
 
     def compression_finished(self, row, state, results, error):
         """Note a compression's result; returns the trial tasks it made ready."""
-        from campaign.store import STATES
+        from campaign.schema import STATES
         if not self.studies:
             return []
         self.state[row] = STATES.index(state)

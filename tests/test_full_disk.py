@@ -16,7 +16,8 @@ import pytest
 
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
-from campaign.store import read_journal, read_results, read_trials
+from campaign.journal import read as read_journal
+from campaign.reader import read_results, read_trials
 from conftest import BIN, ROOT
 from outputs.writing import ROOM_MARGIN_BYTES
 
