@@ -14,6 +14,11 @@ values come back bit for bit. Entries are the dicts the scheduler builds
 task's `task` and per-cell `cells`, each with `state`, `error`, `attempts`,
 `rank`, `started`.
 
+The store (`campaign.store.Store`) writes a record at each flush, and at
+the latest once its entries reach RECORD_BYTES: the journal then grows
+steadily (a full disk stops a run part way, not at its end) and rank 0
+holds a bounded number of unsynced entries.
+
 A record is complete when all its bytes and its CRC are there: a kill or a
 full disk can only cut the last one, which `trim_cut` removes before a run
 appends (no row holds it: rows follow the journal's fsync). Journals of
@@ -34,8 +39,15 @@ MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")
 _CRC = struct.Struct("<I")
 _HEAD = len(MAGIC) + _SIZES.size
+RECORD_BYTES = 64 * 1024    # a record holds at most about this much: a flush comes at the latest then
 _COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32,
                 "started": np.float64, "converged": np.int8}
+
+
+def approx_bytes(entry):
+    """About how many bytes `entry` takes in a record."""
+    cells = entry.get("cells") or {}
+    return 64 + 8 * len(entry.get("results") or ()) + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values())
 
 
 def encode(entries):

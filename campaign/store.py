@@ -92,7 +92,7 @@ class Store:
         self._pending_again()
         self.journal = open(self.journal_path, "ab")
         self._log_run(ranks)
-        self.unsynced, self.running, self.shown_running = [], set(), set()
+        self.unsynced, self.unsynced_bytes, self.running, self.shown_running = [], 0, set(), set()
         self.file.flush()
 
     def _check_same(self, campaign):
@@ -201,9 +201,13 @@ class Store:
         self.running.update(r if isinstance(r, tuple) else int(r) for r in rows)
 
     def record(self, entry):
-        """Keep a finished task's entry for the next `flush` (nothing is written yet)."""
+        """Keep a finished task's entry for the next `flush`, which comes now if
+        the entries kept reach `journal.RECORD_BYTES`."""
         self.unsynced.append(entry)
+        self.unsynced_bytes += journal.approx_bytes(entry)
         self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
+        if self.unsynced_bytes >= journal.RECORD_BYTES:
+            self.flush()
         if self.on_record is not None:
             self.on_record(self, entry)
 
@@ -213,7 +217,7 @@ class Store:
         shown running and no longer has been finished: its entry is written).
         On the mpio path rank 0 writes only its own entries' rows, and nothing
         collective happens."""
-        entries, self.unsynced = self.unsynced, []
+        entries, self.unsynced, self.unsynced_bytes = self.unsynced, [], 0
         if entries:
             with named_failures(self.journal_path):
                 journal.append(self.journal, entries)
