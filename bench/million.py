@@ -30,6 +30,7 @@ BIN = pathlib.Path(sys.executable).parent
 NOOP = """
 [campaign]
 name = "million"
+max_tasks = {max_tasks}
 [grid]
 h0_um = [{h0}]
 bulk_mN_per_m = 25.0
@@ -69,7 +70,7 @@ def _children_cpu():
 def one_size(tmp, tasks, ranks):
     """Run, status and open for a campaign of `tasks` no-op tasks."""
     cfg, store = tmp / f"noop{tasks}.toml", tmp / f"noop{tasks}.h5"
-    cfg.write_text(NOOP.format(h0=_grid(10.0, 15.0, 100), shear=_grid(5.0, 25.0, 100),
+    cfg.write_text(NOOP.format(max_tasks=tasks, h0=_grid(10.0, 15.0, 100), shear=_grid(5.0, 25.0, 100),
                                tension=_grid(0.5, 3.0, max(tasks // 10_000, 1))))
     rss = tmp / f"rss{tasks}"
     # each rank under /usr/bin/time, its peak RSS (KB) in a file named by its MPI rank
