@@ -27,6 +27,7 @@ from solver.errors import InputError
 
 _OVERLAY = {"state": "state", "attempts": "attempts", "rank": "rank", "error": "error",
             "started": "started_unix_s"}
+FLOATS = "float columns"                # the key of `_task_columns`'s float block
 _TRIAL_RUN = ("error", "attempts")      # after TRIAL_COLUMNS in `read_trials`: how its study's run went
 
 
@@ -39,12 +40,22 @@ def _open_store(path):
 
 
 def _task_columns(path, names):
-    """The compression rows' columns `names` (any of PARAMS, RESULTS, state,
-    attempts, rank, started_unix_s, converged, error), journal overlaid."""
+    """The compression rows' columns `names` (any of PARAMS, RESULTS,
+    started_unix_s, converged, rank, error; state and attempts always), journal
+    overlaid. The float columns are rows of one array, `cols[FLOATS]` (so a
+    DataFrame takes them without a copy)."""
+    floats = [k for k in names if k in PARAMS + RESULTS + ("started_unix_s",)]
     with _open_store(path) as f:
         n = len(f["state"])
-        cols = {k: f[k][:] if k in f else np.full(n, np.nan) for k in ("state", "attempts") + names
-                if k != "error"}
+        block = np.empty((len(floats), n))
+        for i, key in enumerate(floats):
+            if key in f:
+                f[key].read_direct(block[i])
+            else:                         # a store made before the viscous columns lacks them
+                block[i] = np.nan
+        cols = {k: f[k][:] for k in ("state", "attempts") + names if k not in floats and k != "error"}
+        cols.update(zip(floats, block))
+        cols[FLOATS] = block
         if "error" in names:
             cols["error"] = _errors(f["error"], (cols["state"] != DONE) & (cols["attempts"] > 0))
         start = f.attrs.get("journal_bytes", 0)
@@ -81,9 +92,17 @@ def _errors(dset, wanted):
     return out
 
 
-def _strings(dset):
-    """A string column as an object array of str."""
-    return dset.asstr()[:].astype(object)
+def _strings(dset, few=False):
+    """A string column as an object array of str: fixed-length ASCII, or of
+    variable length in stores of earlier versions. `few`: a column of a few
+    distinct values (bending), decoded once each."""
+    if dset.dtype.kind != "S":
+        return dset.asstr()[:].astype(object)
+    raw = dset[:]
+    if few:
+        names, index = np.unique(raw, return_inverse=True)
+        return np.array([name.decode() for name in names], object)[index]
+    return np.array(raw.astype(f"U{raw.dtype.itemsize}").tolist(), object)
 
 
 def read_results(path):
@@ -92,9 +111,11 @@ def read_results(path):
     import pandas as pd           # here: a campaign run need not load it
     cols = _task_columns(path, PARAMS + RESULTS + ("converged", "rank", "error"))
     with _open_store(path) as f:
-        ids, bending = _strings(f["task_id"]), _strings(f["bending"])
-    frame = pd.DataFrame({"task_id": ids, "state": np.array(STATES, object)[cols["state"]],
-                          "bending": bending, **{k: cols[k] for k in PARAMS + RESULTS}})
+        ids, bending = _strings(f["task_id"]), _strings(f["bending"], few=True)
+    frame = pd.DataFrame(cols[FLOATS].T, columns=list(PARAMS + RESULTS), copy=False)
+    for i, (key, values) in enumerate((("task_id", ids), ("state", np.array(STATES, object)[cols["state"]]),
+                                       ("bending", bending))):
+        frame.insert(i, key, values)
     frame["converged"] = cols["converged"].astype(bool)
     frame["attempts"], frame["rank"], frame["error"] = cols["attempts"], cols["rank"], cols["error"]
     return frame
@@ -165,8 +186,7 @@ def _failures(path, state, error):
     if not len(failed):
         return []
     with _open_store(path) as f:
-        ids = f["task_id"].asstr()[:] if len(failed) > len(state) // 8 else None
-        ids = ids[failed] if ids is not None else [f["task_id"].asstr()[i] for i in failed]
+        ids = _strings(f["task_id"])[failed]
     return [[str(t), str(error[i])] for t, i in zip(ids, failed)]
 
 

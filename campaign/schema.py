@@ -4,7 +4,9 @@ One row per compression task (the grid, `campaign.config`): its parameters
 (PARAMS), its results (RESULTS, NaN until done), `converged`, `state` (an
 index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
 (fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
-variable-length strings; the journal keeps a message whole).
+variable-length strings; the journal keeps a message whole); `task_id` and
+`bending` are fixed-length ASCII (stores of earlier versions have them of
+variable length; the readers take both).
 
 The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
 row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with
@@ -56,6 +58,12 @@ def error_dtype():
     return h5py.string_dtype("utf-8", ERROR_BYTES)
 
 
+def fixed_strings(values):
+    """Short ASCII names (task ids, bending variants) as a fixed-length byte
+    array: read back a hundred times faster than variable-length strings."""
+    return np.array([v.encode("ascii") for v in values], f"S{max([len(v) for v in values] + [1])}")
+
+
 def clip(text):
     """`text` as at most ERROR_BYTES bytes of UTF-8, cut between characters."""
     return text.encode()[:ERROR_BYTES].decode(errors="ignore").encode()
@@ -71,13 +79,12 @@ def _bookkeeping(g, n):
 def fill(f, campaign, attrs):
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
-    import h5py
-    n, str_t = len(campaign.shells), h5py.string_dtype()
+    n = len(campaign.shells)
     for key in PARAMS:
         f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
-    f.create_dataset("bending", data=np.array([s.bending for s in campaign.shells], object), dtype=str_t)
-    f.create_dataset("task_id", data=np.array([task_id(s, campaign.method) for s in campaign.shells],
-                                              object), dtype=str_t)
+    for key, values in (("bending", [s.bending for s in campaign.shells]),
+                        ("task_id", [task_id(s, campaign.method) for s in campaign.shells])):
+        f.create_dataset(key, data=fixed_strings(values))
     for key in RESULTS:
         f.create_dataset(key, data=np.full(n, np.nan))
     f["converged"] = np.zeros(n, np.int8)
