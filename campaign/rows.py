@@ -12,8 +12,7 @@ import base64
 
 import numpy as np
 
-from campaign.schema import RESULTS, STATES, clip
-from campaign.trials import CELL_KEYS, HEIGHT_KEYS
+from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip
 
 
 def write_entries(f, entries, cells, contiguous=False):

@@ -12,15 +12,14 @@ The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
 row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with
 the per-trial columns TRIAL_PER_CELL and (trial, height) arrays
 TRIAL_PER_HEIGHT; their union, in that order, is TRIAL_COLUMNS, the long
-table `campaign.reader.read_trials` returns.
+table `campaign.reader.read_trials` returns. The schema imports no physics,
+so the readers (and `cortex campaign status`) load neither numba nor the solver.
 """
 
 import hashlib
 import json
 
 import numpy as np
-
-from campaign.trials import CELL_KEYS, HEIGHT_KEYS
 
 FORMAT = "cortex-campaign-store"    # the file's `format` attribute: what says a file is ours
 PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
@@ -34,6 +33,11 @@ RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 ERROR_BYTES = 256           # an error message's room in its row
+# a trial task's results per cell (`campaign.trials.run_study`, beside `state` and `error`): one value,
+# and one per height
+CELL_KEYS = ("tension_mN_per_m", "volume_used_um3")
+HEIGHT_KEYS = ("h0_used_um", "h1_used_um", "force_nN", "h_tilde", "modulus_mN_per_m",
+               "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
 # the bookkeeping columns of a task row (and of a trial row), beside its parameters and results
 BOOKKEEPING = {"state": np.int8, "attempts": np.int32, "rank": np.int32, "started_unix_s": float}
 # trials: the study's parameters per trial (dataset <- Study attribute), then the columns of the long table
