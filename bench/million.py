@@ -9,10 +9,11 @@ memory (MB) and `peak_rss_other_mb` the largest other rank's; `run_wall_s`
 is the whole command's wall time. Then `status_wall_s` is the wall time of
 `cortex campaign status STORE --json` (a process of its own, start-up
 included; `status_cpu_s` its user + system time, which a loaded machine
-does not inflate), `open_wall_s` that of opening the store and reading its result
-table (`campaign.reader.read_results`, in a fresh process, its start-up and
-the imports of pandas and the reader excluded), each the best of --repeat
-runs; `store_mb` and `journal_mb` the sizes on disk. From two sizes,
+does not inflate), `open_wall_s` that of opening the store and reading its
+result table (`campaign.reader.read_results`, in a fresh process, its
+start-up and the imports of pandas and the reader excluded; `open_cpu_s` its
+CPU time), each the best of --repeat runs; `store_mb` and `journal_mb` the
+sizes on disk. From two sizes,
 `rss_rank0_per_task_bytes` is the growth of rank 0's peak per task.
 """
 
@@ -44,9 +45,9 @@ OPEN = """
 import sys, time
 import pandas
 from campaign.reader import read_results
-started = time.perf_counter()
+started, cpu = time.perf_counter(), time.process_time()
 rows = read_results(sys.argv[1])
-print(time.perf_counter() - started, len(rows))
+print(time.perf_counter() - started, time.process_time() - cpu, len(rows))
 """
 
 
@@ -84,12 +85,12 @@ def one_size(tmp, tasks, ranks, repeat):
     status_wall, status_cpu, info = min(status)[0], min(s[1] for s in status), json.loads(status[0][2])
     opened = [_run([sys.executable, "-c", OPEN, str(store)], env={**os.environ, "PYTHONPATH": str(ROOT)})[2].split()
               for _ in range(repeat)]
-    open_wall, rows = min(float(o[0]) for o in opened), opened[0][1]
+    open_wall, open_cpu, rows = min(float(o[0]) for o in opened), min(float(o[1]) for o in opened), opened[0][2]
     return {"tasks": tasks, "done": info["done"], "rows_read": int(rows), "run_wall_s": round(run_wall, 2),
             "tasks_per_s": round(tasks / run_wall, 1), "peak_rss_rank0_mb": round(peaks[0], 1),
             "peak_rss_other_mb": round(max((v for k, v in peaks.items() if k), default=0.0), 1),
             "status_wall_s": round(status_wall, 3), "status_cpu_s": round(status_cpu, 3),
-            "open_wall_s": round(open_wall, 3),
+            "open_wall_s": round(open_wall, 3), "open_cpu_s": round(open_cpu, 3),
             "store_mb": round(store.stat().st_size / 2**20, 1),
             "journal_mb": round(os.path.getsize(f"{store}.journal") / 2**20, 1)}
 
