@@ -14,10 +14,11 @@ values come back bit for bit. Entries are the dicts the scheduler builds
 task's `task` and per-cell `cells`, each with `state`, `error`, `attempts`,
 `rank`, `started`.
 
-The store (`campaign.store.Store`) writes a record at each flush, and at
-the latest once its entries reach RECORD_BYTES: the journal then grows
-steadily (a full disk stops a run part way, not at its end) and rank 0
-holds a bounded number of unsynced entries.
+The store (`campaign.store.Store`) appends a record at each flush, and
+whenever the entries it keeps reach RECORD_BYTES (without an fsync: that,
+and the rows, wait for the flush): the journal then grows steadily (a full
+disk stops a run part way, not at its end) and rank 0 holds a bounded
+number of entries not yet journalled.
 
 A record is complete when all its bytes and its CRC are there: a kill or a
 full disk can only cut the last one, which `trim_cut` removes before a run
@@ -39,7 +40,7 @@ MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")
 _CRC = struct.Struct("<I")
 _HEAD = len(MAGIC) + _SIZES.size
-RECORD_BYTES = 64 * 1024    # a record holds at most about this much: a flush comes at the latest then
+RECORD_BYTES = 64 * 1024    # a record holds at most about this much
 _COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32,
                 "started": np.float64, "converged": np.int8}
 
@@ -193,8 +194,14 @@ def trim_cut(path):
 
 
 def append(fh, entries):
-    """Write one record of `entries` to the open journal `fh` (binary, append) and fsync it."""
+    """Write one record of `entries` to the open journal `fh` (binary, append),
+    as far as the operating system (a kill cannot lose it; `sync` makes it durable)."""
     fh.write(encode(entries))
+    fh.flush()
+
+
+def sync(fh):
+    """Make everything appended to `fh` durable (fsync)."""
     fh.flush()
     os.fsync(fh.fileno())
 

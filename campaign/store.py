@@ -8,8 +8,9 @@ without trials gains them when the campaign file gets a [montecarlo]
 section (its compressions kept); one with other trials is refused.
 
 Kill safety: finished tasks are kept in memory (`record`) and, once per
-batch (`flush`), appended to `STORE.journal` as one record and fsync'd
-(`campaign.journal`); only then are their HDF5 rows written (`campaign.rows`)
+batch (`flush`) or every 64 KiB of entries, appended to `STORE.journal` as
+one record (`campaign.journal`); a flush then fsyncs the journal, and only
+then are the rows of its batch written (`campaign.rows`)
 and the file flushed, after which its attribute `journal_bytes` says how much
 of the journal the rows hold. On opening, a record a kill cut is trimmed, the
 rest of the journal is replayed into the file (idempotent), rows left
@@ -92,7 +93,8 @@ class Store:
         self._pending_again()
         self.journal = open(self.journal_path, "ab")
         self._log_run(ranks)
-        self.unsynced, self.unsynced_bytes, self.running, self.shown_running = [], 0, set(), set()
+        self.unjournalled, self.unjournalled_bytes, self.unwritten = [], 0, []
+        self.unsynced, self.running, self.shown_running = False, set(), set()
         self.file.flush()
 
     def _check_same(self, campaign):
@@ -201,29 +203,41 @@ class Store:
         self.running.update(r if isinstance(r, tuple) else int(r) for r in rows)
 
     def record(self, entry):
-        """Keep a finished task's entry for the next `flush`, which comes now if
-        the entries kept reach `journal.RECORD_BYTES`."""
-        self.unsynced.append(entry)
-        self.unsynced_bytes += journal.approx_bytes(entry)
+        """Keep a finished task's entry for the next `flush`; once the entries
+        kept reach `journal.RECORD_BYTES` they are appended to the journal as
+        one record (not fsync'd, no rows written: that waits for the flush)."""
+        self.unjournalled.append(entry)
+        self.unjournalled_bytes += journal.approx_bytes(entry)
+        if not self.parallel or entry["rank"] == 0:
+            self.unwritten.append(entry)
         self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
-        if self.unsynced_bytes >= journal.RECORD_BYTES:
-            self.flush()
+        if self.unjournalled_bytes >= journal.RECORD_BYTES:
+            self._append_record()
         if self.on_record is not None:
             self.on_record(self, entry)
 
-    def flush(self):
-        """The entries recorded since the last flush as one journal record,
-        fsync'd; then their rows and the new running marks into HDF5 (a row
-        shown running and no longer has been finished: its entry is written).
-        On the mpio path rank 0 writes only its own entries' rows, and nothing
-        collective happens."""
-        entries, self.unsynced, self.unsynced_bytes = self.unsynced, [], 0
-        if entries:
+    def _append_record(self):
+        if self.unjournalled:
             with named_failures(self.journal_path):
-                journal.append(self.journal, entries)
-            mine = [e for e in entries if e["rank"] == 0] if self.parallel else entries
-            write_entries(self.file, mine, self.cells, contiguous=self.parallel)
-            if mine and not self.parallel:
+                journal.append(self.journal, self.unjournalled)
+            self.unjournalled, self.unjournalled_bytes, self.unsynced = [], 0, True
+
+    def flush(self):
+        """The entries kept since the last record appended to the journal as
+        one record, the journal fsync'd; then the rows of the entries recorded
+        since the last flush and the new running marks into HDF5 (a row shown
+        running and no longer has been finished: its entry is written). On the
+        mpio path rank 0 writes only its own entries' rows, and nothing
+        collective happens."""
+        self._append_record()
+        if self.unsynced:
+            with named_failures(self.journal_path):
+                journal.sync(self.journal)
+            self.unsynced = False
+        if self.unwritten:
+            write_entries(self.file, self.unwritten, self.cells, contiguous=self.parallel)
+            self.unwritten = []
+            if not self.parallel:
                 self.file.flush()             # the rows first, then the mark that they are in
                 self.file.attrs["journal_bytes"] = self.journal.tell()
         self._show_running()
