@@ -1,8 +1,9 @@
 """Test-only fault injection: what a campaign's `[test]` section asks for.
 
 Nothing here runs unless a campaign file has a `[test]` section (or, for the
-kill, the environment variable below is set); the scheduler and the store
-only call these hooks. The knobs (`parse`):
+kill, the environment variable below is set); only the scheduler calls
+these hooks (the store gets the kill as its `on_record`, knowing nothing of
+it). The knobs (`parse`):
 
     raise_task, hang_task, nan_task   grid indices whose compression raises,
                                       sleeps past the per-task timeout, or
