@@ -65,14 +65,14 @@ class Fitted:
 
 
 def read_store(path):
-    """(results, trials) DataFrames of a campaign store, via `campaign.store`."""
+    """(results, trials) DataFrames of a campaign store, via `campaign.reader`."""
     try:
-        from campaign import store
+        from campaign import reader
     except ModuleNotFoundError as err:
         raise InputError(f"cannot read {path}: the campaign package is not installed ({err.name})") from None
     try:
-        results = store.read_results(path)
-        trials = store.read_trials(path)
+        results = reader.read_results(path)
+        trials = reader.read_trials(path)
     except InputError:
         raise
     except (OSError, KeyError, ValueError) as err:

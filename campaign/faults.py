@@ -1,8 +1,9 @@
 """Test-only fault injection: what a campaign's `[test]` section asks for.
 
 Nothing here runs unless a campaign file has a `[test]` section (or, for the
-kill, the environment variable below is set); the scheduler and the store
-only call these hooks. The knobs (`parse`):
+kill, the environment variable below is set); only the scheduler calls
+these hooks (the store gets the kill as its `on_record`, knowing nothing of
+it). The knobs (`parse`):
 
     raise_task, hang_task, nan_task   grid indices whose compression raises,
                                       sleeps past the per-task timeout, or
@@ -19,7 +20,9 @@ only call these hooks. The knobs (`parse`):
 `kill_mid_write`: with CORTEX_TEST_KILL_MID_WRITE=ROW (a compression's grid
 index) or =taskJ (trial task J), rank 0 journals that task's entry, writes its
 rows (and marks a compression done), then kills itself with SIGKILL: the
-moment between "rows written" and "the file says the journal is in".
+moment between "rows written" and "the file says the journal is in". The
+store knows nothing of it: `record_hook()` is what the scheduler hands the
+store as its `on_record` (None unless the variable is set).
 
 None of these changes a task's numbers or the campaign's fingerprint, so a
 store made with them is resumed (and compared) with or without them.
@@ -101,7 +104,7 @@ def prepare(fault, shell):
         effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
         droplet(shell.volume_um3, shell.h1_um)
     if fault in ("noop", "nan"):
-        import campaign.store  # noqa: F401  (RESULTS)
+        import campaign.schema  # noqa: F401  (RESULTS)
 
 
 def injected(fault, shell):
@@ -112,7 +115,7 @@ def injected(fault, shell):
         time.sleep(HANG_S)
     if fault == "fake_law":
         return fake_law(shell)
-    from campaign.store import RESULTS
+    from campaign.schema import RESULTS
     return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
 
 
@@ -138,6 +141,11 @@ def fake_law(shell):
     return out
 
 
+def record_hook():
+    """The store's `on_record` hook: `kill_mid_write` if KILL_ENV is set, else None."""
+    return kill_mid_write if os.environ.get(KILL_ENV) is not None else None
+
+
 def kill_mid_write(store, entry):
     """SIGKILL rank 0 right after `entry`'s rows are written, if KILL_ENV names it."""
     kill = os.environ.get(KILL_ENV)
@@ -145,6 +153,6 @@ def kill_mid_write(store, entry):
         return
     store.flush()                          # written, then killed: the replay must not redo it
     if "row" in entry:
-        from campaign.store import DONE
+        from campaign.schema import DONE
         store.file["state"][entry["row"]] = DONE
     os.kill(os.getpid(), signal.SIGKILL)

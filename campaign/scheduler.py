@@ -19,7 +19,7 @@ and rank 0's flag is the one read): no new tasks are handed out, the batches
 in flight finish and are written (a batch holds a worker for at most about
 `policy.BATCH_S`), and the run stops saying how to resume (exit status 3).
 
-On the mpio write path (`campaign.store`) a worker also keeps its entries and
+On the mpio write path (`campaign.mpio_writer`) a worker also keeps its entries and
 writes their rows when rank 0, after each fsync of the journal, tells it how
 many of its entries the journal holds (TAG_WRITE; the final count comes with
 TAG_STOP, before every rank closes the file together).
@@ -33,7 +33,10 @@ from collections import deque
 from campaign.policy import Policy
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
-from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
+from campaign import faults
+from campaign.mpio_writer import Writer, open_parallel, write_path
+from campaign.schema import DONE, FAILED, PENDING
+from campaign.store import Store
 from campaign.tasks import run_task
 from campaign.trial_inputs import TrialInputs
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
@@ -46,7 +49,7 @@ IDLE_S = 0.001          # s: rank 0's nap while it waits for results and compute
 
 def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
     """Run or resume `campaign` into `store_path` with the write path `writes`
-    (auto, mpio or rank0; `campaign.store.write_path`); returns the exit status:
+    (auto, mpio or rank0; `campaign.mpio_writer.write_path`); returns the exit status:
     0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume).
     Bad input and a failed write (disk full) are raised on rank 0 (the command
     line says why, status 2 or 5); the other ranks return that status quietly.
@@ -88,7 +91,8 @@ def _open_store(comm, campaign, store_path, new, writes):
     if comm.Get_rank() == 0:
         try:
             path = write_path(writes, comm.Get_size())
-            store = Store(store_path, campaign, new=new, ranks=comm.Get_size(), parallel=path == "mpio")
+            store = Store(store_path, campaign, new=new, ranks=comm.Get_size(), parallel=path == "mpio",
+                          on_record=faults.record_hook())
         except Exception as err:
             error = err
     error, path = comm.bcast((error, path), root=0)

@@ -172,8 +172,3 @@ def _seen(volume, h0, h1, tension, g_true, force):
         modulus = (gamma_eff - seen) / strain
     h_tilde = 0.5 * (h0 + h1) / (2.0 * d0.cell_radius_um)
     return seen, {"gamma_eff_mN_per_m": gamma_eff, "modulus_mN_per_m": modulus, "h_tilde": h_tilde}
-
-
-CELL_KEYS = ("tension_mN_per_m", "volume_used_um3")
-HEIGHT_KEYS = ("h0_used_um", "h1_used_um", "force_nN", "h_tilde", "modulus_mN_per_m",
-               "gamma_eff_mN_per_m", "tension_seen_mN_per_m")

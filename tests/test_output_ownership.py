@@ -248,11 +248,11 @@ def test_afm_analyze_output_of_a_version_before_manifests(afm, tmp_path, capsys)
 
 def test_a_store_is_never_set_aside_onto_an_existing_file(tmp_path):
     """--new keeps the old store as STORE.bak-<time>; a file already of that name is kept too."""
-    import campaign.store as store_mod
+    from campaign.store_files import set_aside
     store = tmp_path / "s.h5"
     assert run_campaign(tmp_path, store).returncode == 0
     taken = make_text(tmp_path / "s.h5.bak-20260101-000000")
     before = snapshot(taken)
-    store_mod._set_aside(str(store), str(taken))
+    set_aside(str(store), str(taken))
     assert snapshot(taken) == before
     assert (tmp_path / "s.h5.bak-20260101-000000-2").is_file() and not store.exists()

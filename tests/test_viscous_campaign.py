@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from campaign.config import load
-from campaign.store import read_results, task_id
+from campaign.reader import read_results
+from campaign.schema import task_id
 from solver import viscous
 from solver.model import Shell
 from tests.conftest import BIN, ROOT

@@ -1,0 +1,48 @@
+"""What made a store: the code version (from the installed package's
+metadata, so the engine never imports the command-line package), the library
+versions, the host, and one record per run."""
+
+import json
+import platform
+import socket
+import time
+from importlib.metadata import PackageNotFoundError, version
+
+DISTRIBUTION = "cortex-poisson"     # pyproject.toml's [project] name
+
+
+def code_version():
+    """The installed distribution's version; `0.0.0+unknown` from a checkout that is not installed."""
+    try:
+        return version(DISTRIBUTION)
+    except PackageNotFoundError:
+        return "0.0.0+unknown"
+
+
+def library_versions():
+    """Versions of Python and of the libraries a store's numbers depend on, as JSON text."""
+    import h5py
+    import mpi4py
+    import numpy
+    import scipy
+    return json.dumps({"python": platform.python_version(), "numpy": numpy.__version__,
+                       "scipy": scipy.__version__, "h5py": h5py.version.version,
+                       "hdf5": h5py.version.hdf5_version, "mpi4py": mpi4py.__version__})
+
+
+def _now():
+    return time.strftime("%Y-%m-%dT%H:%M:%S")
+
+
+def store_attrs(campaign, ranks):
+    """The attributes a new store is created with."""
+    return {"fingerprint": campaign.fingerprint, "trials_fingerprint": campaign.trials_fingerprint,
+            "config_text": campaign.text, "name": campaign.name, "method": campaign.method,
+            "code_version": code_version(), "versions": library_versions(), "host": socket.gethostname(),
+            "ranks": ranks, "created": _now()}
+
+
+def run_record(ranks, write_path):
+    """One entry of a store's `runs` list: when, on how many ranks, where, how written, by which code."""
+    return {"started": _now(), "ranks": ranks, "host": socket.gethostname(), "write_path": write_path,
+            "code_version": code_version()}

@@ -1,0 +1,99 @@
+"""Journal entries into HDF5 rows: the one place a store's rows are written.
+
+A compression's entry (`row`) fills its task row (state, attempts, rank,
+error, converged, started, RESULTS); a trial task's entry (`task` j) fills
+its study's N trial rows j N .. j N + N - 1 (`trial_columns`). Rows are
+written one HDF5 write per column, or per run of consecutive rows on the
+mpio path (parallel HDF5 writes no scattered selections); the last entry of
+a row wins.
+"""
+
+import base64
+
+import numpy as np
+
+from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip
+
+
+def write_entries(f, entries, cells, contiguous=False):
+    """Write journal entries into their rows of the open file `f`; `cells`:
+    trials per study (N)."""
+    _write_trials(f, {e["task"]: e for e in entries if "task" in e}, cells)
+    by_row = {e["row"]: e for e in entries if "row" in e}
+    if not by_row:
+        return
+    rows = np.array(sorted(by_row))
+    batch = [by_row[i] for i in rows]
+    results = [e.get("results") or {} for e in batch]
+    columns = {
+        "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
+        "attempts": np.array([e["attempts"] for e in batch], np.int32),
+        "rank": np.array([e["rank"] for e in batch], np.int32),
+        "error": np.array([e.get("error", "") for e in batch], object),
+        "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
+        "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
+    for key in RESULTS:
+        if key in f:                      # a store made before the viscous columns lacks them
+            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+    for key, values in columns.items():
+        put(f[key], rows, values, contiguous)
+
+
+def runs(rows):
+    """Sorted row numbers as (start, stop, index range) of consecutive runs."""
+    cuts = np.flatnonzero(np.diff(rows) != 1) + 1
+    starts, stops = np.r_[0, cuts], np.r_[cuts, len(rows)]
+    return [(int(rows[a]), int(rows[b - 1]) + 1, slice(a, b)) for a, b in zip(starts, stops)]
+
+
+def _fit(dset, values):
+    """`values` as `dset` stores them (error messages clipped to fixed length)."""
+    return np.array([clip(v) for v in values], dset.dtype) if dset.dtype.kind == "S" else values
+
+
+def put(dset, rows, values, contiguous):
+    """dset[rows] = values, by runs of consecutive rows if `contiguous`."""
+    values = _fit(dset, values)
+    if not contiguous:
+        dset[rows] = values
+        return
+    for start, stop, part in runs(rows):
+        dset[start:stop] = values[part]
+
+
+def _write_trials(f, by_task, N):
+    """Trial tasks' entries (`trial_columns`), one slice write per column
+    for each run of consecutive tasks."""
+    if not by_task:
+        return
+    g = f["trials"]
+    tasks = np.array(sorted(by_task))
+    for start, stop, _ in runs(tasks):
+        parts = [trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in range(start, stop)]
+        for key in parts[0]:
+            g[key][start * N:stop * N] = _fit(g[key], np.concatenate([p[key] for p in parts]))
+
+
+def trial_columns(entry, N, m):
+    """A trial task's journal entry as the columns of its N rows. `cells` holds
+    per-cell lists (`state`, `error`, CELL_KEYS) and per-cell lists of
+    per-height values (HEIGHT_KEYS); a task that failed as a whole has no
+    `cells`: all its trials are failed with its error, their values NaN.
+    m: heights per trial."""
+    cells = entry.get("cells") or {}
+    out = {"state": np.array([STATES.index(x) for x in cells.get("state", [entry["state"]] * N)], np.int8),
+           "error": np.array(cells.get("error", [entry.get("error", "")] * N), object),
+           "attempts": np.full(N, entry["attempts"], np.int32), "rank": np.full(N, entry["rank"], np.int32),
+           "started_unix_s": np.full(N, entry.get("started", np.nan), float)}
+    for key in CELL_KEYS + HEIGHT_KEYS:
+        shape = (N,) if key in CELL_KEYS else (N, m)
+        out[key] = as_array(cells[key]) if key in cells else np.full(shape, np.nan)
+    return out
+
+
+def as_array(value):
+    """A journalled float array: an array (records), or, in the JSON lines of
+    earlier versions, base64 of its float64 bytes or a plain list."""
+    if isinstance(value, dict):
+        return np.frombuffer(base64.b64decode(value["f8"]), "<f8").reshape(value["shape"]).copy()
+    return np.asarray(value, float)

@@ -1,0 +1,123 @@
+"""The store's schema, written once: its datasets, their dtypes, and how a new file is laid out.
+
+One row per compression task (the grid, `campaign.config`): its parameters
+(PARAMS), its results (RESULTS, NaN until done), `converged`, `state` (an
+index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
+(fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
+variable-length strings; the journal keeps a message whole); `task_id` and
+`bending` are fixed-length ASCII (stores of earlier versions have them of
+variable length; the readers take both).
+
+The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
+row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with
+the per-trial columns TRIAL_PER_CELL and (trial, height) arrays
+TRIAL_PER_HEIGHT; their union, in that order, is TRIAL_COLUMNS, the long
+table `campaign.reader.read_trials` returns. The schema imports no physics,
+so the readers (and `cortex campaign status`) load neither numba nor the solver.
+"""
+
+import hashlib
+import json
+
+import numpy as np
+
+FORMAT = "cortex-campaign-store"    # the file's `format` attribute: what says a file is ours
+PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
+          "tension_mN_per_m", "thickness_um", "viscosity_Pa_s", "frequency_hz")   # NaN: elastic
+RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_per_m",
+           "area_strain", "area_strain_shell", "modulus_mN_per_m", "h_mean_um", "h_tilde",
+           "volume_error", "equator_shear_ratio", "iterations", "wall_s",
+           # a viscous cell's (solver.viscous; NaN for an elastic one)
+           "compression_modulus_mN_per_m", "storage_modulus_mN_per_m", "loss_modulus_mN_per_m",
+           "loss_angle_rad", "elastic_modulus_mN_per_m", "viscous_wall_s")
+STATES = ("pending", "running", "done", "failed")
+PENDING, RUNNING, DONE, FAILED = range(4)
+ERROR_BYTES = 256           # an error message's room in its row
+# a trial task's results per cell (`campaign.trials.run_study`, beside `state` and `error`): one value,
+# and one per height
+CELL_KEYS = ("tension_mN_per_m", "volume_used_um3")
+HEIGHT_KEYS = ("h0_used_um", "h1_used_um", "force_nN", "h_tilde", "modulus_mN_per_m",
+               "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
+# the bookkeeping columns of a task row (and of a trial row), beside its parameters and results
+BOOKKEEPING = {"state": np.int8, "attempts": np.int32, "rank": np.int32, "started_unix_s": float}
+# trials: the study's parameters per trial (dataset <- Study attribute), then the columns of the long table
+TRIAL_PARAMS = {"nu_true": "nu_true", "bulk_mN_per_m": "bulk_mN_per_m", "shear_mN_per_m": "shear_mN_per_m",
+                "volume_true_um3": "volume_um3"}
+TRIAL_PER_CELL = ("trial_id", "state", "nu_true", "bending", "height_error_mode", "study", "cell",
+                  "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "volume_true_um3", "volume_used_um3")
+TRIAL_PER_HEIGHT = ("h0_true_um", "h0_used_um", "h1_used_um", "h_tilde", "modulus_mN_per_m",
+                    "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
+TRIAL_COLUMNS = TRIAL_PER_CELL + TRIAL_PER_HEIGHT
+
+
+def task_id(shell, method):
+    """A task's id: a hash of its parameters, stable across runs."""
+    key = json.dumps({**shell.to_dict(), "method": method}, sort_keys=True)
+    return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def error_dtype():
+    """Error messages: fixed-length UTF-8 of ERROR_BYTES."""
+    import h5py
+    return h5py.string_dtype("utf-8", ERROR_BYTES)
+
+
+def fixed_strings(values):
+    """Short ASCII names (task ids, bending variants) as a fixed-length byte
+    array: read back a hundred times faster than variable-length strings."""
+    return np.array([v.encode("ascii") for v in values], f"S{max([len(v) for v in values] + [1])}")
+
+
+def clip(text):
+    """`text` as at most ERROR_BYTES bytes of UTF-8, cut between characters."""
+    return text.encode()[:ERROR_BYTES].decode(errors="ignore").encode()
+
+
+def _bookkeeping(g, n):
+    """The bookkeeping columns of `n` rows, each pending, never attempted."""
+    for key, dtype in BOOKKEEPING.items():
+        g[key] = np.full(n, {"rank": -1, "started_unix_s": np.nan}.get(key, 0), dtype)
+    g.create_dataset("error", data=np.zeros(n, error_dtype()), dtype=error_dtype())
+
+
+def fill(f, campaign, attrs):
+    """Lay out a new store in the open file `f`: every dataset at its final
+    size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
+    n = len(campaign.shells)
+    for key in PARAMS:
+        f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
+    for key, values in (("bending", [s.bending for s in campaign.shells]),
+                        ("task_id", [task_id(s, campaign.method) for s in campaign.shells])):
+        f.create_dataset(key, data=fixed_strings(values))
+    for key in RESULTS:
+        f.create_dataset(key, data=np.full(n, np.nan))
+    f["converged"] = np.zeros(n, np.int8)
+    _bookkeeping(f, n)
+    if campaign.studies:
+        fill_trials(f.create_group("trials"), campaign)
+    f.attrs.update(attrs, format=FORMAT)
+
+
+def fill_trials(g, campaign):
+    """One row per trial: study j's cells are rows j N .. j N + N - 1."""
+    import h5py
+    studies, N = campaign.studies, campaign.trial_cells
+    n, m = len(studies) * N, len(studies[0].heights_um)
+    per = lambda attr: np.repeat([getattr(s, attr) for s in studies], N)  # noqa: E731
+    str_t = h5py.string_dtype()
+    g.create_dataset("trial_id", data=np.array([t for s in studies for t in s.trial_ids()], object),
+                     dtype=str_t)
+    g["task"] = np.repeat(np.arange(len(studies), dtype=np.int32), N)
+    g["study"] = per("study").astype(np.int32)
+    g["cell"] = np.tile(np.arange(N, dtype=np.int32), len(studies))
+    for key in ("bending", "height_error_mode"):
+        g.create_dataset(key, data=per(key).astype(object), dtype=str_t)
+    for key, attr in TRIAL_PARAMS.items():
+        g[key] = per(attr).astype(float)
+    g["h0_true_um"] = np.repeat(np.array([s.heights_um for s in studies], float), N, axis=0)
+    for key in CELL_KEYS:
+        g.create_dataset(key, data=np.full(n, np.nan))
+    for key in HEIGHT_KEYS:
+        g.create_dataset(key, data=np.full((n, m), np.nan))
+    _bookkeeping(g, n)
+    g.attrs["cells_per_study"] = N

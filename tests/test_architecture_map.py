@@ -1,0 +1,41 @@
+"""The README's folder map and docs/architecture.md's module map match the tree:
+every folder the README names exists and every top-level folder of the
+project is named; every module of the packages is named in the module map,
+and every module the map names exists."""
+
+import re
+
+from conftest import ROOT
+
+PACKAGES = ("cortex", "solver", "campaign", "analysis", "analysis/afm", "outputs")
+
+
+def _modules():
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).glob("*.py")):
+            if path.name != "__init__.py":
+                yield package, path.name
+
+
+def test_the_readme_folder_map_is_the_tree():
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## Architecture", 1)[1].split("\n## ", 1)[0]
+    named = set(re.findall(r"^\| `([\w/.-]+)/` \|", section, flags=re.M))
+    for folder in named:
+        assert (ROOT / folder).is_dir(), f"README names {folder}/, which is not in the tree"
+    tracked = {p.name for p in ROOT.iterdir() if p.is_dir() and not p.name.startswith(".")
+               and p.name not in ("build", "results", "out") and not p.name.endswith(".egg-info")
+               and any(p.rglob("*.*")) and p.name != "__pycache__"}
+    assert tracked - named == set(), f"folders missing from the README's map: {sorted(tracked - named)}"
+
+
+def test_every_module_is_in_the_module_map_and_every_named_module_exists():
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    missing = [f"{package}/{name}" for package, name in _modules() if f"`{name}`" not in text
+               and f"`{package}/{name}`" not in text]
+    assert missing == [], f"modules not in docs/architecture.md: {missing}"
+    everywhere = {name for package in PACKAGES for name in
+                  (p.name for p in (ROOT / package).glob("*.py"))}
+    ghosts = [token for token in re.findall(r"`([\w/]+\.py)`", text)
+              if not ((ROOT / token).is_file() if "/" in token else token in everywhere)]
+    assert ghosts == [], f"docs/architecture.md names modules that do not exist: {ghosts}"

@@ -1,0 +1,127 @@
+"""The journal codec (campaign.journal): entries come back bit for bit, a
+record cut anywhere is ignored and trimmed, journals of earlier versions (one
+JSON line per entry) are read, also with records appended after them; and the
+engine's version comes from package metadata, not from the command-line
+package."""
+
+import base64
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from campaign import journal
+from campaign.schema import RESULTS
+from conftest import ROOT
+
+
+def compression(row, state="done", error=""):
+    rng = np.random.default_rng(row)
+    results = {key: float(v) for key, v in zip(RESULTS, rng.normal(size=len(RESULTS)))} if state == "done" else {}
+    if results:
+        results["converged"] = True
+    return {"row": row, "results": results, "state": state, "error": error, "attempts": 2, "rank": 1,
+            "started": 1.7e9 + row / 3}
+
+
+def trial_task(task, N=5, m=3):
+    rng = np.random.default_rng(100 + task)
+    cells = {"state": ["done"] * (N - 1) + ["failed"], "error": [""] * (N - 1) + ["compression 3 failed: x"],
+             "tension_mN_per_m": rng.normal(size=N), "volume_used_um3": rng.normal(size=N),
+             **{key: rng.normal(size=(N, m)) for key in ("h0_used_um", "h1_used_um", "force_nN", "h_tilde",
+                                                          "modulus_mN_per_m", "gamma_eff_mN_per_m",
+                                                          "tension_seen_mN_per_m")}}
+    return {"task": task, "cells": cells, "state": "done", "error": "", "attempts": 1, "rank": 0,
+            "started": 1.7e9 + 0.125}
+
+
+def same(a, b):
+    """Entries equal value for value, arrays bit for bit, NaN equal to NaN."""
+    assert a.keys() == b.keys(), (a.keys(), b.keys())
+    for key in a:
+        if isinstance(a[key], dict):
+            same(a[key], b[key])
+        elif isinstance(a[key], np.ndarray):
+            assert a[key].tobytes() == np.asarray(b[key], float).tobytes(), key
+        elif isinstance(a[key], float):
+            assert np.float64(a[key]).tobytes() == np.float64(b[key]).tobytes(), key
+        else:
+            assert a[key] == b[key], key
+
+
+def entries():
+    return [compression(3), compression(7, "failed", "RuntimeError: injected fault"), trial_task(0),
+            compression(4), trial_task(2)]
+
+
+def test_entries_come_back_bit_for_bit(tmp_path):
+    path = tmp_path / "j"
+    with open(path, "ab") as fh:
+        journal.append(fh, entries()[:2])
+        journal.append(fh, entries()[2:])
+    back = journal.read(path)
+    # compressions first within a record; a failed one's results are NaN
+    want = [entries()[i] for i in (0, 1, 3, 2, 4)]
+    assert [("row" in e, e.get("row", e.get("task"))) for e in back] == \
+        [("row" in e, e.get("row", e.get("task"))) for e in want]
+    for got, exp in zip(back, want):
+        if exp.get("state") == "failed":
+            assert all(np.isnan(v) for k, v in got["results"].items() if k != "converged")
+            assert got["results"]["converged"] is False and got["error"] == exp["error"]
+            continue
+        same(exp, got)
+
+
+@pytest.mark.parametrize("cut", [1, 4, 12, 20, -5, -1])
+def test_a_cut_record_is_ignored_and_trimmed(tmp_path, cut):
+    whole, last = journal.encode(entries()[:2]), journal.encode(entries()[2:])
+    path = tmp_path / "j"
+    path.write_bytes(whole + last[:cut])
+    assert len(journal.read(path)) == 2
+    journal.trim_cut(path)
+    assert path.read_bytes() == whole
+    with open(path, "ab") as fh:                     # what a rerun appends stays readable
+        journal.append(fh, entries()[2:])
+    assert len(journal.read(path)) == 5
+
+
+def test_a_corrupt_last_record_is_ignored(tmp_path):
+    """A record whose bytes are all there but wrong (CRC) ends the journal."""
+    last = bytearray(journal.encode(entries()[2:]))
+    last[len(last) // 2] ^= 0xFF
+    path = tmp_path / "j"
+    path.write_bytes(journal.encode(entries()[:2]) + bytes(last))
+    assert len(journal.read(path)) == 2
+
+
+def test_earlier_json_lines_are_read_and_records_after_them(tmp_path):
+    old = dict(entries()[2])
+    old["cells"] = {k: ({"f8": base64.b64encode(np.ascontiguousarray(v, "<f8").tobytes()).decode(),
+                         "shape": list(np.shape(v))} if isinstance(v, np.ndarray) else v)
+                    for k, v in old["cells"].items()}
+    lines = (json.dumps(entries()[0]) + "\n" + json.dumps(old) + "\n").encode()
+    path = tmp_path / "j"
+    path.write_bytes(lines + journal.encode(entries()[3:4]) + b'{"row": 9, "sta')
+    assert journal.is_ours(path)
+    back = journal.read(path)
+    assert [e.get("row", e.get("task")) for e in back] == [3, 0, 4]
+    journal.trim_cut(path)
+    assert len(path.read_bytes()) == len(lines) + len(journal.encode(entries()[3:4]))
+
+
+def test_what_is_not_a_journal(tmp_path):
+    for text in (b"hello\n", b'{"a": 1}\n', b"\x00cxk"):
+        (tmp_path / "j").write_bytes(text)
+        assert not journal.is_ours(tmp_path / "j")
+    (tmp_path / "j").write_bytes(b"")
+    assert journal.is_ours(tmp_path / "j")
+
+
+def test_the_engine_does_not_import_the_command_line_package():
+    code = ("import sys, campaign.store, campaign.reader, campaign.scheduler, campaign.provenance as p; "
+            "assert 'cortex' not in sys.modules, 'cortex imported'; "
+            "from importlib.metadata import version; assert p.code_version() == version('cortex-poisson')")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
