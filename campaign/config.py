@@ -50,6 +50,7 @@ import itertools
 import math
 import tomllib
 from dataclasses import dataclass
+from functools import cached_property
 
 from campaign import faults
 from campaign.trials import MODES, Study, grid_shear
@@ -87,11 +88,16 @@ class Campaign:
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
     trial_cells: int = 0   # N, cells per study
 
-    @property
+    @cached_property
     def fingerprint(self):
-        """What identifies the campaign's compressions: refuses a store made from another grid."""
-        key = repr([(s.to_dict()) for s in self.shells]) + self.method + repr(self.resolution)
-        return hashlib.sha256(key.encode()).hexdigest()
+        """What identifies the campaign's compressions: refuses a store made from another grid.
+        sha256 of repr([shell.to_dict(), ...]) + method + repr(resolution), fed to the hash
+        shell by shell so that a million tasks never make one long text."""
+        h = hashlib.sha256(b"[")
+        for i, shell in enumerate(self.shells):
+            h.update((", " if i else "").encode() + repr(shell.to_dict()).encode())
+        h.update(("]" + self.method + repr(self.resolution)).encode())
+        return h.hexdigest()
 
     @property
     def trials_fingerprint(self):

@@ -26,11 +26,22 @@ import os
 import signal
 import sys
 
-from cortex import __version__
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
 
 REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
+
+
+class _Version(argparse.Action):
+    """--version, the package metadata read only when asked for."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import cortex
+        print(f"cortex {cortex.__version__}")
+        parser.exit(0)
 
 
 class Parser(argparse.ArgumentParser):
@@ -47,7 +58,7 @@ def build_parser():
         "calibrate the laws that link the effective area modulus to the Poisson "
         "ratio, and invert AFM recordings. Units: um, mN/m, nN, s."
     )
-    parser.add_argument("--version", action="version", version=f"cortex {__version__}")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in REGISTRARS:
         try:
