@@ -89,9 +89,11 @@ def execute(campaign, task, payload):
     return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s, test.trial_sleep_s)
 
 
-def entry(campaign, task, attempts, rank, state, results, error, started):
-    """Task `task`'s journal entry: a compression's `row` and `results`, or a
+def entry(campaign, task, attempts, rank, outcome):
+    """Task `task`'s journal entry from its `outcome` = (state, results, error,
+    started) as `execute` returns it: a compression's `row` and `results`, or a
     trial task's `task` and per-cell `cells`."""
+    state, results, error, started = outcome
     n = len(campaign.shells)
     key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
     return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
@@ -100,4 +102,4 @@ def entry(campaign, task, attempts, rank, state, results, error, started):
 
 def run_task(campaign, task, payload, attempts, rank):
     """Compute task `task` (attempt `attempts`) on `rank`: its journal entry."""
-    return entry(campaign, task, attempts, rank, *execute(campaign, task, payload))
+    return entry(campaign, task, attempts, rank, execute(campaign, task, payload))
