@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.calibration import Law
+from campaign.faults import FAKE_C, FAKE_D, FAKE_LAMBDA
 from solver.elasticity import poisson_of_ratio, shear_ratio
 from solver.geometry import droplet
 from solver.modulus import effective_modulus
@@ -29,10 +30,13 @@ SCALE = {"standard": 1.0, "double": 1.15, "none": 0.85}
 
 
 def reference_law(bending="standard"):
-    """A plausible calibration law for one bending variant (made up)."""
+    """A plausible calibration law for one bending variant (made up): the law that
+    a campaign's `[test] fake_law` answers with (`campaign.faults`, its one home),
+    for `standard`; the other variants scale its λ and the constant terms of C, D."""
     s = SCALE[bending]
-    return Law(bending=bending, lam=0.2 * (1.0 + 0.05 * (s - 1.0)),
-               C=[-0.012 * s, 0.03, -0.2, 0.6], D=[-0.018 * s, -0.04, 0.3, -1.0])
+    C, D = list(FAKE_C), list(FAKE_D)
+    C[0], D[0] = C[0] * s, D[0] * s
+    return Law(bending=bending, lam=FAKE_LAMBDA * (1.0 + 0.05 * (s - 1.0)), C=C, D=D)
 
 
 def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):

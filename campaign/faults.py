@@ -43,8 +43,8 @@ KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
 HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
 KILL_ENV = "CORTEX_TEST_KILL_MID_WRITE"
 
-# The made-up law of `fake_law`: analysis.synthetic.reference_law("standard")
-# (a test checks they agree), K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S +
+# The made-up law of `fake_law`, its one home: analysis.synthetic.reference_law
+# takes these coefficients ("standard"; a test checks the two forces agree), K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S +
 # D(γ̃_a) with K̃_S = K_S/K_B, γ̃_a = γ_a/K_B (SPEC 4). Plausible in shape, not
 # fitted to anything: α between -0.02 and -0.006 over the test grids, so K
 # approaches K_B as the cell flattens; λ = 0.2 is twice the published ~0.1, so

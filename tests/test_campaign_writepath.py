@@ -80,27 +80,33 @@ def test_mpio_gives_the_rows_of_rank0(reference, tmp_path, ranks):
         assert f.attrs["journal_bytes"] == os.path.getsize(f"{tmp_path / 'demo.h5'}.journal")
 
 
+# The demo with every task sleeping first (a [test] knob that changes no number):
+# 60 x 0.15 s of compressions and 20 x 0.5 s of trials on 2 ranks, so each
+# stage outlasts the 2 s between two journal writes on a machine of any speed.
+SLEEPY = "\n[test]\ncompression_sleep_s = 0.15\ntrial_sleep_s = 0.5\n"
+
+
 @needs_mpio
 @pytest.mark.parametrize("moment", ["3", "task4"])
 def test_mpio_killed_mid_write_then_rerun_gives_the_same_rows(reference, tmp_path, moment):
     """Rank 0 journals an entry, marks its row done in the file and is killed
-    before the worker (if it computed it) wrote the rest: the rerun's replay fixes it."""
-    store = tmp_path / "demo.h5"
-    killed = run(store, 2, env={"CORTEX_TEST_KILL_MID_WRITE": moment})
+    before the worker (if it computed it) wrote the rest: the rerun's replay fixes it.
+    The tasks sleep (SLEEPY), so they come back one batch at a time, spread over
+    the run, and the journal is surely incomplete when compression 3 or trial task
+    4 is written (without the sleeps one batch may hold every trial task)."""
+    store, config = tmp_path / "demo.h5", tmp_path / "demo.toml"
+    config.write_text(DEMO.read_text() + SLEEPY)
+    killed = run(store, 2, env={"CORTEX_TEST_KILL_MID_WRITE": moment}, config=config)
     assert killed.returncode != 0
     done, trial_tasks = journal_counts(store)        # killed on its own progress, mid-run
     assert 0 < done + trial_tasks < N_COMPRESSIONS + N_TRIAL_TASKS
-    rerun = run(store, 2)
+    rerun = run(store, 2, config=config)
     assert rerun.returncode == 0, rerun.stderr
     got, _ = rows(store)
     assert_same_rows(reference[0], got)
     assert (got["attempts"] == 1).all() and (got["trials/attempts"] == 1).all()
 
 
-# The demo with every task sleeping first (a [test] knob that changes no number):
-# 60 x 0.15 s of compressions and 20 x 0.5 s of trials on 2 ranks, so each
-# stage outlasts the 2 s between two journal writes on a machine of any speed.
-SLEEPY = "\n[test]\ncompression_sleep_s = 0.15\ntrial_sleep_s = 0.5\n"
 MOMENTS = {   # journal_counts(store) -> whether to kill now
     "start-up": lambda n: n == (0, 0),                        # the journal made, nothing in it yet
     "compressions": lambda n: 0 < n[0] < N_COMPRESSIONS,
