@@ -149,6 +149,31 @@ def test_sigterm_stops_cleanly_and_the_rerun_completes(tmp_path_factory, stop_fl
     assert second["attempts"] == [1] * N_TASKS          # nothing done twice
 
 
+@pytest.mark.mpi(min_size=2)
+def test_a_waiting_worker_naps_instead_of_holding_a_core():
+    """A worker waiting for rank 0 polls with naps: while rank 0 sleeps a
+    known 0.5 s before it sends, the worker's process uses a small part of
+    that time on the CPU (MPI's blocking receive would poll it all away,
+    which on a node with more ranks than cores starves the ranks that compute)."""
+    import time
+    from mpi4py import MPI
+    from campaign import scheduler
+    comm, status = MPI.COMM_WORLD, MPI.Status()
+    comm.Barrier()
+    if comm.Get_rank() == 0:
+        time.sleep(0.5)
+        for w in range(1, comm.Get_size()):
+            comm.send("go", dest=w, tag=scheduler.TAG_TASK)
+        cpu = 0.0
+    else:
+        wall, cpu = time.perf_counter(), time.process_time()
+        assert scheduler._next_message(comm, status) == "go" and status.Get_tag() == scheduler.TAG_TASK
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        assert wall >= 0.4
+        cpu /= wall
+    assert comm.allreduce(cpu, op=MPI.MAX) < 0.25
+
+
 def test_the_scheduler_leaves_the_signal_handlers_to_the_command(tmp_path, stop_flag):
     """One process, no mpiexec: `scheduler.run` does not install handlers of its
     own (`cortex campaign run` installs them once, first thing), so a handler
