@@ -23,6 +23,9 @@ from solver.elasticity import poisson_ratio  # noqa: E402
 
 def main():
     store = Path(sys.argv[1] if len(sys.argv) > 1 else "results/paper.h5")
+    if not store.is_file():
+        raise SystemExit(f"bench: {store}: no such store (run campaigns/paper.toml into it first, "
+                         "README's tour)")
     results, _ = read_store(store)
     results = results[results["state"] == "done"]
     cal, emu, _ = load()
