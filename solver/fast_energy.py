@@ -30,10 +30,9 @@ checked against central differences in the tests. Energies in mN/m·µm² (= 1e-
 from collections import namedtuple
 
 import numpy as np
-from scipy.linalg.lapack import dgbsv
-
 from solver.frustum import enclosed_volume, surface_area
 from solver.fast_kernel import L_SLOT, NO_SLOT, P_SLOT, Terms, evaluate
+from solver.fast_newton import block_solve, nodes
 
 BAND = 5    # half-bandwidth of the position block in node order
 
@@ -95,23 +94,14 @@ class Lagrangian:
     def solve(self, H, rhs):
         """Solve the Newton system for the positions and p at fixed l:
         [A b; b^T 0] [x; y] = rhs, with A (positions) banded (a node couples
-        to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination.
-        H: a `NewtonMatrix` or the dense Hessian."""
+        to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination
+        (compiled: `solver.fast_newton.block_solve`). H: a `NewtonMatrix` or
+        the dense Hessian."""
         H = self.banded(H) if isinstance(H, np.ndarray) else H
-        o, n = self.band_order, self.size
-        rhs = np.asarray(rhs, dtype=float).reshape(n - 1, -1)
-        b = H.pcol[o]
-        ab = np.empty((3 * BAND + 1, len(o)))       # LAPACK's gbsv: BAND rows for the LU fill-in
-        ab[BAND:] = H.band
-        _, _, X, info = dgbsv(BAND, BAND, ab, np.column_stack([rhs[o], b]), overwrite_ab=True,
-                              overwrite_b=True)
+        rhs = np.ascontiguousarray(np.asarray(rhs, dtype=float).reshape(self.size - 1, -1))
+        out, info = block_solve(H.band, H.pcol, self.band_order, BAND, rhs)
         if info != 0:
-            raise np.linalg.LinAlgError(f"singular Newton matrix (LAPACK gbsv info {info})")
-        xf, xb = X[:, :-1], X[:, -1]
-        y = (b @ xf - rhs[-1]) / (b @ xb)
-        out = np.empty_like(rhs)
-        out[o] = xf - np.outer(xb, y)
-        out[-1] = y
+            raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {info})")
         return out
 
     def banded(self, H):
@@ -131,12 +121,7 @@ class Lagrangian:
 
     def nodes(self, u, zp):
         """(r, z) of every node, ψ_c and p from the unknowns."""
-        N, kc = self.N, self.kc
-        r = np.concatenate([[0.0], u[:N]])
-        z = np.empty(N + 1)
-        z[: kc + 1] = zp
-        z[kc + 1: N] = u[N: N + self.nz]
-        z[N] = 0.0
+        r, z = nodes(np.asarray(u, dtype=float), float(zp), self.N, self.kc)
         return r, z, np.exp(u[-2]), u[-1]
 
     def volume(self, u, zp):
