@@ -100,8 +100,7 @@ def _reduced(lag, g, H):
     """dE*/dl and d²E*/dl² of the equilibrium energy at fixed l (Schur complement)
     and the equilibrium's tangent dx/dl: G = g_l (g_x = 0 at equilibrium),
     dx/dl = -H_xx⁻¹ h_xl, k = H_ll + h_xl·dx/dl."""
-    keep = np.r_[0: lag.size - 2, lag.size - 1]
-    hxl = H.lcol[keep]
+    hxl = H.lcol[lag.keep]
     tangent = -lag.solve(H, hxl)[:, 0]
     return g[-2], H.lcol[-2] + hxl @ tangent, tangent
 
@@ -124,7 +123,7 @@ def _predicted(lag, u, zp, tangent, target):
     tangent None: not moved)."""
     u, l = u.copy(), u[-2]
     if tangent is not None:
-        keep = np.r_[0: lag.size - 2, lag.size - 1]
+        keep = lag.keep
         u[keep] += tangent * (target - l)
         if not _admissible(lag, u, zp):
             u[keep] -= tangent * (target - l)
@@ -225,16 +224,23 @@ def _follow(lag, shell, steps):
     return u, iterations
 
 
+@lru_cache(maxsize=256)
+def _mesh(volume, h0, resolution, layer):
+    """The reference mesh (`solver.fast_mesh.reference`) with its volume
+    (= V by the mesh's scale) and area, kept per (V, h0, resolution, layer)."""
+    ref = reference(volume, h0, resolution, layer)
+    r0, z0 = ref.positions(np.log(1e-12))[:2]
+    return ref, enclosed_volume(r0, z0), surface_area(r0, z0)
+
+
 def problem(shell):
     """The shell's Lagrangian on its reference mesh (cached per (V, h0, layer))."""
     B = shell.bending_stiffness
     layer = np.sqrt(B / shell.tension_mN_per_m) if B > 0 else 0.2
-    ref = reference(float(shell.volume_um3), float(shell.h0_um), float(shell.resolution),
-                    round(float(layer), 4))
+    ref, V0, area0 = _mesh(float(shell.volume_um3), float(shell.h0_um), float(shell.resolution),
+                           round(float(layer), 4))
     lag = Lagrangian(shell, ref)
-    r0, z0 = ref.positions(np.log(1e-12))[:2]
-    lag.V0 = enclosed_volume(r0, z0)        # = V by the mesh's scale
-    lag.area0 = surface_area(r0, z0)
+    lag.V0, lag.area0 = V0, area0
     return lag
 
 
