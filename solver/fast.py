@@ -35,11 +35,13 @@ The plate force is the envelope derivative F_tot = -∂L/∂h1 = -(1/2) ∂L/∂
 the solution (virtual work), in nN (energies in mN/m·µm², lengths in µm).
 """
 
-import numpy as np
-from numba import njit
+from functools import lru_cache
 
+import numpy as np
+
+from solver import fast_newton
 from solver.errors import SolverError
-from solver.fast_energy import Lagrangian
+from solver.fast_energy import Lagrangian, NewtonMatrix
 from solver.fast_mesh import reference
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
@@ -56,21 +58,7 @@ def _admissible(lag, u, zp):
     """Nodes in order along the plate, off the axis, no element of zero
     length, and no fold: neighbouring elements turn by less than π/2."""
     r, z = lag.nodes(u, zp)[:2]
-    return bool(np.all(np.isfinite(u))) and _shape_ok(r, z, lag.kc)
-
-
-@njit(cache=True)
-def _shape_ok(r, z, kc):
-    """`_admissible` on the nodes (r, z), compiled: r > 0 off the pole,
-    increasing along the plate (nodes up to kc), every element of nonzero
-    length, dr_e dr_e+1 + dz_e dz_e+1 > 0 between neighbours."""
-    for k in range(1, r.size):
-        dr, dz = r[k] - r[k - 1], z[k] - z[k - 1]
-        if not r[k] > 0 or (k <= kc and not dr > 0) or not np.hypot(dr, dz) > 0:
-            return False
-        if k >= 2 and not dr * (r[k - 1] - r[k - 2]) + dz * (z[k - 1] - z[k - 2]) > 0:
-            return False
-    return True
+    return bool(np.all(np.isfinite(u))) and fast_newton.shape_ok(r, z, lag.kc)
 
 
 def _gap(lag, u, zp):
@@ -92,39 +80,27 @@ def _slack(lag, u, zp):
 def _newton(lag, u, zp, tol=1e-6, maxit=30):
     """Newton's method on ∇L = 0 for the node positions and p at fixed l;
     steps are halved while they leave the admissible shapes or multiply the
-    residual. Returns the solution, its Newton matrix and the iterations."""
-    keep = np.r_[0: lag.size - 2, lag.size - 1]
-    _, g, _, H = lag.newton_system(u, zp)
-    for it in range(1, maxit + 1):
-        try:
-            dx = lag.solve(H, -g[keep])[:, 0]
-        except (np.linalg.LinAlgError, ValueError):
-            raise SolverError(f"singular Newton matrix at iteration {it}") from None
-        norm0, t = np.linalg.norm(g[:-2]), 1.0
-        while True:
-            ut = u.copy()
-            ut[keep] += t * dx
-            if _admissible(lag, ut, zp):
-                _, gt, _, Ht = lag.newton_system(ut, zp)
-                if np.all(np.isfinite(gt)) and np.linalg.norm(gt[:-2]) < 100.0 * norm0:
-                    break
-            t *= 0.5
-            if t < 1e-3:
-                raise SolverError(f"Newton step rejected at iteration {it} (left the admissible "
-                                  "shapes or made the residual explode)")
-        u, g, H = ut, gt, Ht
-        if np.abs(g[:-2]).max() < tol * lag.force_scale and abs(g[-1]) < 1e-9 * lag.V0:
-            return u, g, H, it
-    raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
-                      f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
+    residual (compiled, one call: `solver.fast_newton.newton`). Returns the
+    solution, its Newton matrix and the iterations."""
+    status, u, g, band, lp, it = fast_newton.newton(
+        np.asarray(u, dtype=float), float(zp), lag.ref.positions(u[-2]), lag.terms, lag.band_order,
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit))
+    if status == fast_newton.SINGULAR:
+        raise SolverError(f"singular Newton matrix at iteration {it}")
+    if status == fast_newton.REJECTED:
+        raise SolverError(f"Newton step rejected at iteration {it} (left the admissible "
+                          "shapes or made the residual explode)")
+    if status == fast_newton.NOT_CONVERGED:
+        raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
+                          f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
+    return u, g, NewtonMatrix(band, lp[0], lp[1]), it
 
 
 def _reduced(lag, g, H):
     """dE*/dl and d²E*/dl² of the equilibrium energy at fixed l (Schur complement)
     and the equilibrium's tangent dx/dl: G = g_l (g_x = 0 at equilibrium),
     dx/dl = -H_xx⁻¹ h_xl, k = H_ll + h_xl·dx/dl."""
-    keep = np.r_[0: lag.size - 2, lag.size - 1]
-    hxl = H.lcol[keep]
+    hxl = H.lcol[lag.keep]
     tangent = -lag.solve(H, hxl)[:, 0]
     return g[-2], H.lcol[-2] + hxl @ tangent, tangent
 
@@ -147,7 +123,7 @@ def _predicted(lag, u, zp, tangent, target):
     tangent None: not moved)."""
     u, l = u.copy(), u[-2]
     if tangent is not None:
-        keep = np.r_[0: lag.size - 2, lag.size - 1]
+        keep = lag.keep
         u[keep] += tangent * (target - l)
         if not _admissible(lag, u, zp):
             u[keep] -= tangent * (target - l)
@@ -248,16 +224,23 @@ def _follow(lag, shell, steps):
     return u, iterations
 
 
+@lru_cache(maxsize=256)
+def _mesh(volume, h0, resolution, layer):
+    """The reference mesh (`solver.fast_mesh.reference`) with its volume
+    (= V by the mesh's scale) and area, kept per (V, h0, resolution, layer)."""
+    ref = reference(volume, h0, resolution, layer)
+    r0, z0 = ref.positions(np.log(1e-12))[:2]
+    return ref, enclosed_volume(r0, z0), surface_area(r0, z0)
+
+
 def problem(shell):
     """The shell's Lagrangian on its reference mesh (cached per (V, h0, layer))."""
     B = shell.bending_stiffness
     layer = np.sqrt(B / shell.tension_mN_per_m) if B > 0 else 0.2
-    ref = reference(float(shell.volume_um3), float(shell.h0_um), float(shell.resolution),
-                    round(float(layer), 4))
+    ref, V0, area0 = _mesh(float(shell.volume_um3), float(shell.h0_um), float(shell.resolution),
+                           round(float(layer), 4))
     lag = Lagrangian(shell, ref)
-    r0, z0 = ref.positions(np.log(1e-12))[:2]
-    lag.V0 = enclosed_volume(r0, z0)        # = V by the mesh's scale
-    lag.area0 = surface_area(r0, z0)
+    lag.V0, lag.area0 = V0, area0
     return lag
 
 

@@ -28,12 +28,12 @@ checked against central differences in the tests. Energies in mN/m·µm² (= 1e-
 """
 
 from collections import namedtuple
+from functools import lru_cache
 
 import numpy as np
-from scipy.linalg.lapack import dgbsv
-
 from solver.frustum import enclosed_volume, surface_area
 from solver.fast_kernel import L_SLOT, NO_SLOT, P_SLOT, Terms, evaluate
+from solver.fast_newton import block_solve, nodes
 
 BAND = 5    # half-bandwidth of the position block in node order
 
@@ -57,61 +57,29 @@ class Lagrangian:
         self.kc = self.nd + self.nn                 # contact node
         self.N = N = self.kc + self.nf              # equator node
         self.nr, self.nz = N, self.nf - 1
-        self.size = n = self.nr + self.nz + 2       # + l, p
+        self.size = self.nr + self.nz + 2           # + l, p
         self.V0 = None
-        # where each node coordinate goes: an unknown, the plate height (n), or nowhere (n + 1)
-        k = np.arange(N + 1)
-        self.ridx = np.where(k >= 1, k - 1, n + 1)
-        self.zidx = np.where(k <= self.kc, n, np.where(k < N, N + k - self.kc - 1, n + 1))
-        e = np.arange(N)
-        lp = np.full(N, n - 2), np.full(N, n - 1)
-        self.elem_idx = np.stack([self.ridx[e], self.zidx[e], self.ridx[e + 1], self.zidx[e + 1],
-                                  *lp], axis=1)
         self.cten = np.full(N, float(self.gamma))
         self.cten[self.nd: self.kc] += 2.0 * self.B * ref.H**2
-        kb = np.arange(self.kc, N)
-        self.bend_idx = np.stack([self.ridx[kb - 1], self.zidx[kb - 1], self.ridx[kb],
-                                  self.zidx[kb], self.ridx[kb + 1], self.zidx[kb + 1]], axis=1)
-        # node-by-node order of the position unknowns: the Newton matrix is then banded
-        k = np.arange(1, N + 1)
-        zk = np.where((k > self.kc) & (k < N), N + k - self.kc - 1, -1)
-        order = np.stack([k - 1, zk], axis=1).ravel()
-        self.band_order = o = order[order >= 0]
-        # LAPACK band storage: ab[BAND + i - j, j] = A[i, j]
-        d, j = np.meshgrid(np.arange(-BAND, BAND + 1), np.arange(len(o)), indexing="ij")
-        i = j + d
-        self.band_mask = (i >= 0) & (i < len(o))
-        i = np.clip(i, 0, len(o) - 1)
-        self.band_rows, self.band_cols = o[i], o[j]
+        vars(self).update(_layout(self.nd, self.nn, self.nf))
         self.elastic = shell.bulk_mN_per_m + shell.shear_mN_per_m > 0.0
-        slot = np.full(n + 2, NO_SLOT)
-        slot[o], slot[n - 2], slot[n - 1] = np.arange(len(o)), L_SLOT, P_SLOT
         self.terms = Terms(cten=self.cten, KB=float(self.KB), KS=float(self.KS), B=float(self.B),
                            Hd=float(ref.H), kc=int(self.kc), elem_idx=self.elem_idx,
-                           bend_idx=self.bend_idx, slot=slot, band=BAND)
+                           bend_idx=self.bend_idx, slot=self.slot, band=BAND)
         # natural size of a nodal force: tension times a typical element length
         self.force_scale = (self.gamma + self.KB + self.KS) * ref.a0 * 0.1
 
     def solve(self, H, rhs):
         """Solve the Newton system for the positions and p at fixed l:
         [A b; b^T 0] [x; y] = rhs, with A (positions) banded (a node couples
-        to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination.
-        H: a `NewtonMatrix` or the dense Hessian."""
+        to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination
+        (compiled: `solver.fast_newton.block_solve`). H: a `NewtonMatrix` or
+        the dense Hessian."""
         H = self.banded(H) if isinstance(H, np.ndarray) else H
-        o, n = self.band_order, self.size
-        rhs = np.asarray(rhs, dtype=float).reshape(n - 1, -1)
-        b = H.pcol[o]
-        ab = np.empty((3 * BAND + 1, len(o)))       # LAPACK's gbsv: BAND rows for the LU fill-in
-        ab[BAND:] = H.band
-        _, _, X, info = dgbsv(BAND, BAND, ab, np.column_stack([rhs[o], b]), overwrite_ab=True,
-                              overwrite_b=True)
+        rhs = np.ascontiguousarray(np.asarray(rhs, dtype=float).reshape(self.size - 1, -1))
+        out, info = block_solve(H.band, H.pcol, self.band_order, BAND, rhs)
         if info != 0:
-            raise np.linalg.LinAlgError(f"singular Newton matrix (LAPACK gbsv info {info})")
-        xf, xb = X[:, :-1], X[:, -1]
-        y = (b @ xf - rhs[-1]) / (b @ xb)
-        out = np.empty_like(rhs)
-        out[o] = xf - np.outer(xb, y)
-        out[-1] = y
+            raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {info})")
         return out
 
     def banded(self, H):
@@ -131,12 +99,7 @@ class Lagrangian:
 
     def nodes(self, u, zp):
         """(r, z) of every node, ψ_c and p from the unknowns."""
-        N, kc = self.N, self.kc
-        r = np.concatenate([[0.0], u[:N]])
-        z = np.empty(N + 1)
-        z[: kc + 1] = zp
-        z[kc + 1: N] = u[N: N + self.nz]
-        z[N] = 0.0
+        r, z = nodes(np.asarray(u, dtype=float), float(zp), self.N, self.kc)
         return r, z, np.exp(u[-2]), u[-1]
 
     def volume(self, u, zp):
@@ -162,3 +125,42 @@ class Lagrangian:
         """L, ∇L (size), ∂L/∂z_p, and the dense Hessian (size × size) if asked."""
         value, grad, dzp, M = self.newton_system(u, zp, hessian)
         return value, grad, dzp, self.dense(M) if hessian else None
+
+
+@lru_cache(maxsize=64)
+def _layout(nd, nn, nf):
+    """Where everything goes for a mesh of nd disc, nn strip and nf free
+    nodes (the same for every shell on that mesh: computed once, shared by
+    its Lagrangians, not to be modified): the global index of each node
+    coordinate, of each element's and bending node's unknowns, the node order
+    of the positions (the Newton matrix is then banded), its band storage,
+    each index's slot in the Newton matrix (`solver.fast_kernel`) and `keep`,
+    the unknowns without l."""
+    kc = nd + nn
+    N = kc + nf
+    n = N + nf - 1 + 2
+    # where each node coordinate goes: an unknown, the plate height (n), or nowhere (n + 1)
+    k = np.arange(N + 1)
+    ridx = np.where(k >= 1, k - 1, n + 1)
+    zidx = np.where(k <= kc, n, np.where(k < N, N + k - kc - 1, n + 1))
+    e = np.arange(N)
+    lp = np.full(N, n - 2), np.full(N, n - 1)
+    elem_idx = np.stack([ridx[e], zidx[e], ridx[e + 1], zidx[e + 1], *lp], axis=1)
+    kb = np.arange(kc, N)
+    bend_idx = np.stack([ridx[kb - 1], zidx[kb - 1], ridx[kb], zidx[kb], ridx[kb + 1], zidx[kb + 1]],
+                        axis=1)
+    # node-by-node order of the position unknowns: the Newton matrix is then banded
+    k = np.arange(1, N + 1)
+    zk = np.where((k > kc) & (k < N), N + k - kc - 1, -1)
+    order = np.stack([k - 1, zk], axis=1).ravel()
+    o = order[order >= 0]
+    # LAPACK band storage: ab[BAND + i - j, j] = A[i, j]
+    d, j = np.meshgrid(np.arange(-BAND, BAND + 1), np.arange(len(o)), indexing="ij")
+    i = j + d
+    band_mask = (i >= 0) & (i < len(o))
+    i = np.clip(i, 0, len(o) - 1)
+    slot = np.full(n + 2, NO_SLOT)
+    slot[o], slot[n - 2], slot[n - 1] = np.arange(len(o)), L_SLOT, P_SLOT
+    return dict(ridx=ridx, zidx=zidx, elem_idx=elem_idx, bend_idx=bend_idx, band_order=o,
+                band_mask=band_mask, band_rows=o[i], band_cols=o[j], slot=slot,
+                keep=np.r_[0: n - 2, n - 1])

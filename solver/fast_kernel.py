@@ -47,38 +47,38 @@ def _work(N):
 
 
 @njit(inline="always", error_model="numpy")
-def _block(h, p00, p01, p11):
-    """h = [[P, -P], [-P, P]] with the symmetric 2×2 P = [[p00, p01], [p01, p11]]."""
+def _block(h, e, p00, p01, p11):
+    """h[e] = [[P, -P], [-P, P]] with the symmetric 2×2 P = [[p00, p01], [p01, p11]]."""
     for i in range(4):
         for j in range(4):
             p = p00 if (i % 2 == 0 and j % 2 == 0) else (p11 if (i % 2 == 1 and j % 2 == 1) else p01)
-            h[i, j] = p if (i < 2) == (j < 2) else -p
+            h[e, i, j] = p if (i < 2) == (j < 2) else -p
 
 
 @njit(inline="always", error_model="numpy")
-def _length(dx, dy, g, h):
-    """ds = |(dx, dy)|; fills g (4,) and h (4, 4), its gradient and Hessian in
-    (x1, y1, x2, y2)."""
+def _length(dx, dy, g, h, e):
+    """ds = |(dx, dy)|; fills g[e] (4,) and h[e] (4, 4), its gradient and
+    Hessian in (x1, y1, x2, y2)."""
     d = np.hypot(dx, dy)
     tx, ty = dx / d, dy / d
-    g[0], g[1], g[2], g[3] = -tx, -ty, tx, ty
-    _block(h, (1.0 - tx * tx) / d, -tx * ty / d, (1.0 - ty * ty) / d)
+    g[e, 0], g[e, 1], g[e, 2], g[e, 3] = -tx, -ty, tx, ty
+    _block(h, e, (1.0 - tx * tx) / d, -tx * ty / d, (1.0 - ty * ty) / d)
     return d
 
 
 @njit(inline="always", error_model="numpy")
-def _angle(dr, dz, g, h):
-    """θ = atan2(-dz, dr), the tangent angle to the plate; fills g and h."""
+def _angle(dr, dz, g, h, e):
+    """θ = atan2(-dz, dr), the tangent angle to the plate; fills g[e] and h[e]."""
     q = dr * dr + dz * dz
-    g[0], g[1], g[2], g[3] = -dz / q, dr / q, dz / q, -dr / q
-    _block(h, -2.0 * dr * dz / q**2, (dr * dr - dz * dz) / q**2, 2.0 * dr * dz / q**2)
+    g[e, 0], g[e, 1], g[e, 2], g[e, 3] = -dz / q, dr / q, dz / q, -dr / q
+    _block(h, e, -2.0 * dr * dz / q**2, (dr * dr - dz * dz) / q**2, 2.0 * dr * dz / q**2)
     return np.arctan2(-dz, dr)
 
 
 @njit(inline="always", error_model="numpy")
-def _sandwich(J, F, out, T):
-    """out += J^T F J, through T = F J (zeros in J skipped)."""
-    nk, na = J.shape
+def _sandwich(J, F, out, T, nk, na):
+    """out += J^T F J for the leading (nk × na) J and (nk × nk) F, through
+    T = F J (zeros in J skipped)."""
     for k in range(nk):
         for b in range(na):
             T[k, b] = 0.0
@@ -107,7 +107,7 @@ def _bending(Hd, kappa, w, want_h):
     Hi[0], Hi[1] = -0.5 / ell + 0.25 * c / r, 0.5 / ell + 0.25 * c / r
     Hi[2] = Hi[3] = -0.25 * D / ell**2
     Hi[4] = -0.5 * s / r**2
-    Hij[:, :] = 0.0
+    _zero(Hij, 5, 5)
     for i in range(2):
         for j in range(2):
             Hij[i, j] = -0.125 * s / r
@@ -127,20 +127,12 @@ def _bending(Hd, kappa, w, want_h):
 
 
 @njit(inline="always", error_model="numpy")
-def _element(e, x, ref, t, w, want_h):
-    """Tension, stretching and volume terms of element e at x = (r, z, p):
-    the value; fills w.g (6,), w.h (6, 6) in (r_k, z_k, r_k+1, z_k+1, l, p)."""
-    value = _surface(e, x, ref, t, w, want_h)
-    return value - _volume(e, x, w, want_h)
-
-
-@njit(inline="always", error_model="numpy")
 def _surface(e, x, ref, t, w, want_h):
     """Tension and stretching of element e: 4π [c_e r̄ ds + w r̄0 dS]; fills
     w.g (6,) and w.h (6, 6) with its derivatives (the p entries zero)."""
     r, z, p = x
     R, Z, Rl, Zl, Rll, Zll = ref
-    gds, ge, he = w.gds[e], w.g, w.h
+    gds, ge, he = w.gds, w.g, w.h
     ds = w.ds[e]
     dR, dZ = R[e + 1] - R[e], Z[e + 1] - Z[e]
     dS = np.hypot(dR, dZ)
@@ -158,17 +150,18 @@ def _surface(e, x, ref, t, w, want_h):
     wa, wb, k4 = KB + KS, KB - KS, 4.0 * np.pi
     fa0, fa1 = k4 * (c * rm + w1 * r0m), k4 * (c * ds + w2 * dS)
     fa2, fa3 = k4 * (r0m * (wv - w1 * l1)), k4 * (dS * (wv - w2 * l2))
-    ge[0] = fa0 * gds[0] + 0.5 * fa1
-    ge[1] = fa0 * gds[1]
-    ge[2] = fa0 * gds[2] + 0.5 * fa1
-    ge[3] = fa0 * gds[3]
+    ge[0] = fa0 * gds[e, 0] + 0.5 * fa1
+    ge[1] = fa0 * gds[e, 1]
+    ge[2] = fa0 * gds[e, 2] + 0.5 * fa1
+    ge[3] = fa0 * gds[e, 3]
     ge[4], ge[5] = fa2 * dS_l + fa3 * r0m_l, 0.0
     value = k4 * (c * rm * ds + wv * r0m * dS)
     if not want_h:
         return value
-    J, F = w.J[:4], w.F[:4, :4]
-    J[:, :] = 0.0
-    J[0, :4] = gds
+    J, F = w.J, w.F                          # their leading (4, 6) and (4, 4)
+    _zero(J, 4, 6)
+    for j in range(4):
+        J[0, j] = gds[e, j]
     J[1, 0] = J[1, 2] = 0.5
     J[2, 4], J[3, 4] = dS_l, r0m_l
     F[0, 0] = k4 * (wa * r0m / dS)
@@ -181,19 +174,17 @@ def _surface(e, x, ref, t, w, want_h):
     F[2, 2] = k4 * (wa * r0m * l1**2 / dS)
     F[2, 3] = F[3, 2] = k4 * (wv - w1 * l1 - w2 * l2 + wb * l1 * l2)
     F[3, 3] = k4 * (wa * dS * l2**2 / r0m)
-    he[:, :] = 0.0
-    _sandwich(J, F, he, w.T[:4])
-    _add_block(he, fa0, w.hds[e])            # the length's curvature times ∂f/∂ds
+    _zero(he, 6, 6)
+    _sandwich(J, F, he, w.T, 4, 6)
+    _add_block(he, fa0, w.hds, e)            # the length's curvature times ∂f/∂ds
     he[4, 4] += fa2 * dS_ll + fa3 * r0m_ll
     return value
 
 
 @njit(inline="always", error_model="numpy")
-def _volume(e, x, w, want_h):
+def _volume(e, r, z, p, ge, he, want_h):
     """2 p V_e of element e (the term subtracted from L): returns it and
-    subtracts its derivatives from w.g and w.h (p entries: -2 ∂V_e)."""
-    r, z, p = x
-    ge, he = w.g, w.h
+    subtracts its derivatives from ge and he (p entries: -2 ∂V_e)."""
     ra, rb, dz = r[e], r[e + 1], z[e] - z[e + 1]
     sq = rb**2 + rb * ra + ra**2
     vol = np.pi * dz * sq / 3.0
@@ -221,11 +212,19 @@ def _volume(e, x, w, want_h):
 
 
 @njit(inline="always", error_model="numpy")
-def _add_block(h, factor, block, offset=0):
-    """h[o:o+4, o:o+4] += factor × block (4, 4)."""
+def _add_block(h, factor, blocks, e, offset=0):
+    """h[o:o+4, o:o+4] += factor × blocks[e] (4, 4)."""
     for i in range(4):
         for j in range(4):
-            h[offset + i, offset + j] += factor * block[i, j]
+            h[offset + i, offset + j] += factor * blocks[e, i, j]
+
+
+@njit(inline="always", error_model="numpy")
+def _zero(a, n, m):
+    """a[:n, :m] = 0 (a loop: no array view is made)."""
+    for i in range(n):
+        for j in range(m):
+            a[i, j] = 0.0
 
 
 @njit(inline="always", error_model="numpy")
@@ -236,19 +235,20 @@ def _bend_node(k, r, t, w, want_h):
     w.b[0], w.b[1], w.b[2], w.b[3], w.b[4] = w.th[a], w.th[k], w.ds[a], w.ds[k], r[k]
     value = _bending(t.Hd, 8.0 * np.pi * t.B, w, want_h)
     gb, Jb = w.gb, w.J
-    Jb[:, :] = 0.0
-    Jb[0, :4], Jb[1, 2:] = w.gth[a], w.gth[k]
-    Jb[2, :4], Jb[3, 2:] = w.gds[a], w.gds[k]
+    _zero(Jb, 5, 6)
+    for j in range(4):
+        Jb[0, j], Jb[1, 2 + j] = w.gth[a, j], w.gth[k, j]
+        Jb[2, j], Jb[3, 2 + j] = w.gds[a, j], w.gds[k, j]
     Jb[4, 2] = 1.0
     for j in range(6):
         w.g[j] = gb[0] * Jb[0, j] + gb[1] * Jb[1, j] + gb[2] * Jb[2, j] + gb[3] * Jb[3, j] + gb[4] * Jb[4, j]
     if want_h:
-        w.h[:, :] = 0.0
-        _sandwich(Jb, w.hb, w.h, w.T)
-        _add_block(w.h, gb[0], w.hth[a])
-        _add_block(w.h, gb[2], w.hds[a])
-        _add_block(w.h, gb[1], w.hth[k], 2)
-        _add_block(w.h, gb[3], w.hds[k], 2)
+        _zero(w.h, 6, 6)
+        _sandwich(Jb, w.hb, w.h, w.T, 5, 6)
+        _add_block(w.h, gb[0], w.hth, a)
+        _add_block(w.h, gb[2], w.hds, a)
+        _add_block(w.h, gb[1], w.hth, k, 2)
+        _add_block(w.h, gb[3], w.hds, k, 2)
     return value
 
 
@@ -262,14 +262,16 @@ def _bend_equator(r, t, w, want_h):
     value = _bending(t.Hd, 8.0 * np.pi * t.B, w, want_h)
     qg, qh = w.gb, w.hb
     g0, g1, g2 = 0.5 * (qg[0] - qg[1]), 0.5 * (qg[2] + qg[3]), 0.5 * qg[4]
-    Jq = w.J[:3, :4]
-    Jq[:, :] = 0.0
-    Jq[0], Jq[1], Jq[2, 2] = w.gth[e], w.gds[e], 1.0
+    Jq = w.J                                # its leading (3, 4)
+    _zero(Jq, 3, 4)
+    for j in range(4):
+        Jq[0, j], Jq[1, j] = w.gth[e, j], w.gds[e, j]
+    Jq[2, 2] = 1.0
     for j in range(4):
         w.g[j] = g0 * Jq[0, j] + g1 * Jq[1, j] + g2 * Jq[2, j]
     if want_h:
-        M, h3 = w.T, w.F[:3, :3]            # M: (5, 3) in T's corner
-        M[:, :] = 0.0
+        M, h3 = w.T, w.F                    # M: (5, 3) in T's corner, h3: F's (3, 3)
+        _zero(M, 5, 3)
         M[0, 0], M[1, 0], M[2, 1], M[3, 1], M[4, 2] = 1.0, -1.0, 1.0, 1.0, 1.0
         for i in range(3):
             for j in range(3):
@@ -277,35 +279,36 @@ def _bend_equator(r, t, w, want_h):
                 for a in range(5):
                     for b in range(5):
                         h3[i, j] += 0.5 * M[a, i] * qh[a, b] * M[b, j]
-        w.h[:, :] = 0.0
-        _sandwich(Jq, h3, w.h, w.hb)        # qh is no longer needed: scratch
-        _add_block(w.h, g0, w.hth[e])
-        _add_block(w.h, g1, w.hds[e])
+        _zero(w.h, 6, 6)
+        _sandwich(Jq, h3, w.h, w.hb, 3, 4)  # qh is no longer needed: scratch
+        _add_block(w.h, g0, w.hth, e)
+        _add_block(w.h, g1, w.hds, e)
     return 0.5 * value
 
 
 @njit(inline="always", error_model="numpy")
-def _scatter(grad, mat, idx, t, w, want_h):
-    """Add the local gradient w.g at the global indices idx, and the local
-    Hessian w.h into the Newton matrix mat = (band, lp): entries between
-    positions into the band (LAPACK storage ab[band + i - j, j] = A[i, j]),
-    the columns of l and p into lp[0], lp[1]; z_p and fixed rows are dropped."""
-    band, lp = mat
+def _scatter(grad, band, lp, idx, row, m, slot, bw, g, h, want_h):
+    """Add the local gradient g[:m] at the global indices idx[row, :m], and the local
+    Hessian h into the Newton matrix (band, lp) (arrays, not the tuples
+    of `evaluate`: each array handed to an inlined function costs a reference
+    count): entries between positions into the band (LAPACK storage
+    ab[bw + i - j, j] = A[i, j]), the columns of l and p into lp[0], lp[1];
+    z_p and fixed rows are dropped."""
     n = lp.shape[1]
-    for a in range(idx.size):
-        grad[idx[a]] += w.g[a]
+    for a in range(m):
+        I = idx[row, a]
+        grad[I] += g[a]
         if not want_h:
             continue
-        I = idx[a]
-        si = t.slot[I]
-        for b in range(idx.size):
-            sj = t.slot[idx[b]]
+        si = slot[I]
+        for b in range(m):
+            sj = slot[idx[row, b]]
             if si >= 0 and sj >= 0:
-                band[t.band + si - sj, sj] += w.h[a, b]
+                band[bw + si - sj, sj] += h[a, b]
             elif I < n and sj == L_SLOT:
-                lp[0, I] += w.h[a, b]
+                lp[0, I] += h[a, b]
             elif I < n and sj == P_SLOT:
-                lp[1, I] += w.h[a, b]
+                lp[1, I] += h[a, b]
 
 
 @njit(cache=True, error_model="numpy")
@@ -318,20 +321,23 @@ def evaluate(x, ref, t, n, want_h):
     r, z, p = x
     N = r.size - 1
     k = n if want_h else 0
-    grad, mat = np.zeros(n + 2), (np.zeros((2 * t.band + 1, max(k - 2, 0))), np.zeros((2, k)))
+    grad, band, lp = np.zeros(n + 2), np.zeros((2 * t.band + 1, max(k - 2, 0))), np.zeros((2, k))
     w = _work(N)
+    slot, g, h = t.slot, w.g, w.h
     for e in range(N):
-        w.ds[e] = _length(r[e + 1] - r[e], z[e + 1] - z[e], w.gds[e], w.hds[e])
+        w.ds[e] = _length(r[e + 1] - r[e], z[e + 1] - z[e], w.gds, w.hds, e)
         if t.B > 0 and e >= t.kc:     # angles for bending only; on the plate θ = 0
-            w.th[e] = _angle(r[e + 1] - r[e], z[e + 1] - z[e], w.gth[e], w.hth[e])
+            w.th[e] = _angle(r[e + 1] - r[e], z[e + 1] - z[e], w.gth, w.hth, e)
     value = 0.0
     for e in range(N):
-        value += _element(e, x, ref, t, w, want_h)
-        _scatter(grad, mat, t.elem_idx[e], t, w, want_h)
+        # tension, stretching and volume of element e: the value; fills
+        # w.g (6,), w.h (6, 6) in (r_k, z_k, r_k+1, z_k+1, l, p)
+        value += _surface(e, x, ref, t, w, want_h) - _volume(e, r, z, p, g, h, want_h)
+        _scatter(grad, band, lp, t.elem_idx, e, 6, slot, t.band, g, h, want_h)
     if t.B > 0:
         for k in range(t.kc, N):
             value += _bend_node(k, r, t, w, want_h)
-            _scatter(grad, mat, t.bend_idx[k - t.kc], t, w, want_h)
+            _scatter(grad, band, lp, t.bend_idx, k - t.kc, 6, slot, t.band, g, h, want_h)
         value += _bend_equator(r, t, w, want_h)
-        _scatter(grad, mat, t.elem_idx[N - 1, :4], t, w, want_h)
-    return value, grad, mat
+        _scatter(grad, band, lp, t.elem_idx, N - 1, 4, slot, t.band, g, h, want_h)
+    return value, grad, (band, lp)

@@ -198,7 +198,29 @@ def droplet(volume, height):
 
     Raises InputError for V ≤ 0, h ≤ 0, h above the free sphere's diameter
     2 R_cell, NaN or inf. Heights below h̃ ≈ 0.026 are refused too (the cell
-    would be a thin pancake, far outside the model's range)."""
+    would be a thin pancake, far outside the model's range). One (V, h) is
+    solved once per process and kept (`_droplet_one`)."""
+    if np.ndim(volume) == 0 and np.ndim(height) == 0:
+        return _droplet_one(float(volume), float(height))
+    return _droplet(volume, height)
+
+
+@lru_cache(maxsize=4096)
+def _droplet_one(volume, height):
+    """`droplet` of one (V, h), kept: every compression asks for the shapes
+    at h0 and h1 (its modulus, the fast solver's contact prediction), and a
+    campaign for the same few gaps again and again. Its arrays are read-only,
+    as every caller shares them. (An invalid input raises every time: an
+    exception is not kept.)"""
+    d = _droplet(volume, height)
+    for value in vars(d).values():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
+    return d
+
+
+def _droplet(volume, height):
+    """`droplet` computed (module docstring)."""
     volume, height = _check(volume, height)
     R_cell = cell_radius(volume)
     h_tilde = height / (2.0 * R_cell)
