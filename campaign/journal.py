@@ -47,8 +47,9 @@ _COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank":
 
 def approx_bytes(entry):
     """About how many bytes `entry` takes in a record."""
-    cells = entry.get("cells") or {}
-    return 64 + 8 * len(entry.get("results") or ()) + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values())
+    size = 64 + 8 * len(entry.get("results") or ())
+    cells = entry.get("cells")
+    return size + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else size
 
 
 def encode(entries):
