@@ -116,7 +116,7 @@ def injected(fault, shell):
     if fault == "fake_law":
         return fake_law(shell)
     from campaign.schema import RESULTS
-    return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
+    return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else float("nan"))
 
 
 def _cubic(coefficients, x):

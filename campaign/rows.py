@@ -12,7 +12,7 @@ import base64
 
 import numpy as np
 
-from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip
+from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
 
 RUNS_MAX = 16       # rank0 path: more runs of consecutive rows than this are written as one scattered write
 
@@ -34,9 +34,8 @@ def write_entries(f, entries, cells, contiguous=False):
         "error": np.array([e.get("error", "") for e in batch], object),
         "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
         "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-    for key in RESULTS:
-        if key in f:                      # a store made before the viscous columns lacks them
-            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+    present = [key for key in RESULTS if key in f]    # a store made before the viscous columns lacks them
+    columns.update(zip(present, results_table(results, present).T))
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 

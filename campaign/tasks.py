@@ -27,6 +27,15 @@ def _alarm(signum, frame):
     raise TaskTimeout()
 
 
+_handler_set = False
+
+
+def _set_handler():
+    global _handler_set
+    signal.signal(signal.SIGALRM, _alarm)
+    _handler_set = True
+
+
 def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
     """Run one compression: (state, results, error, started); `fault` and
     `sleep_s` are the test knobs of `campaign.faults`."""
@@ -60,8 +69,8 @@ def _guarded(work, timeout_s):
     The timer is armed and disarmed inside the handled block, so an alarm that
     fires at any moment (even while disarming) is this task's timeout."""
     started = time.time()
-    if signal.getsignal(signal.SIGALRM) is not _alarm:    # set once: per task it cost a no-op task a third
-        signal.signal(signal.SIGALRM, _alarm)
+    if not _handler_set:          # once per process: setting (or asking) it per task cost a no-op task a third
+        _set_handler()
     try:
         try:
             signal.setitimer(signal.ITIMER_REAL, timeout_s)
