@@ -9,12 +9,15 @@ section (its compressions kept); one with other trials is refused.
 
 Kill safety: finished tasks are kept in memory (`record`) and, once per
 batch (`flush`) or every 64 KiB of entries, appended to `STORE.journal` as
-one record (`campaign.journal`); a flush then fsyncs the journal, and only
-then are rows written (`campaign.rows`): on the rank0 path those of every
-entry since the last row write, at most once per ROWS_S (the journal is
-what makes a task safe; the rows follow it, and every reader overlays the
-journal past the rows), and the file flushed, after which its attribute
-`journal_bytes` says how much of the journal the rows hold. On opening, a record a kill cut is trimmed, the
+one record (`campaign.journal`), which a killed process cannot lose (the
+operating system holds it). Rows follow at most once per ROWS_S on the
+rank0 path (at every flush on the mpio path): the journal is fsync'd, and
+only then are the rows of every entry since the last row write written
+(`campaign.rows`) and the file flushed, after which its attribute
+`journal_bytes` says how much of the journal the rows hold. So the rows
+never hold what the durable journal does not; a crash of the machine itself
+can lose at most the last ROWS_S of finished tasks, which the rerun redoes;
+and every reader overlays the journal past the rows. On opening, a record a kill cut is trimmed, the
 rest of the journal is replayed into the file (idempotent), rows left
 `running` become `pending` again, and a file a kill left unreadable is set
 aside and rebuilt from the campaign and the journal. So a rerun finishes the
@@ -49,8 +52,9 @@ from campaign.store_files import check_store_path, open_read, set_aside
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
 from solver.errors import InputError
 
-ROWS_S = 1.0    # s: on the rank0 path rows are written at most this often (a HDF5 write per column
-                # costs ~0.3 ms: per batch of a few tasks that was most of rank 0's cost per message)
+ROWS_S = 1.0    # s: on the rank0 path the journal is fsync'd and rows written at most this often (an
+                # HDF5 write per column costs ~0.3 ms, an fsync ~1 ms: per batch of a few tasks that was
+                # most of rank 0's cost per message)
 
 
 class Store:
@@ -230,19 +234,20 @@ class Store:
 
     def flush(self, rows=None):
         """The entries kept since the last record appended to the journal as
-        one record, the journal fsync'd; then the rows of the entries recorded
-        since the last row write and the new running marks into HDF5 (a row
-        shown running and no longer has been finished: its entry is written):
-        on the rank0 path when ROWS_S has passed since the last row write or
-        `rows` is true, on the mpio path (rank 0's own entries only; nothing
-        collective happens) at every flush."""
+        one record (written through to the operating system: a killed process
+        loses none of it); then, when due, the journal fsync'd and only then
+        the rows of the entries recorded since the last row write and the new
+        running marks into HDF5 (a row shown running and no longer has been
+        finished: its entry is written). Due on the rank0 path when ROWS_S has
+        passed since the last row write or `rows` is true; on the mpio path
+        (rank 0's own entries only; nothing collective happens) at every flush."""
         self._append_record()
+        if not (self.parallel or rows or time.monotonic() - self.rows_at >= ROWS_S):
+            return
         if self.unsynced:
             with named_failures(self.journal_path):
                 journal.sync(self.journal)
             self.unsynced = False
-        if not (self.parallel or rows or time.monotonic() - self.rows_at >= ROWS_S):
-            return
         if self.unwritten:
             write_entries(self.file, self.unwritten, self.cells, contiguous=self.parallel)
             self.unwritten = []
