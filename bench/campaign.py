@@ -6,6 +6,11 @@ wall time of the whole command (start-up included).
 startup_s: the same command on a campaign of one no-op task (imports, the
 store, MPI start-up); tasks_per_s_after_startup = 10,000 / (wall - startup_s),
 the rate the engine itself sustains.
+tasks_per_s_100k: 100,000 no-op tasks, the same whole command, start-up
+included (where the start-up weighs a tenth as much as at 10,000).
+startup_floor_s: `mpiexec -n 2 python -c "import numpy, h5py, mpi4py.MPI"`,
+the interpreter and the libraries any run of the command starts with: no
+campaign can start faster than this.
 futures_tasks_per_s: the same 10,000 no-op calls through mpi4py.futures'
 MPIPoolExecutor.map under `mpiexec -n 2 python -m mpi4py.futures`, same run.
 paper_wall_s_1, paper_wall_s_2: campaigns/paper.toml (540 compressions, fast
@@ -34,6 +39,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 MPIO = ROOT / ".venv-mpio" / "bin"
 BIN = pathlib.Path(sys.executable).parent
 N_NOOP = 10_000
+N_BIG = 100_000        # 50 x 40 x 50: the largest campaign [campaign] max_tasks allows by default
 NOOP = """
 [campaign]
 name = "noop"
@@ -88,6 +94,12 @@ def main():
         wall, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(cfg), "--store",
                           str(tmp / "noop.h5"), "--quiet"])
         tasks_per_s = N_NOOP / wall
+        big = tmp / "noop100k.toml"
+        big.write_text(NOOP.format(h0=_grid(10.0, 15.0, 50), shear=_grid(5.0, 25.0, 40),
+                                   tension=_grid(0.5, 3.0, 50)))
+        wall_100k, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(big), "--store",
+                               str(tmp / "noop100k.h5"), "--quiet"])
+        floor, _ = _timed([mpiexec, "-n", "2", sys.executable, "-c", "import numpy, h5py, mpi4py.MPI"])
         one = tmp / "one.toml"
         one.write_text(NOOP.format(h0="12.0", shear="8.0", tension="1.0"))
         startup, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(one), "--store",
@@ -117,6 +129,8 @@ def main():
         "tasks_per_s": round(tasks_per_s, 1),
         "startup_s": round(startup, 2),
         "tasks_per_s_after_startup": round(N_NOOP / (wall - startup), 1) if wall > startup else None,
+        "tasks_per_s_100k": round(N_BIG / wall_100k, 1),
+        "startup_floor_s": round(floor, 2),
         "futures_tasks_per_s": round(futures_tasks_per_s, 1),
         "futures_map_only_tasks_per_s": round(futures_pool_tasks_per_s, 1),
         "paper_wall_s_1": paper[1] and round(paper[1], 2),

@@ -116,7 +116,7 @@ def injected(fault, shell):
     if fault == "fake_law":
         return fake_law(shell)
     from campaign.schema import RESULTS
-    return {key: 0.0 if fault == "noop" else float("nan") for key in RESULTS}
+    return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else float("nan"))
 
 
 def _cubic(coefficients, x):
@@ -151,7 +151,7 @@ def kill_mid_write(store, entry):
     kill = os.environ.get(KILL_ENV)
     if kill is None or kill != (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
         return
-    store.flush()                          # written, then killed: the replay must not redo it
+    store.flush(rows=True)                 # written, then killed: the replay must not redo it
     if "row" in entry:
         from campaign.schema import DONE
         store.file["state"][entry["row"]] = DONE

@@ -34,7 +34,7 @@ import zlib
 
 import numpy as np
 
-from campaign.schema import RESULTS, STATES
+from campaign.schema import RESULTS, STATES, results_table
 
 MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")
@@ -47,8 +47,9 @@ _COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank":
 
 def approx_bytes(entry):
     """About how many bytes `entry` takes in a record."""
-    cells = entry.get("cells") or {}
-    return 64 + 8 * len(entry.get("results") or ()) + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values())
+    size = 64 + 8 * len(entry.get("results") or ())
+    cells = entry.get("cells")
+    return size + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else size
 
 
 def encode(entries):
@@ -74,9 +75,9 @@ def _compression_arrays(rows, arrays, errors):
                "converged": [bool(r.get("converged", False)) for r in results]}
     for key, dtype in _COMPRESSION.items():
         arrays[f"c.{key}"] = np.array(columns[key], dtype)
-    for key in RESULTS:
-        if any(key in r for r in results):
-            arrays[f"r.{key}"] = np.array([r.get(key, np.nan) for r in results], np.float64)
+    present = [key for key in RESULTS if any(key in r for r in results)]
+    for key, column in zip(present, results_table(results, present).T):
+        arrays[f"r.{key}"] = column
     errors.update({str(i): e["error"] for i, e in enumerate(rows) if e.get("error")})
 
 

@@ -88,9 +88,14 @@ class Policy:
     def finished(self, task):
         """Task `task` has finished (done or failed): the trial tasks it made ready join the queue."""
         if task < self.n:
+            ready = []
             for j in self.dependents.pop(task, []):
                 self.waiting[j] -= 1
-            self.todo.extend(self._ready())
+                if self.waiting[j] == 0:          # only these can have become ready
+                    ready.append(j)
+            for j in sorted(ready):
+                del self.waiting[j]
+                self.todo.append(self.n + j)
 
     def timed(self, tasks, seconds):
         """`tasks` tasks took `seconds` of computing."""

@@ -3,16 +3,18 @@
 A compression's entry (`row`) fills its task row (state, attempts, rank,
 error, converged, started, RESULTS); a trial task's entry (`task` j) fills
 its study's N trial rows j N .. j N + N - 1 (`trial_columns`). Rows are
-written one HDF5 write per column, or per run of consecutive rows on the
-mpio path (parallel HDF5 writes no scattered selections); the last entry of
-a row wins.
+written one HDF5 write per column and run of consecutive rows (on the rank0
+path one scattered write per column where the runs are many; `put`); the
+last entry of a row wins.
 """
 
 import base64
 
 import numpy as np
 
-from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip
+from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
+
+RUNS_MAX = 16       # rank0 path: more runs of consecutive rows than this are written as one scattered write
 
 
 def write_entries(f, entries, cells, contiguous=False):
@@ -32,9 +34,8 @@ def write_entries(f, entries, cells, contiguous=False):
         "error": np.array([e.get("error", "") for e in batch], object),
         "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
         "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-    for key in RESULTS:
-        if key in f:                      # a store made before the viscous columns lacks them
-            columns[key] = np.array([r.get(key, np.nan) for r in results], float)
+    present = [key for key in RESULTS if key in f]    # a store made before the viscous columns lacks them
+    columns.update(zip(present, results_table(results, present).T))
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 
@@ -52,12 +53,17 @@ def _fit(dset, values):
 
 
 def put(dset, rows, values, contiguous):
-    """dset[rows] = values, by runs of consecutive rows if `contiguous`."""
+    """dset[rows] = values, by runs of consecutive rows if `contiguous` (parallel
+    HDF5 writes no scattered selection) or if there are at most RUNS_MAX of
+    them: h5py builds a scattered selection point by point (~9 ms for 512
+    rows), a slice is one hyperslab (~0.1 ms), and rows are handed out in
+    order, so a flush's rows are mostly a few runs."""
     values = _fit(dset, values)
-    if not contiguous:
+    parts = runs(rows)
+    if not contiguous and len(parts) > RUNS_MAX:
         dset[rows] = values
         return
-    for start, stop, part in runs(rows):
+    for start, stop, part in parts:
         dset[start:stop] = values[part]
 
 

@@ -3,7 +3,9 @@
 Rank 0 owns the store and asks `campaign.policy.Policy` what to hand out:
 which tasks, in batches of how many, how many each worker is kept ahead, and
 whether rank 0 computes tasks itself between messages. A batch travels as one
-message (TAG_TASK: a list of (task, payload, attempts)); the worker computes
+message (TAG_TASK: a list of (task, payload, attempts)), sent without waiting
+for it to be received (a worker takes it when it has finished the batch
+before); the worker computes
 it (`campaign.tasks`) and sends its entries back as one message (TAG_RESULT:
 (entries, seconds computing)) without waiting for it to be received. Rank 0
 records each entry (`store.record`) and flushes the store once per batch it
@@ -37,7 +39,7 @@ from campaign import faults
 from campaign.mpio_writer import Writer, open_parallel, write_path
 from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
-from campaign.tasks import run_task
+from campaign.tasks import run_task, warm_up
 from campaign.trial_inputs import TrialInputs
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
@@ -88,7 +90,8 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
 
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store, the others wait for it."""
+    and error on every rank: rank 0 opens the store, the others warm up
+    (`campaign.tasks.warm_up`) and wait for it."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:
@@ -97,6 +100,8 @@ def _open_store(comm, campaign, store_path, new, writes):
                           on_record=faults.record_hook())
         except Exception as err:
             error = err
+    else:
+        warm_up(campaign)          # meanwhile: the first task's start-up costs, not paid in the run
     error, path = comm.bcast((error, path), root=0)
     return store, path, error
 
@@ -219,18 +224,20 @@ class _Master:
             for batch in self.policy.batches_for(self.link.in_flight(w)):
                 self.link.send(w, self.prepared(batch))
 
-    def record(self, e):
-        """One finished task: journalled, its trials' inputs noted, the policy told."""
+    def record(self, entries):
+        """Finished tasks: journalled, their trials' inputs noted, the policy told."""
         with self.link.guard():
-            self.store.record(e)
-        if "row" in e:
-            self.inputs.compression_finished(e["row"], e["state"], e["results"], e["error"])
-            self.failed += e["state"] == "failed"
-            self.policy.finished(e["row"])
-        else:
-            self.failed += e["state"] == "failed" or "failed" in e["cells"].get("state", ())
-            self.policy.finished(self.n + e["task"])
-        self.bar.update()
+            for e in entries:
+                self.store.record(e)
+        for e in entries:
+            if "row" in e:
+                self.inputs.compression_finished(e["row"], e["state"], e["results"], e["error"])
+                self.failed += e["state"] == "failed"
+                self.policy.finished(e["row"])
+            else:
+                self.failed += e["state"] == "failed" or "failed" in e["cells"].get("state", ())
+                self.policy.finished(self.n + e["task"])
+        self.bar.update(len(entries))
 
     def serve(self):
         """Every result batch waiting: each recorded, the store flushed once for
@@ -239,8 +246,7 @@ class _Master:
         started, messages = time.perf_counter(), 0
         while (got := self.link.receive()) is not None:
             entries, busy_s = got
-            for e in entries:
-                self.record(e)
+            self.record(entries)
             self.policy.timed(len(entries), busy_s)
             messages += 1
         if messages:
@@ -254,7 +260,7 @@ class _Master:
         started = time.perf_counter()
         e = run_task(self.campaign, task, payload, attempt, 0)
         self.policy.timed(1, time.perf_counter() - started)
-        self.record(e)
+        self.record([e])
         self.refill()                 # a finished compression may have made trials ready
 
     def flush(self, tag=TAG_WRITE):
@@ -272,6 +278,7 @@ class _Link:
         self.batches = {w: deque() for w in range(1, comm.Get_size())}   # sizes of the batches in flight
         self.received = dict.fromkeys(self.batches, 0)   # entries journalled, per worker
         self.synced = dict(self.received)                # entries the fsync'd journal holds, per worker
+        self.sending = []                                # batches sent, not yet known received
 
     def workers(self):
         return self.batches.keys()
@@ -283,7 +290,12 @@ class _Link:
         return any(self.batches.values())
 
     def send(self, worker, batch):
-        self.comm.send(batch, dest=worker, tag=TAG_TASK)
+        """A batch out without waiting for it to be received: a blocking send of
+        a message above MPI's eager limit (a batch of trial tasks with their
+        forces) waits until the worker, busy with its current batch, posts its
+        receive, and kept rank 0 from serving and computing for up to a batch."""
+        self.sending = [r for r in self.sending if not r.Test()]
+        self.sending.append(self.comm.isend(batch, dest=worker, tag=TAG_TASK))
         self.batches[worker].append(len(batch))
 
     def receive(self):
@@ -302,6 +314,9 @@ class _Link:
         with self.guard():
             self.store.flush()
         told = dict(self.synced)
+        if tag == TAG_STOP:
+            from mpi4py import MPI
+            MPI.Request.waitall(self.sending)    # all received: every batch's results came back
         self.synced.update(self.received)
         for w in self.batches:       # TAG_WRITE only to the workers with new entries in the journal
             if tag == TAG_STOP or (self.store.parallel and self.synced[w] != told[w]):

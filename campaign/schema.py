@@ -18,6 +18,7 @@ so the readers (and `cortex campaign status`) load neither numba nor the solver.
 
 import hashlib
 import json
+import operator
 
 import numpy as np
 
@@ -50,10 +51,27 @@ TRIAL_PER_HEIGHT = ("h0_true_um", "h0_used_um", "h1_used_um", "h_tilde", "modulu
 TRIAL_COLUMNS = TRIAL_PER_CELL + TRIAL_PER_HEIGHT
 
 
+_SORTED_JSON = json.JSONEncoder(sort_keys=True)    # json.dumps(..., sort_keys=True) without making one per call
+
+
 def task_id(shell, method):
-    """A task's id: a hash of its parameters, stable across runs."""
-    key = json.dumps({**shell.to_dict(), "method": method}, sort_keys=True)
+    """A task's id: a hash of its parameters (the text of json.dumps(...,
+    sort_keys=True)), stable across runs."""
+    key = _SORTED_JSON.encode({**shell.to_dict(), "method": method})
     return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def results_table(results, keys):
+    """The values of `keys` in each of the dicts `results` as a float64 array
+    (len(results), len(keys)), NaN where a dict lacks a key: what the journal
+    and the rows take a batch's result columns from (one C-level pass when
+    every dict has every key, as a solver's or a no-op's results do)."""
+    get = operator.itemgetter(*keys) if keys else (lambda r: ())
+    try:
+        table = list(map(get, results))
+    except KeyError:
+        table = [[r.get(k, np.nan) for k in keys] for r in results]
+    return np.array(table, np.float64).reshape(len(results), len(keys))
 
 
 def error_dtype():

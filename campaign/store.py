@@ -9,10 +9,15 @@ section (its compressions kept); one with other trials is refused.
 
 Kill safety: finished tasks are kept in memory (`record`) and, once per
 batch (`flush`) or every 64 KiB of entries, appended to `STORE.journal` as
-one record (`campaign.journal`); a flush then fsyncs the journal, and only
-then are the rows of its batch written (`campaign.rows`)
-and the file flushed, after which its attribute `journal_bytes` says how much
-of the journal the rows hold. On opening, a record a kill cut is trimmed, the
+one record (`campaign.journal`), which a killed process cannot lose (the
+operating system holds it). Rows follow at most once per ROWS_S on the
+rank0 path (at every flush on the mpio path): the journal is fsync'd, and
+only then are the rows of every entry since the last row write written
+(`campaign.rows`) and the file flushed, after which its attribute
+`journal_bytes` says how much of the journal the rows hold. So the rows
+never hold what the durable journal does not; a crash of the machine itself
+can lose at most the last ROWS_S of finished tasks, which the rerun redoes;
+and every reader overlays the journal past the rows. On opening, a record a kill cut is trimmed, the
 rest of the journal is replayed into the file (idempotent), rows left
 `running` become `pending` again, and a file a kill left unreadable is set
 aside and rebuilt from the campaign and the journal. So a rerun finishes the
@@ -46,6 +51,10 @@ from campaign.schema import PENDING, RUNNING
 from campaign.store_files import check_store_path, open_read, set_aside
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
 from solver.errors import InputError
+
+ROWS_S = 1.0    # s: on the rank0 path the journal is fsync'd and rows written at most this often (an
+                # HDF5 write per column costs ~0.3 ms, an fsync ~1 ms: per batch of a few tasks that was
+                # most of rank 0's cost per message)
 
 
 class Store:
@@ -95,6 +104,7 @@ class Store:
         self._log_run(ranks)
         self.unjournalled, self.unjournalled_bytes, self.unwritten = [], 0, []
         self.unsynced, self.running, self.shown_running = False, set(), set()
+        self.rows_at = time.monotonic()           # when rows were last written (rank0 path)
         self.file.flush()
 
     def _check_same(self, campaign):
@@ -222,14 +232,18 @@ class Store:
                 journal.append(self.journal, self.unjournalled)
             self.unjournalled, self.unjournalled_bytes, self.unsynced = [], 0, True
 
-    def flush(self):
+    def flush(self, rows=None):
         """The entries kept since the last record appended to the journal as
-        one record, the journal fsync'd; then the rows of the entries recorded
-        since the last flush and the new running marks into HDF5 (a row shown
-        running and no longer has been finished: its entry is written). On the
-        mpio path rank 0 writes only its own entries' rows, and nothing
-        collective happens."""
+        one record (written through to the operating system: a killed process
+        loses none of it); then, when due, the journal fsync'd and only then
+        the rows of the entries recorded since the last row write and the new
+        running marks into HDF5 (a row shown running and no longer has been
+        finished: its entry is written). Due on the rank0 path when ROWS_S has
+        passed since the last row write or `rows` is true; on the mpio path
+        (rank 0's own entries only; nothing collective happens) at every flush."""
         self._append_record()
+        if not (self.parallel or rows or time.monotonic() - self.rows_at >= ROWS_S):
+            return
         if self.unsynced:
             with named_failures(self.journal_path):
                 journal.sync(self.journal)
@@ -243,6 +257,7 @@ class Store:
         self._show_running()
         if not self.parallel:
             self.file.flush()
+        self.rows_at = time.monotonic()
 
     def _show_running(self):
         new = self.running - self.shown_running
@@ -257,7 +272,7 @@ class Store:
     def close(self):
         """Write what is left and close; on the mpio path every rank closes the
         file together, then rank 0 notes that the rows hold the whole journal."""
-        self.flush()
+        self.flush(rows=True)
         self.file.close()
         if self.parallel:
             import h5py

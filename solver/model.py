@@ -7,7 +7,9 @@ bending stiffness B = t_c² (K_B + K_S) / 24 for the `standard` variant, 2B for
 Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 """
 
+import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -50,7 +52,7 @@ class Shell:
         for name in ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
                      "tension_mN_per_m", "thickness_um", "resolution"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
+            if not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
                 raise InputError(f"{name} must be a finite number (got {value!r})")
         if self.volume_um3 <= 0:
             raise InputError(f"volume must be > 0 um^3 (got {self.volume_um3:g})")
@@ -58,7 +60,7 @@ class Shell:
             raise InputError(f"h0 and dh must be > 0 um (got h0={self.h0_um:g}, dh={self.dh_um:g})")
         if self.dh_um >= self.h0_um:
             raise InputError(f"dh = {self.dh_um:g} um must be smaller than h0 = {self.h0_um:g} um")
-        top = float(sphere_height(self.volume_um3))
+        top = _sphere_height(self.volume_um3)
         if self.h0_um > top:
             raise InputError(f"h0 = {self.h0_um:g} um exceeds the free sphere's diameter "
                              f"{top:.4g} um for V = {self.volume_um3:g} um^3")
@@ -110,6 +112,14 @@ class Shell:
 
 
 _FIELDS = tuple(f.name for f in fields(Shell))
+
+
+@lru_cache(maxsize=64)
+def _sphere_height(volume_um3):
+    """`solver.geometry.sphere_height` as a float, once per volume: a campaign
+    checks every one of its (up to 10^5) shells, and a grid has few volumes."""
+    return float(sphere_height(volume_um3))
+
 
 def check_viscous_inputs(viscosity_Pa_s, frequency_hz):
     """η ≥ 0 and f > 0, finite, or InputError."""

@@ -125,3 +125,31 @@ def test_the_engine_does_not_import_the_command_line_package():
             "from importlib.metadata import version; assert p.code_version() == version('cortex-poisson')")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert done.returncode == 0, done.stderr
+
+
+def test_results_table_fills_missing_keys_with_nan():
+    """One pass when every dict has every key, NaN where one lacks a key: the
+    journal's and the rows' result columns."""
+    from campaign.schema import results_table
+    full = results_table([{"a": 1.0, "b": 2}, {"a": 3.0, "b": 4}], ["a", "b"])
+    assert full.dtype == np.float64 and full.tolist() == [[1.0, 2.0], [3.0, 4.0]]
+    gaps = results_table([{"a": 1.0}, {"b": 2.0}], ["a", "b"])
+    assert np.isnan(gaps[0, 1]) and np.isnan(gaps[1, 0]) and gaps[0, 0] == 1.0 and gaps[1, 1] == 2.0
+    assert results_table([{"a": 5.0}], ["a"]).tolist() == [[5.0]]
+    assert results_table([{}, {}], []).shape == (2, 0)
+
+
+@pytest.mark.parametrize("rows", [[3, 4, 5, 9], list(range(0, 60, 2))])   # few runs; more than RUNS_MAX
+def test_put_by_runs_or_scattered_writes_the_same(tmp_path, rows):
+    import h5py
+    from campaign.rows import RUNS_MAX, put, runs
+    rows = np.array(rows)
+    values = np.arange(len(rows), dtype=float) + 0.5
+    with h5py.File(tmp_path / "f.h5", "w") as f:
+        for contiguous in (False, True):
+            d = f.create_dataset(f"x{contiguous}", data=np.full(64, np.nan))
+            put(d, rows, values, contiguous)
+            expect = np.full(64, np.nan)
+            expect[rows] = values
+            np.testing.assert_array_equal(d[:], expect)
+    assert (len(runs(rows)) > RUNS_MAX) == (len(rows) == 30)
