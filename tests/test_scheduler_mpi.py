@@ -152,9 +152,10 @@ def test_sigterm_stops_cleanly_and_the_rerun_completes(tmp_path_factory, stop_fl
 @pytest.mark.mpi(min_size=2)
 def test_a_waiting_worker_naps_instead_of_holding_a_core():
     """A worker waiting for rank 0 polls with naps: while rank 0 sleeps a
-    known 0.5 s before it sends, the worker's process uses a small part of
-    that time on the CPU (MPI's blocking receive would poll it all away,
-    which on a node with more ranks than cores starves the ranks that compute)."""
+    known 0.5 s before it sends, the worker's process uses under a quarter
+    of that on the CPU, however late it starts waiting (MPI's blocking
+    receive would poll it all away, which on a node with more ranks than
+    cores starves the ranks that compute)."""
     import time
     from mpi4py import MPI
     from campaign import scheduler
@@ -166,12 +167,10 @@ def test_a_waiting_worker_naps_instead_of_holding_a_core():
             comm.send("go", dest=w, tag=scheduler.TAG_TASK)
         cpu = 0.0
     else:
-        wall, cpu = time.perf_counter(), time.process_time()
+        cpu = time.process_time()
         assert scheduler._next_message(comm, status) == "go" and status.Get_tag() == scheduler.TAG_TASK
-        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        assert wall >= 0.4
-        cpu /= wall
-    assert comm.allreduce(cpu, op=MPI.MAX) < 0.25
+        cpu = time.process_time() - cpu
+    assert comm.allreduce(cpu, op=MPI.MAX) < 0.25 * 0.5      # s
 
 
 def test_the_scheduler_leaves_the_signal_handlers_to_the_command(tmp_path, stop_flag):
