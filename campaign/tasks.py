@@ -92,8 +92,8 @@ def _guarded(work, timeout_s):
 def warm_up(campaign):
     """Pay, before any task, the once-per-process costs of the campaign's first
     compression: its solver's modules imported and the droplet geometry's
-    compiled quadrature and inverse table loaded (about 1.5 s here: numba,
-    scipy.interpolate, the on-disk compile cache), or what its `[test]` fault
+    compiled quadrature and inverse table loaded (about 1 s here: importing
+    numba, its first load from the on-disk compile cache), or what its `[test]` fault
     needs. A worker does this while rank 0 prepares the store, so it is not
     paid again in the run. Nothing is computed or recorded; a failure here is
     left for the task itself to meet and report."""
