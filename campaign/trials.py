@@ -43,6 +43,7 @@ from functools import cached_property
 
 import numpy as np
 
+from campaign.cell_streams import streams
 from solver.elasticity import poisson_ratio
 from solver.geometry import droplet, sphere_height
 
@@ -110,16 +111,17 @@ def _extended(base, tail):
 
 
 def draws(study):
-    """(γ_a index (N,), ε_V (N,), ε_h (N, heights)) from each cell's own generator."""
-    m = len(study.heights_um)
+    """(γ_a index (N,), ε_V (N,), ε_h (N, heights)) from each cell's own
+    generator (`campaign.cell_streams`: numpy's, without building one per cell)."""
+    m, n_tensions = len(study.heights_um), len(study.tensions_mN_per_m)
+    per_cell = study.height_error_mode == "per_cell"
     index, eps_v, eps_h = [], [], []
-    for tid in study.trial_ids():
-        rng = np.random.default_rng(np.random.SeedSequence(int(tid, 16)))
-        index.append(int(rng.integers(len(study.tensions_mN_per_m))))
+    for rng in streams([int(tid, 16) for tid in study.trial_ids()]):
+        index.append(int(rng.integers(n_tensions)))
         eps_v.append(rng.standard_normal())
-        eps_h.append(np.full(m, rng.standard_normal()) if study.height_error_mode == "per_cell"
-                     else rng.standard_normal(m))
-    return np.array(index), np.array(eps_v), np.array(eps_h).reshape(len(index), m)
+        eps_h.append(rng.standard_normal(1 if per_cell else m))
+    eps_h = np.array(eps_h).reshape(len(index), -1)
+    return np.array(index), np.array(eps_v), np.broadcast_to(eps_h, (len(index), m)).copy()
 
 
 def run_study(study, forces, errors):
