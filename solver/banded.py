@@ -18,7 +18,7 @@ results agree with scipy's gbsv to round-off. Called from compiled code
 """
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 
 
 @njit(cache=True)

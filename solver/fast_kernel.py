@@ -25,7 +25,7 @@ evaluation of the same formulas: results agree with one to round-off.
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 
 # what `evaluate` needs besides the state: per-element tension c_e, moduli,
 # H_d, contact node k_c, the global indices of each element's (r, z, r, z, l, p)

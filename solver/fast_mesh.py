@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 from numpy.polynomial import chebyshev
 
 from solver.frustum import enclosed_volume

@@ -21,7 +21,7 @@ Python into compiled code a few times instead of a few hundred.
 """
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 
 from solver import banded
 from solver.fast_kernel import evaluate

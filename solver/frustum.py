@@ -20,7 +20,7 @@ too; lengths in µm, areas in µm², volumes in µm³.
 """
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 
 
 @njit(cache=True)

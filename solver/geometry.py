@@ -64,7 +64,7 @@ def _compiled_on_first_call(fn):
     @wraps(fn)
     def call(*args):
         if not jitted:
-            from numba import njit
+            from solver.jit import njit
             jitted.append(njit(cache=True)(fn))
         return jitted[0](*args)
     return call

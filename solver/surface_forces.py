@@ -36,7 +36,7 @@ Units: µm, mN/m, nN (mN/m·µm), mN/m/µm for pressures and force densities, s.
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from solver.jit import njit
 
 from solver.frustum import half_volume
 

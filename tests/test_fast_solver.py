@@ -76,3 +76,16 @@ def test_compress_cli_json_and_bad_input():
                          capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert "free sphere" in bad.stderr
+
+
+def test_a_compression_does_not_import_scipy_linalg_and_leaves_it_importable():
+    """numba starts without scipy.linalg (solver.jit): a process that only
+    compresses never imports it; one that wants it later still gets it."""
+    code = ("import sys\n"
+            "from solver.compression import compress\nfrom solver.model import Shell\n"
+            "c = compress(Shell(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0,"
+            " shear_mN_per_m=8.33, tension_mN_per_m=1.5))\n"
+            "print('scipy.linalg' in sys.modules, c.solution.converged)\n"
+            "import scipy.linalg\nprint(float(scipy.linalg.solve([[2.0]], [4.0])[0]))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True", "2.0"]
