@@ -38,7 +38,7 @@ nothing but its parameters: not on ranks, batches or order.
 
 import hashlib
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
@@ -84,8 +84,7 @@ class Study:
     @cached_property
     def _key(self):
         """The study's parameters and seed (not `rows`) as canonical JSON."""
-        params = asdict(self)
-        params.pop("rows")
+        params = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "rows"}
         return json.dumps(params, sort_keys=True)
 
     @property
@@ -145,7 +144,7 @@ def run_study(study, forces, errors):
     vol = np.broadcast_to(v_used[:, None], h0_used.shape)
     ok = (vol > 0) & (h1_used > 0) & (h0_used < sphere_height(np.where(vol > 0, vol, V)))
     vol_s, h0_s = np.where(ok, vol, V), np.where(ok, h0_used, h0)   # stand-ins where impossible
-    seen, em = _seen(vol_s, h0_s, h0_s - study.dh_um, tension[:, None], droplet(V, h0).force_per_tension_um,
+    seen, em = _seen(vol_s, h0_s, h0_s - study.dh_um, tension[:, None], _resting_g(V, study.heights_um),
                      np.where(ok, force, 0.0))
     nan = lambda x: np.where(ok, x, np.nan)  # noqa: E731
     failed = np.array([bool(errors[i]) for i in index], bool)
@@ -159,6 +158,13 @@ def run_study(study, forces, errors):
         out[key][failed] = np.nan
     assert out["h_tilde"].shape == (n, len(study.heights_um))
     return out
+
+
+def _resting_g(volume, heights):
+    """g(V, h0_j) of the true cell at every height (1, heights), from the
+    per-process kept shapes (`droplet` of scalars): the same numbers as one
+    array solve, without solving them again for every study."""
+    return np.array([[droplet(volume, h).force_per_tension_um for h in heights]])
 
 
 def _seen(volume, h0, h1, tension, g_true, force):
