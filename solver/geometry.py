@@ -32,18 +32,19 @@ s(ψ) = [ψ + asin(1/√(1+β²)) - asin(cos ψ/√(1+β²))] / (2H).
 With R_eq = 1 the shape depends on k = R_c / R_eq alone, so the normalised
 height h̃ = h / (2 R_cell), R_cell = (3V/4π)^(1/3), is a function of k. Given
 (V, h), k solves h̃(k) = h / (2 R_cell): a tabulated inverse gives the start,
-one or two Newton steps finish it (`_solve_k`); then R_eq = h / η(k) with η = h/R_eq.
+one or two Newton steps finish it (`_solve`); then R_eq = h / η(k) with η = h/R_eq.
 
 Total area A = A_free + 2π R_c² (the cortex covers both contact discs);
 contact area A_c = π R_c²; the force of a tension-only cell on each plate
 F_a = 2 γ_a H A_c, so `force_per_tension_um` = 2 H A_c (µm; × mN/m gives nN).
 
-Everything is vectorised over arrays of volumes and heights (broadcast).
+Everything is vectorised over arrays of volumes and heights (broadcast); the
+quadrature and the solve for k are compiled (`solver.droplet_quadrature`).
 Units: µm, µm², µm³, 1/µm.
 """
 
 from dataclasses import dataclass
-from functools import lru_cache, wraps
+from functools import lru_cache
 
 import numpy as np
 
@@ -55,19 +56,13 @@ _GROWTH = 2.0            # largest size ratio of neighbouring intervals
 _K_MAX = 0.995           # h̃ ≈ 0.026: far flatter than any cell is squeezed
 
 
-def _compiled_on_first_call(fn):
-    """`fn` numba-compiled (cached on disk) when first called, numba imported
-    then: a command that never integrates a shape (reading a campaign file,
-    a campaign of no-op tasks) does not pay numba's import (0.3-0.6 s)."""
-    jitted = []
-
-    @wraps(fn)
-    def call(*args):
-        if not jitted:
-            from solver.jit import njit
-            jitted.append(njit(cache=True)(fn))
-        return jitted[0](*args)
-    return call
+def _quadrature():
+    """The compiled numerics (`solver.droplet_quadrature`), imported with
+    numba when a shape is first integrated: a command that never integrates
+    one (reading a campaign file, a campaign of no-op tasks) does not pay
+    numba's import (0.3-0.6 s)."""
+    from solver import droplet_quadrature
+    return droplet_quadrature
 
 
 def cell_radius(volume):
@@ -80,48 +75,15 @@ def sphere_height(volume):
     return 2.0 * cell_radius(volume)
 
 
-@_compiled_on_first_call
-def _integrate(k, psi_end, gl_x, gl_w):
-    """The quadrature of `_half_integrals`, one (k, ψ_end) at a time, fused
-    (no (points × nodes) temporaries): on [0, lo] and on m ≤ _INTERVALS
-    intervals from lo = min(β/8, ψ_end/2) to ψ_end growing geometrically by
-    (ψ_end/lo)^(1/m) ≤ _GROWTH."""
-    n = k.size
-    z, vol, area = np.empty(n), np.empty(n), np.empty(n)
-    for i in range(n):
-        H = 1.0 / (1.0 - k[i] * k[i])
-        beta = 2.0 * H * k[i]
-        lo = min(max(beta, 1e-14) / 8.0, psi_end[i] / 2.0)
-        ratio = psi_end[i] / lo
-        m = min(max(int(np.ceil(np.log(ratio) / np.log(_GROWTH))), 1), _INTERVALS)
-        zi, vi, ai, a = 0.0, 0.0, 0.0, 0.0
-        for j in range(m + 1):
-            b = lo * ratio ** (j / m) if j < m else psi_end[i]
-            mid, half = 0.5 * (a + b), 0.5 * (b - a)
-            for node in range(gl_x.size):
-                psi = mid + half * gl_x[node]
-                w = half * gl_w[node]
-                s = np.sin(psi)
-                q = np.sqrt(s * s + beta * beta)
-                g = (1.0 + s / q) / (2.0 * H)            # ds/dψ
-                r = (s + q) / (2.0 * H)
-                dz = s * g
-                zi += w * dz
-                vi += w * r * r * dz
-                ai += w * r * g
-            a = b
-        z[i], vol[i], area[i] = zi, np.pi * vi, 2.0 * np.pi * ai
-    return z, vol, area
-
-
 def _half_integrals(k, psi_end=None):
     """For R_eq = 1 and R_c = k: height, volume and free area from the contact
     line (ψ = 0) up to ψ_end (default the equator), each for one half, by
-    composite Gauss-Legendre quadrature in ψ (`_integrate`)."""
+    composite Gauss-Legendre quadrature in ψ (`droplet_quadrature.integrate`)."""
     k = np.asarray(k, float)
     psi_end = np.full_like(k, np.pi / 2) if psi_end is None else np.asarray(psi_end, float)
     k, psi_end = np.broadcast_arrays(k, psi_end)
-    out = _integrate(np.ascontiguousarray(k).ravel(), np.ascontiguousarray(psi_end).ravel(), _GL_X, _GL_W)
+    out = _quadrature().integrate(np.ascontiguousarray(k).ravel(), np.ascontiguousarray(psi_end).ravel(),
+                                  _GL_X, _GL_W, _INTERVALS, _GROWTH)
     return tuple(x.reshape(k.shape) for x in out)
 
 
@@ -141,41 +103,19 @@ def _inverse_table():
     return u, k
 
 
-def _local_cubic(x, xs, ys):
-    """y(x) and dy/dx of the cubic through the four table points (xs, ys)
-    around each x (xs increasing), in Newton's form with divided differences
-    d1, d2, d3: p = y0 + a (d1 + b (d2 + c d3)), a, b, c = x - x0, x - x1, x - x2.
-    Accurate to O(h⁴) like a cubic spline, and numpy only: a spline from
-    scipy.interpolate would cost every process 0.5-0.9 s of imports to
-    start a Newton iteration that needs a start within ~1e-10 only."""
-    i = np.clip(np.searchsorted(xs, x) - 2, 0, xs.size - 4)[:, None] + np.arange(4)
-    X, Y = xs[i], ys[i]
-    d1 = np.diff(Y, axis=1) / np.diff(X, axis=1)
-    d2 = (d1[:, 1:] - d1[:, :-1]) / (X[:, 2:] - X[:, :-2])
-    d3 = (d2[:, 1] - d2[:, 0]) / (X[:, 3] - X[:, 0])
-    a, b, c = x - X[:, 0], x - X[:, 1], x - X[:, 2]
-    q2 = d2[:, 0] + c * d3
-    q1 = d1[:, 0] + b * q2
-    return Y[:, 0] + a * q1, q1 + a * (q2 + b * d3)
-
-
-def _solve_k(h_tilde):
-    """k with h̃(k) = h_tilde: a start interpolated in the table k(u)
-    (`_local_cubic`), then Newton steps on u = sqrt(1 - h̃) with the
-    interpolant's slope. The start is within ~1e-11 of k for h̃ < 0.95, and a step that moves k by
-    less than 1e-9 (relative) leaves it converged to round-off, so a second
-    step is taken only where the first moved k more (near the sphere)."""
+def _solve(h_tilde):
+    """k with h̃(k) = h_tilde, and that shape's half integrals (z, V, A) to the
+    equator, each the shape of h_tilde: a start from the cubic through the four
+    table points (u, k) around u = sqrt(1 - h̃) (accurate to O(h⁴) like a
+    spline; the start is within ~1e-11 of k for h̃ < 0.95), then Newton steps on
+    u with the cubic's slope; a step that moves k by less than 1e-9 (relative)
+    leaves it converged to round-off, so a second step is taken only where the
+    first moved k more (near the sphere). Compiled, one shape at a time
+    (`droplet_quadrature.solve`)."""
     table_u, table_k = _inverse_table()
-    u = np.sqrt(np.clip(1.0 - np.ravel(h_tilde), 0.0, None))
-    k, dk_du = _local_cubic(u, table_u, table_k)
-    todo = np.ones(k.shape, bool)
-    for _ in range(2):
-        uk = np.sqrt(np.clip(1.0 - _h_tilde_of_k(k[todo]), 0.0, None))
-        step = np.clip(k[todo] + (u[todo] - uk) * dk_du[todo], 0.0, _K_MAX)
-        moved = np.abs(step - k[todo]) > 1e-9 * step
-        k[todo] = step
-        todo[todo] = moved
-    return k.reshape(np.shape(h_tilde)), table_u[-1]
+    h = np.asarray(h_tilde, float)
+    out = _quadrature().solve(np.ravel(h), table_u, table_k, _K_MAX, _GL_X, _GL_W, _INTERVALS, _GROWTH)
+    return tuple(x.reshape(h.shape) for x in out)
 
 
 def _check(volume, height):
@@ -254,11 +194,10 @@ def _droplet(volume, height):
     volume, height = _check(volume, height)
     R_cell = cell_radius(volume)
     h_tilde = height / (2.0 * R_cell)
-    k, _ = _solve_k(h_tilde)
+    k, z, vol, area = _solve(h_tilde)
     if np.any(k >= _K_MAX):
         raise InputError(f"height too small: h/(2 R_cell) = {h_tilde.min():.3g} is below "
                          f"{_h_tilde_of_k(np.array(_K_MAX)):.3g}, the flattest shape supported")
-    z, vol, area = _half_integrals(k)
     R_eq = height / (2.0 * z)
     R_c = k * R_eq
     H = 1.0 / (R_eq * (1.0 - k * k))
