@@ -18,6 +18,7 @@ results agree with scipy's gbsv to round-off. Called from compiled code
 """
 
 import numpy as np
+
 from solver.jit import njit
 
 

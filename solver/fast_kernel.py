@@ -25,6 +25,7 @@ evaluation of the same formulas: results agree with one to round-off.
 from collections import namedtuple
 
 import numpy as np
+
 from solver.jit import njit
 
 # what `evaluate` needs besides the state: per-element tension c_e, moduli,

@@ -24,11 +24,11 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-from solver.jit import njit
 from numpy.polynomial import chebyshev
 
 from solver.frustum import enclosed_volume
 from solver.geometry import droplet, meridian
+from solver.jit import njit
 
 FIRST = 0.01      # µm, element size at the contact line (resolution 1)
 LARGEST = 0.08    # µm, largest element of the free surface

@@ -21,10 +21,10 @@ Python into compiled code a few times instead of a few hundred.
 """
 
 import numpy as np
-from solver.jit import njit
 
 from solver import banded
 from solver.fast_kernel import evaluate
+from solver.jit import njit
 
 CONVERGED, SINGULAR, REJECTED, NOT_CONVERGED = 0, 1, 2, 3   # `newton`'s status
 

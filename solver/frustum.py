@@ -20,6 +20,7 @@ too; lengths in µm, areas in µm², volumes in µm³.
 """
 
 import numpy as np
+
 from solver.jit import njit
 
 

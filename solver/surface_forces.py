@@ -36,9 +36,9 @@ Units: µm, mN/m, nN (mN/m·µm), mN/m/µm for pressures and force densities, s.
 from collections import namedtuple
 
 import numpy as np
-from solver.jit import njit
 
 from solver.frustum import half_volume
+from solver.jit import njit
 
 FREE, PLATE, EQUATOR, POLE = 0, 1, 2, 3
 
