@@ -129,10 +129,10 @@ def _bending(Hd, kappa, w, want_h):
         Hij[i, 4] = Hij[4, i] = -0.25 * c / r**2
     Hij[4, 4] = s / r**3
     for i in range(5):
-        for j in range(5):
-            aij = 0.5 if (i == 4 and 2 <= j < 4) or (j == 4 and 2 <= i < 4) else 0.0
-            h[i, j] = kappa * (2 * Hi[i] * Hi[j] * A + 2 * (u * A) * Hij[i, j]
-                               + 2 * u * (Hi[i] * Ai[j] + Ai[i] * Hi[j]) + (u * u) * aij)
+        for j in range(i, 5):           # symmetric: the upper triangle, mirrored
+            aij = 0.5 if i >= 2 and j == 4 and i < 4 else 0.0
+            h[i, j] = h[j, i] = kappa * (2 * Hi[i] * Hi[j] * A + 2 * (u * A) * Hij[i, j]
+                                         + 2 * u * (Hi[i] * Ai[j] + Ai[i] * Hi[j]) + (u * u) * aij)
     return kappa * u * u * A
 
 
@@ -244,16 +244,22 @@ def _bend_node(k, r, t, w, want_h):
     a = k - 1
     w.b[0], w.b[1], w.b[2], w.b[3], w.b[4] = w.th[a], w.th[k], w.ds[a], w.ds[k], r[k]
     value = _bending(t.Hd, 8.0 * np.pi * t.B, w, want_h)
-    gb, Jb = w.gb, w.J
-    _zero(Jb, 5, 6)
-    for j in range(4):
-        Jb[0, j], Jb[1, 2 + j] = w.gth[a, j], w.gth[k, j]
-        Jb[2, j], Jb[3, 2 + j] = w.gds[a, j], w.gds[k, j]
-    Jb[4, 2] = 1.0
-    for j in range(6):
-        w.g[j] = gb[0] * Jb[0, j] + gb[1] * Jb[1, j] + gb[2] * Jb[2, j] + gb[3] * Jb[3, j] + gb[4] * Jb[4, j]
+    gb, gth, gds = w.gb, w.gth, w.gds
+    for j in range(6):                  # Σ_i (∂f/∂b_i) ∇b_i: a's θ, ds on 0..3, b's on 2..5, r_k on 2
+        v = 0.0
+        if j < 4:
+            v += gb[0] * gth[a, j]
+        if j >= 2:
+            v += gb[1] * gth[k, j - 2]
+        if j < 4:
+            v += gb[2] * gds[a, j]
+        if j >= 2:
+            v += gb[3] * gds[k, j - 2]
+        if j == 2:
+            v += gb[4]
+        w.g[j] = v
     if want_h:                          # J^T (∂²f/∂b²) J block by block, J's structure used
-        hb, gth, gds = w.hb, w.gth, w.gds
+        hb = w.hb
         _zero(w.h, 6, 6)
         _couple(w.h, 0, 0, gth, gds, a, a, hb[0, 0], hb[0, 2], hb[2, 0], hb[2, 2], False)
         _couple(w.h, 0, 2, gth, gds, a, k, hb[0, 1], hb[0, 3], hb[2, 1], hb[2, 3], True)
