@@ -67,8 +67,8 @@ def solve(ab, kl, ku, ipiv, B):
             if y != 0.0:
                 for i in range(1, lm + 1):
                     B[j + i, c] -= ab[kv + i, j] * y
-    for c in range(B.shape[1]):
-        for j in range(n - 1, -1, -1):
+    for j in range(n - 1, -1, -1):      # the columns side by side: independent chains overlap
+        for c in range(B.shape[1]):
             if B[j, c] != 0.0:
                 B[j, c] /= ab[kv, j]
                 y = B[j, c]

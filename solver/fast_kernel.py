@@ -36,7 +36,7 @@ Terms = namedtuple("Terms", "cten KB KS B Hd kc elem_idx bend_idx slot band")
 L_SLOT, P_SLOT, NO_SLOT = -1, -2, -3
 # per-element lengths and angles with their derivatives, and scratch buffers
 # (allocated once per evaluation: small allocations would dominate)
-_Work = namedtuple("_Work", "ds gds hds th gth hth g h J F T b gb hb Hi Hij Ai")
+_Work = namedtuple("_Work", "ds gds hds th gth hth g h J F T b gb hb Hi Hij Ai sl")
 
 
 @njit(inline="always", error_model="numpy")
@@ -44,7 +44,7 @@ def _work(N):
     return _Work(np.empty(N), np.empty((N, 4)), np.empty((N, 4, 4)), np.zeros(N),
                  np.zeros((N, 4)), np.zeros((N, 4, 4)), np.empty(6), np.empty((6, 6)),
                  np.empty((5, 6)), np.empty((5, 5)), np.empty((5, 6)), np.empty(5), np.empty(5),
-                 np.empty((5, 5)), np.empty(5), np.empty((5, 5)), np.empty(5))
+                 np.empty((5, 5)), np.empty(5), np.empty((5, 5)), np.empty(5), np.empty(6, np.int64))
 
 
 @njit(inline="always", error_model="numpy")
@@ -77,21 +77,29 @@ def _angle(dr, dz, g, h, e):
 
 
 @njit(inline="always", error_model="numpy")
-def _sandwich(J, F, out, T, nk, na):
-    """out += J^T F J for the leading (nk × na) J and (nk × nk) F, through
-    T = F J (zeros in J skipped)."""
-    for k in range(nk):
-        for b in range(na):
-            T[k, b] = 0.0
-        for q in range(nk):
-            for b in range(na):
-                if J[q, b] != 0.0:
-                    T[k, b] += F[k, q] * J[q, b]
-    for a in range(na):
-        for k in range(nk):
-            if J[k, a] != 0.0:
-                for b in range(na):
-                    out[a, b] += J[k, a] * T[k, b]
+def _couple(h, oi, oj, th, ds, ea, eb, c00, c01, c10, c11, mirror):
+    """h[oi:oi+4, oj:oj+4] += P_a^T C P_b, and its transpose into h[oj:oj+4,
+    oi:oi+4] if mirror, with P_e = [∇θ_e; ∇ds_e] (2 × 4) of elements a = ea,
+    b = eb from th, ds and C = [[c00, c01], [c10, c11]]: a bending term's
+    J^T (∂²f/∂b²) J over the angles and lengths of two elements."""
+    for j in range(4):
+        t0 = c00 * th[eb, j] + c01 * ds[eb, j]
+        t1 = c10 * th[eb, j] + c11 * ds[eb, j]
+        for i in range(4):
+            v = th[ea, i] * t0 + ds[ea, i] * t1
+            h[oi + i, oj + j] += v
+            if mirror:
+                h[oj + j, oi + i] += v
+
+
+@njit(inline="always", error_model="numpy")
+def _couple_r(h, o, th, ds, e, c0, c1):
+    """h[o:o+4, 2] and h[2, o:o+4] += P_e^T (c0, c1): a bending term's coupling
+    of the node's r (local index 2) with element e's angle and length."""
+    for i in range(4):
+        v = th[e, i] * c0 + ds[e, i] * c1
+        h[o + i, 2] += v
+        h[2, o + i] += v
 
 
 @njit(inline="always", error_model="numpy")
@@ -108,6 +116,11 @@ def _bending(Hd, kappa, w, want_h):
     Hi[0], Hi[1] = -0.5 / ell + 0.25 * c / r, 0.5 / ell + 0.25 * c / r
     Hi[2] = Hi[3] = -0.25 * D / ell**2
     Hi[4] = -0.5 * s / r**2
+    Ai[0], Ai[1], Ai[2], Ai[3], Ai[4] = 0.0, 0.0, 0.5 * r, 0.5 * r, ell
+    for i in range(5):
+        g[i] = kappa * (2 * u * Hi[i] * A + (u * u) * Ai[i])
+    if not want_h:
+        return kappa * u * u * A
     _zero(Hij, 5, 5)
     for i in range(2):
         for j in range(2):
@@ -116,14 +129,11 @@ def _bending(Hd, kappa, w, want_h):
             Hij[i, 2 + j] = Hij[2 + j, i] = (1.0 - 2.0 * i) * 0.25 / ell**2
         Hij[i, 4] = Hij[4, i] = -0.25 * c / r**2
     Hij[4, 4] = s / r**3
-    Ai[0], Ai[1], Ai[2], Ai[3], Ai[4] = 0.0, 0.0, 0.5 * r, 0.5 * r, ell
     for i in range(5):
-        g[i] = kappa * (2 * u * Hi[i] * A + (u * u) * Ai[i])
-    for i in range(5 if want_h else 0):
-        for j in range(5):
-            aij = 0.5 if (i == 4 and 2 <= j < 4) or (j == 4 and 2 <= i < 4) else 0.0
-            h[i, j] = kappa * (2 * Hi[i] * Hi[j] * A + 2 * (u * A) * Hij[i, j]
-                               + 2 * u * (Hi[i] * Ai[j] + Ai[i] * Hi[j]) + (u * u) * aij)
+        for j in range(i, 5):           # symmetric: the upper triangle, mirrored
+            aij = 0.5 if i >= 2 and j == 4 and i < 4 else 0.0
+            h[i, j] = h[j, i] = kappa * (2 * Hi[i] * Hi[j] * A + 2 * (u * A) * Hij[i, j]
+                                         + 2 * u * (Hi[i] * Ai[j] + Ai[i] * Hi[j]) + (u * u) * aij)
     return kappa * u * u * A
 
 
@@ -159,26 +169,26 @@ def _surface(e, x, ref, t, w, want_h):
     value = k4 * (c * rm * ds + wv * r0m * dS)
     if not want_h:
         return value
-    J, F = w.J, w.F                          # their leading (4, 6) and (4, 4)
-    _zero(J, 4, 6)
-    for j in range(4):
-        J[0, j] = gds[e, j]
-    J[1, 0] = J[1, 2] = 0.5
-    J[2, 4], J[3, 4] = dS_l, r0m_l
-    F[0, 0] = k4 * (wa * r0m / dS)
-    F[0, 1] = F[1, 0] = k4 * (c + wb)
-    F[0, 2] = F[2, 0] = k4 * (-wa * l1 * r0m / dS)
-    F[0, 3] = F[3, 0] = k4 * (w1 - wb * l2)
-    F[1, 1] = k4 * (wa * dS / r0m)
-    F[1, 2] = F[2, 1] = k4 * (w2 - wb * l1)
-    F[1, 3] = F[3, 1] = k4 * (-wa * l2 * dS / r0m)
-    F[2, 2] = k4 * (wa * r0m * l1**2 / dS)
-    F[2, 3] = F[3, 2] = k4 * (wv - w1 * l1 - w2 * l2 + wb * l1 * l2)
-    F[3, 3] = k4 * (wa * dS * l2**2 / r0m)
-    _zero(he, 6, 6)
-    _sandwich(J, F, he, w.T, 4, 6)
-    _add_block(he, fa0, w.hds, e)            # the length's curvature times ∂f/∂ds
-    he[4, 4] += fa2 * dS_ll + fa3 * r0m_ll
+    # ∂²f/∂a² (symmetric, a = (ds, r̄, dS, r̄0)), then J^T (∂²f/∂a²) J written out:
+    # J's rows are ∇ds (on the positions), m = ∇r̄ = (1/2, 0, 1/2, 0) and
+    # dS_l, r̄0_l (on l), so the position block is F00 ∇ds∇ds^T + F01 (∇ds m^T
+    # + m ∇ds^T) + F11 m m^T, plus the length's curvature times ∂f/∂ds
+    F00, F01, F11 = k4 * (wa * r0m / dS), k4 * (c + wb), k4 * (wa * dS / r0m)
+    F02, F03 = k4 * (-wa * l1 * r0m / dS), k4 * (w1 - wb * l2)
+    F12, F13 = k4 * (w2 - wb * l1), k4 * (-wa * l2 * dS / r0m)
+    F22, F23 = k4 * (wa * r0m * l1**2 / dS), k4 * (wv - w1 * l1 - w2 * l2 + wb * l1 * l2)
+    F33 = k4 * (wa * dS * l2**2 / r0m)
+    ul, vl = F02 * dS_l + F03 * r0m_l, F12 * dS_l + F13 * r0m_l
+    for i in range(4):
+        gi, mi = gds[e, i], 0.5 * (1 - i % 2)
+        for j in range(4):
+            gj, mj = gds[e, j], 0.5 * (1 - j % 2)
+            he[i, j] = F00 * gi * gj + F01 * (gi * mj + mi * gj) + F11 * mi * mj + fa0 * w.hds[e, i, j]
+        he[i, 4] = he[4, i] = gi * ul + mi * vl
+        he[i, 5] = he[5, i] = 0.0
+    he[4, 4] = (F22 * dS_l * dS_l + 2.0 * F23 * dS_l * r0m_l + F33 * r0m_l * r0m_l
+                + fa2 * dS_ll + fa3 * r0m_ll)
+    he[4, 5] = he[5, 4] = he[5, 5] = 0.0
     return value
 
 
@@ -235,17 +245,29 @@ def _bend_node(k, r, t, w, want_h):
     a = k - 1
     w.b[0], w.b[1], w.b[2], w.b[3], w.b[4] = w.th[a], w.th[k], w.ds[a], w.ds[k], r[k]
     value = _bending(t.Hd, 8.0 * np.pi * t.B, w, want_h)
-    gb, Jb = w.gb, w.J
-    _zero(Jb, 5, 6)
-    for j in range(4):
-        Jb[0, j], Jb[1, 2 + j] = w.gth[a, j], w.gth[k, j]
-        Jb[2, j], Jb[3, 2 + j] = w.gds[a, j], w.gds[k, j]
-    Jb[4, 2] = 1.0
-    for j in range(6):
-        w.g[j] = gb[0] * Jb[0, j] + gb[1] * Jb[1, j] + gb[2] * Jb[2, j] + gb[3] * Jb[3, j] + gb[4] * Jb[4, j]
-    if want_h:
+    gb, gth, gds = w.gb, w.gth, w.gds
+    for j in range(6):                  # Σ_i (∂f/∂b_i) ∇b_i: a's θ, ds on 0..3, b's on 2..5, r_k on 2
+        v = 0.0
+        if j < 4:
+            v += gb[0] * gth[a, j]
+        if j >= 2:
+            v += gb[1] * gth[k, j - 2]
+        if j < 4:
+            v += gb[2] * gds[a, j]
+        if j >= 2:
+            v += gb[3] * gds[k, j - 2]
+        if j == 2:
+            v += gb[4]
+        w.g[j] = v
+    if want_h:                          # J^T (∂²f/∂b²) J block by block, J's structure used
+        hb = w.hb
         _zero(w.h, 6, 6)
-        _sandwich(Jb, w.hb, w.h, w.T, 5, 6)
+        _couple(w.h, 0, 0, gth, gds, a, a, hb[0, 0], hb[0, 2], hb[2, 0], hb[2, 2], False)
+        _couple(w.h, 0, 2, gth, gds, a, k, hb[0, 1], hb[0, 3], hb[2, 1], hb[2, 3], True)
+        _couple(w.h, 2, 2, gth, gds, k, k, hb[1, 1], hb[1, 3], hb[3, 1], hb[3, 3], False)
+        _couple_r(w.h, 0, gth, gds, a, hb[0, 4], hb[2, 4])
+        _couple_r(w.h, 2, gth, gds, k, hb[1, 4], hb[3, 4])
+        w.h[2, 2] += hb[4, 4]
         _add_block(w.h, gb[0], w.hth, a)
         _add_block(w.h, gb[2], w.hds, a)
         _add_block(w.h, gb[1], w.hth, k, 2)
@@ -281,34 +303,40 @@ def _bend_equator(r, t, w, want_h):
                     for b in range(5):
                         h3[i, j] += 0.5 * M[a, i] * qh[a, b] * M[b, j]
         _zero(w.h, 6, 6)
-        _sandwich(Jq, h3, w.h, w.hb, 3, 4)  # qh is no longer needed: scratch
+        _couple(w.h, 0, 0, w.gth, w.gds, e, e, h3[0, 0], h3[0, 1], h3[1, 0], h3[1, 1], False)
+        _couple_r(w.h, 0, w.gth, w.gds, e, h3[0, 2], h3[1, 2])
+        w.h[2, 2] += h3[2, 2]
         _add_block(w.h, g0, w.hth, e)
         _add_block(w.h, g1, w.hds, e)
     return 0.5 * value
 
 
 @njit(inline="always", error_model="numpy")
-def _scatter(grad, band, lp, idx, row, m, slot, bw, g, h, want_h):
+def _scatter(grad, band, lp, idx, row, m, slot, bw, g, h, want_h, sl):
     """Add the local gradient g[:m] at the global indices idx[row, :m], and the local
     Hessian h into the Newton matrix (band, lp) (arrays, not the tuples
     of `evaluate`: each array handed to an inlined function costs a reference
     count): entries between positions into the band (LAPACK storage
     ab[bw + i - j, j] = A[i, j]), the columns of l and p into lp[0], lp[1];
-    z_p and fixed rows are dropped."""
-    n = lp.shape[1]
+    z_p and fixed rows (NO_SLOT) are dropped. sl: scratch for the m slots."""
     for a in range(m):
         I = idx[row, a]
         grad[I] += g[a]
-        if not want_h:
+        sl[a] = slot[I]
+    if not want_h:
+        return
+    for a in range(m):
+        I, si = idx[row, a], sl[a]
+        if si == NO_SLOT:
             continue
-        si = slot[I]
         for b in range(m):
-            sj = slot[idx[row, b]]
-            if si >= 0 and sj >= 0:
-                band[bw + si - sj, sj] += h[a, b]
-            elif I < n and sj == L_SLOT:
+            sj = sl[b]
+            if sj >= 0:
+                if si >= 0:
+                    band[bw + si - sj, sj] += h[a, b]
+            elif sj == L_SLOT:
                 lp[0, I] += h[a, b]
-            elif I < n and sj == P_SLOT:
+            elif sj == P_SLOT:
                 lp[1, I] += h[a, b]
 
 
@@ -334,11 +362,11 @@ def evaluate(x, ref, t, n, want_h):
         # tension, stretching and volume of element e: the value; fills
         # w.g (6,), w.h (6, 6) in (r_k, z_k, r_k+1, z_k+1, l, p)
         value += _surface(e, x, ref, t, w, want_h) - _volume(e, r, z, p, g, h, want_h)
-        _scatter(grad, band, lp, t.elem_idx, e, 6, slot, t.band, g, h, want_h)
+        _scatter(grad, band, lp, t.elem_idx, e, 6, slot, t.band, g, h, want_h, w.sl)
     if t.B > 0:
         for k in range(t.kc, N):
             value += _bend_node(k, r, t, w, want_h)
-            _scatter(grad, band, lp, t.bend_idx, k - t.kc, 6, slot, t.band, g, h, want_h)
+            _scatter(grad, band, lp, t.bend_idx, k - t.kc, 6, slot, t.band, g, h, want_h, w.sl)
         value += _bend_equator(r, t, w, want_h)
-        _scatter(grad, band, lp, t.elem_idx, N - 1, 4, slot, t.band, g, h, want_h)
+        _scatter(grad, band, lp, t.elem_idx, N - 1, 4, slot, t.band, g, h, want_h, w.sl)
     return value, grad, (band, lp)

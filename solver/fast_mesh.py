@@ -92,19 +92,25 @@ def _positions(logpsic, labels, shape):
         z1 = -r * s / (q * S)
         z2 = -(r1 * s + r * c - r * s * s * c / q**2) / (q * S)
         k = nd + j
-        out[0, k], out[1, k] = r, _chebval(4.0 * psi / np.pi - 1.0, zcoef)
+        out[0, k], out[1, k] = r, 4.0 * psi / np.pi - 1.0     # z0(ψ0)'s argument: z0 below
         out[2, k], out[3, k] = r1 * dpsi, z1 * dpsi
         out[4, k], out[5, k] = r2 * dpsi**2 + r1 * dpsi, z2 * dpsi**2 + z1 * dpsi
+    _chebval(out[1, nd:], zcoef)
     return out[0], out[1], out[2], out[3], out[4], out[5]
 
 
 @njit(cache=True)
 def _chebval(x, c):
-    """Σ c_i T_i(x) by Clenshaw's recurrence (numpy's chebval, compiled)."""
-    b1, b2 = 0.0, 0.0
+    """x[k] <- Σ c_i T_i(x[k]) for every k by Clenshaw's recurrence (numpy's
+    chebval, compiled), the points advanced together: each step's points are
+    independent, so they overlap in the pipeline instead of waiting on one
+    point's chain of steps."""
+    b1, b2 = np.zeros(x.size), np.zeros(x.size)
     for i in range(c.size - 1, 0, -1):
-        b1, b2 = 2.0 * x * b1 - b2 + c[i], b1
-    return x * b1 - b2 + c[0]
+        for k in range(x.size):
+            b1[k], b2[k] = 2.0 * x[k] * b1[k] - b2[k] + c[i], b1[k]
+    for k in range(x.size):
+        x[k] = x[k] * b1[k] - b2[k] + c[0]
 
 
 def _ramp(first, largest, total, growth=1.15):
