@@ -18,10 +18,9 @@ max |g_x| < tol · force_scale and |g_p| = |V - V0| < 1e-9 V0.
 The whole iteration (kernel evaluation `solver.fast_kernel.evaluate`, solve,
 admissibility, step halving) is one compiled call, so a solve crosses from
 Python into compiled code a few times instead of a few hundred. Its cached
-machine code includes the kernel and the LU, but numba's cache checks only
-this file's time stamp: after editing `solver/fast_kernel.py` or
-`solver/banded.py` alone, delete `solver/__pycache__/fast_newton.*.nb[ic]`
-(or this file's cache is used with the old kernel).
+machine code includes the kernel and the LU; `solver.jit` keeps the cache
+per version of all the compiled sources, so an edit to either compiles the
+iteration afresh.
 """
 
 import numpy as np

@@ -1,4 +1,5 @@
-"""numba's `njit`, with numba started without importing scipy.linalg.
+"""numba's `njit`, started without importing scipy.linalg, its on-disk cache
+kept per version of the compiled sources.
 
 When numba first compiles or loads a function from its cache, it imports
 `numba.np.arraymath`, which imports `scipy.linalg` only to learn whether
@@ -11,9 +12,22 @@ scipy.linalg hidden; numba then uses its own loop for those inner
 products, and numba's linear algebra, if ever compiled, still imports
 scipy itself then. A process that has imported scipy.linalg already is
 left as it is.
+
+numba's cache checks only the time stamp of the file that holds a function,
+yet a compiled function carries the code of those it calls from other
+files (`fast_newton`'s Newton iteration holds the kernel of `fast_kernel`
+and the LU of `banded`): after a change to `fast_kernel.py` alone, the old
+kernel would go on running inside the cached iteration. So the cache is a
+folder per version of all the compiled sources (`cache_dir`: a hash of
+every module that takes `njit` from here), below numba's own cache
+folder if one is set (NUMBA_CACHE_DIR), else below `solver/__pycache__`.
+A change to any of them compiles afresh (about a minute, once).
 """
 
+import hashlib
 import importlib
+import os
+import pathlib
 import sys
 
 
@@ -28,7 +42,20 @@ def _import_without_scipy_linalg(module):
         del sys.modules["scipy.linalg"]
 
 
+def cache_dir(base, package=pathlib.Path(__file__).parent):
+    """`base`/numba-<hash of the sources of the modules of `package` that compile>."""
+    digest = hashlib.sha256()
+    for path in sorted(pathlib.Path(package).glob("*.py")):
+        text = path.read_bytes()
+        if b"from solver.jit import njit" in text:
+            digest.update(path.name.encode() + b"\0" + text)
+    return os.path.join(base, "numba-" + digest.hexdigest()[:16])
+
+
 _import_without_scipy_linalg("numba.np.arraymath")
+import numba  # noqa: E402
 from numba import njit  # noqa: E402
+
+numba.config.CACHE_DIR = cache_dir(numba.config.CACHE_DIR or str(pathlib.Path(__file__).parent / "__pycache__"))
 
 __all__ = ["njit"]

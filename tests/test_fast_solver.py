@@ -1,6 +1,7 @@
 """The fast equilibrium solver against the physics it must reproduce (SPEC 2, 3)."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -89,3 +90,23 @@ def test_a_compression_does_not_import_scipy_linalg_and_leaves_it_importable():
             "import scipy.linalg\nprint(float(scipy.linalg.solve([[2.0]], [4.0])[0]))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True", "2.0"]
+
+
+def test_the_compile_cache_follows_every_compiled_source(tmp_path):
+    """A compiled function carries the code it calls from other files, so the
+    cache folder (solver.jit.cache_dir) changes with any module that compiles,
+    and with no other."""
+    from solver import jit
+    package = tmp_path / "solver"
+    package.mkdir()
+    here = os.path.dirname(jit.__file__)
+    for name in ("fast_kernel.py", "fast_newton.py", "cli.py"):
+        (package / name).write_bytes(open(os.path.join(here, name), "rb").read())
+    before = jit.cache_dir("base", package)
+    with open(package / "cli.py", "a") as f:
+        f.write("# an edit to a module that compiles nothing\n")
+    assert jit.cache_dir("base", package) == before
+    with open(package / "fast_kernel.py", "a") as f:
+        f.write("# an edit to the kernel alone\n")
+    after = jit.cache_dir("base", package)
+    assert after != before and os.path.dirname(after) == "base"
