@@ -63,7 +63,9 @@ def integrate(k, psi_end, gl_x, gl_w, intervals, growth):
 
 
 @njit(cache=True, error_model="numpy")
-def _h_tilde(z, vol):
+def height_ratio(z, vol):
+    """h̃ = 2z / (2 cbrt(3 · 2V / 4π)) of half integrals (z, V) to the equator
+    (numbers or arrays)."""
     return (2.0 * z) / (2.0 * np.cbrt(3.0 * (2.0 * vol) / (4.0 * np.pi)))
 
 
@@ -91,7 +93,7 @@ def solve(h_tilde, xs, ys, k_max, gl_x, gl_w, intervals, growth):
         ki, slope = _start(u, xs, ys)
         for _ in range(2):
             zi, vi, _a = half_integrals(ki, np.pi / 2, gl_x, gl_w, intervals, growth)
-            uk = np.sqrt(max(1.0 - _h_tilde(zi, vi), 0.0))
+            uk = np.sqrt(max(1.0 - height_ratio(zi, vi), 0.0))
             step = min(max(ki + (u - uk) * slope, 0.0), k_max)
             moved = np.abs(step - ki) > 1e-9 * step
             ki = step

@@ -90,7 +90,7 @@ def _half_integrals(k, psi_end=None):
 def _h_tilde_of_k(k):
     """h̃ as a function of k = R_c/R_eq (shape only, scale free)."""
     z, vol, _ = _half_integrals(k)
-    return (2.0 * z) / (2.0 * np.cbrt(3.0 * (2.0 * vol) / (4.0 * np.pi)))
+    return _quadrature().height_ratio(z, vol)
 
 
 @lru_cache(maxsize=1)
