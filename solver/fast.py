@@ -12,7 +12,8 @@ the pressure p. Newton's method (exact Hessian, banded solves) finds the
 positions and p at fixed l; the reduced energy E*(l) (that equilibrium's
 energy) is very flat in l, and its unconstrained minimum has the free
 surface poking through the plate, so l is found by an outer safeguarded
-Newton search for the admissible local minimum of E*(l) (`_contact`). The
+Newton search for the admissible local minimum of E*(l) (`_contact`,
+compiled whole in `solver.fast_contact`). The
 start is the reference state, followed along h0 → h1 in 1, 2, 4 or 8 steps
 (the contact predicted from the droplet on the way), or, for a tension-only
 shell, the droplet at h1 (its exact answer).
@@ -39,19 +40,17 @@ from functools import lru_cache
 
 import numpy as np
 
-from solver import fast_newton
+from solver import fast_contact, fast_newton
 from solver.errors import SolverError
+from solver.fast_contact import LOG_PSI_MIN
 from solver.fast_energy import Lagrangian, NewtonMatrix
 from solver.fast_mesh import reference
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 from solver.solution import Solution
 
-LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
-LOG_PSI_MAX = np.log(1.0)        # at most a radian of the free surface on the plate
 STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
-TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
-TOL_L = 1e-3                 # bracket width at which the touching label is accepted
+NEWTON_MAXIT = 30            # Newton iterations at one contact label at most
 
 
 def _admissible(lag, u, zp):
@@ -63,7 +62,7 @@ def _admissible(lag, u, zp):
 
 def _gap(lag, u, zp):
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
-    return np.max(lag.nodes(u, zp)[1][lag.kc + 1:]) - zp * (1.0 + 1e-9)
+    return fast_contact._gap(np.asarray(u, dtype=float), float(zp), lag.N, lag.kc)
 
 
 def _slack(lag, u, zp):
@@ -77,32 +76,29 @@ def _slack(lag, u, zp):
     return 0.1 * np.hypot(r[lag.kc + 1] - r[lag.kc], z[lag.kc + 1] - z[lag.kc])
 
 
-def _newton(lag, u, zp, tol=1e-6, maxit=30):
+def _newton(lag, u, zp, tol=1e-6, maxit=None):
     """Newton's method on ∇L = 0 for the node positions and p at fixed l;
     steps are halved while they leave the admissible shapes or multiply the
     residual (compiled, one call: `solver.fast_newton.newton`). Returns the
     solution, its Newton matrix and the iterations."""
+    maxit = NEWTON_MAXIT if maxit is None else maxit
     status, u, g, band, lp, it = fast_newton.newton(
         np.asarray(u, dtype=float), float(zp), lag.ref.positions(u[-2]), lag.terms, lag.band_order,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit))
+    if status != fast_newton.CONVERGED:
+        _newton_failed(status, g, it, maxit)
+    return u, g, NewtonMatrix(band, lp[0], lp[1]), it
+
+
+def _newton_failed(status, g, it, maxit):
+    """SolverError saying why Newton's method stopped (`fast_newton.newton`'s status)."""
     if status == fast_newton.SINGULAR:
         raise SolverError(f"singular Newton matrix at iteration {it}")
     if status == fast_newton.REJECTED:
         raise SolverError(f"Newton step rejected at iteration {it} (left the admissible "
                           "shapes or made the residual explode)")
-    if status == fast_newton.NOT_CONVERGED:
-        raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
-                          f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
-    return u, g, NewtonMatrix(band, lp[0], lp[1]), it
-
-
-def _reduced(lag, g, H):
-    """dE*/dl and d²E*/dl² of the equilibrium energy at fixed l (Schur complement)
-    and the equilibrium's tangent dx/dl: G = g_l (g_x = 0 at equilibrium),
-    dx/dl = -H_xx⁻¹ h_xl, k = H_ll + h_xl·dx/dl."""
-    hxl = H.lcol[lag.keep]
-    tangent = -lag.solve(H, hxl)[:, 0]
-    return g[-2], H.lcol[-2] + hxl @ tangent, tangent
+    raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
+                      f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
 
 
 def contact_at_least(u):
@@ -110,73 +106,23 @@ def contact_at_least(u):
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
-def _touching_label(touching, lo):
-    """Where the free surface touches the plate: the secant of the gap through
-    the last two labels (l, gap, u) above it (`lo` if their gaps are equal)."""
-    (l1, g1, _), (l2, g2, _) = touching
-    return l1 - g1 * (l1 - l2) / (g1 - g2) if g1 != g2 else lo
-
-
-def _predicted(lag, u, zp, tangent, target):
-    """A copy of u moved to the label `target`, its other unknowns along the
-    equilibrium's `tangent` dx/dl (kept if that leaves the admissible shapes;
-    tangent None: not moved)."""
-    u, l = u.copy(), u[-2]
-    if tangent is not None:
-        keep = lag.keep
-        u[keep] += tangent * (target - l)
-        if not _admissible(lag, u, zp):
-            u[keep] -= tangent * (target - l)
-    u[-2] = target
-    return u
-
-
 def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
-    equilibrium energy at fixed l. Safeguarded Newton on G(l) = dE*/dl = 0
-    with the exact k = dG/dl, steps at most TRUST_L, inside a bracket
-    [lo, hi]: a root lies above any l with G < 0 or whose equilibrium crosses
-    the plate, below any l with G > 0. E* is very flat in l (the contact is
-    set by bending and stretching near the contact line only), hence the
-    bracket. At l = log ψ_min with G > 0 the contact cannot shrink further:
-    that bound is the answer. Where the bracket closes (to TOL_L) between a
-    label whose free surface crosses the plate and one with G > 0, the
-    admissible minimum is the label at which the free surface touches the
-    plate, and that is the answer. Returns the solution and the Newton iterations."""
-    lo, hi, iterations, touching, tangent = LOG_PSI_MIN, LOG_PSI_MAX, 0, [], None
-    for _ in range(maxit):
-        u, g, H, it = _newton(lag, u, zp)
-        iterations += it
-        l, gap = u[-2], _gap(lag, u, zp)
-        if gap > 0:
-            lo, step = l, TRUST_L
-        else:
-            G, k, tangent = _reduced(lag, g, H)
-            if abs(G) < tol * lag.force_scale or (G > 0 and contact_at_least(u)):
-                return u, iterations
-            if G > 0:
-                hi = l
-                touching = [(l, gap, u)] + touching[:1]
-            else:
-                lo = l
-            step = -G / k if k > 0 else -np.sign(G) * TRUST_L
-            step = float(np.clip(step, -TRUST_L, TRUST_L))
-        target = l + step
-        if len(touching) == 2 and gap <= 0 and G > 0:
-            # less contact would lift the free surface through the plate: the
-            # minimum over the admissible labels is where it touches, found
-            # by the secant of the gap through the last two labels above it
-            touch = _touching_label(touching, lo)
-            if abs(touch - touching[0][0]) < TOL_L:
-                return touching[0][2], iterations
-            target = max(target, touch + 0.3 * TOL_L)
-        if hi - lo < TOL_L and touching:
-            return touching[0][2], iterations
-        if not lo < target < hi:
-            target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        u = _predicted(lag, u, zp, tangent if gap <= 0 else None, max(target, LOG_PSI_MIN))
-    raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
-                      f"{maxit} steps)")
+    equilibrium energy at fixed l (compiled, one call:
+    `solver.fast_contact.contact`, whose docstring has the search). Returns
+    the solution and the Newton iterations; SolverError (or LinAlgError for a
+    singular tangent system) as the Python loop raised them."""
+    status, u, g, iterations, last, lo, hi = fast_contact.contact(
+        np.asarray(u, dtype=float), float(zp), *lag.ref.arrays(), lag.terms, lag.band_order, lag.keep,
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT)
+    if status == fast_contact.FOUND:
+        return u, iterations
+    if status == fast_contact.TANGENT_SINGULAR:
+        raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {last})")
+    if status == fast_contact.NO_CONTACT:
+        raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
+                          f"{maxit} steps)")
+    _newton_failed(status, g, last, NEWTON_MAXIT)
 
 
 def _reference_state(lag):

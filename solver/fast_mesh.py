@@ -57,14 +57,18 @@ class Reference:
         last = self.__dict__.get("_last")
         if last is not None and last[0] == logpsic:
             return last[1]
-        shape = np.array([self.a0, self.H, self.beta, self.scale, self.h0])
-        out = _positions(float(logpsic), (self.eta, self.zeta, self.xi, self.zcoef), shape)
+        out = label_positions(float(logpsic), *self.arrays())
         object.__setattr__(self, "_last", (logpsic, out))
         return out
 
+    def arrays(self):
+        """(labels, shape), `label_positions`' description of this mesh:
+        labels = (η, ζ, ξ, Chebyshev series of z0), shape = (a0, H_d, β, S, h0)."""
+        return (self.eta, self.zeta, self.xi, self.zcoef), np.array([self.a0, self.H, self.beta, self.scale, self.h0])
+
 
 @njit(cache=True)
-def _positions(logpsic, labels, shape):
+def label_positions(logpsic, labels, shape):
     """`Reference.positions` compiled: labels = (η, ζ, ξ, Chebyshev series of
     z0), shape = (a0, H_d, β, S, h0). On the free surface, with
     q = sqrt(sin² ψ0 + β²), dr0/dψ0 = r0 cos ψ0 / q and, as dz/dr = -tan ψ0 on
