@@ -1,7 +1,7 @@
 # Thin wrappers over the `cortex` command. `make demo` and `make test` install
 # whatever is missing first (a virtual environment in .venv/).
 #
-#   make setup           .venv/: the default stack (MPICH wheel from PyPI, serial h5py)
+#   make setup           .venv/: the default stack (MPICH wheel from PyPI, serial h5py), the solver compiled
 #   make setup-parallel  .venv-mpio/: Debian's MPICH + parallel HDF5, h5py built with MPI
 #   make demo            the main job, end to end
 #   make test            the whole suite, MPI tests on both stacks
@@ -33,6 +33,8 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[mpich,test]'
+	@echo "setup: compiling the fast solver once (numba's on-disk cache, about a minute; later processes and MPI ranks load it)"
+	@$(BIN)/cortex compress --h0 12 --bulk 25 --shear 10 --tension 1 >/dev/null
 	@touch $@
 
 # scripts/setup-parallel.sh is a fast no-op once done; it exits 77 where the
@@ -120,4 +122,4 @@ bench-full: setup
 	@$(call run_benches,bench/*.py)
 
 clean:
-	rm -rf $(VENV) $(PVENV) build *.egg-info
+	rm -rf $(VENV) $(PVENV) build *.egg-info solver/__pycache__/numba-*
