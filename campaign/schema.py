@@ -18,6 +18,7 @@ so the readers (and `cortex campaign status`) load neither numba nor the solver.
 
 import hashlib
 import json
+import math
 import operator
 
 import numpy as np
@@ -59,6 +60,39 @@ def task_id(shell, method):
     sort_keys=True)), stable across runs."""
     key = _SORTED_JSON.encode({**shell.to_dict(), "method": method})
     return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def task_ids(shells, method):
+    """`task_id` of every shell, the same ids, the JSON text made from a
+    template of the sorted keys (`_id_template`) where the numbers are finite
+    floats (json prints those as their repr), else by `task_id` itself: a
+    campaign's million ids in a third of the time."""
+    templates, names = {}, {}
+    for shell in shells:
+        layout = (shell.viscosity_Pa_s is None, shell.frequency_hz is None, shell.bending_pN_um is None)
+        if layout not in templates:
+            templates[layout] = _id_template(shell, method)
+        body, numbers = templates[layout]
+        values, name = numbers(shell), shell.bending
+        if type(name) is str and set(map(type, values)) == _FLOAT and math.isfinite(sum(values)):
+            text = names.get(name) or names.setdefault(name, json.dumps(name))
+            yield hashlib.sha256((body % (text, *values)).encode()).hexdigest()[:16]
+        else:
+            yield task_id(shell, method)
+
+
+_FLOAT = {float}
+
+
+def _id_template(shell, method):
+    """(text with %s for the bending name and %r for each number, getter of
+    those numbers) for shells laid out as `shell` (which optional values are None)."""
+    keys = sorted({**shell.to_dict(), "method": method})
+    fixed = {"method": json.dumps(method).replace("%", "%%"), "bending": "%s"}
+    if shell.bending_pN_um is None:
+        fixed["bending_pN_um"] = "null"
+    body = "{" + ", ".join(f"{json.dumps(k)}: {fixed.get(k, '%r')}" for k in keys) + "}"
+    return body, operator.attrgetter(*[k for k in keys if k not in fixed])
 
 
 def results_table(results, keys):
@@ -105,7 +139,7 @@ def fill(f, campaign, attrs):
     for key in PARAMS:
         f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
     for key, values in (("bending", [s.bending for s in campaign.shells]),
-                        ("task_id", [task_id(s, campaign.method) for s in campaign.shells])):
+                        ("task_id", list(task_ids(campaign.shells, campaign.method)))):
         f.create_dataset(key, data=fixed_strings(values))
     for key in RESULTS:
         f.create_dataset(key, data=np.full(n, np.nan))

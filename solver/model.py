@@ -10,6 +10,7 @@ Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
+from operator import attrgetter
 
 import numpy as np
 
@@ -112,6 +113,22 @@ class Shell:
 
 
 _FIELDS = tuple(f.name for f in fields(Shell))
+_OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # left out of to_dict when None
+
+
+def dict_texts(shells):
+    """repr(shell.to_dict()) of every shell, the same text, from a template of
+    to_dict's keys (`%r` is what a dict's repr calls on each value) instead of
+    building and printing a dict: a campaign fingerprints every one of up to
+    a million shells (`campaign.config.Campaign.fingerprint`)."""
+    templates = {}
+    for shell in shells:
+        layout = (shell.viscosity_Pa_s is None, shell.frequency_hz is None)
+        if layout not in templates:
+            names = [n for n in _FIELDS if not (n in _OPTIONAL and layout[_OPTIONAL.index(n)])]
+            templates[layout] = ("{" + ", ".join(f"{n!r}: %r" for n in names) + "}", attrgetter(*names))
+        text, values = templates[layout]
+        yield text % values(shell)
 
 
 @lru_cache(maxsize=64)
