@@ -62,7 +62,7 @@ def _admissible(lag, u, zp):
 
 def _gap(lag, u, zp):
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
-    return fast_contact._gap(np.asarray(u, dtype=float), float(zp), lag.N, lag.kc)
+    return fast_contact.gap(np.asarray(u, dtype=float), float(zp), lag.N, lag.kc)
 
 
 def _slack(lag, u, zp):

@@ -42,7 +42,7 @@ FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
 
 
 @njit(cache=True)
-def _gap(u, zp, N, kc):
+def gap(u, zp, N, kc):
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
     z = nodes(u, zp, N, kc)[1]
     return np.max(z[kc + 1:]) - zp * (1.0 + 1e-9)
@@ -109,8 +109,8 @@ def contact(u, zp, labels, shape, terms, order, keep, N, V0, force_scale, tol, m
         if status != CONVERGED:
             return status, u, g, iterations, it, lo, hi
         iterations += it
-        l, gap = u[-2], _gap(u, zp, N, kc)
-        if gap > 0:
+        l, above = u[-2], gap(u, zp, N, kc)
+        if above > 0:
             lo, step = l, TRUST_L
         else:
             G, k, tangent, info = _tangent(g, band, lp, order, keep, terms.band)
@@ -121,13 +121,13 @@ def contact(u, zp, labels, shape, terms, order, keep, N, V0, force_scale, tol, m
             if G > 0:
                 hi = l
                 t1_l, t1_gap = t0_l, t0_gap
-                t0_l, t0_gap, t0_u = l, gap, u
+                t0_l, t0_gap, t0_u = l, above, u
                 touching = min(touching + 1, 2)
             else:
                 lo = l
             step = _step(G, k)
         target = l + step
-        if touching == 2 and gap <= 0 and G > 0:
+        if touching == 2 and above <= 0 and G > 0:
             # less contact would lift the free surface through the plate: the
             # minimum over the admissible labels is where it touches
             touch = t0_l - t0_gap * (t0_l - t1_l) / (t0_gap - t1_gap) if t0_gap != t1_gap else lo
@@ -138,5 +138,5 @@ def contact(u, zp, labels, shape, terms, order, keep, N, V0, force_scale, tol, m
             return FOUND, t0_u, g, iterations, 0, lo, hi
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        u = _moved(u, zp, N, kc, keep, tangent if gap <= 0 else np.empty(0), max(target, LOG_PSI_MIN))
+        u = _moved(u, zp, N, kc, keep, tangent if above <= 0 else np.empty(0), max(target, LOG_PSI_MIN))
     return NO_CONTACT, u, np.empty(0), iterations, maxit, lo, hi
