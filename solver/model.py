@@ -113,7 +113,6 @@ class Shell:
 
 
 _FIELDS = tuple(f.name for f in fields(Shell))
-_OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # left out of to_dict when None
 
 
 def dict_texts(shells):
@@ -125,7 +124,7 @@ def dict_texts(shells):
     for shell in shells:
         layout = (shell.viscosity_Pa_s is None, shell.frequency_hz is None)
         if layout not in templates:
-            names = [n for n in _FIELDS if not (n in _OPTIONAL and layout[_OPTIONAL.index(n)])]
+            names = list(shell.to_dict())
             templates[layout] = ("{" + ", ".join(f"{n!r}: %r" for n in names) + "}", attrgetter(*names))
         text, values = templates[layout]
         yield text % values(shell)
