@@ -33,8 +33,9 @@
                 CPU, so a test can interrupt a run that is surely still going)
 
 The grid is the Cartesian product of the lists. Every compression is checked
-with `solver.model.Shell`, so an impossible point (Δh ≥ h0, h0 above the free
-sphere, a negative modulus) is refused before anything is written.
+with `solver.model.Shell`'s checks (on a cover of the grid, `_check_grid`), so
+an impossible point (Δh ≥ h0, h0 above the free sphere, a negative modulus) is
+refused before anything is written.
 
 Too big a campaign is refused before it is built: its task count, the
 product of the grid's list lengths n = Π_k len(list_k) plus the Monte-Carlo
@@ -65,6 +66,8 @@ GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # absent: an elastic cell
+CHECK_GROUPS = (("volume_um3", "h0_um", "dh_um"), ("bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"),
+                OPTIONAL)                      # the fields one of Shell's checks reads together
 MAX_TASKS = 100_000
 SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s"},
@@ -210,15 +213,35 @@ def _campaign_section(path, meta):
 
 
 def _shells(path, axes, ratios, resolution):
-    """Every point of the grid's Cartesian product as a checked `Shell`."""
-    shells = []
-    for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
-        p = _absolute(dict(zip(GRID_KEYS, combo)), ratios)
-        try:
-            shells.append(Shell(**p, resolution=resolution))
-        except InputError as err:
-            raise InputError(f"{path}: [grid] {err}") from None
-    return shells
+    """Every point of the grid's Cartesian product as a `Shell`, the grid
+    checked by `_check_grid`, so each shell is made without its own checks."""
+    _check_grid(path, axes, ratios, resolution)
+    points = itertools.product(*(axes[k] for k in GRID_KEYS))
+    if ratios:
+        return [Shell.unchecked(_absolute(dict(zip(GRID_KEYS, p)), ratios), resolution=resolution) for p in points]
+    return [Shell.unchecked(zip(GRID_KEYS, p), resolution=resolution) for p in points]
+
+
+def _check_grid(path, axes, ratios, resolution):
+    """`Shell`'s checks of every grid point, made on a cover of the grid: each
+    check reads one field or the fields of one of CHECK_GROUPS, and a field's
+    values come from its axis, or (a dimensionless axis) from its group's
+    axes, so the points that run through the product of one group's axes (or
+    one other axis), every other axis at its first value, show each check
+    every value it can meet. Where one fails, the points are checked in grid
+    order, which raises the first failing point's error, as before."""
+    first = {k: axes[k][0] for k in GRID_KEYS}
+    groups = CHECK_GROUPS + tuple((k,) for k in GRID_KEYS if all(k not in g for g in CHECK_GROUPS))
+    try:
+        for group in groups:
+            for combo in itertools.product(*(axes[k] for k in group)):
+                Shell(**_absolute({**first, **dict(zip(group, combo))}, ratios), resolution=resolution)
+    except InputError:
+        for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
+            try:
+                Shell(**_absolute(dict(zip(GRID_KEYS, combo)), ratios), resolution=resolution)
+            except InputError as err:
+                raise InputError(f"{path}: [grid] {err}") from None
 
 
 def _check_montecarlo_grid(path, mc, grid, ratios):

@@ -8,7 +8,7 @@ Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 """
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
 from functools import lru_cache
 from operator import attrgetter
 
@@ -101,6 +101,17 @@ class Shell:
             return poisson_ratio(self.bulk_mN_per_m, self.shear_mN_per_m)
         return float("nan")
 
+    @classmethod
+    def unchecked(cls, values=(), **more):
+        """A shell of `values` and `more` (as `dict.update` takes them), its other
+        fields at their defaults, made without the checks of `__init__`: for
+        values checked another way (`campaign.config` checks a grid on a cover
+        of its points). 0.5 µs instead of 3.4 µs a shell."""
+        shell = object.__new__(cls)
+        shell.__dict__.update(_DEFAULTS)
+        shell.__dict__.update(values, **more)
+        return shell
+
     def to_dict(self):
         """The fields as a dict (the viscous two left out when not given). The
         fields are plain numbers and a name, so no deep copy (`dataclasses.asdict`,
@@ -113,6 +124,7 @@ class Shell:
 
 
 _FIELDS = tuple(f.name for f in fields(Shell))
+_DEFAULTS = {f.name: f.default for f in fields(Shell) if f.default is not MISSING}
 
 
 def dict_texts(shells):

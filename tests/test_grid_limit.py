@@ -34,10 +34,15 @@ def shells_made(monkeypatch):
     made = []
     real = config.Shell
 
-    def counting(**kw):
-        made.append(1)
-        return real(**kw)
-    monkeypatch.setattr(config, "Shell", counting)
+    class Counting:
+        def __call__(self, **kw):                 # a checked shell
+            made.append(1)
+            return real(**kw)
+
+        def unchecked(self, *args, **kw):         # a shell of a checked grid
+            made.append(1)
+            return real.unchecked(*args, **kw)
+    monkeypatch.setattr(config, "Shell", Counting())
     return made
 
 
