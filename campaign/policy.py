@@ -56,6 +56,11 @@ def _mean(old, new):
     return new if old is None else (1 - SMOOTHING) * old + SMOOTHING * new
 
 
+def master_may_compute(workers):
+    """Whether rank 0, serving `workers` workers, ever computes tasks itself."""
+    return workers <= MASTER_WORKERS_MAX
+
+
 class Policy:
     """The queue of tasks to hand out and the rules above.
 
@@ -124,7 +129,7 @@ class Policy:
         """Whether rank 0 computes tasks itself now (module docstring)."""
         if self.workers == 0:
             return True
-        return self.workers <= MASTER_WORKERS_MAX and self.load() <= MASTER_LOAD_MAX
+        return master_may_compute(self.workers) and self.load() <= MASTER_LOAD_MAX
 
     def computing(self):
         """Ranks computing tasks: the workers, and rank 0 when it does."""

@@ -32,14 +32,14 @@ import sys
 import time
 from collections import deque
 
-from campaign.policy import Policy
+from campaign.policy import Policy, master_may_compute
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
 from campaign import faults
 from campaign.mpio_writer import Writer, open_parallel, write_path
 from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
-from campaign.tasks import run_task, warm_up
+from campaign.tasks import run_task, warm_up, warm_up_behind
 from campaign.trial_inputs import TrialInputs
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
@@ -61,6 +61,8 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
+    rank0_computes = comm.Get_rank() == 0 and master_may_compute(comm.Get_size() - 1)
+    warming = warm_up_behind(campaign) if rank0_computes else None    # meanwhile, rank 0 makes the store
     store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
         if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
@@ -77,7 +79,7 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
               file=sys.stderr, flush=True)
     try:
-        status = _master(comm, store, campaign, retry_failed, progress)
+        status = _master(comm, store, campaign, retry_failed, progress, warming)
     except BaseException as err:
         if is_write_failure(err):
             store.abort()             # nothing more is written: the rerun resumes from the journal
@@ -90,8 +92,8 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
 
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store, the others warm up
-    (`campaign.tasks.warm_up`) and wait for it."""
+    and error on every rank: rank 0 opens the store (its warm-up runs behind,
+    `run`), the others warm up (`campaign.tasks.warm_up`) and wait for it."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:
@@ -151,14 +153,15 @@ def _next_message(comm, status):
     return message.recv()
 
 
-def _master(comm, store, campaign, retry_failed, progress):
+def _master(comm, store, campaign, retry_failed, progress, warming=None):
     """Rank 0's loop: serve the workers' results, compute a task itself when the
-    policy says so, until nothing is left (or a signal stopped the hand-outs)."""
+    policy says so and its warm-up (`warming`, a thread) has finished, until
+    nothing is left (or a signal stopped the hand-outs)."""
     master = _Master(comm, store, campaign, retry_failed, progress)
     master.refill()
     while master.active():
         master.serve()
-        if master.handing_out() and master.policy.master_computes():
+        if master.handing_out() and master.policy.master_computes() and _warm(warming, master.policy.workers):
             master.compute_one()
         else:
             time.sleep(IDLE_S)
@@ -167,6 +170,13 @@ def _master(comm, store, campaign, retry_failed, progress):
     master.flush(TAG_STOP)
     master.bar.close()
     return _exit_status(master.policy.left(), master.failed, store.path)
+
+
+def _warm(warming, workers):
+    """Whether rank 0's warm-up thread has finished; waited for when there are no workers to serve."""
+    if warming is not None and workers == 0:
+        warming.join()
+    return warming is None or not warming.is_alive()
 
 
 def _exit_status(left, failed, store_path):

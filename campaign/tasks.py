@@ -9,6 +9,7 @@ the compressions 0..n-1 (grid order), then trial task j is n + j.
 
 import math
 import signal
+import threading
 import time
 import traceback
 
@@ -91,12 +92,15 @@ def _guarded(work, timeout_s):
 
 def warm_up(campaign):
     """Pay, before any task, the once-per-process costs of the campaign's first
-    compression: its solver's modules imported and the droplet geometry's
-    compiled quadrature and inverse table loaded (about 1 s here: importing
-    numba, its first load from the on-disk compile cache), or what its `[test]` fault
-    needs. A worker does this while rank 0 prepares the store, so it is not
-    paid again in the run. Nothing is computed or recorded; a failure here is
-    left for the task itself to meet and report."""
+    compression: its solver's modules imported, the droplet geometry's
+    compiled quadrature and inverse table loaded, and the solver's own warm-up
+    where it has one (the fast solver loads its compiled functions by solving
+    the first compression and throwing it away): 0.6-1 s here, mostly
+    importing numba and its first loads from the on-disk compile cache; or
+    what its `[test]` fault needs. A worker does this while rank 0 prepares
+    the store, rank 0 in a thread meanwhile (`warm_up_behind`), so it is not
+    paid again in the run. Nothing is recorded; a failure here is left for
+    the task itself to meet and report."""
     if not campaign.shells:
         return
     shell, fault = campaign.shells[0], campaign.test.by_row.get(0)
@@ -107,10 +111,23 @@ def warm_up(campaign):
         import importlib
         from solver.compression import METHODS
         from solver.geometry import droplet
-        importlib.import_module(METHODS[campaign.method])
+        solver = importlib.import_module(METHODS[campaign.method])
         droplet(shell.volume_um3, shell.h1_um)
+        if hasattr(solver, "warm_up"):     # a solver's own (the fast one's: its first compression)
+            solver.warm_up(shell)
     except Exception:  # noqa: BLE001  (the task reports it, with its message)
         pass
+
+
+def warm_up_behind(campaign):
+    """`warm_up` in a thread of its own, started now; join it before the
+    process's first task. Rank 0 warms up this way while it makes the store
+    and serves the workers: warmed up in its first task instead, it answered
+    no worker for as long (0.4-0.6 s), and each ran out of work after the
+    few tasks it held."""
+    thread = threading.Thread(target=warm_up, args=(campaign,), name="warm-up", daemon=True)
+    thread.start()
+    return thread
 
 
 def execute(campaign, task, payload):

@@ -234,3 +234,11 @@ def solve(shell):
                     area_um2=lag.area(u, zp), area0_um2=lag.area0, r_um=r, z_um=z,
                     lambda1=lam1, lambda2=lam2, converged=True, iterations=iterations,
                     message=f"contact label psi_c = {psic:.5g}, pressure {p:.6g} mN/m/um")
+
+
+def warm_up(shell):
+    """Load every compiled function a compression calls from numba's on-disk
+    cache (0.1-0.2 s a process, the first time), by solving `shell` once
+    (2-3 ms more) and throwing the result away: what a campaign's ranks do
+    before their first task (`campaign.tasks.warm_up`)."""
+    solve(shell)
