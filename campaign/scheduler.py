@@ -61,8 +61,6 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
-    rank0_computes = comm.Get_rank() == 0 and master_may_compute(comm.Get_size() - 1)
-    warming = warm_up_behind(campaign) if rank0_computes else None    # meanwhile, rank 0 makes the store
     store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
         if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
@@ -74,6 +72,7 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
         return EXIT_DONE
     if parallel_file:
         store.attach(parallel_file)
+    warming = warm_up_behind(campaign) if master_may_compute(comm.Get_size() - 1) else None  # while serving
     if progress:
         print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
@@ -92,8 +91,9 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
 
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store (its warm-up runs behind,
-    `run`), the others warm up (`campaign.tasks.warm_up`) and wait for it."""
+    and error on every rank: rank 0 opens the store, the others warm up
+    (`campaign.tasks.warm_up`) and wait for it (rank 0 warms up afterwards,
+    behind its serving: `_master`)."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:

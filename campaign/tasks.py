@@ -98,8 +98,8 @@ def warm_up(campaign):
     the first compression and throwing it away): 0.6-1 s here, mostly
     importing numba and its first loads from the on-disk compile cache; or
     what its `[test]` fault needs. A worker does this while rank 0 prepares
-    the store, rank 0 in a thread meanwhile (`warm_up_behind`), so it is not
-    paid again in the run. Nothing is recorded; a failure here is left for
+    the store, rank 0 in a thread as it starts serving (`warm_up_behind`),
+    so it is not paid again in the run. Nothing is recorded; a failure here is left for
     the task itself to meet and report."""
     if not campaign.shells:
         return
@@ -121,10 +121,11 @@ def warm_up(campaign):
 
 def warm_up_behind(campaign):
     """`warm_up` in a thread of its own, started now; join it before the
-    process's first task. Rank 0 warms up this way while it makes the store
-    and serves the workers: warmed up in its first task instead, it answered
-    no worker for as long (0.4-0.6 s), and each ran out of work after the
-    few tasks it held."""
+    process's first task. Rank 0 warms up this way while it serves the
+    workers: warmed up in its first task instead, it answered no worker for
+    as long (0.4-0.6 s), and each ran out of work after the few tasks it held.
+    (Started before rank 0 makes the store, it slowed that, which the
+    workers wait for, as much as it gained.)"""
     thread = threading.Thread(target=warm_up, args=(campaign,), name="warm-up", daemon=True)
     thread.start()
     return thread
