@@ -32,10 +32,11 @@
                 task first sleeps that many seconds of wall time, using no
                 CPU, so a test can interrupt a run that is surely still going)
 
-The grid is the Cartesian product of the lists. Every compression is checked
-with `solver.model.Shell`'s checks (on a cover of the grid, `_check_grid`), so
-an impossible point (Δh ≥ h0, h0 above the free sphere, a negative modulus) is
-refused before anything is written.
+The grid is the Cartesian product of the lists (`campaign.grid.Grid`, whose
+shells are made when asked for). Every compression is checked with
+`solver.model.Shell`'s checks (on a cover of the grid, `campaign.grid.check`),
+so an impossible point (Δh ≥ h0, h0 above the free sphere, a negative
+modulus) is refused before anything is written.
 
 Too big a campaign is refused before it is built: its task count, the
 product of the grid's list lengths n = Π_k len(list_k) plus the Monte-Carlo
@@ -54,20 +55,15 @@ from dataclasses import dataclass
 from functools import cached_property
 
 from campaign import faults
+from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
 from solver.elasticity import poisson_ratio, shear_modulus
 from solver.errors import InputError
-from solver.geometry import cell_radius
-from solver.model import BENDING_VARIANTS, Shell, dict_texts
+from solver.model import BENDING_VARIANTS, dict_texts
 
-GRID_KEYS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
-             "tension_mN_per_m", "thickness_um", "bending", "viscosity_Pa_s", "frequency_hz")
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
-OPTIONAL = ("viscosity_Pa_s", "frequency_hz")     # absent: an elastic cell
-CHECK_GROUPS = (("volume_um3", "h0_um", "dh_um"), ("bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"),
-                OPTIONAL)                      # the fields one of Shell's checks reads together
 MAX_TASKS = 100_000
 SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s"},
@@ -85,7 +81,7 @@ class Campaign:
     method: str
     resolution: float
     timeout_s: float
-    shells: tuple          # every compression, in grid order
+    shells: Grid           # every compression, in grid order (made when asked for)
     text: str              # the file's text, kept in the store
     test: faults.Knobs = faults.Knobs()   # the [test] section (tests only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
@@ -131,13 +127,13 @@ def load(path):
     meta = _campaign_section(path, data.get("campaign", {}))
     limit = _max_tasks(path, meta)
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
-    shells = _shells(path, axes, ratios, resolution)
+    shells = check_grid(path, axes, ratios, resolution)
     test = faults.parse(path, data.get("test", {}), len(shells))
     mc = data.get("montecarlo")
     _check_montecarlo_grid(path, mc, grid, ratios)
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
     return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
-                    resolution=resolution, timeout_s=timeout, shells=tuple(shells),
+                    resolution=resolution, timeout_s=timeout, shells=shells,
                     text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
 
 
@@ -212,38 +208,6 @@ def _campaign_section(path, meta):
     return meta
 
 
-def _shells(path, axes, ratios, resolution):
-    """Every point of the grid's Cartesian product as a `Shell`, the grid
-    checked by `_check_grid`, so each shell is made without its own checks."""
-    _check_grid(path, axes, ratios, resolution)
-    points = itertools.product(*(axes[k] for k in GRID_KEYS))
-    if ratios:
-        return [Shell.unchecked(_absolute(dict(zip(GRID_KEYS, p)), ratios), resolution=resolution) for p in points]
-    return [Shell.unchecked(zip(GRID_KEYS, p), resolution=resolution) for p in points]
-
-
-def _check_grid(path, axes, ratios, resolution):
-    """`Shell`'s checks of every grid point, made on a cover of the grid: each
-    check reads one field or the fields of one of CHECK_GROUPS, and a field's
-    values come from its axis, or (a dimensionless axis) from its group's
-    axes, so the points that run through the product of one group's axes (or
-    one other axis), every other axis at its first value, show each check
-    every value it can meet. Where one fails, the points are checked in grid
-    order, which raises the first failing point's error, as before."""
-    first = {k: axes[k][0] for k in GRID_KEYS}
-    groups = CHECK_GROUPS + tuple((k,) for k in GRID_KEYS if all(k not in g for g in CHECK_GROUPS))
-    try:
-        for group in groups:
-            for combo in itertools.product(*(axes[k] for k in group)):
-                Shell(**_absolute({**first, **dict(zip(group, combo))}, ratios), resolution=resolution)
-    except InputError:
-        for combo in itertools.product(*(axes[k] for k in GRID_KEYS)):
-            try:
-                Shell(**_absolute(dict(zip(GRID_KEYS, combo)), ratios), resolution=resolution)
-            except InputError as err:
-                raise InputError(f"{path}: [grid] {err}") from None
-
-
 def _check_montecarlo_grid(path, mc, grid, ratios):
     """Trials need elastic cells on absolute axes."""
     if mc is not None and any(key in grid for key in OPTIONAL):
@@ -281,16 +245,6 @@ def _ratio_axes(path, grid):
                 raise InputError(f"{path}: [grid] {ratio} must be > 0 (got {min(values):g})")
             ratios[key] = values
     return ratios
-
-
-def _absolute(p, ratios):
-    """A grid point with its dimensionless coordinates turned into absolute ones."""
-    if "h0_um" in ratios:
-        p["h0_um"] = 2.0 * float(cell_radius(p["volume_um3"])) * p["h0_um"] + 0.5 * p["dh_um"]
-    for key in ("shear_mN_per_m", "tension_mN_per_m"):
-        if key in ratios:
-            p[key] = p[key] * p["bulk_mN_per_m"]
-    return p
 
 
 def _mc_number(path, key, value, low, high=float("inf"), integer=False):

@@ -136,10 +136,10 @@ def fill(f, campaign, attrs):
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
-    for key in PARAMS:
-        f[key] = np.array([getattr(s, key) for s in campaign.shells], float)
-    for key, values in (("bending", [s.bending for s in campaign.shells]),
-                        ("task_id", list(task_ids(campaign.shells, campaign.method)))):
+    columns = list(zip(*map(operator.attrgetter(*PARAMS, "bending"), campaign.shells)))  # one pass over the grid
+    for key, values in zip(PARAMS, columns):
+        f[key] = np.array(values, float)
+    for key, values in (("bending", columns[-1]), ("task_id", list(task_ids(campaign.shells, campaign.method)))):
         f.create_dataset(key, data=fixed_strings(values))
     for key in RESULTS:
         f.create_dataset(key, data=np.full(n, np.nan))

@@ -102,14 +102,16 @@ class Shell:
         return float("nan")
 
     @classmethod
-    def unchecked(cls, values=(), **more):
-        """A shell of `values` and `more` (as `dict.update` takes them), its other
-        fields at their defaults, made without the checks of `__init__`: for
-        values checked another way (`campaign.config` checks a grid on a cover
-        of its points). 0.5 µs instead of 3.4 µs a shell."""
+    def unchecked(cls, *parts):
+        """A shell of the fields in `parts` (dicts or (name, value) pairs, the
+        later winning), its other fields at their defaults, made without the
+        checks of `__init__`: for values checked another way (`campaign.grid`
+        checks a grid on a cover of its points). 0.5 µs instead of 3.4 µs."""
         shell = object.__new__(cls)
-        shell.__dict__.update(_DEFAULTS)
-        shell.__dict__.update(values, **more)
+        fields_ = shell.__dict__
+        fields_.update(_DEFAULTS)
+        for part in parts:
+            fields_.update(part)
         return shell
 
     def to_dict(self):

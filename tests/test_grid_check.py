@@ -1,6 +1,7 @@
-"""A campaign's grid is checked on a cover of its points (`config._check_grid`)
-and its shells made without checking each again (`Shell.unchecked`): the
-shells are exactly those `Shell(**point)` makes, and a grid with an
+"""A campaign's grid is checked on a cover of its points (`grid.check`) and
+its shells made when asked for without checking each again (`grid.Grid`,
+`Shell.unchecked`): the shells, in order, by index and by slice, are
+exactly those `Shell(**point)` makes, and a grid with an
 impossible point is refused with the same first error as checking every
 point in grid order, for random small grids, dimensionless axes among them,
 with bad values placed anywhere in them."""
@@ -10,7 +11,7 @@ import random
 
 import pytest
 
-from campaign import config
+from campaign import config, grid
 from solver.errors import InputError
 from solver.model import Shell
 
@@ -36,7 +37,7 @@ def _random_axes(rng):
     viscous = rng.random() < 0.3
     axes = {}
     for key, values in GOOD.items():
-        if key in config.OPTIONAL and not viscous:
+        if key in grid.OPTIONAL and not viscous:
             continue
         pool = TILDE[key] if key in ratios else values
         axes[key] = rng.sample(pool, rng.randint(1, min(3, len(pool))))
@@ -47,10 +48,10 @@ def _random_axes(rng):
 
 def _one_by_one(path, axes, ratios):
     """What the grid's shells were before: each point checked by Shell itself, in grid order."""
-    full = {k: axes.get(k, [None]) for k in config.GRID_KEYS}
+    full = {k: axes.get(k, [None]) for k in grid.GRID_KEYS}
     out = []
-    for combo in itertools.product(*(full[k] for k in config.GRID_KEYS)):
-        p = config._absolute(dict(zip(config.GRID_KEYS, combo)), {k: None for k in ratios})
+    for combo in itertools.product(*(full[k] for k in grid.GRID_KEYS)):
+        p = grid.absolute(dict(zip(grid.GRID_KEYS, combo)), {k: None for k in ratios})
         try:
             out.append(Shell(**p, resolution=1.0))
         except InputError as err:
@@ -74,7 +75,12 @@ def test_cover_check_gives_the_same_shells_and_first_error(tmp_path, seed):
             refused += 1
             continue
         shells = config.load(path).shells
-        assert list(shells) == expected
+        assert len(shells) == len(expected) and list(shells) == expected
+        assert [shells[i] for i in range(len(shells))] == expected            # by index, as a task is made
+        k = rng.randrange(len(expected))
+        assert shells[-1 - k] == expected[-1 - k] and shells[k:k + 3] == expected[k:k + 3]
+        with pytest.raises(IndexError):
+            shells[len(expected)]
         assert [s.to_dict() for s in shells] == [s.to_dict() for s in expected]     # values, not just equality
         assert [type(v) for s in shells for v in s.to_dict().values()] == \
             [type(v) for s in expected for v in s.to_dict().values()]
@@ -94,8 +100,30 @@ def test_a_bad_point_deep_in_the_grid_is_refused_with_its_own_error(tmp_path):
 
 def test_unchecked_shell_equals_checked_one():
     p = dict(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=10.0, tension_mN_per_m=1.0)
-    made = Shell.unchecked(p, resolution=2.0)
+    made = Shell.unchecked(p, {"resolution": 2.0})
     assert made == Shell(**p, resolution=2.0) and hash(made) == hash(Shell(**p, resolution=2.0))
     assert made.dh_um == 0.5 and made.viscosity_Pa_s is None and made.bending_stiffness > 0
     with pytest.raises(AttributeError):
         made.h0_um = 3.0                        # still frozen
+
+
+def test_a_campaign_holds_its_axes_not_its_shells(tmp_path):
+    """100,000 compressions: loading the campaign allocates well under what
+    100,000 shells take (~600 bytes each, 60 MB), on every rank; each is made
+    when asked for, the same by index as in order."""
+    import tracemalloc
+    axes = {"h0_um": [10.0 + 0.1 * i for i in range(50)], "shear_mN_per_m": [5.0 + 0.5 * i for i in range(40)],
+            "tension_mN_per_m": [0.5 + 0.05 * i for i in range(50)]}
+    path = tmp_path / "big.toml"
+    path.write_text(_grid_text(axes, set()).replace("[grid]\n", "[grid]\nbulk_mN_per_m = 25.0\n"))
+    config.load(path)                                    # imports and caches out of the count
+    tracemalloc.start()
+    try:
+        shells = config.load(path).shells
+        held = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    assert len(shells) == 100_000 and held < 1_000_000
+    assert shells[54_321] == list(shells)[54_321] == Shell(
+        volume_um3=4300.0, h0_um=axes["h0_um"][27], bulk_mN_per_m=25.0, shear_mN_per_m=axes["shear_mN_per_m"][6],
+        tension_mN_per_m=axes["tension_mN_per_m"][21])

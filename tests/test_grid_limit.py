@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from campaign import config
+from campaign import config, grid
 from conftest import BIN, ROOT
 
 HUGE = """
@@ -32,7 +32,7 @@ def huge(tmp_path, n_heights=100_000, n_shears=20_000, extra=""):
 def shells_made(monkeypatch):
     """How many compressions `config.load` builds."""
     made = []
-    real = config.Shell
+    real = grid.Shell
 
     class Counting:
         def __call__(self, **kw):                 # a checked shell
@@ -42,7 +42,7 @@ def shells_made(monkeypatch):
         def unchecked(self, *args, **kw):         # a shell of a checked grid
             made.append(1)
             return real.unchecked(*args, **kw)
-    monkeypatch.setattr(config, "Shell", Counting())
+    monkeypatch.setattr(grid, "Shell", Counting())
     return made
 
 
