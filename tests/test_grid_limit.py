@@ -4,7 +4,6 @@ count comes from the list lengths, above `[campaign] max_tasks` (default
 giving the count, and no compression is made (counted)."""
 
 import subprocess
-import time
 
 import pytest
 
@@ -48,14 +47,11 @@ def shells_made(monkeypatch):
 
 def test_huge_grid_is_refused_before_anything_is_built(tmp_path, shells_made):
     path = huge(tmp_path)
-    start = time.perf_counter()
     with pytest.raises(config.InputError) as err:
         config.load(path)
-    elapsed = time.perf_counter() - start
     assert "2,000,000,000 compressions" in str(err.value) and "max_tasks" in str(err.value)
     assert "\n" not in str(err.value)
     assert shells_made == []                          # refused from the list lengths alone
-    assert elapsed < 5.0                              # a generous bound: about 1 s here, mostly TOML parsing
 
 
 def test_the_command_says_it_in_one_line_with_status_2(tmp_path):
