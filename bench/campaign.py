@@ -70,14 +70,83 @@ def _timed(cmd, ok=(0,)):
     return wall, out.stdout
 
 
+def _futures_child():
+    """Runs under `python -m mpi4py.futures`: the same no-op calls through its pool."""
+    from mpi4py.futures import MPIPoolExecutor
+    with MPIPoolExecutor() as pool:
+        started = time.perf_counter()
+        n = sum(1 for _ in pool.map(_noop, range(N_NOOP)))
+        print(json.dumps({"n": n, "wall_s": time.perf_counter() - started}))
+
+
+def _noop_run(tmp, name, h0, shear, tension):
+    """Wall time of `mpiexec -n 2 cortex campaign run` of a no-op grid."""
+    cfg = tmp / f"{name}.toml"
+    cfg.write_text(NOOP.format(h0=h0, shear=shear, tension=tension))
+    return _timed([str(BIN / "mpiexec"), "-n", "2", str(BIN / "cortex"), "campaign", "run", str(cfg),
+                   "--store", str(tmp / f"{name}.h5"), "--quiet"])[0]
+
+
+def _engine(tmp):
+    """The no-op figures: 10,000 and 100,000 tasks, the one-task start-up, the
+    import floor, and mpi4py.futures on the same 10,000 calls."""
+    wall = _noop_run(tmp, "noop", _grid(10.0, 15.0, 25), _grid(5.0, 25.0, 20), _grid(0.5, 3.0, 20))
+    wall_100k = _noop_run(tmp, "noop100k", _grid(10.0, 15.0, 50), _grid(5.0, 25.0, 40), _grid(0.5, 3.0, 50))
+    mpiexec = str(BIN / "mpiexec")
+    floor, _ = _timed([mpiexec, "-n", "2", sys.executable, "-c", "import numpy, h5py, mpi4py.MPI"])
+    startup = _noop_run(tmp, "one", "12.0", "8.0", "1.0")
+    futures_wall, out = _timed([mpiexec, "-n", "2", sys.executable, "-m", "mpi4py.futures",
+                                str(pathlib.Path(__file__).resolve()), "--futures-child"])
+    return {
+        "tasks_per_s": round(N_NOOP / wall, 1),
+        "startup_s": round(startup, 2),
+        "tasks_per_s_after_startup": round(N_NOOP / (wall - startup), 1) if wall > startup else None,
+        "tasks_per_s_100k": round(N_BIG / wall_100k, 1),
+        "startup_floor_s": round(floor, 2),
+        "futures_tasks_per_s": round(N_NOOP / futures_wall, 1),
+        "futures_map_only_tasks_per_s": round(N_NOOP / json.loads(out.strip().splitlines()[-1])["wall_s"], 1)}
+
+
+def _paper_commands():
+    """The command lines timed: 1 rank, 2 ranks, and 2 ranks on the parallel-HDF5
+    stack where it is built and installed with this checkout."""
+    cortex = str(BIN / "cortex")
+    commands = {1: [cortex], 2: [str(BIN / "mpiexec"), "-n", "2", cortex]}
+    if (MPIO / "with-mpi").exists() and subprocess.run(
+            [str(MPIO / "python"), "-I", "-c", "import campaign.store"], capture_output=True, cwd=ROOT).returncode == 0:
+        commands["mpio"] = [str(MPIO / "with-mpi"), "mpiexec", "-n", "2", str(MPIO / "cortex")]
+    return commands
+
+
+def _paper(tmp, config, repeat):
+    """The paper campaign's figures: every run of each command (alternating), the best, the speed-up,
+    and the failed compressions and trial cells of a 2-rank store."""
+    commands = _paper_commands()
+    runs = {n: [] for n in commands}
+    for r in range(repeat):
+        for n, cmd in commands.items():
+            cmd = cmd + ["campaign", "run", config, "--store", str(tmp / f"paper{n}-{r}.h5"), "--quiet"]
+            runs[n].append(_timed(cmd, ok=(0, 1))[0])     # 1: some tasks failed (counted below)
+    best = {n: min(runs[n]) for n in runs}
+    status = json.loads(_timed([str(BIN / "cortex"), "campaign", "status", str(tmp / "paper2-0.h5"), "--json"])[1])
+    return {
+        "paper_wall_s_1": round(best[1], 2), "paper_wall_s_2": round(best[2], 2),
+        "speedup_2": round(best[1] / best[2], 3),
+        "paper_runs_s_1": [round(t, 2) for t in runs[1]], "paper_runs_s_2": [round(t, 2) for t in runs[2]],
+        "paper_wall_s_2_mpio": round(best["mpio"], 2) if "mpio" in best else None,
+        "paper_runs_s_2_mpio": [round(t, 2) for t in runs.get("mpio", [])],
+        "paper_config": pathlib.Path(config).name,
+        "paper_failed_2": status["failed"] + status.get("trials", {}).get("failed", 0)}
+
+
+NO_PAPER = {"paper_wall_s_1": None, "paper_wall_s_2": None, "speedup_2": None, "paper_runs_s_1": [],
+            "paper_runs_s_2": [], "paper_wall_s_2_mpio": None, "paper_runs_s_2_mpio": [], "paper_config": None,
+            "paper_failed_2": None}
+
+
 def main():
-    if "--futures-child" in sys.argv:     # runs under python -m mpi4py.futures
-        from mpi4py.futures import MPIPoolExecutor
-        with MPIPoolExecutor() as pool:
-            started = time.perf_counter()
-            n = sum(1 for _ in pool.map(_noop, range(N_NOOP)))
-            print(json.dumps({"n": n, "wall_s": time.perf_counter() - started}))
-        return
+    if "--futures-child" in sys.argv:
+        return _futures_child()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-paper", action="store_true", help="skip the paper campaign runs")
     parser.add_argument("--paper", metavar="CONFIG", default=str(ROOT / "campaigns/paper.toml"),
@@ -85,64 +154,12 @@ def main():
     parser.add_argument("--repeat", type=int, default=3, metavar="R",
                         help="paper runs per rank count; the best is kept (default 3)")
     args = parser.parse_args()
-    mpiexec, cortex = str(BIN / "mpiexec"), str(BIN / "cortex")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        cfg = tmp / "noop.toml"
-        cfg.write_text(NOOP.format(h0=_grid(10.0, 15.0, 25), shear=_grid(5.0, 25.0, 20),
-                                   tension=_grid(0.5, 3.0, 20)))
-        wall, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(cfg), "--store",
-                          str(tmp / "noop.h5"), "--quiet"])
-        tasks_per_s = N_NOOP / wall
-        big = tmp / "noop100k.toml"
-        big.write_text(NOOP.format(h0=_grid(10.0, 15.0, 50), shear=_grid(5.0, 25.0, 40),
-                                   tension=_grid(0.5, 3.0, 50)))
-        wall_100k, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(big), "--store",
-                               str(tmp / "noop100k.h5"), "--quiet"])
-        floor, _ = _timed([mpiexec, "-n", "2", sys.executable, "-c", "import numpy, h5py, mpi4py.MPI"])
-        one = tmp / "one.toml"
-        one.write_text(NOOP.format(h0="12.0", shear="8.0", tension="1.0"))
-        startup, _ = _timed([mpiexec, "-n", "2", cortex, "campaign", "run", str(one), "--store",
-                             str(tmp / "one.h5"), "--quiet"])
-        started = time.perf_counter()
-        _, out = _timed([mpiexec, "-n", "2", sys.executable, "-m", "mpi4py.futures",
-                         str(pathlib.Path(__file__).resolve()), "--futures-child"])
-        futures_wall = time.perf_counter() - started
-        futures_tasks_per_s = N_NOOP / futures_wall
-        futures_pool_tasks_per_s = N_NOOP / json.loads(out.strip().splitlines()[-1])["wall_s"]
-        config = str(pathlib.Path(args.paper).resolve())
-        commands = {1: [cortex], 2: [mpiexec, "-n", "2", cortex]}
-        if (MPIO / "with-mpi").exists() and subprocess.run(      # built, and installed with this checkout
-                [str(MPIO / "python"), "-I", "-c", "import campaign.store"], capture_output=True, cwd=ROOT).returncode == 0:
-            commands["mpio"] = [str(MPIO / "with-mpi"), "mpiexec", "-n", "2", str(MPIO / "cortex")]
-        paper, runs, failed = dict.fromkeys(commands), {n: [] for n in commands}, None
-        if not args.no_paper:
-            for r in range(args.repeat):
-                for n, cmd in commands.items():
-                    cmd = cmd + ["campaign", "run", config, "--store", str(tmp / f"paper{n}-{r}.h5"), "--quiet"]
-                    runs[n].append(_timed(cmd, ok=(0, 1))[0])     # 1: some tasks failed (counted below)
-            paper = {n: min(runs[n]) for n in runs}
-            _, status = _timed([cortex, "campaign", "status", str(tmp / "paper2-0.h5"), "--json"])
-            status = json.loads(status)
-            failed = status["failed"] + status.get("trials", {}).get("failed", 0)  # compressions + trial cells
-    print(json.dumps({
-        "tasks_per_s": round(tasks_per_s, 1),
-        "startup_s": round(startup, 2),
-        "tasks_per_s_after_startup": round(N_NOOP / (wall - startup), 1) if wall > startup else None,
-        "tasks_per_s_100k": round(N_BIG / wall_100k, 1),
-        "startup_floor_s": round(floor, 2),
-        "futures_tasks_per_s": round(futures_tasks_per_s, 1),
-        "futures_map_only_tasks_per_s": round(futures_pool_tasks_per_s, 1),
-        "paper_wall_s_1": paper[1] and round(paper[1], 2),
-        "paper_wall_s_2": paper[2] and round(paper[2], 2),
-        "speedup_2": paper[1] and round(paper[1] / paper[2], 3),
-        "paper_runs_s_1": [round(t, 2) for t in runs[1]],
-        "paper_runs_s_2": [round(t, 2) for t in runs[2]],
-        "paper_wall_s_2_mpio": paper.get("mpio") and round(paper["mpio"], 2),
-        "paper_runs_s_2_mpio": [round(t, 2) for t in runs.get("mpio", [])],
-        "paper_config": None if args.no_paper else pathlib.Path(args.paper).name,
-        "paper_failed_2": failed,
-    }))
+        figures = _engine(tmp)
+        figures.update(NO_PAPER if args.no_paper else _paper(tmp, str(pathlib.Path(args.paper).resolve()),
+                                                              args.repeat))
+    print(json.dumps(figures))
 
 
 if __name__ == "__main__":
