@@ -85,6 +85,9 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
         else:
             store.close()
         raise
+    finally:
+        if warming is not None:       # a run that ends first waits for it: numba must not be
+            warming.join()            # loading in a daemon thread while the interpreter shuts down
     store.close()
     return status
 
