@@ -8,9 +8,10 @@ axis fastest) has the coordinates i = Σ_k c_k Π_{m>k} |a_m|, so
 
     h0 = 2 R_cell(V) h̃ + Δh/2,   K_S = K̃_S K_B,   γ_a = γ̃_a K_B.
 
-A campaign holds its axes, not its shells: a Shell is ~600 bytes, and every
-rank loads the campaign, so a million compressions took 0.6 GB on each rank.
-Making shell i takes ~2 µs; going through all of them in order ~0.6 µs each.
+A campaign holds its axes, not its shells: a Shell takes 460-640 bytes (the
+more when made without `__init__`), and every rank loads the campaign, so a
+million compressions held 0.3-0.65 GB on each rank. Making shell i takes
+~1.7 µs; going through all of them in order ~1.3 µs each.
 
 The grid is checked once, when it is made (`check`): `Shell`'s checks each
 read one field or the fields of one of CHECK_GROUPS, and a field's values
