@@ -75,8 +75,8 @@ def test_mpio_gives_the_rows_of_rank0(reference, tmp_path, ranks):
     assert (got["state"] == 2).all() and (got["attempts"] == 1).all()     # all done (2), once
     assert (got["trials/state"] == 2).all() and np.isfinite(got["trials/modulus_mN_per_m"]).any()
     with h5py.File(tmp_path / "demo.h5", "r") as f:
-        if ranks > 1:     # the workers wrote rows themselves
-            assert set(f["rank"][:]) == set(range(ranks))
+        if ranks > 1:     # the workers wrote rows themselves (rank 0, warming up as they start, may compute none)
+            assert set(range(1, ranks)) <= set(f["rank"][:]) <= set(range(ranks))
         assert f.attrs["journal_bytes"] == os.path.getsize(f"{tmp_path / 'demo.h5'}.journal")
 
 
