@@ -60,7 +60,7 @@ class Grid(Sequence):
         self.fixed = {k: axes[k][0] for k in GRID_KEYS if len(axes[k]) == 1} | {"resolution": resolution}
         self.keys = tuple(k for k in GRID_KEYS if len(axes[k]) > 1)
         self.axes = tuple(tuple(axes[k]) for k in self.keys)
-        self.ratios = {k: True for k in ratios}
+        self.ratios = frozenset(ratios)
         self.n = math.prod(len(a) for a in self.axes)
         self._last_first = tuple((len(a), a) for a in reversed(self.axes))
 

@@ -72,7 +72,8 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
         return EXIT_DONE
     if parallel_file:
         store.attach(parallel_file)
-    warming = warm_up_behind(campaign) if master_may_compute(comm.Get_size() - 1) else None  # while serving
+    workers = comm.Get_size() - 1      # rank 0 alone warms up in its first task: nobody waits for it
+    warming = warm_up_behind(campaign) if workers and master_may_compute(workers) else None  # while serving
     if progress:
         print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
@@ -164,7 +165,7 @@ def _master(comm, store, campaign, retry_failed, progress, warming=None):
     master.refill()
     while master.active():
         master.serve()
-        if master.handing_out() and master.policy.master_computes() and _warm(warming, master.policy.workers):
+        if master.handing_out() and master.policy.master_computes() and (warming is None or not warming.is_alive()):
             master.compute_one()
         else:
             time.sleep(IDLE_S)
@@ -173,13 +174,6 @@ def _master(comm, store, campaign, retry_failed, progress, warming=None):
     master.flush(TAG_STOP)
     master.bar.close()
     return _exit_status(master.policy.left(), master.failed, store.path)
-
-
-def _warm(warming, workers):
-    """Whether rank 0's warm-up thread has finished; waited for when there are no workers to serve."""
-    if warming is not None and workers == 0:
-        warming.join()
-    return warming is None or not warming.is_alive()
 
 
 def _exit_status(left, failed, store_path):
