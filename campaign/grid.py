@@ -21,6 +21,13 @@ axis), every other axis at its first value, show each check every value it
 can meet. Where one fails, the points are checked in order, which raises
 the first failing point's error, as checking each point does. The shells
 are then made without their own checks (`Shell.unchecked`).
+
+What a new store needs of every point, its parameters (`columns`), its
+task id and the text its fingerprint hashes (`texts`), is made from the
+axes without making the shells: the column of axis k is a_k[c_k] over all
+i at once, and a point's text is a template filled with its axes' values
+each printed once (10,000 points: 1 ms and 7 ms, against ~60 ms through
+the shells).
 """
 
 import itertools
@@ -39,11 +46,15 @@ CHECK_GROUPS = (("volume_um3", "h0_um", "dh_um"), ("bulk_mN_per_m", "shear_mN_pe
                 OPTIONAL)                      # the fields one of Shell's checks reads together
 
 
-def absolute(p, ratios):
+def absolute(p, ratios, radius=None):
     """A grid point (a dict) with its dimensionless coordinates (the keys of
-    `ratios`) turned into absolute ones, in place."""
+    `ratios`) turned into absolute ones, in place; `radius` R_cell(V) at its
+    volume where known (else computed). The same operations, in the same
+    order, on a dict of columns (numpy arrays) give each point's values bit
+    for bit (`Grid.columns`)."""
     if "h0_um" in ratios:
-        p["h0_um"] = 2.0 * float(cell_radius(p["volume_um3"])) * p["h0_um"] + 0.5 * p["dh_um"]
+        r = float(cell_radius(p["volume_um3"])) if radius is None else radius
+        p["h0_um"] = 2.0 * r * p["h0_um"] + 0.5 * p["dh_um"]
     for key in ("shear_mN_per_m", "tension_mN_per_m"):
         if key in ratios:
             p[key] = p[key] * p["bulk_mN_per_m"]
@@ -87,6 +98,57 @@ class Grid(Sequence):
         if self.ratios:
             return Shell.unchecked(absolute({**self.fixed, **dict(zip(self.keys, combo))}, self.ratios))
         return Shell.unchecked(self.fixed, zip(self.keys, combo))
+
+    def indices(self):
+        """{varying key: its coordinate c_k at every point, in order} (int arrays)."""
+        import numpy as np
+        out, stride = {}, self.n
+        for key, axis in zip(self.keys, self.axes):
+            stride //= len(axis)
+            out[key] = np.arange(self.n) // stride % len(axis)
+        return out
+
+    def columns(self):
+        """{GRID_KEYS key: its value at every point, in order}: floats as a
+        float64 array (NaN for an absent optional value), `bending` as an array
+        of str; a dimensionless axis made absolute with `absolute` on the
+        columns, R_cell(V) computed once per volume as for one shell."""
+        import numpy as np
+        at = self.indices()
+        cols = {k: np.full(self.n, np.nan if v is None else v, object if k == "bending" else float)
+                for k, v in self.fixed.items() if k in GRID_KEYS}
+        for key, axis in zip(self.keys, self.axes):
+            cols[key] = np.array(axis, None if key == "bending" else float)[at[key]]
+        radius = None
+        if "h0_um" in self.ratios:
+            volumes = self.axes[self.keys.index("volume_um3")] if "volume_um3" in at else [self.fixed["volume_um3"]]
+            radius = np.array([float(cell_radius(v)) for v in volumes])[at.get("volume_um3", 0)]
+        return absolute(cols, self.ratios, radius)
+
+    def texts(self, template, keys, encode):
+        """`template % tuple(encode(value of k) for k in keys)` at every point,
+        in order (`keys` among `Shell.to_dict`'s), without making the shells:
+        each axis's values and each fixed field are encoded once, a
+        dimensionless axis's absolute values once per point (`columns`). What
+        a campaign's fingerprint and task ids are made of: 10,000 texts in
+        ~7 ms, against ~40 ms through the shells."""
+        derived = [k for k in keys if k in self.ratios]
+        cols = self.columns() if derived else {}
+        rows = itertools.product(*[[encode(v) for v in axis] for axis in self.axes])
+        if derived:
+            rows = map(operator.add, rows, zip(*[map(encode, cols[k].tolist()) for k in derived]))
+        first = self[0].to_dict()                  # the fields every point shares (a varying one's is never read)
+        fixed = tuple(encode(first[k]) for k in keys)
+        place = {k: i for i, k in enumerate(self.keys)} | {k: len(self.keys) + i for i, k in enumerate(derived)}
+        width = len(self.keys) + len(derived)
+        pick = operator.itemgetter(*[place.get(k, width + i) for i, k in enumerate(keys)])
+        return map(template.__mod__, map(pick, map(operator.add, rows, itertools.repeat(fixed))))
+
+    def reprs(self):
+        """repr(shell.to_dict()) of every point, in order (`texts`): what the
+        campaign's fingerprint is made of."""
+        names = list(self[0].to_dict())
+        return self.texts("{" + ", ".join(f"{n!r}: %s" for n in names) + "}", names, repr)
 
     def __repr__(self):
         return f"Grid({self.n} shells over {', '.join(self.keys) or 'one point'})"

@@ -18,7 +18,6 @@ so the readers (and `cortex campaign status`) load neither numba nor the solver.
 
 import hashlib
 import json
-import math
 import operator
 
 import numpy as np
@@ -62,37 +61,20 @@ def task_id(shell, method):
     return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
-def task_ids(shells, method):
-    """`task_id` of every shell, the same ids, the JSON text made from a
-    template of the sorted keys (`_id_template`) where the numbers are finite
-    floats (json prints those as their repr), else by `task_id` itself: a
-    campaign's million ids in a third of the time."""
-    templates, names = {}, {}
-    for shell in shells:
-        layout = (shell.viscosity_Pa_s is None, shell.frequency_hz is None, shell.bending_pN_um is None)
-        if layout not in templates:
-            templates[layout] = _id_template(shell, method)
-        body, numbers = templates[layout]
-        values, name = numbers(shell), shell.bending
-        if type(name) is str and set(map(type, values)) == _FLOAT and math.isfinite(sum(values)):
-            text = names.get(name) or names.setdefault(name, json.dumps(name))
-            yield hashlib.sha256((body % (text, *values)).encode()).hexdigest()[:16]
-        else:
-            yield task_id(shell, method)
+def task_ids(grid, method):
+    """`task_id` of every shell of `grid` (a `campaign.grid.Grid`), the same
+    ids: each JSON text made from a template of the sorted keys with the
+    values' texts (`Grid.texts`; json prints a float as its repr) instead of
+    from a shell's dict: 10,000 ids in about 10 ms."""
+    keys = sorted({**grid[0].to_dict(), "method": method})
+    fields = [k for k in keys if k != "method"]
+    own = json.dumps(method).replace("%", "%%")
+    body = "{" + ", ".join(f"{json.dumps(k)}: {own if k == 'method' else '%s'}" for k in keys) + "}"
+    return [hashlib.sha256(text.encode()).hexdigest()[:16] for text in grid.texts(body, fields, _json_value)]
 
 
-_FLOAT = {float}
-
-
-def _id_template(shell, method):
-    """(text with %s for the bending name and %r for each number, getter of
-    those numbers) for shells laid out as `shell` (which optional values are None)."""
-    keys = sorted({**shell.to_dict(), "method": method})
-    fixed = {"method": json.dumps(method).replace("%", "%%"), "bending": "%s"}
-    if shell.bending_pN_um is None:
-        fixed["bending_pN_um"] = "null"
-    body = "{" + ", ".join(f"{json.dumps(k)}: {fixed.get(k, '%r')}" for k in keys) + "}"
-    return body, operator.attrgetter(*[k for k in keys if k not in fixed])
+def _json_value(value):
+    return repr(value) if type(value) is float else json.dumps(value)
 
 
 def results_table(results, keys):
@@ -136,10 +118,10 @@ def fill(f, campaign, attrs):
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
-    columns = list(zip(*map(operator.attrgetter(*PARAMS, "bending"), campaign.shells)))  # one pass over the grid
-    for key, values in zip(PARAMS, columns):
-        f[key] = np.array(values, float)
-    for key, values in (("bending", columns[-1]), ("task_id", list(task_ids(campaign.shells, campaign.method)))):
+    columns = campaign.shells.columns()             # no shell made
+    for key in PARAMS:
+        f[key] = columns[key]
+    for key, values in (("bending", columns["bending"]), ("task_id", task_ids(campaign.shells, campaign.method))):
         f.create_dataset(key, data=fixed_strings(values))
     for key in RESULTS:
         f.create_dataset(key, data=np.full(n, np.nan))

@@ -10,7 +10,6 @@ Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 import math
 from dataclasses import MISSING, dataclass, fields
 from functools import lru_cache
-from operator import attrgetter
 
 import numpy as np
 
@@ -127,21 +126,6 @@ class Shell:
 
 _FIELDS = tuple(f.name for f in fields(Shell))
 _DEFAULTS = {f.name: f.default for f in fields(Shell) if f.default is not MISSING}
-
-
-def dict_texts(shells):
-    """repr(shell.to_dict()) of every shell, the same text, from a template of
-    to_dict's keys (`%r` is what a dict's repr calls on each value) instead of
-    building and printing a dict: a campaign fingerprints every one of up to
-    a million shells (`campaign.config.Campaign.fingerprint`)."""
-    templates = {}
-    for shell in shells:
-        layout = (shell.viscosity_Pa_s is None, shell.frequency_hz is None)
-        if layout not in templates:
-            names = list(shell.to_dict())
-            templates[layout] = ("{" + ", ".join(f"{n!r}: %r" for n in names) + "}", attrgetter(*names))
-        text, values = templates[layout]
-        yield text % values(shell)
 
 
 @lru_cache(maxsize=64)
