@@ -34,6 +34,7 @@ import signal
 import time
 from dataclasses import dataclass, field
 
+from campaign.schema import RESULTS
 from solver.errors import InputError
 
 FAULTS = ("raise", "hang", "nan", "noop", "fake_law")
@@ -103,8 +104,6 @@ def prepare(fault, shell):
         from solver.modulus import effective_modulus
         effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
         droplet(shell.volume_um3, shell.h1_um)
-    if fault in ("noop", "nan"):
-        import campaign.schema  # noqa: F401  (RESULTS)
 
 
 def injected(fault, shell):
@@ -115,8 +114,7 @@ def injected(fault, shell):
         time.sleep(HANG_S)
     if fault == "fake_law":
         return fake_law(shell)
-    from campaign.schema import RESULTS
-    return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else float("nan"))
+    return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else math.nan)
 
 
 def _cubic(coefficients, x):

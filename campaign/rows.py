@@ -49,7 +49,7 @@ def runs(rows):
 
 def _fit(dset, values):
     """`values` as `dset` stores them (error messages clipped to fixed length)."""
-    return np.array([clip(v) for v in values], dset.dtype) if dset.dtype.kind == "S" else values
+    return np.array([clip(v) if v else b"" for v in values], dset.dtype) if dset.dtype.kind == "S" else values
 
 
 def put(dset, rows, values, contiguous):

@@ -14,6 +14,7 @@ import time
 import traceback
 
 from campaign import faults
+from solver.compression import compress
 
 
 class TaskTimeout(Exception):
@@ -40,7 +41,6 @@ def _set_handler():
 def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
     """Run one compression: (state, results, error, started); `fault` and
     `sleep_s` are the test knobs of `campaign.faults`."""
-    from solver.compression import compress
     if fault:
         faults.prepare(fault, shell)   # start-up costs outside the task's timer
 
@@ -48,10 +48,19 @@ def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
         faults.pause(sleep_s)
         result = faults.injected(fault, shell) if fault else compress(shell, method).to_dict()
         result.pop("method", None)
-        if not all(map(math.isfinite, [v for v in result.values() if isinstance(v, float)])):
+        if not _finite(result.values()):
             raise _NonFinite()
         return result
     return _guarded(work, timeout_s)
+
+
+def _finite(values):
+    """Whether every float among `values` is finite (the others: ints, bools,
+    the odd name). All numbers, as a solver's results are, in one C-level pass."""
+    try:
+        return all(map(math.isfinite, values))
+    except (TypeError, OverflowError):
+        return all(math.isfinite(v) for v in values if isinstance(v, float))
 
 
 def compute_study(study, forces, errors, timeout_s, sleep_s=0.0):
