@@ -112,7 +112,7 @@ def warm_up(campaign):
     the task itself to meet and report."""
     if not campaign.shells:
         return
-    shell, fault = campaign.shells[0], campaign.test.by_row.get(0)
+    shell, fault = campaign.shells[0], campaign.test.fault(0)
     try:
         if fault:
             faults.prepare(fault, shell)
@@ -145,7 +145,7 @@ def execute(campaign, task, payload):
     `payload` is a trial task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
     n, test = len(campaign.shells), campaign.test
     if task < n:
-        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, test.by_row.get(task),
+        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, test.fault(task),
                        test.compression_sleep_s)
     return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s, test.trial_sleep_s)
 

@@ -62,6 +62,9 @@ def test_bad_knobs_are_refused_in_one_line(table, message):
 
 def test_knobs_parse_into_what_the_scheduler_reads():
     knobs = faults.parse("c.toml", {"fake_law": True, "raise_task": [1], "trial_sleep_s": 0.5}, 3)
-    assert knobs.by_row == {0: "fake_law", 1: "raise", 2: "fake_law"}
+    assert [knobs.fault(row) for row in range(3)] == ["fake_law", "raise", "fake_law"]
+    noop = faults.parse("c.toml", {"noop": True, "nan_task": 7}, 10**6)     # no entry per row of the grid
+    assert (noop.fault(0), noop.fault(7), noop.fault(999_999), noop.by_row) == ("noop", "nan", "noop", {7: "nan"})
+    assert faults.Knobs().fault(0) is None
     assert (knobs.compression_sleep_s, knobs.trial_sleep_s) == (0.0, 0.5)
     assert faults.parse("c.toml", {}, 3) == faults.Knobs()
