@@ -198,3 +198,17 @@ def test_three_ranks_give_the_same_results(reference_store, tmp_path):
     assert out.returncode == 0, out.stderr
     three = read_results(tmp_path / "s.h5")
     pd.testing.assert_frame_equal(read_results(reference_store)[RESULT_COLUMNS], three[RESULT_COLUMNS])
+
+
+@pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
+def test_a_run_gives_openblas_one_thread_unless_told_otherwise(tmp_path, given, expected):
+    """Set before numpy is imported (the command's first imports do not load it), the user's value kept."""
+    (tmp_path / "one.toml").write_text('[grid]\nh0_um = 12.0\nbulk_mN_per_m = 25.0\nshear_mN_per_m = 8.0\n'
+                                       'tension_mN_per_m = 1.0\n[test]\nnoop = true\n')
+    code = ("import os, sys; from cortex.cli import main; loaded = 'numpy' in sys.modules; "
+            "status = main(sys.argv[1:]); print(status, loaded, os.environ['OPENBLAS_NUM_THREADS'])")
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    out = subprocess.run([str(BIN / "python"), "-c", code, "campaign", "run", str(tmp_path / "one.toml"),
+                          "--store", str(tmp_path / "s.h5"), "--quiet"], capture_output=True, text=True,
+                         env=env | ({"OPENBLAS_NUM_THREADS": given} if given else {}), cwd=ROOT, timeout=300)
+    assert out.stdout.split()[-3:] == ["0", "False", expected], out.stderr
