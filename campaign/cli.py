@@ -41,6 +41,7 @@ def register(sub):
 def run(args):
     from campaign import signals
     signals.install()               # first: a signal from here on stops cleanly (exit 3)
+    import gc
     import os
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
     # and a rank's own BLAS threads only spun on its neighbour's (paper campaign, 2 ranks: 0.967 of the time)
@@ -61,7 +62,8 @@ def run(args):
         print(json.dumps({"store": store, "exit_status": status, **summary(store)}))
     elif MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
         print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
-    return status
+    gc.freeze()      # all closed: the interpreter's last collections then skip numba's compiled functions
+    return status    # (walking them took ~0.1 s a process, as long as 7 % of the paper campaign)
 
 
 def status(args):
