@@ -18,6 +18,7 @@ so the readers (and `cortex campaign status`) load neither numba nor the solver.
 
 import hashlib
 import json
+import math
 import operator
 
 import numpy as np
@@ -74,7 +75,8 @@ def task_ids(grid, method):
 
 
 def _json_value(value):
-    return repr(value) if type(value) is float else json.dumps(value)
+    """`value` as json.dumps prints it: a finite float is its repr (the fast way)."""
+    return repr(value) if type(value) is float and math.isfinite(value) else json.dumps(value)
 
 
 def results_table(results, keys):
