@@ -68,14 +68,18 @@ class Population:
                 "measurement_share_lo95": self.share_lo, "measurement_share_hi95": self.share_hi}
 
 
+def _variance(s2, tau):
+    return np.maximum(tau**2 + s2, 1e-12)       # τ = s = 0 would divide by zero
+
+
 def _weighted_mean(y, s2, tau):
-    w = 1.0 / (tau**2 + s2)
+    w = 1.0 / _variance(s2, tau)
     return float(np.sum(w * y) / np.sum(w)), w
 
 
 def loglik(y: np.ndarray, s2: np.ndarray, mu: float, tau: float) -> float:
     """ℓ(μ, τ) of the module doc."""
-    v = tau**2 + s2
+    v = _variance(s2, tau)
     return float(-0.5 * np.sum(np.log(v) + (y - mu) ** 2 / v))
 
 
