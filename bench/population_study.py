@@ -3,7 +3,7 @@ intervals, the measurement share, and the power of paired against unpaired tests
 Prints one JSON object.
 
     python bench/population_study.py full SEED ... [--no-errors] --cache FILE.jsonl
-    python bench/population_study.py simulate --cache FILE.jsonl [--experiments 200] [--reps 400]
+    python bench/population_study.py simulate --cache FILE.jsonl [--experiments 200] [--reps 400] [--rho 1 0.7]
 
 `full`: per seed, the whole pipeline: `cortex afm synth`'s experiment (85 cells,
 the published design, the fast solver as the forward model, errors on unless
@@ -26,7 +26,9 @@ across a cell's frequencies, their relation to the reported SD and the filters'
 exclusions. Then the power table: n cells measured at 0.1, 1 and 10 Hz (n = 10,
 20, 50; included where their measurement was), the two-sided paired Wilcoxon
 test per pair against the unpaired Mann-Whitney test on the same cells, and
-Friedman against Kruskal-Wallis, all at p < 0.05 on ν.
+Friedman against Kruskal-Wallis, all at p < 0.05 on ν; at the synth's within-cell
+correlation of the true ln K̃_S across frequencies (1: one z per cell) and at a
+weaker one (--rho).
 """
 
 import argparse
@@ -177,7 +179,9 @@ def coverage_sim(rng, pool, template, n_exp):
     return summarise(recs)
 
 
-def power(rng, pool, populations, reps):
+def power(rng, pool, populations, reps, rho=1.0):
+    """Power table at the within-cell correlation `rho` of the true ln K̃_S across frequencies
+    (z_f = ρ z + sqrt(1 - ρ²) z'_f; the synth's cells have ρ = 1: one z per cell)."""
     keys = [k for k in pool if set(PAIRED) <= set(k)]
     flat = [(e, s) for k in keys for e, s in pool[k]]
     table = []
@@ -190,7 +194,8 @@ def power(rng, pool, populations, reps):
                 z = rng.standard_normal()
                 for f in PAIRED:
                     mu, sd = populations[str(f)]
-                    nu[f][i] = poisson_of_ratio(np.exp(mu + sd * z + e[f]))
+                    zf = rho * z + np.sqrt(1.0 - rho**2) * rng.standard_normal()
+                    nu[f][i] = poisson_of_ratio(np.exp(mu + sd * zf + e[f]))
             for a, b in ((0.1, 1.0), (1.0, 10.0), (0.1, 10.0)):
                 both = np.isfinite(nu[a]) & np.isfinite(nu[b])
                 key = f"{a:g}-{b:g} Hz"
@@ -203,7 +208,7 @@ def power(rng, pool, populations, reps):
             p_k = stats.kruskal(*[nu[f][np.isfinite(nu[f])] for f in PAIRED]).pvalue
             hits.setdefault("friedman 0.1/1/10 Hz", []).append(p_f < ALPHA)
             hits.setdefault("kruskal_wallis 0.1/1/10 Hz", []).append(p_k < ALPHA)
-        table.append({"n_cells": n, **{k: float(np.mean(v)) for k, v in hits.items()}})
+        table.append({"n_cells": n, "rho": rho, **{k: float(np.mean(v)) for k, v in hits.items()}})
     return table
 
 
@@ -215,7 +220,8 @@ def simulate(args):
     out = {"kind": "simulated from the full-pipeline errors", "pool_experiments": len(recs),
            "pool_cells": {"/".join(f"{f:g}" for f in k): len(v) for k, v in pool.items()},
            "coverage": coverage_sim(rng, pool, recs[0], args.experiments),
-           "power_reps": args.reps, "power": power(rng, pool, recs[0]["populations"], args.reps)}
+           "power_reps": args.reps, "power": [row for rho in args.rho
+                                              for row in power(rng, pool, recs[0]["populations"], args.reps, rho)]}
     out["wall_s"] = time.perf_counter() - t0
     print(json.dumps(out))
 
@@ -232,6 +238,8 @@ def main():
     s.add_argument("--experiments", type=int, default=200)
     s.add_argument("--reps", type=int, default=400)
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--rho", type=float, nargs="+", default=[1.0, 0.7],
+                   help="within-cell correlations of the power table (1: the synth's cells)")
     args = p.parse_args()
     full(args) if args.cmd == "full" else simulate(args)
 
