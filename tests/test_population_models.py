@@ -140,3 +140,30 @@ def test_population_json_has_the_interface_keys():
     assert {"slope_ln_ks_per_decade", "slope_lo95", "slope_hi95"} <= set(t)
     assert t["slope_lo95"] < 0.2 < t["slope_hi95"]          # _table: ln K̃_S rises by 0.2 per decade
     assert [r["frequency_hz"] for r in t["frequencies"]] == [0.02, 0.1, 1.0, 10.0]
+
+
+def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(tmp_path):
+    import json
+
+    from analysis.afm.synth import subset_sizes
+    from analysis.calibration import Calibration
+    from analysis.synthetic import reference_law
+    from cortex.cli import main
+    cal = tmp_path / "cal.json"
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    assert main(["afm", "synth", "--cells", "12", "--seed", "3", "--out", str(tmp_path / "exp"), "--solver", "law",
+                 "--calibration", str(cal)]) == 0
+    truth = json.loads((tmp_path / "exp" / "truth.json").read_text())
+    assert truth["trend_slope_ln_ks_per_decade"] == pytest.approx(
+        trend.pseudo_true_slope({float(f): p for f, p in truth["populations"].items()},
+                                subset_sizes(12)))
+    assert main(["afm", "analyze", str(tmp_path / "exp"), "--calibration", str(cal), "--method", "law",
+                 "--out", str(tmp_path / "a")]) == 0
+    doc = json.loads((tmp_path / "a" / "population.json").read_text())
+    assert doc["measurement_from_intervals"] is False          # the law gives no intervals
+    assert all(r["measurement_share"] is None for r in doc["frequencies"])
+    assert doc["trend"]["slope_lo95"] < doc["trend"]["slope_ln_ks_per_decade"] < doc["trend"]["slope_hi95"]
+    first = [line for line in (tmp_path / "a" / "report.md").read_text().splitlines()[1:]
+             if line and not line.startswith("Method:")][0]
+    assert first.startswith("**Trend:**")
+    assert all((tmp_path / "a" / n).stat().st_size > 0 for n in ("nu_paired.png", "nu_deconvolved.png", "nu_trend.png"))

@@ -59,7 +59,9 @@ def deconvolved(table, doc, out):
         ax.set_title(f"{r['frequency_hz']:g} Hz, {r['n_cells']} cells", fontsize=8)
         ax.set_xlabel("Poisson ratio nu (1)")
         ax.set_ylabel("density (1)")
-    axes[0, 0].legend(fontsize=6)
+    labelled = [ax for ax in axes[0] if ax.get_legend_handles_labels()[0]]
+    if labelled:
+        labelled[0].legend(fontsize=6)
     return _save(fig, out, "nu_deconvolved.png")
 
 
