@@ -112,6 +112,25 @@ def summarise(records):
     return out
 
 
+def actual_errors(records):
+    """Per frequency, median over experiments: the SD of the actual errors (estimate minus
+    truth) of the included cells, their mean, the SD the intervals claim (s_m), and the share of
+    the observed variance the actual errors explain, var(error) / var(estimate)."""
+    out = {}
+    for f in FREQS:
+        sd, mean, claimed, share = [], [], [], []
+        for rec in records:
+            g = pd.DataFrame(rec["cells"]).dropna(subset=["ln_ks"])
+            g = g[g["frequency_hz"] == f]
+            e = g["ln_ks"] - g["true_ln_ks"]
+            sd.append(e.std(ddof=1)), mean.append(e.mean()), claimed.append(np.sqrt(np.mean(g["s"] ** 2)))
+            share.append(e.var(ddof=1) / g["ln_ks"].var(ddof=1))
+        out[f"{f:g}"] = {"error_sd": float(np.median(sd)), "error_mean": float(np.median(mean)),
+                         "error_mean_range": [float(np.min(mean)), float(np.max(mean))],
+                         "claimed_sd": float(np.median(claimed)), "actual_share": float(np.median(share))}
+    return out
+
+
 def _load(cache, errors=None):
     recs = [json.loads(line) for line in Path(cache).read_text().splitlines() if line.strip()]
     return [r for r in recs if errors is None or r["errors"] == errors]
@@ -126,7 +145,8 @@ def full(args):
     recs = _load(args.cache, not args.no_errors)
     out = {"kind": "full pipeline", "errors": not args.no_errors, "seeds": [r["seed"] for r in recs],
            "synth_s_median": float(np.median([r["synth_s"] for r in recs])),
-           "analyze_s_median": float(np.median([r["analyze_s"] for r in recs])), **summarise(recs)}
+           "analyze_s_median": float(np.median([r["analyze_s"] for r in recs])), **summarise(recs),
+           "actual_errors": actual_errors(recs)}
     print(json.dumps(out))
 
 
