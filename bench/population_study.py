@@ -23,7 +23,11 @@ measurement of a cell drawn (with replacement) from the cached full-pipeline
 experiments with the same frequencies: its errors (estimate minus truth, NaN
 where excluded) and its SDs, so the errors keep their size, their correlation
 across a cell's frequencies, their relation to the reported SD and the filters'
-exclusions. Then the power table: n cells measured at 0.1, 1 and 10 Hz (n = 10,
+exclusions; and again with those errors centred per frequency (`coverage_errors_centred`) and
+with, besides, each s scaled so that its RMS is the actual errors' SD
+(`coverage_errors_centred_sd_matched`): the measurement the model assumes, which
+says how much of a shortfall is the model's and how much the per-cell errors'.
+Then the power table: n cells measured at 0.1, 1 and 10 Hz (n = 10,
 20, 50; included where their measurement was), the two-sided paired Wilcoxon
 test per pair against the unpaired Mann-Whitney test on the same cells, and
 Friedman against Kruskal-Wallis, all at p < 0.05 on ν; at the synth's within-cell
@@ -164,6 +168,22 @@ def _pool(records):
     return pool
 
 
+def _corrected(pool, centre, rescale):
+    """The pool with each frequency's mean error removed (`centre`) and each s scaled so that its
+    RMS is the SD of the actual errors (`rescale`): the measurement the model assumes."""
+    errs = {}
+    for cells in pool.values():
+        for e, s in cells:
+            for f in e:
+                if np.isfinite(e[f]):
+                    errs.setdefault(f, []).append((e[f], s[f]))
+    shift = {f: float(np.mean([x for x, _ in v])) if centre else 0.0 for f, v in errs.items()}
+    scale = {f: float(np.std([x for x, _ in v]) / np.sqrt(np.mean([y**2 for _, y in v]))) if rescale else 1.0
+             for f, v in errs.items()}
+    return {k: [({f: e[f] - shift[f] for f in e}, {f: s[f] * scale[f] for f in s}) for e, s in cells]
+            for k, cells in pool.items()}
+
+
 def _draw_cells(rng, pool, key, n, populations):
     """n cells of frequencies `key`: rows (cell, f, y, s) with y NaN where excluded."""
     rows = []
@@ -240,6 +260,9 @@ def simulate(args):
     out = {"kind": "simulated from the full-pipeline errors", "pool_experiments": len(recs),
            "pool_cells": {"/".join(f"{f:g}" for f in k): len(v) for k, v in pool.items()},
            "coverage": coverage_sim(rng, pool, recs[0], args.experiments),
+           "coverage_errors_centred": coverage_sim(rng, _corrected(pool, True, False), recs[0], args.experiments),
+           "coverage_errors_centred_sd_matched": coverage_sim(rng, _corrected(pool, True, True), recs[0],
+                                                              args.experiments),
            "power_reps": args.reps, "power": [row for rho in args.rho
                                               for row in power(rng, pool, recs[0]["populations"], args.reps, rho)]}
     out["wall_s"] = time.perf_counter() - t0
