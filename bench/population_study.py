@@ -4,6 +4,7 @@ Prints one JSON object.
 
     python bench/population_study.py full SEED ... [--no-errors] --cache FILE.jsonl
     python bench/population_study.py simulate --cache FILE.jsonl [--experiments 200] [--reps 400] [--rho 1 0.7]
+    python bench/population_study.py rescore --cache FILE.jsonl
 
 `full`: per seed, the whole pipeline: `cortex afm synth`'s experiment (85 cells,
 the published design, the fast solver as the forward model, errors on unless
@@ -16,6 +17,10 @@ that kind: how often the 95 % intervals of the population mean μ_f and SD σ_f
 hold the synth's (μ_f, σ_f), how often the slope's holds the true slope (the
 pseudo-true one the truth records, and the least-squares line through μ_f), the
 measurement shares, the seconds per experiment.
+
+`rescore`: the `full` summary of every cached experiment (errors on and off) with
+the population statistics recomputed by the current code from the cached per-cell
+estimates (the inversion is not rerun).
 
 `simulate`: the same statistics over many more experiments, without the solver:
 each simulated cell takes a fresh true ln K̃_S(f) = μ_f + σ_f z and the
@@ -252,6 +257,27 @@ def power(rng, pool, populations, reps, rho=1.0):
     return table
 
 
+def rescore(args):
+    """The summary of every cached full-pipeline experiment with its population statistics
+    recomputed by the current code from the cached per-cell estimates (the inversion is not rerun)."""
+    out = {}
+    for errors in (True, False):
+        recs = _load(args.cache, errors)
+        if not recs:
+            continue
+        t0 = time.perf_counter()
+        for rec in recs:
+            df = pd.DataFrame(rec["cells"]).dropna(subset=["ln_ks"])
+            cells = np.unique(df["cell_id"], return_inverse=True)[1]
+            rec["answer"] = _simulated_answer(list(zip(cells, df["frequency_hz"], df["ln_ks"], df["s"])))
+        out["errors_on" if errors else "errors_off"] = {
+            "seeds": [r["seed"] for r in recs], "refit_s": time.perf_counter() - t0,
+            "synth_s_median": float(np.median([r["synth_s"] for r in recs])),
+            "analyze_s_median": float(np.median([r["analyze_s"] for r in recs])),
+            **summarise(recs), "actual_errors": actual_errors(recs)}
+    print(json.dumps(out))
+
+
 def simulate(args):
     recs = _load(args.cache, True)
     rng = np.random.default_rng(args.seed)
@@ -283,8 +309,10 @@ def main():
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--rho", type=float, nargs="+", default=[1.0, 0.7],
                    help="within-cell correlations of the power table (1: the synth's cells)")
+    r = sub.add_parser("rescore")
+    r.add_argument("--cache", required=True)
     args = p.parse_args()
-    full(args) if args.cmd == "full" else simulate(args)
+    {"full": full, "simulate": simulate, "rescore": rescore}[args.cmd](args)
 
 
 if __name__ == "__main__":

@@ -17,17 +17,15 @@ def test_measurement_sd_reads_a_symmetric_interval():
     assert np.allclose(random_effects.measurement_sd(np.exp(-1 - 1.959964 * s), np.exp(-1 + 1.959964 * s)), s)
 
 
-def test_without_measurement_error_reml_is_the_sample_sd_and_mu_interval_the_profile_one():
+def test_without_measurement_error_reml_is_the_sample_sd_and_mu_interval_the_t_one():
     rng = np.random.default_rng(3)
     y = rng.normal(-0.7, 0.8, 40)
     p = random_effects.fit(y, np.zeros_like(y))
     assert p.sd == pytest.approx(np.std(y, ddof=1), rel=1e-4)
     assert p.mean == pytest.approx(np.mean(y), abs=1e-9)
     assert p.share == 0.0
-    # with s = 0 the profile likelihood of μ is n/2 ln(1 + (μ - ȳ)²/σ̂²_ML): the ends solve it = χ²/2
-    s2 = np.var(y)
-    for end in (p.mean_lo, p.mean_hi):
-        assert len(y) * np.log1p((end - y.mean()) ** 2 / s2) == pytest.approx(stats.chi2.ppf(0.95, 1), rel=1e-4)
+    lo, hi = stats.t.interval(0.95, len(y) - 1, loc=np.mean(y), scale=stats.sem(y))
+    assert (p.mean_lo, p.mean_hi) == pytest.approx((lo, hi), rel=1e-9)
 
 
 def test_random_effects_intervals_hold_the_truth_about_95_percent():

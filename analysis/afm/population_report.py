@@ -54,7 +54,8 @@ def markdown_population(doc: dict, mann_whitney: dict) -> list:
     lines = [trend_sentence(doc["trend"]), ""] if doc.get("trend") else []
     lines += ["## Population per frequency, measurement error taken out", "",
               "Random-effects model of ln K̃_S per frequency with each cell's own measurement SD (from its "
-              "95 % interval); REML between-cell SD, profile-likelihood 95 % intervals (docs/population.md). "
+              "95 % interval): the mean with its t interval, the between-cell SD by REML with its profile-likelihood "
+              "interval (docs/population.md). "
               "The measurement share is the part of the observed variance of ln K̃_S that measurement "
               "error alone explains.", ""]
     lines += _populations(doc["frequencies"], doc["measurement_from_intervals"])
