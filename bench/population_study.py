@@ -83,6 +83,7 @@ def run_full(seed, errors):
              "s": float(random_effects.measurement_sd(r.ks_lo95, r.ks_hi95)) if ok[i] else None,
              "true_ln_ks": true[(r.cell_id, float(r.frequency_hz))]} for i, r in zip(table.index, table.itertuples())]
     return {"seed": seed, "errors": errors, "synth_s": t1 - t0, "analyze_s": t2 - t1,
+            "s_z": random_effects.Z_INTERVAL,
             "populations": truth["populations"], "true_slope": truth["trend_slope_ln_ks_per_decade"],
             "true_slope_ols": truth["trend_slope_ols_ln_ks_per_decade"], "answer": doc, "cells": rows}
 
@@ -141,8 +142,15 @@ def actual_errors(records):
 
 
 def _load(cache, errors=None):
+    """The cached experiments (of `errors` if given), each cell's s converted to the current
+    `random_effects.Z_INTERVAL` (`s_z`: the z its s was read with; 1.96 before it was recorded)."""
     recs = [json.loads(line) for line in Path(cache).read_text().splitlines() if line.strip()]
-    return [r for r in recs if errors is None or r["errors"] == errors]
+    recs = [r for r in recs if errors is None or r["errors"] == errors]
+    for r in recs:
+        k = r.get("s_z", 1.959964) / random_effects.Z_INTERVAL
+        for c in r["cells"]:
+            c["s"] = None if c["s"] is None else c["s"] * k
+    return recs
 
 
 def full(args):
