@@ -44,6 +44,8 @@ def _tests(doc, mann_whitney):
     for k, r in doc["paired"].items():
         lines.append(f"| {k} | {r['n_cells']} | {_f(r['wilcoxon_p'], '.3g')} | {_f(r['wilcoxon_p_ln_ks'], '.3g')} | "
                      f"{_f(r['median_diff_nu'])} | {_f(mann_whitney.get(k), '.3g')} |")
+    if not doc["friedman_frequencies_hz"]:
+        return lines + ["", "No Friedman test: fewer than three frequencies."]
     freqs = ", ".join(f"{f:g}" for f in doc["friedman_frequencies_hz"])
     return lines + ["", f"Friedman test over the cells included at all of {freqs} Hz "
                         f"({doc['friedman_n_cells']} cells): p = {_f(doc['friedman_p'], '.3g')}."]
