@@ -8,11 +8,19 @@
   band, beside the deconvolved medians per frequency with their intervals.
 """
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from analysis.afm.figures import _save
 from analysis.afm.population import lognormal_fit, nu_density
 from solver.elasticity import poisson_of_ratio
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from outputs.ownership import OutputDir
 
 POPULATION_FIGURES = ("nu_paired.png", "nu_deconvolved.png", "nu_trend.png")
 
@@ -24,7 +32,7 @@ def _pyplot():
     return plt
 
 
-def paired(table, out):
+def paired(table: "pd.DataFrame", out: "OutputDir") -> Path:
     plt = _pyplot()
     ok = table[table["excluded_reason"].isna()]
     fig, ax = plt.subplots(figsize=(5, 3.8))
@@ -42,7 +50,7 @@ def paired(table, out):
     return _save(fig, out, "nu_paired.png")
 
 
-def deconvolved(table, doc, out):
+def deconvolved(table: "pd.DataFrame", doc: dict, out: "OutputDir") -> Path:
     plt = _pyplot()
     ok = table[table["excluded_reason"].isna()]
     rows = doc["frequencies"]
@@ -65,7 +73,7 @@ def deconvolved(table, doc, out):
     return _save(fig, out, "nu_deconvolved.png")
 
 
-def trend_band(doc, out):
+def trend_band(doc: dict, out: "OutputDir") -> Path:
     plt = _pyplot()
     t = doc["trend"]
     fig, ax = plt.subplots(figsize=(5, 3.5))
@@ -87,7 +95,7 @@ def trend_band(doc, out):
     return _save(fig, out, "nu_trend.png")
 
 
-def population_figures(table, doc, out) -> list:
+def population_figures(table: "pd.DataFrame", doc: dict, out: "OutputDir") -> list[Path]:
     """The three figures into the `OutputDir` out (the trend's only with a trend); their paths."""
     paths = [paired(table, out), deconvolved(table, doc, out)]
     if doc.get("trend"):
