@@ -16,7 +16,9 @@ cell of radius R) the deformation is δ_i = max(x0 - x_i, 0), and
 with F_b the baseline force (the deflection's offset). For a fixed x0 both are
 linear in (F_b, T): least squares in closed form (variable projection), T ≥ 0.
 x0 minimises the residual sum of squares: a grid of GRID candidates across the
-window, then a bounded Brent search between the best candidate's neighbours.
+window, then a bounded Brent search between the best candidate's neighbours
+(in later rounds and refits, Brent alone within a quarter of the window of the
+contact found before).
 
 The fit window (`fit_ramp`): the samples with x in [x0 - d, x0 + d], with
 d = min(x0 - min x, cap) the deepest deformation the ramp reaches (at most
@@ -96,15 +98,22 @@ def _sse(x, f, x0s, model, radius):
     return sst - t * cov, t, f.mean() - t * gm
 
 
-def _fit_window(x, f, lo, hi, model, radius):
-    """The best contact in [lo, hi] for the samples x, f: (x0, T, F_b, sse)."""
-    grid = np.linspace(lo, hi, GRID)
-    sse, _, _ = _sse(x, f, grid, model, radius)
-    j = int(np.argmin(sse))
-    a, b = grid[max(j - 1, 0)], grid[min(j + 1, GRID - 1)]
+def _fit_window(x, f, lo, hi, model, radius, near=None):
+    """The best contact in [lo, hi] for the samples x, f: (x0, T, F_b, sse); a grid
+    of GRID candidates then Brent between the best one's neighbours, or, given
+    `near` (a contact found before), Brent alone within a quarter of the window of it."""
+    if near is None:
+        grid = np.linspace(lo, hi, GRID)
+        sse, _, _ = _sse(x, f, grid, model, radius)
+        j = int(np.argmin(sse))
+        a, b, best = grid[max(j - 1, 0)], grid[min(j + 1, GRID - 1)], (float(grid[j]), float(sse[j]))
+    else:
+        span = 0.25 * (hi - lo)
+        a, b = max(lo, near - span), min(hi, near + span)
+        best = (float(near), float(_sse(x, f, np.array([near]), model, radius)[0][0]))
     res = minimize_scalar(lambda c: _sse(x, f, np.array([c]), model, radius)[0][0], bounds=(a, b),
                           method="bounded", options={"xatol": 1e-6 * max(hi - lo, 1e-9)})
-    x0 = float(res.x) if res.fun <= sse[j] else float(grid[j])
+    x0 = float(res.x) if res.fun <= best[1] else best[0]
     s, t, fb = _sse(x, f, np.array([x0]), model, radius)
     return x0, float(t[0]), float(fb[0]), float(s[0])
 
@@ -142,7 +151,7 @@ def fit_ramp(x_um, force_nN, radius_um: float, model: str = "droplet", cap_um: f
     x0 = guess if start is None else float(start)
     cap = radius_um if cap_um is None else cap_um
     mask, lo_hi = None, None
-    for _ in range(ROUNDS):
+    for round_ in range(ROUNDS):
         depth = min(max(x0 - x.min(), 0.0), cap)
         new = (x >= x0 - depth) & (x <= x0 + depth)
         if mask is not None and np.array_equal(new, mask):
@@ -152,12 +161,26 @@ def fit_ramp(x_um, force_nN, radius_um: float, model: str = "droplet", cap_um: f
             raise InputError(f"approach ramp: {int(mask.sum())} samples within the fit window "
                              f"[{x0 - depth:.4g}, {x0 + depth:.4g}] um (need {MIN_SAMPLES})")
         lo_hi = (x0 - depth, x0 + depth)
-        x0, t, fb, sse = _fit_window(x[mask], f[mask], *lo_hi, model, radius_um)
-    xs, fs = x[mask], f[mask]
-    if t <= 0 or np.sum(xs > x0) < MIN_BASELINE:
+        x0, t, fb, sse = _fit_window(x[mask], f[mask], *lo_hi, model, radius_um, near=x0 if round_ else None)
+    if t <= 0 or np.sum(x[mask] > x0) < MIN_BASELINE:
         why = "no rise above the baseline" if t <= 0 else "it starts in contact (no baseline before the contact)"
         raise InputError(f"approach ramp without a free-cell contact: {why}")
-    sst = float(np.sum((fs - fs.mean()) ** 2))
+    return _result(model, f[mask], mask, lo_hi, x0 - x[mask].min(), (x0, t, fb, sse))
+
+
+def refit(fit: RampFit, x_um, force_nN, radius_um: float) -> RampFit:
+    """`fit`'s model refitted on its own window for another cell radius (one round:
+    the window kept, the contact and T fitted again)."""
+    x, f = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
+    lo_hi = (fit.window_lo_um, fit.window_hi_um)
+    solved = _fit_window(x, f, *lo_hi, fit.model, radius_um, near=fit.contact_um)
+    return _result(fit.model, f, fit.window, lo_hi, solved[0] - x.min(), solved)
+
+
+def _result(model, f, mask, lo_hi, depth, solved):
+    """The `RampFit` of a solved window (x0, T, F_b, sse) with forces f in it."""
+    x0, t, fb, sse = solved
+    sst = float(np.sum((f - f.mean()) ** 2))
     return RampFit(model=model, tension_mN_per_m=t, contact_um=x0, baseline_nN=fb,
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), window_lo_um=lo_hi[0],
-                   window_hi_um=lo_hi[1], window=mask, depth_um=float(max(x0 - xs.min(), 0.0)))
+                   window_hi_um=lo_hi[1], window=mask, depth_um=float(max(depth, 0.0)))
