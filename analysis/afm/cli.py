@@ -1,4 +1,4 @@
-"""`cortex afm synth`, `cortex afm import` and `cortex afm analyze` (argparse
+"""`cortex afm synth`, `cortex afm import`, `cortex afm analyze` and `cortex afm tension` (argparse
 only; the work is imported when the command runs).
 
 Conventions shared with every command: `--out` is a folder (synth and import
@@ -36,7 +36,8 @@ def jpk_options(args):
 
 
 def register(sub):
-    p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics",
+    p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics, "
+                       "cortical tension",
                        description="AFM recordings of confined cells (SPEC 6).")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     _add_synth(s)

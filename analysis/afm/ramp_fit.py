@@ -112,7 +112,7 @@ def _fit_window(x, f, lo, hi, model, radius, near=None):
         a, b = max(lo, near - span), min(hi, near + span)
         best = (float(near), float(_sse(x, f, np.array([near]), model, radius)[0][0]))
     res = minimize_scalar(lambda c: _sse(x, f, np.array([c]), model, radius)[0][0], bounds=(a, b),
-                          method="bounded", options={"xatol": 1e-6 * max(hi - lo, 1e-9)})
+                          method="bounded", options={"xatol": 1e-5 * max(hi - lo, 1e-9)})
     x0 = float(res.x) if res.fun <= best[1] else best[0]
     s, t, fb = _sse(x, f, np.array([x0]), model, radius)
     return x0, float(t[0]), float(fb[0]), float(s[0])

@@ -11,10 +11,11 @@ analyse  per recording, in order until its first retract: every approach ramp
          one, each on its own automatic window; the interval from the volume
          error, `tension.ramp_interval`), every pause's tension and pressure
          (`tension.pause_tension`) from its force over its last half, above the
-         first fitted ramp's baseline, at its height: the recorded gap where the
-         dish is known (native files, `--dish-height-um`, `--dish-curve`), else
-         h = 2R - (x0 - x) from that ramp's contact x0, else the height channel
-         (Z = 0);
+         first fitted ramp's free baseline (the median force of its first 30 %,
+         `ramp_fit.baseline_noise`: the deflection with nothing touching), at
+         its height: the recorded gap where the dish is known (native files,
+         `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
+         ramp's contact x0, else the height channel (Z = 0);
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
          recording (`tension_report`), report.md, which also lists what was not
          analysed.
@@ -30,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.afm.ramp_fit import MODELS, fit_ramp, force_per_tension_um
+from analysis.afm.ramp_fit import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension import ErrorModel, pause_tension, pressure_Pa, ramp_interval
 from solver.errors import InputError
 from solver.geometry import cell_radius
@@ -171,15 +172,17 @@ def _ramp_row(trace, index, x, f, options, radius):
 
 
 def _pause_row(trace, index, t, x, f, ramp, options, radius):
-    """The row and plot of one pause: its last half's mean force and height."""
+    """The row and plot of one pause: its last half's mean force and height;
+    `ramp` (contact x0, free baseline force) of the first fitted ramp, or None."""
     last = slice(len(f) // 2, None)
-    force = float(np.mean(f[last])) - (ramp.baseline_nN if ramp else 0.0)
+    contact, base = ramp if ramp else (float("nan"), 0.0)
+    force = float(np.mean(f[last])) - base
     xm = float(np.mean(x[last]))
     if trace.dish_known or ramp is None:
         depth, height = None, xm
         ref = "dish" if trace.dish_known else "height channel (Z = 0, no dish reference)"
     else:
-        depth, height, ref = ramp.contact_um - xm, 2.0 * radius - (ramp.contact_um - xm), "contact point"
+        depth, height, ref = contact - xm, 2.0 * radius - (contact - xm), "contact point"
         if depth >= 2.0 * radius:
             raise InputError(f"pause {depth:.4g} um below the approach's contact point, deeper than the free "
                              f"cell's diameter {2 * radius:.4g} um (is the volume right?)")
@@ -188,9 +191,8 @@ def _pause_row(trace, index, t, x, f, ramp, options, radius):
            "tension_lo95_mN_per_m": p.tension_lo95_mN_per_m, "tension_hi95_mN_per_m": p.tension_hi95_mN_per_m,
            "pressure_Pa": p.pressure_Pa, "pressure_lo95_Pa": p.pressure_lo95_Pa, "pressure_hi95_Pa": p.pressure_hi95_Pa,
            "force_nN": force, "height_um": height, "h_tilde": p.h_tilde, "height_reference": ref,
-           "contact_um": ramp.contact_um if ramp else float("nan"),
-           "baseline_nN": ramp.baseline_nN if ramp else 0.0}
-    return row, ("pause", index, t, f - (ramp.baseline_nN if ramp else 0.0), force, None)
+           "contact_um": contact, "baseline_nN": base}
+    return row, ("pause", index, t, f - base, force, None)
 
 
 def analyse(trace: Trace, options: Options) -> Analysed:
@@ -205,7 +207,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
         try:
             if kind == "approach":
                 row, plot = _ramp_row(trace, index, x, f, options, radius)
-                ramp = ramp or plot[4]
+                ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)
             else:
