@@ -100,6 +100,7 @@ def _add_analyze(s):
 
 def _add_tension(s):
     from analysis.cli import OUT_HELP
+    from solver.cli import names_of
     t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
                                  "ramp onto the free cell fitted by the exact droplet model and by the "
@@ -118,7 +119,7 @@ def _add_tension(s):
                    "dish: pause heights h = z + F/k - Z (default: from the approach's contact point)")
     d.add_argument("--dish-curve", metavar="FILE", help="a force curve on the bare dish: Z = z + F/k at its "
                    "largest approach force")
-    t.add_argument("--model", choices=("droplet", "small-deformation"), default="droplet", metavar="MODEL",
+    t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
     t.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default 0.075)")

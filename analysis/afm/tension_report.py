@@ -44,17 +44,15 @@ def _pause_axes(ax, plot):
 
 def figure(path, cell_id, analysed):
     """One recording's figure: a panel per analysed part."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure      # no pyplot: no figure manager to make and close
     n = len(analysed.plots)
-    fig, axes = plt.subplots(1, n, figsize=(4.6 * n, 3.6), squeeze=False)
+    fig = Figure(figsize=(4.6 * n, 3.6))
+    axes = fig.subplots(1, n, squeeze=False)
     for ax, plot in zip(axes[0], analysed.plots):
         _ramp_axes(ax, plot, analysed.radius_um) if plot[0] == "approach" else _pause_axes(ax, plot)
     fig.suptitle(cell_id, fontsize=9)
     fig.subplots_adjust(left=0.1 / n ** 0.5, right=0.98, bottom=0.15, top=0.84, wspace=0.3)
     fig.savefig(path, dpi=80)
-    plt.close(fig)
 
 
 def markdown(rows, skipped, options, figures):
