@@ -54,6 +54,13 @@ def test_jpk_archives_give_back_the_tensions(tmp_path, capsys):
     status, dish = _json(capsys, tmp_path / "a.jpk-force", "--volume", VOLUME, "--dish-height-um", 20.0)
     pause = next(r for r in dish["rows"] if r["part"] == "pause")
     assert pause["height_reference"] == "dish" and pause["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
+    # volumes from a table (a wrong one for b: its tension comes out otherwise)
+    (tmp_path / "v.csv").write_text(f"cell_id,volume_um3\na,{VOLUME}\nb,{2 * VOLUME}\n")
+    status, table = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volumes", tmp_path / "v.csv")
+    by = {(r["cell_id"], r["part"]): r for r in table["rows"]}
+    assert by["a", "approach"]["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
+    assert by["b", "approach"]["volume_um3"] == 2 * VOLUME
+    assert abs(by["b", "approach"]["tension_mN_per_m"] / 1.5 - 1) > 0.05
 
 
 def test_the_native_format_and_the_small_deformation_model(tmp_path, capsys):

@@ -16,7 +16,8 @@ volume V_m = V (1 + σ_V ε_m) (σ_V = 7.5 %) and a height h_m = h + σ_h η_m
 comes from the approach's contact point instead of a dish reference
 (h = 2R - δ with δ the compression since contact), the height error is the
 radius's: h_m = 2 R_m - δ. A draw whose gap reaches the free sphere (no
-contact) has γ_m = ∞; an interval may then be open (∞) above.
+contact) has γ_m = ∞; an interval may then be open (∞) above. Draws flatter
+than h̃ = 0.05 (no cell is) are left out.
 
 For a ramp the tension's interval from the volume error is [T(V_-), T(V_+)]
 (sorted), the ramp refitted at V_± = V (1 ± 1.96 σ_V) on the same window
@@ -34,6 +35,7 @@ from solver.errors import InputError
 from solver.geometry import cell_radius
 
 DRAWS = 2000
+FLATTEST = 0.05           # draws flatter than this h̃ (beyond any cell) are left out
 Z95 = 1.959963984540054
 PA_PER_MN_PER_M_PER_UM = 1e3
 
@@ -91,9 +93,11 @@ def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth
     v = volume_um3 * np.clip(1.0 + errors.volume_sd * rng.standard_normal(errors.draws), 1e-3, None)
     eta = rng.standard_normal(errors.draws)
     h = (2.0 * cell_radius(v) - depth_um) if depth_um is not None else height_um + errors.height_sd_um * eta
-    g_m, p_m = _tension_pressure(force_nN, v, np.clip(h, 1e-3, None))
+    flat = h < FLATTEST * 2.0 * cell_radius(v)
+    g_m, p_m = _tension_pressure(force_nN, v, np.where(flat, 2.0 * cell_radius(v), h))
+    g_m[flat], p_m[flat] = np.nan, np.nan
     q = [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2]
-    (t_lo, t_hi), (p_lo, p_hi) = (np.percentile(a, q, method="nearest") for a in (g_m, p_m))
+    (t_lo, t_hi), (p_lo, p_hi) = (np.nanpercentile(a, q, method="nearest") for a in (g_m, p_m))
     return PauseTension(float(gamma), float(t_lo), float(t_hi), float(dp), float(p_lo), float(p_hi),
                         float(force_nN), float(height_um), height_um / (2.0 * radius))
 
