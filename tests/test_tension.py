@@ -95,6 +95,10 @@ def test_interval_widths_follow_the_errors():
     both = pause_tension(force, h, volume)
     width = lambda p: p.tension_hi95_mN_per_m - p.tension_lo95_mN_per_m  # noqa: E731
     assert 0 < width(vol_only) < width(both)
+    # 0.3 um below the free sphere a 0.5 um height error reaches past it: no upper end
+    top = 2.0 * float(cell_radius(volume))
+    shallow = pause_tension(float(droplet_force_nN(volume, 1.0, np.array([top - 0.3]))[0]), top - 0.3, volume)
+    assert shallow.tension_mN_per_m == pytest.approx(1.0, rel=1e-6) and shallow.tension_hi95_mN_per_m == np.inf
 
 
 @pytest.mark.parametrize("h_tilde", (0.9, 0.7, 0.5))

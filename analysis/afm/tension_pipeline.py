@@ -86,7 +86,8 @@ def _volume(cell_id, options, table):
     if table is not None:
         if cell_id not in table:
             raise InputError(f"{options.volumes_csv}: no volume for cell '{cell_id}'")
-        return table[cell_id]
+        volume, how = table[cell_id][:2]
+        return volume, how
     if options.volume_um3 is not None:
         return options.volume_um3, "one value for every cell (--volume)"
     if options.radius_um is not None:
