@@ -55,6 +55,12 @@ def figure(path, cell_id, analysed):
     fig.savefig(path, dpi=80)
 
 
+def _num(row, key, spec):
+    """row[key] formatted, '—' where it is missing or NaN."""
+    value = row.get(key, float("nan"))
+    return "—" if value != value else format(value, spec)
+
+
 def markdown(rows, skipped, options, figures):
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
@@ -65,11 +71,11 @@ def markdown(rows, skipped, options, figures):
              "| cell | part | T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | h̃ | contact (um) | R² | "
              "comparison T (mN/m) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['cell_id']} | {r['part']} {r['segment']} | {r['tension_mN_per_m']:.4g} | "
-                     f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}] | "
-                     f"{r['pressure_Pa']:.4g} | {r['height_um']:.4g} | {r['h_tilde']:.3f} | "
-                     f"{r.get('contact_um', float('nan')):.5g} | {r.get('r2', float('nan')):.4f} | "
-                     f"{r.get('compare_tension_mN_per_m', float('nan')):.4g} |")
+        lines.append(f"| {r['cell_id']} | {r['part']} {r['segment']} | {_num(r, 'tension_mN_per_m', '.4g')} | "
+                     f"[{_num(r, 'tension_lo95_mN_per_m', '.3g')}, {_num(r, 'tension_hi95_mN_per_m', '.3g')}] | "
+                     f"{_num(r, 'pressure_Pa', '.4g')} | {_num(r, 'height_um', '.4g')} | {_num(r, 'h_tilde', '.3f')} | "
+                     f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
+                     f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
     lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]
     if skipped:
         lines += ["## Not analysed", ""] + [f"- {k}: {v}" for k, v in skipped.items()] + [""]
