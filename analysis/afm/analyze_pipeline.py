@@ -82,8 +82,8 @@ def load(paths, jpk_options=None):
         raise InputError("give one experiment (.h5) or CSV file, or JPK or Bruker files and folders (not a mixture)")
     given = [k for k, v in (jpk_options or {}).items() if v is not None]
     if given:
-        raise InputError(f"{paths[0]}: --volume(s), --dish-* and --spring-constant apply to Bruker and JPK files only; the experiment "
-                         "and CSV formats carry their own volumes and heights")
+        raise InputError(f"{paths[0]}: --volume(s), --dish-* and --spring-constant apply to Bruker and JPK files "
+                         "only; the experiment and CSV formats carry their own volumes and heights")
     path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):

@@ -28,8 +28,11 @@ grows away from the dish. A NanoScope height is the piezo's travel from an
 arbitrary origin (`analysis/afm/bruker.py`): its cell heights need Z.
 
 Volumes: one value for every cell, or a table (CSV with columns `cell_id`,
-`volume_um3` and optionally `volume_source`); a cell without a volume is an
-error. Segment kinds: approach, pause and retract are kept; JPK's
+`volume_um3`, or `equator_radius_um` with `imaged_height_um` (the volume of
+the confined droplet of that shape, `solver.geometry.volume_from_image`), or
+`diameter_um` of the free cell (V = π d³/6), and optionally
+`volume_source`); the cell's `volume_source` says which was used; a cell
+without a volume is an error. Segment kinds: approach, pause and retract are kept; JPK's
 `modulation` is the native `oscillation`, with its frequency and amplitude.
 """
 
@@ -112,8 +115,31 @@ def read_recordings(paths, spring_constant_N_per_m=None):
     return recs
 
 
+def _table_volume(row, name):
+    """(V µm³, how) of one table row: volume_um3, else equator_radius_um at
+    imaged_height_um (the confined droplet of that shape), else diameter_um of
+    the free cell (V = π d³/6); None where the row gives none of them."""
+    from solver.geometry import volume_from_image
+    v, r, h, d = (row.get(c, np.nan) for c in ("volume_um3", "equator_radius_um", "imaged_height_um",
+                                                "diameter_um"))
+    if np.isfinite(v):
+        return v, f"table {name}"
+    if np.isfinite(r) and np.isfinite(h):
+        try:
+            return volume_from_image(h, r), f"equator radius {r:g} um at imaged height {h:g} um (table {name})"
+        except InputError as err:
+            raise InputError(f"{name}: cell '{row['cell_id']}': {err}") from None
+    if np.isfinite(d):
+        return np.pi * d**3 / 6.0, f"free-cell diameter {d:g} um (table {name})"
+    return None
+
+
 def read_volumes(path):
-    """{cell_id: (volume_um3, volume_source)} from a CSV table."""
+    """{cell_id: (volume_um3, volume_source)} from a CSV table: per cell a
+    `volume_um3`, or `equator_radius_um` with `imaged_height_um`, or
+    `diameter_um` (in that order of precedence). The source is the table's
+    `volume_source` (else the table's name) for a volume_um3, and says which
+    measure gave any other volume, after the table's own source."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: volume table not found (or not a file)")
@@ -121,17 +147,30 @@ def read_volumes(path):
         df = pd.read_csv(path, dtype={"cell_id": str})
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as err:
         raise InputError(f"{path}: not a readable CSV table ({str(err).splitlines()[0]})") from None
-    if not {"cell_id", "volume_um3"} <= set(df.columns):
-        raise InputError(f"{path}: columns cell_id and volume_um3 needed (has {', '.join(map(str, df.columns))})")
-    vol = pd.to_numeric(df["volume_um3"], errors="coerce")
-    bad = df["cell_id"][~(vol > 0)]
-    if len(bad):
-        raise InputError(f"{path}: volume_um3 of cell '{bad.iloc[0]}' is not a positive number")
+    ways = ("volume_um3", "equator_radius_um", "diameter_um")
+    if "cell_id" not in df.columns or not any(c in df.columns for c in ways):
+        raise InputError(f"{path}: columns cell_id and one of volume_um3, equator_radius_um (with "
+                         f"imaged_height_um), diameter_um needed (has {', '.join(map(str, df.columns))})")
+    if "equator_radius_um" in df.columns and "imaged_height_um" not in df.columns:
+        raise InputError(f"{path}: equator_radius_um needs the column imaged_height_um")
+    for c in ways + ("imaged_height_um",):
+        if c in df.columns:
+            df[c] = pd.to_numeric(df[c], errors="coerce")
     dup = df["cell_id"][df["cell_id"].duplicated()]
     if len(dup):
         raise InputError(f"{path}: cell '{dup.iloc[0]}' listed twice")
-    src = df["volume_source"].fillna("").astype(str) if "volume_source" in df else [f"table {path.name}"] * len(df)
-    return {c: (float(v), s) for c, v, s in zip(df["cell_id"], vol, src)}
+    table = {}
+    for row in df.to_dict("records"):
+        found = _table_volume(row, path.name)
+        if found is None or not found[0] > 0:
+            raise InputError(f"{path}: cell '{row['cell_id']}' has no positive volume_um3, equator_radius_um "
+                             "with imaged_height_um, or diameter_um")
+        given = row.get("volume_source")
+        given = given.strip() if isinstance(given, str) else ""
+        measured = np.isfinite(row.get("volume_um3", np.nan))
+        source = (given or found[1]) if measured else f"{given}: {found[1]}" if given else found[1]
+        table[row["cell_id"]] = (float(found[0]), source)
+    return table
 
 
 def wedge_height_um(segment, spring_constant_N_per_m):
