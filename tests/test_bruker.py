@@ -26,7 +26,7 @@ DATA = SHARED / "bruker"
 BINARY = DATA / "MDA-MB231_Dish2_Cell1.000"
 EXPORT = DATA / "MDA-MB231_Dish2_Cell1.000-NanoScope-Analysis.txt"
 JPK_TEXT = SHARED / "jpk" / "force-save-2020.10.29-12.06.06.196.txt"
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
+need = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
 
 
 def _header_value(text, key, n=0):
@@ -58,6 +58,7 @@ def _independent_decode():
     return k, out, n_ext
 
 
+@need
 def test_header_values_and_channels_as_the_file_states():
     c = read_curve(BINARY, BINARY.read_bytes())
     assert c.version == "0x09010300" and c.date == "2021-05-05T13:21:42"
@@ -76,6 +77,7 @@ def test_header_values_and_channels_as_the_file_states():
     assert not raw[n_ext:5632].any() and raw[:n_ext].all()                        # the triggered ramp's padding
 
 
+@need
 def test_recording_in_project_units():
     rec = read_nanoscope(BINARY)
     k, channels, _ = _independent_decode()
@@ -92,6 +94,7 @@ def test_recording_in_project_units():
     assert rec.summary()["spring_constant_N_per_m"] == 0.0777945
 
 
+@need
 def test_binary_and_text_export_agree_within_their_channels():
     """The export's Z is the commanded ramp and its deflection the binary's with
     NanoScope Analysis's baseline (an offset and a tilt in Z) subtracted."""
@@ -111,6 +114,7 @@ def test_binary_and_text_export_agree_within_their_channels():
     assert t.force_nN[-1] - t.force_nN[0] == pytest.approx(0.0777945 * (d_nm[-1] - d_nm[0]))
 
 
+@need
 def test_folder_and_gzip_copies_read_the_same(tmp_path):
     recs = read_recordings([DATA])
     assert [r.cell_id for r in recs] == ["MDA-MB231_Dish2_Cell1.000", "MDA-MB231_Dish2_Cell1.000-NanoScope-Analysis"]
@@ -128,6 +132,7 @@ def test_folder_and_gzip_copies_read_the_same(tmp_path):
             np.testing.assert_array_equal(a.time_s, b.time_s)
 
 
+@need
 def test_an_export_alone_needs_its_spring_constant(tmp_path):
     alone = tmp_path / EXPORT.name
     shutil.copy(EXPORT, alone)
@@ -141,6 +146,19 @@ def test_an_export_alone_needs_its_spring_constant(tmp_path):
         import_cells([alone], volume_um3=4000.0, dish_um=-5.0, spring_constant_N_per_m=0.1)
 
 
+def test_an_export_of_force_and_a_retract(tmp_path):
+    """A force column is taken as written (pN -> nN); rows of falling Z are a retract."""
+    path = tmp_path / "retract.txt"
+    path.write_text("nm\tpN\n3000\t50\n2000\t20\n1000\t-10\n", encoding="utf-8")
+    seg = read_file(path, spring_constant_N_per_m=0.05)[0].segments[0]
+    assert seg.kind == "retract"
+    np.testing.assert_allclose(seg.force_nN, [0.05, 0.02, -0.01])
+    np.testing.assert_allclose(seg.height_um, [-3.0, -2.0, -1.0])
+    assert main(["afm", "import", str(path), "--spring-constant", "-1", "--volume", "4000",
+                 "--out", str(tmp_path / "o")]) == EXIT_BAD_INPUT
+
+
+@need
 def test_a_hold_becomes_a_pause_of_its_duration(tmp_path):
     data = BINARY.read_bytes()
     assert data.count(b"\\Reverse delay: 0\r\n") == 1
@@ -169,6 +187,7 @@ def _bad_files(tmp_path):
     return paths
 
 
+@need
 @pytest.mark.parametrize("what,message", [
     ("truncated header", "truncated NanoScope header"),
     ("header without the spring constant", "without '\\\\Spring Constant'"),
@@ -190,6 +209,7 @@ def test_every_bad_file_is_one_line_and_status_2_nothing_written(tmp_path, capsy
     assert len(err.strip().splitlines()) == 1 and str(bad) in err and "Traceback" not in err
 
 
+@need
 def test_import_and_analyze_take_bruker_files(tmp_path, capsys):
     out = tmp_path / "imp"
     assert main(["afm", "import", str(BINARY), str(EXPORT), "--volume", "4000", "--dish-height-um", "-5",

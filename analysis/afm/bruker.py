@@ -55,6 +55,7 @@ class BrukerChannel:
     """One recorded channel, converted (unit as its sensitivity says, e.g. nm), in time order."""
     name: str
     unit: str
+    sensitivity: float                # S of its conversion n · q · S (e.g. nm/V)
     extend: np.ndarray
     retract: np.ndarray
 
@@ -85,13 +86,18 @@ class BrukerCurve:
         return (self.n_ramp - 1 - np.arange(self.n_retract)) * step
 
 
-def _channel(header: Header, entries: dict, data: bytes, n_extend: int, n_retract: int) -> BrukerChannel:
+def _channel(header: Header, entries: dict, data: bytes, counts: tuple) -> BrukerChannel:
+    """One channel's data block, converted; `counts` (n_ramp, n_extend, n_retract) of the curve."""
     where = CHANNEL
     name = header.scaled(entries, "@4:Image Data", where).sens
+    if not name:
+        raise InputError(f"{header.path}: a channel without its name ('\\@4:Image Data: S [NAME] ...')")
     offset = int(header.number(entries, "Data offset", where))
     length = int(header.number(entries, "Data length", where))
     bpp = int(header.number(entries, "Bytes/pixel", where))
-    n_ramp = int(header.number(entries, "Samps/line", where))
+    n_ramp, n_extend, n_retract = counts
+    if int(header.number(entries, "Samps/line", where)) != n_ramp:
+        raise InputError(f"{header.path}: channel {name}: Samps/line differs from the first channel's {n_ramp}")
     if bpp not in INTEGERS:
         raise InputError(f"{header.path}: channel {name}: {bpp} bytes/pixel (expected 2 or 4)")
     if length != 2 * n_ramp * bpp:
@@ -105,7 +111,8 @@ def _channel(header: Header, entries: dict, data: bytes, n_extend: int, n_retrac
         raise InputError(f"{header.path}: channel {name}: '\\@4:Z scale' without [Sens. ...] and (V/LSB)")
     sens, unit = header.sensitivity(z.sens)
     raw = np.frombuffer(data, INTEGERS[bpp], 2 * n_ramp, offset).astype(float) * (z.hard_scale * sens)
-    return BrukerChannel(name=name, unit=unit.split("/")[0].strip(), extend=raw[:n_extend][::-1].copy(),
+    return BrukerChannel(name=name, unit=unit.split("/")[0].strip(), sensitivity=sens,
+                         extend=raw[:n_extend][::-1].copy(),
                          retract=raw[n_ramp:n_ramp + n_retract].copy())
 
 
@@ -115,6 +122,33 @@ def _date(text: str) -> str:
         return datetime.strptime(text.strip(), "%I:%M:%S %p %a %b %d %Y").isoformat()
     except ValueError:
         return text.strip()
+
+
+def _counts(header: Header, first: dict, force: dict) -> tuple:
+    """(n_ramp, n_extend, n_retract): `Samps/line: n_ramp [n_extend]`, `Samps/line, retrace`."""
+    counts = [int(c) for c in re.findall(r"\d+", header.text(first, "Samps/line", CHANNEL))]
+    n_ramp = counts[0] if counts else 0
+    n_extend = counts[1] if len(counts) > 1 else n_ramp
+    n_retract = int(header.number(force, "Samps/line, retrace", FORCE)) if "Samps/line, retrace" in force \
+        else n_ramp
+    if not (0 < n_extend <= n_ramp and 0 < n_retract <= n_ramp):
+        raise InputError(f"{header.path}: sample counts extend {n_extend}, retract {n_retract} outside "
+                         f"1..{n_ramp} (Samps/line)")
+    return n_ramp, n_extend, n_retract
+
+
+def _channels(header: Header, lists: list, data: bytes, counts: tuple) -> dict:
+    """{name: BrukerChannel} of every channel list; a deflection channel must be among them."""
+    channels = {}
+    for entries in lists:
+        c = _channel(header, entries, data, counts)
+        if c.name in DEFLECTION_CHANNELS + HEIGHT_CHANNELS and c.unit != "nm":
+            raise InputError(f"{header.path}: channel {c.name} in {c.unit!r} (expected nm: a sensitivity in nm/V)")
+        channels[c.name] = c
+    if not any(name in channels for name in DEFLECTION_CHANNELS):
+        raise InputError(f"{header.path}: no deflection channel ({', '.join(DEFLECTION_CHANNELS)}; "
+                         f"has {', '.join(channels)})")
+    return channels
 
 
 def read_curve(path: Path, data: bytes) -> BrukerCurve:
@@ -127,41 +161,25 @@ def read_curve(path: Path, data: bytes) -> BrukerCurve:
     lists = header.all(CHANNEL)
     if not lists:
         raise InputError(f"{path}: header without a '\\*{CHANNEL}' (no recorded channel)")
-    first = lists[0]
-    n_ramp = int(header.number(first, "Samps/line", CHANNEL))
-    counts = re.findall(r"\d+", header.text(first, "Samps/line", CHANNEL))
-    n_extend = int(counts[1]) if len(counts) > 1 else n_ramp
-    n_retract = int(header.number(force, "Samps/line, retrace", FORCE)) if "Samps/line, retrace" in force \
-        else n_ramp
-    if not (0 < n_extend <= n_ramp and 0 < n_retract <= n_ramp):
-        raise InputError(f"{path}: sample counts extend {n_extend}, retract {n_retract} outside 1..{n_ramp}")
-    k = header.number(first, "Spring Constant", CHANNEL)
+    n_ramp, n_extend, n_retract = counts = _counts(header, lists[0], force)
+    k = header.number(lists[0], "Spring Constant", CHANNEL)
     if not k > 0:
         raise InputError(f"{path}: spring constant {k} N/m (must be > 0)")
-    ramp = header.scaled(first, "@4:Ramp size", CHANNEL)
+    ramp = header.scaled(lists[0], "@4:Ramp size", CHANNEL)
     zsens, zunit = header.sensitivity(ramp.sens or "Sens. Zsens")
     forward, reverse = (header.number(force, key, FORCE) for key in ("Forward vel.", "Reverse vel."))
     if not (forward > 0 and reverse > 0 and ramp.value > 0):
         raise InputError(f"{path}: ramp size {ramp.value} V, velocities {forward}, {reverse} V/s (must be > 0)")
     if zunit.replace(" ", "") != "nm/V":
         raise InputError(f"{path}: Z sensitivity in {zunit!r} (expected nm/V)")
-    channels = {}
-    for entries in lists:
-        c = _channel(header, entries, data, n_extend, n_retract)
-        if c.name in DEFLECTION_CHANNELS + HEIGHT_CHANNELS and c.unit != "nm":
-            raise InputError(f"{path}: channel {c.name} in {c.unit!r} (expected nm: a sensitivity in nm/V)")
-        channels[c.name] = c
-    if not any(name in channels for name in DEFLECTION_CHANNELS):
-        raise InputError(f"{path}: no deflection channel ({', '.join(DEFLECTION_CHANNELS)}; "
-                         f"has {', '.join(channels)})")
+    channels = _channels(header, lists, data, counts)
+    defl = next(channels[n] for n in DEFLECTION_CHANNELS if n in channels)
+    hold = header.number(force, "Reverse delay", FORCE) if "Reverse delay" in force else 0.0
     return BrukerCurve(path=Path(path), version=top.get("Version", ""), date=_date(top.get("Date", "")),
-                       spring_constant_N_per_m=k,
-                       deflection_sensitivity_nm_per_V=header.sensitivity("Sens. DeflSens")[0],
+                       spring_constant_N_per_m=k, deflection_sensitivity_nm_per_V=defl.sensitivity,
                        z_sensitivity_nm_per_V=zsens, ramp_size_nm=ramp.value * zsens, n_ramp=n_ramp,
                        n_extend=n_extend, n_retract=n_retract, extend_duration_s=ramp.value / forward,
-                       retract_duration_s=ramp.value / reverse,
-                       hold_s=max(0.0, header.number(force, "Reverse delay", FORCE)) if "Reverse delay" in force
-                       else 0.0, channels=channels)
+                       retract_duration_s=ramp.value / reverse, hold_s=max(0.0, hold), channels=channels)
 
 
 def _height_um(curve: BrukerCurve, kind: str) -> np.ndarray:
