@@ -17,7 +17,9 @@ def _jpk_options(p):
     (docs/jpk.md, docs/bruker.md)."""
     v = p.add_mutually_exclusive_group()
     v.add_argument("--volumes", metavar="TABLE.csv",
-                   help="cell volumes: CSV with columns cell_id, volume_um3[, volume_source]")
+                   help="cell volumes: CSV with columns cell_id and volume_um3, or equator_radius_um with "
+                        "imaged_height_um (the confined droplet's), or diameter_um (the free cell's); "
+                        "[volume_source]")
     v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--dish-height-um", type=float, metavar="Z",
