@@ -133,6 +133,19 @@ def test_folder_and_gzip_copies_read_the_same(tmp_path):
 
 
 @need
+def test_an_export_under_its_original_name_finds_its_binary(tmp_path):
+    """NanoScope Analysis names an export `X.000 - NanoScope Analysis.txt`; gzip it, and a
+    folder of the two files reads both, the export with the binary's k and times."""
+    shutil.copy(BINARY, tmp_path / BINARY.name)
+    export = tmp_path / "MDA-MB231_Dish2_Cell1.000 - NanoScope Analysis.txt.gz"
+    export.write_bytes(gzip.compress(EXPORT.read_bytes()))
+    binary, text = read_recordings([tmp_path])
+    assert text.cell_id == "MDA-MB231_Dish2_Cell1.000 - NanoScope Analysis"
+    assert text.spring_constant_N_per_m == 0.0777945 and text.date == binary.date
+    np.testing.assert_array_equal(text.segments[0].time_s, binary.segments[0].time_s)
+
+
+@need
 def test_an_export_alone_needs_its_spring_constant(tmp_path):
     alone = tmp_path / EXPORT.name
     shutil.copy(EXPORT, alone)
