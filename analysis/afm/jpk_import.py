@@ -43,6 +43,7 @@ import pandas as pd
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.jpk_archive import SUFFIXES, read_archive
+from analysis.afm.recording import Recording
 from solver.errors import InputError
 
 TEXT_SUFFIXES = (".txt", ".txt.gz")
@@ -61,13 +62,13 @@ def _name_kind(path):
     return "nanoscope" if is_nanoscope_name(path) else None
 
 
-def is_instrument_file(path):
+def is_instrument_file(path: str | Path) -> bool:
     """True for a folder or a file named as a JPK or Bruker NanoScope recording."""
     path = Path(path)
     return path.is_dir() or _name_kind(path) is not None
 
 
-def read_file(path, spring_constant_N_per_m=None):
+def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) -> list[Recording]:
     """The recordings of one JPK or NanoScope file. The format is told by the
     file's first bytes (NanoScope header, JPK `#` header lines, else a
     NanoScope Analysis export); `spring_constant_N_per_m` (N/m) serves the
@@ -92,7 +93,7 @@ def read_file(path, spring_constant_N_per_m=None):
     return [read_nanoscope_text(path, spring_constant_N_per_m)]
 
 
-def read_recordings(paths, spring_constant_N_per_m=None):
+def read_recordings(paths: list, spring_constant_N_per_m: float | None = None) -> list[Recording]:
     """Every recording of `paths` (files, or folders of them: not recursive), cell ids unique.
     The first file that cannot be read stops it (InputError, one line)."""
     recs = []
@@ -134,7 +135,7 @@ def _table_volume(row, name):
     return None
 
 
-def read_volumes(path):
+def read_volumes(path: str | Path) -> dict[str, tuple[float, str]]:
     """{cell_id: (volume_um3, volume_source)} from a CSV table: per cell a
     `volume_um3`, or `equator_radius_um` with `imaged_height_um`, or
     `diameter_um` (in that order of precedence). The source is the table's
