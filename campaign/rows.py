@@ -32,8 +32,7 @@ def write_entries(f, entries, cells, contiguous=False):
         "error": np.array([e.get("error", "") for e in batch], object),
         "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
         "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-    present = [key for key in RESULTS if key in f]    # a store made before the viscous columns lacks them
-    columns.update(zip(present, results_table(results, present).T))
+    columns.update(zip(RESULTS, results_table(results, RESULTS).T))
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 
