@@ -46,6 +46,8 @@ def test_the_docs_table_is_the_code_table():
     start = text.index("| status | meaning |")
     shown = text[start:].split("\n\n", 1)[0]
     assert shown == errors.exit_status_table()
+    for status, meaning in errors.EXIT_STATUSES:                 # and every --help ends with the same table
+        assert f"{status} {meaning.replace('`', '')}" in errors.EXIT_STATUS_HELP
     rows = dict(re.findall(r"^\| (\d) \| ([^|]+) \|", shown, flags=re.M))
     constants = {name: value for name, value in vars(errors).items() if name.startswith("EXIT_")
                  and isinstance(value, int)}
