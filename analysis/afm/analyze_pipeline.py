@@ -30,7 +30,7 @@ from pathlib import Path
 from analysis.afm.analyze import analyze
 from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
-from outputs.ownership import OutputDir, json_document
+from outputs.ownership import OutputDir
 from solver.errors import InputError
 
 
@@ -191,8 +191,7 @@ def run(data, calibration_path, out, settings=Settings()):
     skipped recordings. `calibration_path` None: the shipped calibration."""
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration_path, settings)
-    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
-                    <= set(json_document(d / "summary.json")))   # refused now if not ours
+    out = OutputDir(out)                              # refused now if not ours
     out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES]
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:

@@ -62,10 +62,10 @@ def _add_synth(s):
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--solver", "--forward", dest="solver", choices=names_of(SOLVERS, extra=("law",)),
+    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law",)),
                    default="fast", metavar="SOLVER",
                    help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
-                        "calibration law (needs --calibration); --forward is the older name")
+                        "calibration law (needs --calibration)")
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
