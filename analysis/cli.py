@@ -129,14 +129,7 @@ def viscosity(args):
 def build_calibration(args):
     from analysis import shipped
     from outputs.ownership import OutputDir
-    from solver.errors import InputError
-
-    def ours(path):
-        try:
-            return path.is_file() and shipped.load(path) is not None
-        except InputError:
-            return False
-    out = OutputDir(args.out, written_before_manifests=lambda d: ours(d / CALIBRATION_FILE))
+    out = OutputDir(args.out)
     out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
     doc = shipped.build(args.emulator_store, args.law_store, progress=_say)
     with out.writing(CALIBRATION_FILE) as path:

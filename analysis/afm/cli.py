@@ -13,17 +13,23 @@ TRUTH = "truth.json"
 
 
 def _jpk_options(p):
-    """The volume and dish-reference options of JPK recordings (docs/jpk.md)."""
+    """The volume, dish-reference and spring-constant options of instrument recordings
+    (docs/jpk.md, docs/bruker.md)."""
     v = p.add_mutually_exclusive_group()
     v.add_argument("--volumes", metavar="TABLE.csv",
-                   help="cell volumes: CSV with columns cell_id, volume_um3[, volume_source]")
+                   help="cell volumes: CSV with columns cell_id and volume_um3, or equator_radius_um with "
+                        "imaged_height_um (the confined droplet's), or diameter_um (the free cell's); "
+                        "[volume_source]")
     v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--dish-height-um", type=float, metavar="Z",
                    help="height channel value (um) at which the cantilever touches the bare dish (default 0): "
                         "cell height h = z + F/k - Z")
     d.add_argument("--dish-curve", metavar="FILE",
-                   help="a JPK force curve on the bare dish: Z = z + F/k at its largest approach force")
+                   help="a force curve on the bare dish: Z = z + F/k at its largest approach force")
+    p.add_argument("--spring-constant", type=float, metavar="N_PER_M",
+                   help="cantilever spring constant k (N/m) of NanoScope Analysis text exports, which hold none "
+                        "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
 
 
 def jpk_options(args):
@@ -31,8 +37,10 @@ def jpk_options(args):
     from solver.errors import InputError
     if args.volume is not None and not args.volume > 0:
         raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
+    if args.spring_constant is not None and not args.spring_constant > 0:
+        raise InputError(f"--spring-constant must be a positive number of N/m (got {args.spring_constant})")
     return {"volume_um3": args.volume, "volumes_csv": args.volumes, "dish_um": args.dish_height_um,
-            "dish_curve": args.dish_curve}
+            "dish_curve": args.dish_curve, "spring_constant_N_per_m": args.spring_constant}
 
 
 def register(sub):
@@ -56,10 +64,10 @@ def _add_synth(s):
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--solver", "--forward", dest="solver", choices=names_of(SOLVERS, extra=("law",)),
+    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law",)),
                    default="fast", metavar="SOLVER",
                    help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
-                        "calibration law (needs --calibration); --forward is the older name")
+                        "calibration law (needs --calibration)")
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
@@ -68,11 +76,14 @@ def _add_synth(s):
 
 def _add_import(s):
     from analysis.cli import OUT_HELP
-    m = s.add_parser("import", help="JPK text exports and binary JPK files into DIR/experiment.h5",
-                     description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data (-series) "
-                                 "files (each map or QI pixel its own recording) into the native experiment "
-                                 "format, DIR/experiment.h5. Every cell needs a volume. See docs/jpk.md.")
-    m.add_argument("files", nargs="+", metavar="FILES", help="JPK files or folders of them")
+    m = s.add_parser("import", help="JPK and Bruker NanoScope recordings into DIR/experiment.h5",
+                     description="Read JPK text exports (.txt, .txt.gz), .jpk-force, .jpk-force-map and .jpk-qi-data "
+                                 "(-series) files (each map or QI pixel its own recording), Bruker NanoScope force "
+                                 "curves (.000, .001, ...) and their NanoScope Analysis text exports into the "
+                                 "native experiment format, DIR/experiment.h5. Every cell needs a volume. The "
+                                 "first file that cannot be read stops the import (status 2, nothing written). "
+                                 "See docs/jpk.md, docs/bruker.md.")
+    m.add_argument("files", nargs="+", metavar="FILES", help="JPK or Bruker files, or folders of them")
     m.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     _jpk_options(m)
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
@@ -89,7 +100,7 @@ def _add_analyze(s):
                                  "report (exit status 1).")
     a.add_argument("data", nargs="+", metavar="DATA",
                    help="experiment (.h5, or the folder `afm synth`/`afm import` wrote it to), "
-                        "single-cell CSV, or JPK files and folders of them")
+                        "single-cell CSV, or JPK or Bruker files and folders of them")
     a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(a)
     _jpk_options(a)
