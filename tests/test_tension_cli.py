@@ -19,6 +19,9 @@ DATA = ROOT.parent / "shared" / "data" / "jpk"
 TEXT = DATA / "force-save-2020.10.29-12.06.06.196.txt"
 QI = DATA / "qi-data-2021.05.30-14.22.26.978_8777_8777.txt"
 need = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
+BRUKER = DATA.parent / "bruker" / "MDA-MB231_Dish2_Cell1.000"
+BRUKER_TEXT = DATA.parent / "bruker" / "MDA-MB231_Dish2_Cell1.000-NanoScope-Analysis.txt"
+need_bruker = pytest.mark.skipif(not BRUKER.is_file(), reason=f"shared test data not found at {BRUKER}")
 VOLUME = 3000.0
 
 
@@ -137,3 +140,16 @@ def test_the_real_qi_pixel_is_a_clean_droplet_ramp(capsys):
     ramp, = doc["rows"]
     assert status == 0 and ramp["r2"] > 0.95 and ramp["compare_r2"] > 0.95
     assert 3.77 < ramp["contact_um"] < 6.3
+
+
+@need_bruker
+def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
+    """The same curve, read from the NanoScope file and from NanoScope Analysis's
+    export (its spring constant from the file beside it): one tension."""
+    status, doc = _json(capsys, BRUKER, BRUKER_TEXT, "--radius-um", 6.8)
+    assert status == 0 and doc["not_analysed"] == {}
+    binary, text = doc["rows"]
+    assert binary["part"] == text["part"] == "approach" and binary["r2"] > 0.95 and text["r2"] > 0.95
+    assert text["tension_mN_per_m"] == pytest.approx(binary["tension_mN_per_m"], rel=0.02)
+    assert text["depth_um"] == pytest.approx(binary["depth_um"], abs=0.05)
+    assert text["compare_tension_mN_per_m"] == pytest.approx(binary["compare_tension_mN_per_m"], rel=0.03)

@@ -120,7 +120,8 @@ def _add_tension(s):
                                  "intervals. Recordings that cannot be analysed are listed (exit status 1). "
                                  "See docs/tension.md.")
     t.add_argument("files", nargs="+", metavar="FILES",
-                   help="instrument files (JPK) or folders of them, experiments (.h5) or single-cell CSV files")
+                   help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
+                        "experiments (.h5) or single-cell CSV files")
     v = t.add_mutually_exclusive_group()
     v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
     v.add_argument("--volumes", metavar="TABLE.csv", help="cell volumes: CSV with columns cell_id, volume_um3")
@@ -130,6 +131,9 @@ def _add_tension(s):
                    "dish: pause heights h = z + F/k - Z (default: from the approach's contact point)")
     d.add_argument("--dish-curve", metavar="FILE", help="a force curve on the bare dish: Z = z + F/k at its "
                    "largest approach force")
+    t.add_argument("--spring-constant", type=float, metavar="N_PER_M",
+                   help="cantilever spring constant k (N/m) of NanoScope Analysis text exports, which hold none "
+                        "(as for `afm import`; docs/bruker.md)")
     t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
     t.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
@@ -271,7 +275,7 @@ def tension(args):
             raise InputError(f"{name} must be >= 0 (got {value})")
     options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
                       dish_um=args.dish_height_um, dish_curve=args.dish_curve,
-                      errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
+                      spring_constant_N_per_m=args.spring_constant, errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
     result = run(args.files, options, args.out)
     if args.json:
         finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731

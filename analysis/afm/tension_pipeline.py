@@ -55,6 +55,7 @@ class Options:
     radius_um: float | None = None
     dish_um: float | None = None
     dish_curve: str | None = None
+    spring_constant_N_per_m: float | None = None
     errors: ErrorModel = ErrorModel()
 
 
@@ -98,9 +99,9 @@ def _volume(cell_id, options, table):
 def _native(path, options):
     """Traces of an experiment or single-cell CSV (their own volumes and gaps)."""
     if any(v is not None for v in (options.volume_um3, options.volumes_csv, options.radius_um, options.dish_um,
-                                   options.dish_curve)):
-        raise InputError(f"{path}: --volume(s), --radius-um and --dish-* apply to instrument files only; the "
-                         "experiment and CSV formats carry their own volumes and heights")
+                                   options.dish_curve, options.spring_constant_N_per_m)):
+        raise InputError(f"{path}: --volume(s), --radius-um, --dish-* and --spring-constant apply to instrument "
+                         "files only; the experiment and CSV formats carry their own volumes and heights")
     if path.suffix.lower() == ".csv":
         from analysis.afm.csvformat import read_csv_cell
         cells = [read_csv_cell(path)]
@@ -116,7 +117,7 @@ def _instrument(path, options, table, dish):
     """Traces of instrument files (`jpk_import.read_recordings`): x = z + F/k - Z."""
     from analysis.afm.jpk_import import read_recordings, wedge_height_um
     out = []
-    for r in read_recordings([path]):
+    for r in read_recordings([path], options.spring_constant_N_per_m):
         volume, how = _volume(r.cell_id, options, table)
         parts = [(i, s.kind, s.time_s, s.force_nN, wedge_height_um(s, r.spring_constant_N_per_m) - (dish or 0.0))
                  for i, s in enumerate(r.segments) if s.n_samples]
@@ -129,7 +130,8 @@ def read(paths, options):
     from analysis.afm.jpk_import import dish_from_curve, read_volumes
     if options.model not in MODELS:
         raise InputError(f"--model {options.model!r}: not one of {', '.join(MODELS)}")
-    for name, value in (("--volume", options.volume_um3), ("--radius-um", options.radius_um)):
+    for name, value in (("--volume", options.volume_um3), ("--radius-um", options.radius_um),
+                        ("--spring-constant", options.spring_constant_N_per_m)):
         if value is not None and not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive number (got {value})")
     table = read_volumes(options.volumes_csv) if options.volumes_csv is not None else None

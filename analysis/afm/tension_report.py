@@ -51,7 +51,7 @@ def figure(path, cell_id, analysed):
     for ax, plot in zip(axes[0], analysed.plots):
         _ramp_axes(ax, plot, analysed.radius_um) if plot[0] == "approach" else _pause_axes(ax, plot)
     fig.suptitle(cell_id, fontsize=9)
-    fig.subplots_adjust(left=0.1 / n ** 0.5, right=0.98, bottom=0.15, top=0.84, wspace=0.3)
+    fig.subplots_adjust(left=0.14 / n ** 0.8, right=0.98, bottom=0.15, top=0.84, wspace=0.3)
     fig.savefig(path, dpi=80)
 
 
