@@ -12,19 +12,22 @@ EXPERIMENT = "experiment.h5"            # what synth and import write into their
 TRUTH = "truth.json"
 
 
-def _jpk_options(p):
+def _jpk_options(p, free_radius=False, dish_default="0"):
     """The volume, dish-reference and spring-constant options of instrument recordings
-    (docs/jpk.md, docs/bruker.md)."""
+    (docs/jpk.md, docs/bruker.md); `free_radius` adds --radius-um to the volumes,
+    `dish_default` says what stands for Z without a dish option."""
     v = p.add_mutually_exclusive_group()
     v.add_argument("--volumes", metavar="TABLE.csv",
                    help="cell volumes: CSV with columns cell_id and volume_um3, or equator_radius_um with "
                         "imaged_height_um (the confined droplet's), or diameter_um (the free cell's); "
                         "[volume_source]")
     v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
+    if free_radius:
+        v.add_argument("--radius-um", type=float, metavar="R", help="one free-cell radius (um) for every cell")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--dish-height-um", type=float, metavar="Z",
-                   help="height channel value (um) at which the cantilever touches the bare dish (default 0): "
-                        "cell height h = z + F/k - Z")
+                   help=f"height channel value (um) at which the cantilever touches the bare dish (default "
+                        f"{dish_default}): cell height h = z + F/k - Z")
     d.add_argument("--dish-curve", metavar="FILE",
                    help="a force curve on the bare dish: Z = z + F/k at its largest approach force")
     p.add_argument("--spring-constant", type=float, metavar="N_PER_M",
@@ -116,24 +119,13 @@ def _add_tension(s):
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
                                  "ramp onto the free cell fitted by the exact droplet model and by the "
                                  "small-deformation formula (contact point, T, R², the automatic fit window), "
-                                 "each pause from its force and the droplet shape at its height, with 95 %% "
+                                 "each pause from its force and the droplet shape at its height, with 95 % "
                                  "intervals. Recordings that cannot be analysed are listed (exit status 1). "
                                  "See docs/tension.md.")
     t.add_argument("files", nargs="+", metavar="FILES",
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
-    v = t.add_mutually_exclusive_group()
-    v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
-    v.add_argument("--volumes", metavar="TABLE.csv", help="cell volumes: CSV with columns cell_id, volume_um3")
-    v.add_argument("--radius-um", type=float, metavar="R", help="one free-cell radius (um) for every cell")
-    d = t.add_mutually_exclusive_group()
-    d.add_argument("--dish-height-um", type=float, metavar="Z", help="height channel value (um) at the bare "
-                   "dish: pause heights h = z + F/k - Z (default: from the approach's contact point)")
-    d.add_argument("--dish-curve", metavar="FILE", help="a force curve on the bare dish: Z = z + F/k at its "
-                   "largest approach force")
-    t.add_argument("--spring-constant", type=float, metavar="N_PER_M",
-                   help="cantilever spring constant k (N/m) of NanoScope Analysis text exports, which hold none "
-                        "(as for `afm import`; docs/bruker.md)")
+    _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
     t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
     t.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
