@@ -38,7 +38,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
-from scipy.ndimage import median_filter
 
 from solver.droplet_table import DEPTH_MAX, unit_shape
 from solver.errors import InputError
@@ -132,7 +131,8 @@ def contact_guess(x_um, force_nN):
     if f.size < MIN_SAMPLES:
         raise InputError(f"approach ramp has {f.size} samples (need {MIN_SAMPLES})")
     base, sd = baseline_noise(f)
-    peak = float(np.max(median_filter(f, size=5, mode="nearest")))
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(np.pad(f, 2, mode="edge"), 5), axis=1)
+    peak = float(np.max(smooth))                # a running median of 5: one spike is no contact
     if peak - base < CONTACT_SIGMAS * sd:
         raise InputError(f"approach ramp without contact: the force rises {peak - base:.3g} nN above its "
                          f"baseline, less than {CONTACT_SIGMAS:g} noise SDs ({CONTACT_SIGMAS * sd:.3g} nN)")
