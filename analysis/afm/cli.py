@@ -267,7 +267,8 @@ def tension(args):
             raise InputError(f"{name} must be >= 0 (got {value})")
     options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
                       dish_um=args.dish_height_um, dish_curve=args.dish_curve,
-                      spring_constant_N_per_m=args.spring_constant, errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
+                      spring_constant_N_per_m=args.spring_constant,
+                      errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
     result = run(args.files, options, args.out)
     if args.json:
         finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731
