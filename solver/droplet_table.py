@@ -38,31 +38,40 @@ def _tables():
     return CubicSpline(ln_d, np.log(d.force_per_tension_um)), CubicSpline(ln_d, np.log(d.mean_curvature_per_um))
 
 
+def _unit(depth, which):
+    """ĝ (which 0) or Ĥ (which 1) of the unit cell at deformations δ̂ (module doc)."""
+    depth = np.asarray(depth, float)
+    d = np.atleast_1d(depth).ravel()
+    out = np.exp(_tables()[which](np.log(np.clip(d, DEPTH_MIN, DEPTH_MAX))))
+    tiny = (d > 0) & (d < DEPTH_MIN)
+    if which == 0 and np.any(tiny):
+        out[tiny] *= d[tiny] / DEPTH_MIN
+    beyond = d > DEPTH_MAX
+    if np.any(beyond):
+        exact = droplet(4.0 * np.pi / 3.0, 2.0 - d[beyond])
+        out[beyond] = exact.force_per_tension_um if which == 0 else exact.mean_curvature_per_um
+    out[d <= 0] = 1.0 if which else 0.0
+    return out.reshape(depth.shape)
+
+
+def unit_force_per_tension(depth):
+    """ĝ of the unit cell (R_cell = 1) at deformations δ̂ (array); 0 where δ̂ ≤ 0."""
+    return _unit(depth, 0)
+
+
 def unit_shape(depth):
     """(ĝ, Ĥ) of the unit cell (R_cell = 1) at deformations δ̂ (array): ĝ = 0 and
     Ĥ = 1 where δ̂ ≤ 0."""
-    depth = np.asarray(depth, float)
-    g_spline, h_spline = _tables()
-    inside = depth > 0
-    x = np.log(np.clip(depth, DEPTH_MIN, DEPTH_MAX))
-    g = np.exp(g_spline(x) + np.where(depth < DEPTH_MIN, np.log(np.maximum(depth, 1e-300) / DEPTH_MIN), 0.0))
-    hc = np.exp(h_spline(x))
-    beyond = depth > DEPTH_MAX
-    if np.any(beyond):
-        exact = droplet(4.0 * np.pi / 3.0, 2.0 - depth[beyond])
-        g[beyond], hc[beyond] = exact.force_per_tension_um, exact.mean_curvature_per_um
-    return np.where(inside, g, 0.0), np.where(inside, hc, 1.0)
+    return _unit(depth, 0), _unit(depth, 1)
 
 
 def force_per_tension_um(volume, height):
     """g = F_a/γ_a = 2 H A_c (µm; × mN/m gives nN) for volumes V (µm³) and gaps h (µm), broadcast."""
     radius = cell_radius(volume)
-    g, _ = unit_shape((2.0 * radius - np.asarray(height, float)) / radius)
-    return radius * g
+    return radius * unit_force_per_tension((2.0 * radius - np.asarray(height, float)) / radius)
 
 
 def mean_curvature_per_um(volume, height):
     """H (1/µm) for volumes V (µm³) and gaps h (µm), broadcast; 1/R_cell where h ≥ 2 R_cell."""
     radius = cell_radius(volume)
-    _, hc = unit_shape((2.0 * radius - np.asarray(height, float)) / radius)
-    return hc / radius
+    return _unit((2.0 * radius - np.asarray(height, float)) / radius, 1) / radius

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from solver.droplet_table import DEPTH_MAX, unit_shape
+from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 from solver.errors import InputError
 
 MODELS = ("droplet", "small-deformation")
@@ -56,7 +56,7 @@ def force_per_tension_um(model: str, depth_um, radius_um: float) -> np.ndarray:
     of a free cell of radius R (µm)."""
     d = np.clip(np.asarray(depth_um, float), 0.0, None)
     if model == "droplet":
-        return radius_um * unit_shape(np.minimum(d / radius_um, DEPTH_MAX))[0]
+        return radius_um * unit_force_per_tension(np.minimum(d / radius_um, DEPTH_MAX))
     if model == "small-deformation":
         return np.pi * d * (1.0 + 5.0 * d / (4.0 * radius_um))
     raise InputError(f"unknown ramp model {model!r} (known: {', '.join(MODELS)})")
