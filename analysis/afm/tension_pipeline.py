@@ -126,16 +126,21 @@ def _instrument(path, options, table, dish):
 
 
 def read(paths, options):
-    """(traces, {file or cell: reason}) of FILES; InputError for bad options."""
-    from analysis.afm.jpk_import import dish_from_curve, read_volumes
+    """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
+    instrument readers (and pandas) are imported only for what needs them."""
     if options.model not in MODELS:
         raise InputError(f"--model {options.model!r}: not one of {', '.join(MODELS)}")
     for name, value in (("--volume", options.volume_um3), ("--radius-um", options.radius_um),
                         ("--spring-constant", options.spring_constant_N_per_m)):
         if value is not None and not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive number (got {value})")
-    table = read_volumes(options.volumes_csv) if options.volumes_csv is not None else None
-    dish = dish_from_curve(options.dish_curve) if options.dish_curve is not None else options.dish_um
+    table, dish = None, options.dish_um
+    if options.volumes_csv is not None:
+        from analysis.afm.jpk_import import read_volumes
+        table = read_volumes(options.volumes_csv)
+    if options.dish_curve is not None:
+        from analysis.afm.jpk_import import dish_from_curve
+        dish = dish_from_curve(options.dish_curve)
     traces, skipped = [], {}
     for p in map(Path, paths):
         try:
