@@ -116,6 +116,12 @@ def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
     assert "Not analysed" in report and "flat" in report
 
 
+def test_figure_names_are_files_and_never_shared():
+    from analysis.afm.tension_pipeline import file_names
+    assert list(file_names(["a b", "a_b", "c/d"]).values()) == ["tension_a_b.png", "tension_a_b-2.png",
+                                                                 "tension_c_d.png"]
+
+
 @need
 def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
     """The text export with its constant-force pause (docs/tension.md has the

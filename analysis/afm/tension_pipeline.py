@@ -230,9 +230,17 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
-def file_name(cell_id):
-    """The figure's file name of a recording (characters outside [A-Za-z0-9._-] as '_')."""
-    return f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}.png"
+def file_names(cell_ids):
+    """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
+    [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
+    names, taken = {}, set()
+    for cell_id in cell_ids:
+        stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
+        while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
+            n += 1
+        names[cell_id] = name
+        taken.add(name)
+    return names
 
 
 def run(paths, options=Options(), out=None):
@@ -243,7 +251,7 @@ def run(paths, options=Options(), out=None):
     traces, skipped = read(paths, options)
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:
-        folder.check([TABLE, REPORT] + [file_name(t.cell_id) for t in traces])
+        folder.check([TABLE, REPORT] + list(file_names(t.cell_id for t in traces).values()))
     done = {}
     for t in traces:
         try:

@@ -8,7 +8,7 @@ half) and report.md (the table in short, the window rule, what was not analysed)
 import numpy as np
 import pandas as pd
 
-from analysis.afm.tension_pipeline import COLUMNS, REPORT, TABLE, file_name
+from analysis.afm.tension_pipeline import COLUMNS, REPORT, TABLE, file_names
 
 
 def _ramp_axes(ax, plot, radius):
@@ -86,9 +86,9 @@ def write(folder, rows, done, skipped, options):
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
         pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)
-    figures = []
+    figures, names = [], file_names(done)
     for cell_id, analysed in done.items():
-        with folder.writing(file_name(cell_id)) as path:
+        with folder.writing(names[cell_id]) as path:
             figure(path, cell_id, analysed)
         figures.append(path)
     text = markdown(rows, skipped, options, figures)
