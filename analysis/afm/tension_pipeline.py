@@ -125,7 +125,7 @@ def _instrument(path, options, table, dish):
     return out
 
 
-def read(paths, options):
+def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
     """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
     instrument readers (and pandas) are imported only for what needs them."""
     if options.model not in MODELS:
@@ -230,7 +230,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
-def file_names(cell_ids):
+def file_names(cell_ids) -> dict[str, str]:
     """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
     [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
     names, taken = {}, set()
@@ -243,7 +243,7 @@ def file_names(cell_ids):
     return names
 
 
-def run(paths, options=Options(), out=None):
+def run(paths: list, options: Options = Options(), out: str | Path | None = None) -> dict:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
     (exit 2, nothing written) when nothing could be analysed."""
