@@ -56,7 +56,7 @@ IDS = [" ".join(words) for words, _ in COMMANDS]
 def test_the_tree_has_every_command():
     assert {"geometry", "compress", "poroelastic", "campaign run", "campaign status", "analysis calibrate",
             "analysis viscosity", "analysis build-calibration", "analysis invert", "afm synth", "afm import",
-            "afm analyze", "doctor"} == set(IDS)
+            "afm analyze", "afm tension", "doctor"} == set(IDS)
 
 
 @pytest.mark.parametrize("words,parser", COMMANDS, ids=IDS)
