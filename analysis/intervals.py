@@ -42,16 +42,14 @@ from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
 from analysis.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
 
 DRAWS = 100
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
-VOLUME_SD = 0.075            # relative
-HEIGHT_SD_UM = 0.5           # one offset per cell
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
-LEVEL = 0.95
 
 
 @lru_cache(maxsize=1)

@@ -88,13 +88,6 @@ def test_a_pause_gives_back_tension_and_pressure():
     assert pressure_Pa(1.0, 1.0 / 10.0) == pytest.approx(200.0)
 
 
-def test_the_error_model_is_the_oscillation_analysis_one():
-    from analysis import intervals
-    from analysis.afm import tension
-    assert (tension.VOLUME_SD, tension.HEIGHT_SD_UM, tension.LEVEL) == (
-        intervals.VOLUME_SD, intervals.HEIGHT_SD_UM, intervals.LEVEL)
-
-
 def test_interval_widths_follow_the_errors():
     volume, h = 4300.0, 12.0
     force = float(droplet_force_nN(volume, 1.0, np.array([h]))[0])

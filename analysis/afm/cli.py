@@ -8,6 +8,8 @@ on stdout; `--solver` names the forward model as in `cortex compress`
 (`solver.compression.METHODS`, plus `law`); `--bending` is one of
 `solver.model.BENDING_VARIANTS`."""
 
+from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
 
@@ -128,10 +130,10 @@ def _add_tension(s):
     _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
     t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
-    t.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
-                   help="relative SD of the cell volume in the 95 %% intervals (default 0.075)")
-    t.add_argument("--height-sd", type=float, default=0.5, metavar="UM",
-                   help="SD of a pause's height in the intervals, um (default 0.5)")
+    t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
+                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
+    t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
+                   help="SD of a pause's height in the intervals, um (default %(default)s)")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
     t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "

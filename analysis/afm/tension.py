@@ -29,16 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.afm.ramp_fit import RampFit, refit
+from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from solver.errors import InputError
 from solver.geometry import cell_radius
 
-# The error model of the oscillation analysis's intervals (`analysis.intervals`:
-# VOLUME_SD, HEIGHT_SD_UM, LEVEL; a test checks they are equal), written here so
-# that the command does not import that module's statistics and emulator.
-VOLUME_SD = 0.075
-HEIGHT_SD_UM = 0.5
-LEVEL = 0.95
 DRAWS = 2000
 FLATTEST = 0.05           # draws flatter than this h̃ (beyond any cell) are left out
 Z95 = 1.959963984540054
