@@ -16,8 +16,8 @@ random-effects fit, the paired tests, the trend; `analysis.afm.population_answer
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
 report.md, which also lists the recordings not analysed.
 
-Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK files and
-folders of them (`jpk_import.import_cells`, with the volume and dish options
+Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
+NanoScope files and folders of them (`jpk_import.import_cells`, with the volume and dish options
 of `cortex afm import`).
 
 With the emulator (the default method) every cell and frequency has a 95 %
@@ -32,7 +32,7 @@ from pathlib import Path
 from analysis.afm.analyze import analyze
 from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
-from outputs.ownership import OutputDir, json_document
+from outputs.ownership import OutputDir
 from solver.errors import InputError
 
 
@@ -75,18 +75,18 @@ class Fitted:
 
 
 def load(paths, jpk_options=None):
-    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK
-    files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
-    from analysis.afm.jpk_import import import_cells, is_jpk
+    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
+    Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
+    from analysis.afm.jpk_import import import_cells, is_instrument_file
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
-    if all(is_jpk(p) for p in paths):
+    if all(is_instrument_file(p) for p in paths):
         return import_cells(paths, **(jpk_options or {}))[1]
     if len(paths) != 1:
-        raise InputError("give one experiment (.h5) or CSV file, or JPK files and folders (not a mixture)")
+        raise InputError("give one experiment (.h5) or CSV file, or JPK or Bruker files and folders (not a mixture)")
     given = [k for k, v in (jpk_options or {}).items() if v is not None]
     if given:
-        raise InputError(f"{paths[0]}: --volume(s) and --dish-* apply to JPK files only; the experiment "
-                         "and CSV formats carry their own volumes and heights")
+        raise InputError(f"{paths[0]}: --volume(s), --dish-* and --spring-constant apply to Bruker and JPK files "
+                         "only; the experiment and CSV formats carry their own volumes and heights")
     path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
@@ -96,7 +96,7 @@ def load(paths, jpk_options=None):
         from analysis.afm.csvformat import read_csv_cell
         return [read_csv_cell(path)]
     raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
-                     "a JPK file or a folder of them)")
+                     "a JPK or Bruker file or a folder of them)")
 
 
 def _calibration(path, method, bending):
@@ -200,8 +200,7 @@ def run(data, calibration_path, out, settings=Settings()):
     skipped recordings. `calibration_path` None: the shipped calibration."""
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration_path, settings)
-    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
-                    <= set(json_document(d / "summary.json")))   # refused now if not ours
+    out = OutputDir(out)                              # refused now if not ours
     from analysis.afm.population_figures import POPULATION_FIGURES
     out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
                "population.json", *POPULATION_FIGURES]
