@@ -11,6 +11,8 @@
                                              (`analysis.afm.analyze_report`).
 
 DIR gets cells.csv, segments.csv, summary.json (the selected variant),
+population.json (the selected variant's population answer: per frequency the
+random-effects fit, the paired tests, the trend; `analysis.afm.population_answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
 report.md, which also lists the recordings not analysed.
 
@@ -69,6 +71,7 @@ class Fitted:
     tables: dict = field(default_factory=dict)
     sums: dict = field(default_factory=dict)
     segments: object = None
+    population: dict | None = None          # population.json (`analysis.afm.population_answer`)
 
 
 def load(paths, jpk_options=None):
@@ -148,6 +151,8 @@ def fit(rec, settings):
         fitted.sums[variant] = _with_medians(summary(tab), tab, settings.method)
         if variant == settings.bending:
             fitted.segments = segs
+    from analysis.afm.population_answer import answer
+    fitted.population = answer(fitted.tables[settings.bending])
     return fitted
 
 
@@ -178,10 +183,14 @@ def write(out, rec, fitted, settings):
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
+    _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if settings.method == "emulator":
         figs.append(nu_intervals(fitted.tables[bending], out))
-    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs) + markdown_skipped(None, rec.skipped)
+    from analysis.afm.population_figures import population_figures
+    figs += population_figures(fitted.tables[bending], fitted.population, out)
+    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs,
+                    fitted.population) + markdown_skipped(None, rec.skipped)
     return _write(out, "report.md", lambda p: p.write_text(text))
 
 
@@ -192,7 +201,9 @@ def run(data, calibration_path, out, settings=Settings()):
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration_path, settings)
     out = OutputDir(out)                              # refused now if not ours
-    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES]
+    from analysis.afm.population_figures import POPULATION_FIGURES
+    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
+               "population.json", *POPULATION_FIGURES]
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:
         report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
@@ -200,4 +211,4 @@ def run(data, calibration_path, out, settings=Settings()):
     fitted = fit(rec, settings)
     report = write(out, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
-            "table": fitted.tables[settings.bending], "skipped": rec.skipped}
+            "table": fitted.tables[settings.bending], "skipped": rec.skipped, "population": fitted.population}

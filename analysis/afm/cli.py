@@ -100,8 +100,9 @@ def _add_analyze(s):
     from analysis.cli import OUT_HELP, add_inversion_options
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
-                                 "calibration, with 95 % intervals), population statistics, figures and "
-                                 "DIR/report.md. Recordings without a modulation segment are listed in the "
+                                 "calibration, with 95 % intervals), population statistics, the population answer "
+                                 "(DIR/population.json: the frequency trend, the populations with the "
+                                 "measurement error taken out, paired tests), figures and DIR/report.md. Recordings without a modulation segment are listed in the "
                                  "report (exit status 1).")
     a.add_argument("data", nargs="+", metavar="DATA",
                    help="experiment (.h5, or the folder `afm synth`/`afm import` wrote it to), "
