@@ -34,13 +34,16 @@ def register(sub):
                       description="Summarise a store (also while its campaign is running).")
     s.add_argument("store", metavar="STORE.h5")
     s.add_argument("--json", action="store_true", help="one JSON object: tasks, done, failed, running, pending, "
-                   "tasks_per_s, eta_s, failures (and trials)")
+                   "tasks_per_s, eta_s, failures ([task_id, error]), failed_tasks (each with its parameters, rank, "
+                   "host and error) (and trials)")
     s.set_defaults(handler="campaign.cli:status")
 
 
 def run(args):
     from campaign import signals
     signals.install()               # first: a signal from here on stops cleanly (exit 3)
+    from campaign import isolation
+    isolation.start_early()         # the task process, before MPI: its imports overlap the rank's
     import gc
     import os
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
@@ -78,8 +81,8 @@ def status(args):
     if info["tasks_per_s"]:
         eta = f", ETA {info['eta_s']:.0f} s" if info["eta_s"] else ""
         print(f"throughput {info['tasks_per_s']:.2f} task/s{eta}")
-    for tid, err in info["failures"]:
-        print(f"failed {tid}: {err}")
+    for task in info["failed_tasks"]:
+        print(f"failed {task['task_id']} (rank {task['rank']}): {task['error']}")
     if "trials" in info:
         t = info["trials"]
         print(f"Monte-Carlo: {t['trials']} trials: " + ", ".join(

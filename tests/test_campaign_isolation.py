@@ -1,0 +1,90 @@
+"""A task that kills its process or spins in compiled code (campaign.isolation).
+
+The demo grid's compressions (campaigns/demo.toml without its Monte-Carlo
+study: 60 real solves) with one shell made to misbehave, h0 = 12 µm and
+K_S = 8.33 mN/m (its four tensions), by the test knobs of campaign.faults:
+`segv_task` (a read of address 0: the task process dies of SIGSEGV) or
+`spin_task` (a loop in compiled code, which the task process's SIGALRM
+cannot end: only the rank's watchdog, past timeout_s + GRACE_S, does). One
+`cortex campaign run`, under one process and under `mpiexec -n 2`, must end
+with status 1, the four failed with a message naming what happened, and the
+other 56 done with the numbers of an undisturbed run, bit for bit. The
+spinning task is found by the timeout, never by a guessed sleep.
+"""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from campaign import config
+from campaign.isolation import GRACE_S
+from campaign.reader import read_results
+from conftest import ROOT, cortex
+
+DEMO = (ROOT / "campaigns" / "demo.toml").read_text().split("# SPEC 5")[0]   # its compressions
+TIMEOUT_S = 5.0          # a solve here takes well under a second: the spin's timeout, kept short
+VALUES = ["force_nN", "modulus_mN_per_m", "h_tilde", "volume_error", "iterations"]
+
+
+def campaign_file(folder, test=""):
+    path = Path(folder) / "demo.toml"
+    path.write_text(DEMO.replace("timeout_s = 120.0", f"timeout_s = {TIMEOUT_S}") + test)
+    return path
+
+
+def bad_rows(path):
+    """The grid indices of the bad shell: h0 = 12 µm, K_S = 8.33 mN/m."""
+    shells = config.load(path).shells
+    return [i for i, s in enumerate(shells) if s.h0_um == 12.0 and s.shear_mN_per_m == 8.33]
+
+
+@pytest.fixture(scope="module")
+def undisturbed(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("undisturbed")
+    store = folder / "s.h5"
+    out = cortex("campaign", "run", campaign_file(folder), "--store", store, "--quiet", mpi=2)
+    assert out.returncode == 0, out.stderr
+    return read_results(store)
+
+
+CASES = {"segv": r"process died of SIGSEGV while computing this task \(rank \d on [^)]+\)",
+         "spin": rf"no answer after {TIMEOUT_S:g} s \(\+ {GRACE_S:g} s grace\): the process was killed"}
+
+
+@pytest.mark.parametrize("ranks", [2, 1], ids=["2ranks", "1rank"])
+@pytest.mark.parametrize("fault", list(CASES))
+def test_a_task_that_kills_or_wedges_its_process_fails_alone(undisturbed, tmp_path, fault, ranks):
+    path = campaign_file(tmp_path)
+    rows = bad_rows(path)
+    assert len(rows) == 4
+    path = campaign_file(tmp_path, f"\n[test]\n{fault}_task = {rows}\n")
+    store = tmp_path / "s.h5"
+    out = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
+    assert out.returncode == 1, out.stderr
+    assert "4 tasks failed" in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+    frame = read_results(store)
+    failed = np.flatnonzero(frame["state"] == "failed")
+    assert failed.tolist() == rows
+    for message in frame["error"][failed]:
+        assert re.search(CASES[fault], message), message
+    done = frame.drop(index=rows)
+    assert (done["state"] == "done").all() and len(done) == 56
+    assert (frame["attempts"] == 1).all()
+    for key in VALUES:                        # bit for bit, as undisturbed
+        np.testing.assert_array_equal(done[key].to_numpy(), undisturbed.drop(index=rows)[key].to_numpy(),
+                                      err_msg=key)
+
+    status = json.loads(cortex("campaign", "status", store, "--json").stdout)
+    assert status["failed"] == 4 and status["done"] == 56
+    listed = status["failed_tasks"]
+    assert [t["row"] for t in listed] == rows
+    for task in listed:
+        assert task["h0_um"] == 12.0 and task["shear_mN_per_m"] == 8.33 and task["bending"] == "standard"
+        assert task["rank"] in range(ranks) and task["host"] and re.search(CASES[fault], task["error"])
+    # a rerun leaves the failed tasks alone (status 1 again, nothing computed) ...
+    rerun = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
+    assert rerun.returncode == 1 and (read_results(store)["attempts"] == 1).all(), rerun.stderr
