@@ -94,18 +94,12 @@ def _limit_memory(limit_mb):
 def serve(conn, slot, parent):
     """Steps 2 and 3 of the module docstring, until the pipe closes (or the rank is gone)."""
     from campaign.tasks import run_task, warm_up
-    try:
-        campaign, rank, limit_mb = conn.recv()
-    except (EOFError, OSError):
-        return
+    campaign, rank, limit_mb = conn.recv()
     _limit_memory(limit_mb)
     warm_up(campaign)
     conn.send(READY)
     while os.getppid() == parent:
-        try:
-            batch = conn.recv()
-        except (EOFError, OSError):     # the rank closed the pipe (or is gone)
-            return
+        batch = conn.recv()
         started, done = time.perf_counter(), []
         for place, (task, payload, attempts) in enumerate(batch):
             slot.start(place)
@@ -122,7 +116,10 @@ def main(argv):
         return 0
     conn, slot = Connection(conn_fd), Slot(slot_fd)
     import campaign.tasks  # noqa: F401  (the solver's imports, while the rank starts up)
-    serve(conn, slot, parent)
+    try:
+        serve(conn, slot, parent)
+    except (EOFError, OSError):         # the rank closed the pipe (or is gone): nothing more to do
+        pass
     return 0
 
 
