@@ -85,6 +85,14 @@ def test_a_task_that_kills_or_wedges_its_process_fails_alone(undisturbed, tmp_pa
     for task in listed:
         assert task["h0_um"] == 12.0 and task["shear_mN_per_m"] == 8.33 and task["bending"] == "standard"
         assert task["rank"] in range(ranks) and task["host"] and re.search(CASES[fault], task["error"])
+    if (fault, ranks) == ("segv", 2):         # the partial analysis names them in its report
+        out = cortex("analysis", "calibrate", store, "--out", tmp_path / "analysis", "--partial")
+        assert out.returncode == 0, out.stderr
+        report = (tmp_path / "analysis" / "report.md").read_text()
+        assert "Failed compression tasks (4)" in report
+        for task in listed:
+            assert f"| {task['task_id']} | 12 | 8.33 | {task['tension_mN_per_m']:g} | standard | process died of " \
+                   "SIGSEGV" in report
     # a rerun leaves the failed tasks alone: nothing computed again
     rerun = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
     again = read_results(store)
