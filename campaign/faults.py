@@ -8,6 +8,9 @@ it). The knobs (`parse`):
     raise_task, hang_task, nan_task   grid indices whose compression raises,
                                       sleeps past the per-task timeout, or
                                       returns NaN instead of being solved
+    memory_task                       grid indices whose compression asks for
+                                      1 TB at once (a MemoryError under
+                                      [solver] memory_limit_mb)
     segv_task, spin_task              grid indices whose compression crashes
                                       its process (a read of address 0: a real
                                       SIGSEGV) or spins forever in compiled
@@ -43,8 +46,8 @@ from dataclasses import dataclass, field
 from campaign.schema import RESULTS
 from solver.errors import InputError
 
-FAULTS = ("raise", "hang", "nan", "segv", "spin", "noop", "fake_law")
-ROW_KEYS = ("raise_task", "hang_task", "nan_task", "segv_task", "spin_task")
+FAULTS = ("raise", "hang", "nan", "segv", "spin", "memory", "noop", "fake_law")
+ROW_KEYS = ("raise_task", "hang_task", "nan_task", "segv_task", "spin_task", "memory_task")
 SLEEP_KEYS = ("compression_sleep_s", "trial_sleep_s")
 KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
 HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
@@ -152,6 +155,9 @@ def injected(fault, shell):
         ctypes.string_at(0)             # a read of address 0: the process dies of SIGSEGV
     if fault == "spin":
         _spin()(1.0)                    # never returns
+    if fault == "memory":
+        import numpy as np
+        np.ones(2**37)                  # 1 TB
     if fault == "fake_law":
         return fake_law(shell)
     return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else math.nan)

@@ -98,3 +98,37 @@ def test_a_task_that_kills_or_wedges_its_process_fails_alone(undisturbed, tmp_pa
     again = read_results(store)
     assert rerun.returncode == 0 and (again["attempts"] == 1).all(), rerun.stderr
     assert again["state"].tolist() == frame["state"].tolist()
+
+
+def test_retries_and_the_memory_limit(tmp_path):
+    """[solver] retries = 1: a crashing task is computed twice (attempts 2),
+    then failed; [solver] memory_limit_mb: a task asking for more fails alone,
+    its message naming the limit; the solves beside them are done."""
+    path = campaign_file(tmp_path)
+    rows = bad_rows(path)
+    text = path.read_text().replace(f"timeout_s = {TIMEOUT_S}", "timeout_s = 60.0\nmemory_limit_mb = 1500\nretries = 1")
+    path.write_text(text + f"\n[test]\nsegv_task = [{rows[0]}]\nmemory_task = [{rows[1]}]\n")
+    store = tmp_path / "s.h5"
+    out = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=2)
+    assert out.returncode == 1 and "2 tasks failed" in out.stderr, out.stderr
+    frame = read_results(store)
+    assert np.flatnonzero(frame["state"] == "failed").tolist() == rows[:2]
+    assert frame["attempts"][rows[0]] == 2 and "died of SIGSEGV" in frame["error"][rows[0]]
+    assert frame["attempts"][rows[1]] == 1               # a MemoryError is the task's answer, not retried
+    assert "MemoryError" in frame["error"][rows[1]] and "limited to 1500 MB" in frame["error"][rows[1]]
+    assert (frame.drop(index=rows[:2])["state"] == "done").all()
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"retries": -1}, "[solver] retries must be an integer >= 0"),
+    ({"retries": 1.5}, "[solver] retries must be an integer >= 0"),
+    ({"memory_limit_mb": 0}, "[solver] memory_limit_mb must be a positive number of MB"),
+    ({"memory_limit_mb": "lots"}, "[solver] memory_limit_mb must be a positive number of MB"),
+])
+def test_bad_isolation_settings_are_refused_in_one_line(tmp_path, table, message):
+    path = campaign_file(tmp_path)
+    key, value = next(iter(table.items()))
+    path.write_text(path.read_text().replace("[solver]", f"[solver]\n{key} = {value!r}".replace("'", '"')))
+    out = cortex("campaign", "run", path, "--store", tmp_path / "s.h5", "--quiet")
+    assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert not (tmp_path / "s.h5").exists()
