@@ -42,8 +42,6 @@ def register(sub):
 def run(args):
     from campaign import signals
     signals.install()               # first: a signal from here on stops cleanly (exit 3)
-    from campaign import isolation
-    isolation.start_early()         # the task process, before MPI: its imports overlap the rank's
     import gc
     import os
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
@@ -51,6 +49,8 @@ def run(args):
     from campaign import config, scheduler
     from solver.errors import InputError
     campaign = config.load(args.config)
+    from campaign import isolation
+    isolation.start_early(campaign)   # the task process, forked before MPI loads; it warms up meanwhile
     store = args.store or campaign.store
     if not store:
         raise InputError(f"{args.config}: no store given (--store, or [campaign] store)")

@@ -21,16 +21,19 @@ with the rest of its batch.
   `memory_limit_mb` (RLIMIT_AS), so a task that needs more fails alone (a
   MemoryError is a failed task; a process the kernel kills is a crash).
 
-Why a process started by exec (not a fork of the rank): forking a process
-after MPI_Init is unsafe (MPICH, registered memory, progress threads), and a
-fresh interpreter never has MPI. It is started first thing in `cortex
-campaign run` (`start_early`), so its imports and numba's loads from the
-on-disk cache run while the rank itself starts up; a restart after a crash
-pays them again (about a second).
+How it is started: `cortex campaign run` forks it once the campaign file is
+read and before MPI is loaded (`start_early`): it costs no start-up, and its
+warm-up (numba's loads from the on-disk cache) runs while the rank loads MPI
+and opens the store. Forking after MPI_Init is unsafe (MPICH's state, memory
+registered with the network), so a restart after a crash, or a scheduler
+called where MPI is loaded already, starts a fresh interpreter by exec
+instead (`python -m campaign.task_process`: about a second of imports and
+loads, paid only then).
 """
 
 import math
 import os
+import pickle
 import signal
 import socket
 import subprocess
@@ -57,9 +60,10 @@ def memory_share_mb() -> float:
 
 
 def _spawn():
-    """(process, connection, slot): a task process started, not yet told its
-    campaign. In a session of its own: a Ctrl-C to the terminal's process
-    group reaches the rank (which stops cleanly), not the task process."""
+    """(process, connection, slot, False): a task process started by exec,
+    not yet told its campaign. In a session of its own: a Ctrl-C to the
+    terminal's process group reaches the rank (which stops cleanly), not the
+    task process."""
     ours, theirs = socket.socketpair()
     slot = Slot.create()
     argv = [sys.executable, "-m", "campaign.task_process", str(theirs.fileno()), str(slot.fd), str(os.getpid())]
@@ -67,14 +71,67 @@ def _spawn():
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
     proc = subprocess.Popen(argv, pass_fds=(theirs.fileno(), slot.fd), env=env, start_new_session=True)
     theirs.close()
-    return proc, Connection(ours.detach()), slot
+    return proc, Connection(ours.detach()), slot, False
 
 
-def start_early():
-    """Start this process's task process now (before MPI and the heavy
-    imports), for the first `Isolated` to take."""
+def _fork(campaign):
+    """(process, connection, slot, True): a task process forked from this
+    one, which holds `campaign` already (only before MPI is loaded)."""
+    from campaign import task_process
+    ours, theirs = socket.socketpair()
+    slot, parent = Slot.create(), os.getpid()
+    pid = os.fork()
+    if pid == 0:                      # the task process
+        status = 1
+        try:
+            os.setsid()
+            ours.close()
+            task_process.run(Connection(theirs.detach()), slot, parent, campaign)
+            status = 0
+        except BaseException:         # a bug here, said as an exec'd process would say it
+            import traceback
+            traceback.print_exc()
+        finally:
+            os._exit(status)          # nothing of the rank's (its atexit, its buffers) runs here
+    theirs.close()
+    return _Forked(pid), Connection(ours.detach()), slot, True
+
+
+class _Forked:
+    """A forked task process, with the part of `subprocess.Popen` used here."""
+
+    def __init__(self, pid):
+        self.pid, self.returncode = pid, None
+
+    def poll(self):
+        if self.returncode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout=None):
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while self.returncode is None:
+            if deadline is None:
+                self.returncode = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+            elif self.poll() is None:
+                if time.monotonic() > deadline:
+                    raise subprocess.TimeoutExpired(f"task process {self.pid}", timeout)
+                time.sleep(0.01)
+        return self.returncode
+
+    def kill(self):
+        if self.returncode is None:
+            os.kill(self.pid, signal.SIGKILL)
+
+
+def start_early(campaign):
+    """Start this process's task process now, for the first `Isolated` of
+    `campaign` to take: forked (no start-up to pay: it has what this process
+    imported) if MPI is not loaded yet, else started by exec."""
     if not _early:
-        _early["spawned"] = _spawn()
+        _early["spawned"] = _spawn() if "mpi4py.MPI" in sys.modules else _fork(campaign)
 
 
 def signal_name(returncode):
@@ -99,8 +156,8 @@ class Isolated:
         self._start(_early.pop("spawned", None) or _spawn())
 
     def _start(self, spawned):
-        self.proc, self.conn, self.slot = spawned
-        self.conn.send((self.campaign, self.rank, self.memory_limit_mb))
+        self.proc, self.conn, self.slot, forked = spawned
+        self.conn.send((None if forked else self.campaign, self.rank, self.memory_limit_mb))
         self.warm = False
 
     def ready(self) -> bool:
@@ -115,14 +172,21 @@ class Isolated:
         self.warm = True
 
     def run(self, batch):
-        """Every task of `batch` (a list of (task, payload, attempts)) computed:
-        (entries, seconds computing); a task that crashed or did not answer is
-        a failed entry (after its retries)."""
+        """`run_pickled`, unpickled: (entries, seconds computing)."""
+        return pickle.loads(self.run_pickled(batch))
+
+    def run_pickled(self, batch):
+        """Every task of `batch` (a list of (task, payload, attempts)) computed,
+        as pickled bytes of (entries, seconds computing: the task process's
+        own count, or the wall time of a batch that lost its process); a task
+        that crashed or did not answer is a failed entry (after its retries)."""
         started, entries, todo, outside = time.perf_counter(), [], list(batch), 0
         while todo:
-            done, lost = self._attempt(todo)
+            raw, lost = self._attempt(todo)
             if lost is None:
-                return entries + done, time.perf_counter() - started
+                if not entries:
+                    return raw            # as the task process sent it: the common case
+                return pickle.dumps((entries + pickle.loads(raw)[0], time.perf_counter() - started))
             place, reason, when = lost
             if place < 0:             # died outside any task (starting up, say): once, the batch is
                 outside += 1          # computed again; twice in a row, its first task is failed
@@ -137,11 +201,11 @@ class Isolated:
                 from campaign.tasks import entry
                 entries.append(entry(self.campaign, task, attempts, self.rank, ("failed", {}, reason, when)))
                 todo = todo[:place] + todo[place + 1:]
-        return entries, time.perf_counter() - started
+        return pickle.dumps((entries, time.perf_counter() - started))
 
     def _attempt(self, todo):
-        """(entries, None) if the task process computed all of `todo`, else
-        ([], (place of the task lost, why, when it started)) with the process started again."""
+        """(pickled (entries, seconds computing), None) if the task process computed all of `todo`, else
+        (None, (place of the task lost, why, when it started)) with the process started again."""
         try:
             if not self.warm:
                 self._take_ready()
@@ -150,13 +214,13 @@ class Isolated:
                 place, started = self.slot.read()
                 if time.monotonic() - started > self.limit_s:
                     self.proc.kill()
-                    return [], self._restart(place, started, f"no answer after {self.campaign.timeout_s:g} s "
+                    return None, self._restart(place, started, f"no answer after {self.campaign.timeout_s:g} s "
                                                              f"(+ {GRACE_S:g} s grace): the process was killed")
-            return self.conn.recv()[0], None
+            return self.conn.recv_bytes(), None
         except (EOFError, OSError):
             place, started = self.slot.read()
             code = self.proc.wait()
-            return [], self._restart(place, started, f"process died of {signal_name(code)} while computing "
+            return None, self._restart(place, started, f"process died of {signal_name(code)} while computing "
                                                      "this task")
 
     def _wait_s(self):

@@ -9,7 +9,9 @@ before); the worker computes
 it (`campaign.tasks`) and sends its entries back as one message (TAG_RESULT:
 (entries, seconds computing)) without waiting for it to be received. Rank 0
 records each entry (`store.record`) and flushes the store once per batch it
-received (`store.flush`: the journal fsync'd, then the rows). Without
+received (`store.flush`: the journal fsync'd, then the rows). A worker passes
+its task process's answer on as that process pickled it (on the rank0
+path), so the entries are pickled once and unpickled once, on rank 0. Without
 `mpiexec` the same code runs in one process.
 
 A trial task is sent with the forces and failure messages of the
@@ -30,6 +32,7 @@ TAG_STOP, before every rank closes the file together).
 
 import contextlib
 import gc
+import pickle
 import sys
 import time
 from collections import deque
@@ -139,11 +142,13 @@ def _worker(comm, tasks, writer=None):
                 writer.close()
             return
         else:
-            done, busy_s = tasks.run(message)
-            for e in done if writer is not None else ():
-                writer.keep(e)
+            result = tasks.run_pickled(message)     # passed on as the task process pickled it
+            if writer is not None:
+                done, busy_s = result = pickle.loads(result)
+                for e in done:
+                    writer.keep(e)
             sent = [r for r in sent if not r.Test()]
-            sent.append(comm.isend((done, busy_s), dest=0, tag=TAG_RESULT))
+            sent.append(comm.isend(result, dest=0, tag=TAG_RESULT))
 
 
 def _next_message(comm, status):
@@ -272,9 +277,9 @@ class _Master:
             self.policy.served(messages, time.perf_counter() - started)
 
     def compute(self):
-        """Rank 0 computes tasks itself: the next one, or with no workers to
-        serve, a batch (one message to its task process)."""
-        batch = self.prepared(self.policy.take(1 if self.policy.workers else self.policy.batch_size()))
+        """Rank 0 computes the next tasks itself, as many as the policy says
+        (one message to its task process)."""
+        batch = self.prepared(self.policy.take(self.policy.master_batch()))
         entries, busy_s = self.tasks.run(batch)
         self.policy.timed(len(entries), busy_s)
         self.record(entries)
@@ -320,7 +325,8 @@ class _Link:
         if not self.comm.Iprobe(source=self.any, tag=TAG_RESULT, status=self.status):
             return None
         worker = self.status.Get_source()
-        entries, busy_s = self.comm.recv(source=worker, tag=TAG_RESULT)
+        got = self.comm.recv(source=worker, tag=TAG_RESULT)
+        entries, busy_s = pickle.loads(got) if isinstance(got, bytes) else got
         self.batches[worker].popleft()
         self.received[worker] += len(entries)
         return entries, busy_s

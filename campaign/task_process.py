@@ -2,8 +2,10 @@
 started and watched by `campaign.isolation`: a task that crashes or wedges it
 takes only this process down, never the rank.
 
-It is a fresh interpreter (started with exec, never a fork of an MPI rank)
-and never imports MPI. Its life:
+It is forked from `cortex campaign run` before MPI is loaded, or else (a
+restart after a crash; the scheduler called where MPI is loaded already) a
+fresh interpreter started with exec, never a fork of an MPI process; it
+never imports MPI. Its life:
 
 1. it ignores SIGINT and SIGTERM (the rank decides when to stop: a signal
    lets the batches in flight finish), dies with its rank (PR_SET_PDEATHSIG),
@@ -91,10 +93,12 @@ def _limit_memory(limit_mb):
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
 
-def serve(conn, slot, parent):
-    """Steps 2 and 3 of the module docstring, until the pipe closes (or the rank is gone)."""
+def serve(conn, slot, parent, inherited=None):
+    """Steps 2 and 3 of the module docstring, until the pipe closes (or the
+    rank is gone). A process forked with its campaign (`inherited`) is sent None instead."""
     from campaign.tasks import run_task, warm_up
-    campaign, rank, limit_mb = conn.recv()
+    sent, rank, limit_mb = conn.recv()
+    campaign = sent or inherited
     _limit_memory(limit_mb)
     warm_up(campaign)
     conn.send(READY)
@@ -108,18 +112,23 @@ def serve(conn, slot, parent):
         conn.send((done, time.perf_counter() - started))
 
 
+def run(conn, slot, parent, inherited=None):
+    """The task process's life (module docstring), `serve` once it is set up;
+    `inherited`: the campaign of a forked task process."""
+    _die_with_parent()
+    if os.getppid() != parent:        # the rank died before the death signal was set
+        return
+    from campaign import tasks  # noqa: F401  (the solver's imports, while the rank starts up)
+    try:
+        serve(conn, slot, parent, inherited)
+    except (EOFError, OSError):         # the rank closed the pipe (or is gone): nothing more to do
+        pass
+
+
 def main(argv):
     from multiprocessing.connection import Connection
     conn_fd, slot_fd, parent = (int(a) for a in argv)
-    _die_with_parent()
-    if os.getppid() != parent:        # the rank died before the death signal was set
-        return 0
-    conn, slot = Connection(conn_fd), Slot(slot_fd)
-    import campaign.tasks  # noqa: F401  (the solver's imports, while the rank starts up)
-    try:
-        serve(conn, slot, parent)
-    except (EOFError, OSError):         # the rank closed the pipe (or is gone): nothing more to do
-        pass
+    run(Connection(conn_fd), Slot(slot_fd), parent)
     return 0
 
 
