@@ -25,6 +25,7 @@ It exits when its pipe closes.
 """
 
 import ctypes
+import gc
 import math
 import mmap
 import os
@@ -101,6 +102,7 @@ def serve(conn, slot, parent, inherited=None):
     campaign = sent or inherited
     _limit_memory(limit_mb)
     warm_up(campaign)
+    gc.freeze()      # what the imports and numba's loads made, out of the collector's sight (as in the rank)
     conn.send(READY)
     while os.getppid() == parent:
         batch = conn.recv()
