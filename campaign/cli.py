@@ -20,7 +20,8 @@ def register(sub):
     r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
                    "a folder, or an existing file that is not a campaign store, is refused")
     r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
-    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
+    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again (a rerun otherwise leaves "
+                   "them failed: also those that crashed their process or did not answer)")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.add_argument("--json", action="store_true", help="at the end, the store's summary as one JSON object "
                    "(as `cortex campaign status --json`)")

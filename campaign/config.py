@@ -26,9 +26,10 @@
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
     [test]      for tests only (`campaign.faults`): raise_task, hang_task,
-                nan_task, segv_task, spin_task (grid indices whose task raises,
-                sleeps past its timeout, returns NaN instead of being solved,
-                crashes its process, or spins in compiled code); noop = true
+                nan_task, segv_task, spin_task, memory_task (grid indices whose
+                task raises, sleeps past its timeout, returns NaN instead of
+                being solved, crashes its process, spins in compiled code, or
+                asks for 1 TB); noop = true
                 (every task returns zeros at once: throughput benchmark);
                 fake_law = true (every compression returns at once the force
                 of a made-up smooth law K(h̃): tests of trials and analysis);
