@@ -132,3 +132,82 @@ def test_bad_isolation_settings_are_refused_in_one_line(tmp_path, table, message
     out = cortex("campaign", "run", path, "--store", tmp_path / "s.h5", "--quiet")
     assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert not (tmp_path / "s.h5").exists()
+
+
+SLOW = """
+[campaign]
+name = "slow"
+[grid]
+h0_um = [12.0, 11.0, 10.0]
+bulk_mN_per_m = 25.0
+shear_mN_per_m = 8.33
+tension_mN_per_m = [1.0, 2.0]
+[test]
+fake_law = true
+compression_sleep_s = 1.0
+"""
+
+
+def _children(pid):
+    """Every descendant of process `pid` (Linux /proc)."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").iterdir():
+            kids = (task / "children").read_text().split() if (task / "children").exists() else []
+            found += map(int, kids)
+            todo += map(int, kids)
+    return found
+
+
+def _worker_rank(mpiexec_pid):
+    """The pid of rank 1: the process with PMI_RANK=1 whose parent is not itself a rank (its task process is)."""
+    for pid in _children(mpiexec_pid):
+        try:
+            env = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+            parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+            parent_env = Path(f"/proc/{parent}/environ").read_bytes().split(b"\0")
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if b"PMI_RANK=1" in env and b"PMI_RANK=1" not in parent_env:
+            return pid
+    return None
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_a_worker_rank_killed_from_outside_ends_the_job_and_the_rerun_is_identical(tmp_path):
+    """SIGKILL to rank 1 alone (not its task process, not mpiexec) while it
+    computes: the job ends (MPI takes the other rank down), no task process is
+    left behind, and the rerun completes with the numbers of an undisturbed run."""
+    import os
+    import signal
+    import subprocess
+    from conftest import BIN, journal_counts, poll_until
+    (tmp_path / "slow.toml").write_text(SLOW)
+    reference = tmp_path / "ref.h5"
+    assert cortex("campaign", "run", tmp_path / "slow.toml", "--store", reference, "--quiet").returncode == 0
+    store = tmp_path / "s.h5"
+    args = [str(BIN / "cortex"), "campaign", "run", str(tmp_path / "slow.toml"), "--store", str(store), "--quiet"]
+    proc = subprocess.Popen([str(BIN / "mpiexec"), "-n", "2", *args], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        poll_until(lambda: os.path.exists(f"{store}.journal") and journal_counts(store)[0] >= 1, 120,
+                   "a finished task in the journal", proc=proc)
+        rank1 = poll_until(lambda: _worker_rank(proc.pid), 60, "rank 1's process", proc=proc)
+        family = [rank1] + _children(rank1)               # the rank and its task process
+        assert len(family) == 2, family
+        os.kill(rank1, signal.SIGKILL)
+        status = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert status != 0
+    assert journal_counts(store)[0] < 6                      # killed before the end
+    poll_until(lambda: not any(Path(f"/proc/{p}").exists() for p in family), 60, "no process of rank 1 left")
+    rerun = cortex("campaign", "run", tmp_path / "slow.toml", "--store", store, "--quiet", mpi=2)
+    assert rerun.returncode == 0, rerun.stderr
+    frame, ref = read_results(store), read_results(reference)
+    assert (frame["state"] == "done").all()
+    for key in VALUES:
+        np.testing.assert_array_equal(frame[key].to_numpy(), ref[key].to_numpy(), err_msg=key)
