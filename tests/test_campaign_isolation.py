@@ -8,14 +8,16 @@ K_S = 8.33 mN/m (its four tensions), by the test knobs of campaign.faults:
 cannot end: only the rank's watchdog, past timeout_s + GRACE_S, does). One
 `cortex campaign run`, under one process and under `mpiexec -n 2`, must end
 with status 1, the four failed with a message naming what happened, and the
-other 56 done with the numbers of an undisturbed run, bit for bit. The
-spinning task is found by the timeout, never by a guessed sleep.
+other 56 done with the numbers of an undisturbed run, bit for bit, on the
+write path h5py here allows (rank 0 writing; parallel HDF5 under
+.venv-mpio). The spinning task is found by the timeout, never by a guessed sleep.
 """
 
 import json
 import re
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 
@@ -27,6 +29,9 @@ from conftest import ROOT, cortex
 DEMO = (ROOT / "campaigns" / "demo.toml").read_text().split("# SPEC 5")[0]   # its compressions
 TIMEOUT_S = 5.0          # a solve here takes well under a second: the spin's timeout, kept short
 VALUES = ["force_nN", "modulus_mN_per_m", "h_tilde", "volume_error", "iterations"]
+# the store's write path: parallel HDF5 where h5py has MPI (make test-mpi-parallel runs this file with
+# .venv-mpio), else rank 0 writing every row
+WRITE_PATH = "mpio" if h5py.get_config().mpi else "rank0"
 
 
 def campaign_file(folder, test=""):
@@ -62,8 +67,11 @@ def test_a_task_that_kills_or_wedges_its_process_fails_alone(undisturbed, tmp_pa
     assert len(rows) == 4
     path = campaign_file(tmp_path, f"\n[test]\n{fault}_task = {rows}\n")
     store = tmp_path / "s.h5"
-    out = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
+    out = cortex("campaign", "run", path, "--store", store, "--quiet", "--write-path", WRITE_PATH,
+                 mpi=ranks if ranks > 1 else 0)
     assert out.returncode == 1, out.stderr
+    with h5py.File(store, "r") as f:
+        assert json.loads(f.attrs["runs"])[-1]["write_path"] == WRITE_PATH
     assert "4 tasks failed" in out.stderr and "Traceback" not in out.stderr, out.stderr
 
     frame = read_results(store)
