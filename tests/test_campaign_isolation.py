@@ -219,3 +219,17 @@ def test_a_worker_rank_killed_from_outside_ends_the_job_and_the_rerun_is_identic
     assert (frame["state"] == "done").all()
     for key in VALUES:
         np.testing.assert_array_equal(frame[key].to_numpy(), ref[key].to_numpy(), err_msg=key)
+
+
+def test_the_default_memory_limit_shares_the_node_among_its_ranks(monkeypatch):
+    import os
+    from campaign.isolation import memory_share_mb
+    for key in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE", "SLURM_NTASKS_PER_NODE"):
+        monkeypatch.delenv(key, raising=False)
+    total_mb = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 2**20
+    assert memory_share_mb() == total_mb
+    monkeypatch.setenv("MPI_LOCALNRANKS", "4")               # MPICH's mpiexec, 4 ranks on this node
+    assert memory_share_mb() == total_mb / 4
+    monkeypatch.delenv("MPI_LOCALNRANKS")
+    monkeypatch.setenv("SLURM_NTASKS_PER_NODE", "8")
+    assert memory_share_mb() == total_mb / 8
