@@ -42,12 +42,14 @@ from solver.errors import InputError
 @dataclass
 class Inputs:
     """What `read` found: the usable finished compressions, the trials (or
-    None), and what was left out (one text per reason)."""
+    None), what was left out (one text per reason) and the failed
+    compressions (their rows of the store's results)."""
 
     store: Path
     done: pd.DataFrame
     trials: pd.DataFrame | None
     left_out: list = field(default_factory=list)
+    failed: pd.DataFrame | None = None
 
 
 @dataclass
@@ -118,7 +120,8 @@ def read(store, partial=False):
     done = done.drop(unusable.index)
     if not len(done):
         raise InputError(f"{store}: no finished compression with a finite modulus to calibrate")
-    return Inputs(store=store, done=done, trials=trials if has_trials else None, left_out=left_out)
+    return Inputs(store=store, done=done, trials=trials if has_trials else None, left_out=left_out,
+                  failed=results[results["state"] == "failed"])
 
 
 def fit(inputs, say, marks):

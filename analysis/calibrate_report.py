@@ -43,6 +43,21 @@ def _table(header, rows):
     return "\n".join(lines)
 
 
+FAILED_SHOWN = 20      # failed compressions listed by name in the report; the rest counted
+
+
+def _failed_tasks(failed):
+    """The failed compressions, each with its parameters and message (`cortex campaign status` lists all)."""
+    if failed is None or not len(failed):
+        return []
+    rows = [(t.task_id, f"{t.h0_um:g}", f"{t.shear_mN_per_m:g}", f"{t.tension_mN_per_m:g}", t.bending,
+             str(t.error).replace("|", "/")) for t in failed.head(FAILED_SHOWN).itertuples()]
+    more = len(failed) - len(rows)
+    return [f"Failed compression tasks ({len(failed)}):", "",
+            _table(["task_id", "h0_um", "shear_mN_per_m", "tension_mN_per_m", "bending", "error"], rows), ""] + \
+        ([f"... and {more} more: `cortex campaign status STORE` lists them all.", ""] if more else [])
+
+
 def _header(inputs):
     done = inputs.done
     L = [f"# Calibration and Monte-Carlo analysis of `{inputs.store}`", "",
@@ -50,6 +65,7 @@ def _header(inputs):
          f"{len(done)} finished compressions used.", ""]
     if inputs.left_out:
         L += ["**Partial analysis.** Left out: " + "; ".join(inputs.left_out) + ".", ""]
+    L += _failed_tasks(inputs.failed)
     unconverged = int((done["converged"].astype(str).str.lower() == "false").sum()) if "converged" in done else 0
     if unconverged:
         L += ["Notes: " + f"{unconverged} finished simulation(s) report converged = False; they were used"

@@ -16,7 +16,8 @@ def register(sub):
     r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
                    "a folder, or an existing file that is not a campaign store, is refused")
     r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
-    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again")
+    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again (a rerun otherwise leaves "
+                   "them failed: also those that crashed their process or did not answer)")
     r.add_argument("--quiet", action="store_true", help="no progress output")
     r.add_argument("--json", action="store_true", help="at the end, the store's summary as one JSON object "
                    "(as `cortex campaign status --json`)")
@@ -30,7 +31,8 @@ def register(sub):
                       description="Summarise a store (also while its campaign is running).")
     s.add_argument("store", metavar="STORE.h5")
     s.add_argument("--json", action="store_true", help="one JSON object: tasks, done, failed, running, pending, "
-                   "tasks_per_s, eta_s, failures (and trials)")
+                   "tasks_per_s, eta_s, failures ([task_id, error]), failed_tasks (each with its parameters, rank, "
+                   "host and error) (and trials)")
     s.set_defaults(handler="campaign.cli:status")
 
 
@@ -44,6 +46,8 @@ def run(args):
     from campaign import config, scheduler
     from solver.errors import InputError
     campaign = config.load(args.config)
+    from campaign import isolation
+    isolation.start_early(campaign)   # the task process, forked before MPI loads; it warms up meanwhile
     store = args.store or campaign.store
     if not store:
         raise InputError(f"{args.config}: no store given (--store, or [campaign] store)")
@@ -74,8 +78,8 @@ def status(args):
     if info["tasks_per_s"]:
         eta = f", ETA {info['eta_s']:.0f} s" if info["eta_s"] else ""
         print(f"throughput {info['tasks_per_s']:.2f} task/s{eta}")
-    for tid, err in info["failures"]:
-        print(f"failed {tid}: {err}")
+    for task in info["failed_tasks"]:
+        print(f"failed {task['task_id']} (rank {task['rank']}): {task['error']}")
     if "trials" in info:
         t = info["trials"]
         print(f"Monte-Carlo: {t['trials']} trials: " + ", ".join(

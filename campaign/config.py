@@ -12,7 +12,10 @@
                 compression's mean height is h̃), ks_tilde for shear_mN_per_m
                 (K_S = K̃_S K_B), gamma_tilde for tension_mN_per_m
                 (γ_a = γ̃_a K_B): a grid over (h̃, K̃_S, γ̃_a) at any V and K_B
-    [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task)
+    [solver]    method (`fast`|`explicit`), resolution, timeout_s (per task,
+                600), memory_limit_mb (per task process, default the node's
+                memory shared among its ranks: `campaign.isolation`), retries
+                (of a task that crashed its process or did not answer, 0)
     [montecarlo] the Monte-Carlo error trials (SPEC 5, `campaign.trials`):
                 nu (true Poisson ratios, each mapped to the grid's K_S closest to
                 K_B (1-ν)/(1+ν), within 0.01 in ν), cells (N per study, 55),
@@ -23,8 +26,10 @@
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
     [test]      for tests only (`campaign.faults`): raise_task, hang_task,
-                nan_task (grid indices whose task raises, sleeps past its
-                timeout, or returns NaN instead of being solved); noop = true
+                nan_task, segv_task, spin_task, memory_task (grid indices whose
+                task raises, sleeps past its timeout, returns NaN instead of
+                being solved, crashes its process, spins in compiled code, or
+                asks for 1 TB); noop = true
                 (every task returns zeros at once: throughput benchmark);
                 fake_law = true (every compression returns at once the force
                 of a made-up smooth law K(h̃): tests of trials and analysis);
@@ -67,7 +72,7 @@ RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 MAX_TASKS = 100_000
 SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
-            "solver": {"method", "resolution", "timeout_s"},
+            "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
             "test": faults.KEYS}
@@ -87,6 +92,8 @@ class Campaign:
     test: faults.Knobs = faults.Knobs()   # the [test] section (tests only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
     trial_cells: int = 0   # N, cells per study
+    memory_limit_mb: float | None = None   # per task process; None: the node's share (`campaign.isolation`)
+    retries: int = 0       # of a task that crashed its process or did not answer
 
     @cached_property
     def fingerprint(self):
@@ -125,6 +132,7 @@ def load(path):
     ratios = _ratio_axes(path, grid)
     axes = _axes(path, grid, ratios)
     method, resolution, timeout = _solver_section(path, data.get("solver", {}))
+    memory_limit_mb, retries = _isolation_settings(path, data.get("solver", {}))
     meta = _campaign_section(path, data.get("campaign", {}))
     limit = _max_tasks(path, meta)
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
@@ -135,7 +143,8 @@ def load(path):
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
     return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=resolution, timeout_s=timeout, shells=shells,
-                    text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0)
+                    text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0,
+                    memory_limit_mb=memory_limit_mb, retries=retries)
 
 
 def _read_toml(path):
@@ -200,6 +209,17 @@ def _solver_section(path, solver):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
             raise InputError(f"{path}: [solver] {key} must be a positive number (got {value!r})")
     return method, float(resolution), float(timeout)
+
+
+def _isolation_settings(path, solver):
+    """[solver] memory_limit_mb (a positive number or absent) and retries (an integer >= 0)."""
+    limit, retries = solver.get("memory_limit_mb"), solver.get("retries", 0)
+    if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, float))
+                              or not 0 < limit < math.inf):
+        raise InputError(f"{path}: [solver] memory_limit_mb must be a positive number of MB (got {limit!r})")
+    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+        raise InputError(f"{path}: [solver] retries must be an integer >= 0 (got {retries!r})")
+    return (None if limit is None else float(limit)), retries
 
 
 def _campaign_section(path, meta):

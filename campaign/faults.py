@@ -8,6 +8,15 @@ it). The knobs (`parse`):
     raise_task, hang_task, nan_task   grid indices whose compression raises,
                                       sleeps past the per-task timeout, or
                                       returns NaN instead of being solved
+    memory_task                       grid indices whose compression asks for
+                                      1 TB at once (a MemoryError under
+                                      [solver] memory_limit_mb)
+    segv_task, spin_task              grid indices whose compression crashes
+                                      its process (a read of address 0: a real
+                                      SIGSEGV) or spins forever in compiled
+                                      code (`spin`, where no Python signal
+                                      handler runs, so only the watchdog of
+                                      `campaign.isolation` ends it)
     noop = true       every compression returns zeros at once (throughput benchmark)
     fake_law = true   every compression returns at once the force of a made-up
                       smooth law (`fake_law`; tests of the trials and the analysis)
@@ -37,8 +46,8 @@ from dataclasses import dataclass, field
 from campaign.schema import RESULTS
 from solver.errors import InputError
 
-FAULTS = ("raise", "hang", "nan", "noop", "fake_law")
-ROW_KEYS = ("raise_task", "hang_task", "nan_task")
+FAULTS = ("raise", "hang", "nan", "segv", "spin", "memory", "noop", "fake_law")
+ROW_KEYS = ("raise_task", "hang_task", "nan_task", "segv_task", "spin_task", "memory_task")
 SLEEP_KEYS = ("compression_sleep_s", "trial_sleep_s")
 KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
 HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
@@ -110,6 +119,29 @@ def prepare(fault, shell):
         from solver.modulus import effective_modulus
         effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
         droplet(shell.volume_um3, shell.h1_um)
+    if fault == "spin":
+        _spin()(0.0)                    # compiled (or loaded from numba's cache); returns at once for 0
+
+
+_compiled = {}
+
+
+def _spin():
+    """The compiled loop of `spin_task`, spin(x): x += 2 until x is 0.
+    spin(0.0) returns at once; from x = 1.0 the loop never ends (x grows, odd,
+    until x + 2 rounds to x): a task stuck in compiled code, which no Python
+    signal interrupts. (A float, so the compiler cannot reason the loop away
+    as it may an integer one.) Compiled once (numba's on-disk cache)."""
+    if "spin" not in _compiled:
+        from numba import njit
+
+        @njit(cache=True)
+        def spin(x):
+            while x != 0.0:
+                x += 2.0
+            return x
+        _compiled["spin"] = spin
+    return _compiled["spin"]
 
 
 def injected(fault, shell):
@@ -118,6 +150,14 @@ def injected(fault, shell):
         raise RuntimeError("injected fault: this task raises")
     if fault == "hang":
         time.sleep(HANG_S)
+    if fault == "segv":
+        import ctypes
+        ctypes.string_at(0)             # a read of address 0: the process dies of SIGSEGV
+    if fault == "spin":
+        _spin()(1.0)                    # never returns
+    if fault == "memory":
+        import numpy as np
+        np.ones(2**37)                  # 1 TB
     if fault == "fake_law":
         return fake_law(shell)
     return dict.fromkeys(RESULTS, 0.0 if fault == "noop" else math.nan)

@@ -31,7 +31,10 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   serving leaves it time, `ρ = W c̄ / (b T̄) ≤ MASTER_LOAD_MAX` (b without
   the guided term), and it serves at most `MASTER_WORKERS_MAX` workers:
   beyond that, one task of rank 0 delays W workers' answers for the gain of
-  one rank in W + 1 (docs/performance.md, "The engine").
+  one rank in W + 1 (docs/performance.md, "The engine"). It takes
+  `⌊MASTER_BATCH_S / T̄⌋` tasks at a time (at least one, at most b): one
+  message to its task process (`campaign.isolation`) for many short tasks,
+  while its serving waits no longer than about one task or MASTER_BATCH_S.
 - **Retries** are the scheduler's input: which tasks are to do (pending, and
   failed ones with --retry-failed) is decided from the store before the run.
 
@@ -48,6 +51,7 @@ BATCH_MAX = 512           # tasks in one message at most
 GUIDE = 2                 # guided self-scheduling: a batch is at most 1/(GUIDE R) of what is queued
 MASTER_LOAD_MAX = 0.5     # serving should take at most this share of rank 0's time
 MASTER_WORKERS_MAX = 15   # ... and it serves at most this many workers
+MASTER_BATCH_S = 0.02     # s: the work rank 0 takes at once between messages (workers hold a batch ahead)
 SMOOTHING = 0.2           # weight of the newest measurement in the running means
 
 
@@ -130,6 +134,12 @@ class Policy:
         if self.workers == 0:
             return True
         return master_may_compute(self.workers) and self.load() <= MASTER_LOAD_MAX
+
+    def master_batch(self):
+        """Tasks rank 0 computes at once (module docstring); b with no workers to serve."""
+        if self.workers == 0 or self.task_s is None:
+            return self.batch_size()
+        return max(1, min(math.floor(MASTER_BATCH_S / max(self.task_s, 1e-9)), self.batch_size()))
 
     def computing(self):
         """Ranks computing tasks: the workers, and rank 0 when it does."""

@@ -153,7 +153,7 @@ def read_trials(path):
 def summary(path, now=time.time):
     """Counts by state, failures with their messages, throughput and ETA;
     `now()` is the clock (Unix s) a running campaign's rate is taken up to."""
-    cols = _task_columns(path, ("started_unix_s", "wall_s", "error"))
+    cols = _task_columns(path, ("started_unix_s", "wall_s", "error", "rank"))
     state, started = cols["state"], cols["started_unix_s"]
     counts = np.bincount(state, minlength=len(STATES))
     left = int(len(state) - counts[DONE] - counts[FAILED])
@@ -163,7 +163,8 @@ def summary(path, now=time.time):
         span = (now() if left else np.nanmax(started + np.nan_to_num(cols["wall_s"]))) - np.nanmin(started)
         rate = int(counts[DONE]) / span if span > 0 else None
     info = {"tasks": int(len(state)), **{s: int(counts[i]) for i, s in enumerate(STATES)},
-            "failures": _failures(path, state, cols["error"]), "tasks_per_s": rate,
+            "failures": _failures(path, state, cols["error"]),
+            "failed_tasks": failed_tasks(path, state, cols["rank"], cols["error"]), "tasks_per_s": rate,
             "eta_s": (left / rate) if rate else None}
     trials = _trial_states(path)
     if trials is not None:
@@ -182,6 +183,28 @@ def _failures(path, state, error):
     with _open_store(path) as f:
         ids = _strings(f["task_id"])[failed]
     return [[str(t), str(error[i])] for t, i in zip(ids, failed)]
+
+
+def failed_tasks(path, state, rank, error):
+    """One dict per failed compression: task_id, row, its parameters (those
+    not NaN, and bending), the rank that ran it, the host (from the message's
+    '(rank R on HOST)' tail, None without one) and the error."""
+    import re
+    failed = np.flatnonzero(state == FAILED)
+    if not len(failed):
+        return []
+    with _open_store(path) as f:
+        ids = _strings(f["task_id"])[failed]
+        bending = _strings(f["bending"], few=True)[failed]
+        params = {k: f[k][failed] for k in PARAMS if k in f}
+    out = []
+    for j, i in enumerate(failed):
+        host = re.search(r"\(rank -?\d+ on ([^)]+)\)$", str(error[i]))
+        out.append({"task_id": str(ids[j]), "row": int(i),
+                    **{k: float(v[j]) for k, v in params.items() if np.isfinite(v[j])},
+                    "bending": str(bending[j]), "rank": int(rank[i]), "host": host and host.group(1),
+                    "error": str(error[i])})
+    return out
 
 
 def _trial_states(path):

@@ -9,13 +9,16 @@ before); the worker computes
 it (`campaign.tasks`) and sends its entries back as one message (TAG_RESULT:
 (entries, seconds computing)) without waiting for it to be received. Rank 0
 records each entry (`store.record`) and flushes the store once per batch it
-received (`store.flush`: the journal fsync'd, then the rows). Without
+received (`store.flush`: the journal fsync'd, then the rows). A worker passes
+its task process's answer on as that process pickled it (on the rank0
+path), so the entries are pickled once and unpickled once, on rank 0. Without
 `mpiexec` the same code runs in one process.
 
 A trial task is sent with the forces and failure messages of the
 compressions it uses (`campaign.trial_inputs`), so workers never read the
-store. A failing task is recorded as failed with its message; the others go
-on (`campaign.tasks`).
+store. Every rank computes its tasks in a task process of its own, which it
+watches (`campaign.isolation`): a task that raises, crashes that process or
+does not answer is recorded as failed with its message; the others go on.
 SIGTERM or SIGINT (`campaign.signals`; mpiexec passes them on to every rank,
 and rank 0's flag is the one read): no new tasks are handed out, the batches
 in flight finish and are written (a batch holds a worker for at most about
@@ -29,6 +32,7 @@ TAG_STOP, before every rank closes the file together).
 
 import contextlib
 import gc
+import pickle
 import sys
 import time
 from collections import deque
@@ -40,7 +44,7 @@ from campaign import faults
 from campaign.mpio_writer import Writer, open_parallel, write_path
 from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
-from campaign.tasks import run_task, warm_up, warm_up_behind
+from campaign.isolation import Isolated, memory_share_mb
 from campaign.trial_inputs import TrialInputs
 from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
@@ -63,8 +67,10 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
+    tasks = Isolated(campaign, comm.Get_rank(), campaign.memory_limit_mb or memory_share_mb(), campaign.retries)
     store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
+        tasks.close()
         if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
             raise error
         return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
@@ -72,18 +78,23 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     gc.freeze()      # what the imports made, out of the collector's sight: the collections the result
     #                  entries trigger would walk it each time (unpickling an entry 2.7 us instead of 1.6)
     if comm.Get_rank() != 0:
-        _worker(comm, campaign, parallel_file and Writer(parallel_file))
+        try:
+            _worker(comm, tasks, parallel_file and Writer(parallel_file))
+        finally:
+            tasks.close()
         return EXIT_DONE
     if parallel_file:
         store.attach(parallel_file)
-    workers = comm.Get_size() - 1      # rank 0 alone warms up in its first task: nobody waits for it
-    warming = warm_up_behind(campaign) if workers and master_may_compute(workers) else None  # while serving
+    workers = comm.Get_size() - 1
+    if workers and not master_may_compute(workers):
+        tasks.close()                  # rank 0 only serves: its task process is not needed
+        tasks = None
     if progress:
         print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
               file=sys.stderr, flush=True)
     try:
-        status = _master(comm, store, campaign, retry_failed, progress, warming)
+        status = _master(comm, store, campaign, retry_failed, progress, tasks)
     except BaseException as err:
         if is_write_failure(err):
             store.abort()             # nothing more is written: the rerun resumes from the journal
@@ -91,17 +102,16 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
             store.close()
         raise
     finally:
-        if warming is not None:       # a run that ends first waits for it: numba must not be
-            warming.join()            # loading in a daemon thread while the interpreter shuts down
+        if tasks is not None:
+            tasks.close()
     store.close()
     return status
 
 
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store, the others warm up
-    (`campaign.tasks.warm_up`) and wait for it (rank 0 warms up afterwards,
-    behind its serving: `_master`)."""
+    and error on every rank: rank 0 opens the store while every rank's task
+    process warms up (`campaign.isolation`)."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:
@@ -110,16 +120,15 @@ def _open_store(comm, campaign, store_path, new, writes):
                           on_record=faults.record_hook())
         except Exception as err:
             error = err
-    else:
-        warm_up(campaign)          # meanwhile: the first task's start-up costs, not paid in the run
     error, path = comm.bcast((error, path), root=0)
     return store, path, error
 
 
-def _worker(comm, campaign, writer=None):
-    """A worker's loop: compute each batch it is sent, send its entries back as one message."""
+def _worker(comm, tasks, writer=None):
+    """A worker's loop: compute each batch it is sent (in its task process,
+    `tasks`), send its entries back as one message."""
     from mpi4py import MPI
-    status, rank = MPI.Status(), comm.Get_rank()
+    status = MPI.Status()
     sent = []               # results in flight: received only when rank 0 gets to them
     while True:
         message = _next_message(comm, status)
@@ -133,13 +142,13 @@ def _worker(comm, campaign, writer=None):
                 writer.close()
             return
         else:
-            started = time.perf_counter()
-            done = [run_task(campaign, task, payload, attempts, rank) for task, payload, attempts in message]
-            busy_s = time.perf_counter() - started
-            for e in done if writer is not None else ():
-                writer.keep(e)
+            result = tasks.run_pickled(message)     # passed on as the task process pickled it
+            if writer is not None:
+                done, busy_s = result = pickle.loads(result)
+                for e in done:
+                    writer.keep(e)
             sent = [r for r in sent if not r.Test()]
-            sent.append(comm.isend((done, busy_s), dest=0, tag=TAG_RESULT))
+            sent.append(comm.isend(result, dest=0, tag=TAG_RESULT))
 
 
 def _next_message(comm, status):
@@ -161,16 +170,18 @@ def _next_message(comm, status):
     return message.recv()
 
 
-def _master(comm, store, campaign, retry_failed, progress, warming=None):
-    """Rank 0's loop: serve the workers' results, compute a task itself when the
-    policy says so and its warm-up (`warming`, a thread) has finished, until
-    nothing is left (or a signal stopped the hand-outs)."""
-    master = _Master(comm, store, campaign, retry_failed, progress)
+def _master(comm, store, campaign, retry_failed, progress, tasks=None):
+    """Rank 0's loop: serve the workers' results, compute tasks itself (in its
+    task process, `tasks`) when the policy says so and that process has warmed
+    up (a worker is not kept waiting meanwhile), until nothing is left (or a
+    signal stopped the hand-outs)."""
+    master = _Master(comm, store, campaign, retry_failed, progress, tasks)
     master.refill()
     while master.active():
         master.serve()
-        if master.handing_out() and master.policy.master_computes() and (warming is None or not warming.is_alive()):
-            master.compute_one()
+        if master.handing_out() and master.policy.master_computes() and (not master.policy.workers
+                                                                          or tasks.ready()):
+            master.compute()
         else:
             time.sleep(IDLE_S)
         if time.time() - master.last_flush > FLUSH_S:
@@ -197,9 +208,9 @@ class _Master:
     """Rank 0's state: the policy's queue, the attempts, the trials' inputs, the
     messages (`_Link`), the progress and the count of failed tasks."""
 
-    def __init__(self, comm, store, campaign, retry_failed, progress):
+    def __init__(self, comm, store, campaign, retry_failed, progress, tasks):
         import numpy as np
-        self.store, self.campaign, self.n = store, campaign, len(campaign.shells)
+        self.store, self.campaign, self.n, self.tasks = store, campaign, len(campaign.shells), tasks
         states = store.state()
         rows = np.flatnonzero((states == PENDING) | ((states == FAILED) if retry_failed else False)).tolist()
         self.inputs = TrialInputs(store, campaign, retry_failed)
@@ -265,13 +276,13 @@ class _Master:
             self.refill()
             self.policy.served(messages, time.perf_counter() - started)
 
-    def compute_one(self):
-        """Rank 0 computes the next task itself."""
-        (task, payload, attempt), = self.prepared(self.policy.take(1))
-        started = time.perf_counter()
-        e = run_task(self.campaign, task, payload, attempt, 0)
-        self.policy.timed(1, time.perf_counter() - started)
-        self.record([e])
+    def compute(self):
+        """Rank 0 computes the next tasks itself, as many as the policy says
+        (one message to its task process)."""
+        batch = self.prepared(self.policy.take(self.policy.master_batch()))
+        entries, busy_s = self.tasks.run(batch)
+        self.policy.timed(len(entries), busy_s)
+        self.record(entries)
         self.refill()                 # a finished compression may have made trials ready
 
     def flush(self, tag=TAG_WRITE):
@@ -314,7 +325,8 @@ class _Link:
         if not self.comm.Iprobe(source=self.any, tag=TAG_RESULT, status=self.status):
             return None
         worker = self.status.Get_source()
-        entries, busy_s = self.comm.recv(source=worker, tag=TAG_RESULT)
+        got = self.comm.recv(source=worker, tag=TAG_RESULT)
+        entries, busy_s = pickle.loads(got) if isinstance(got, bytes) else got
         self.batches[worker].popleft()
         self.received[worker] += len(entries)
         return entries, busy_s

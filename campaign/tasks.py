@@ -1,15 +1,19 @@
-"""One task, computed where it runs: a compression or a Monte-Carlo trial task,
-under the per-task timeout, and its journal entry.
+"""One task, computed where it runs (a rank's task process,
+`campaign.task_process`): a compression or a Monte-Carlo trial task, under
+the per-task timeout, and its journal entry.
 
-A task that raises, exceeds the per-task timeout (SIGALRM) or (a compression)
-returns a non-finite result is failed with its message; nothing escapes to
-the scheduler, so one bad task never stops the others. Tasks are numbered:
+A task that raises (a MemoryError too: the process's memory is capped),
+exceeds the per-task timeout (SIGALRM) or (a compression) returns a
+non-finite result is failed with its message; nothing escapes, so one bad
+task never stops the others. (A task that kills its process, or is stuck
+where SIGALRM cannot end it, is failed by `campaign.isolation`.) Tasks are numbered:
 the compressions 0..n-1 (grid order), then trial task j is n + j.
 """
 
+import functools
 import math
 import signal
-import threading
+import socket
 import time
 import traceback
 
@@ -92,11 +96,22 @@ def _guarded(work, timeout_s):
         return "failed", {}, "non-finite result", started
     except TaskTimeout:
         return "failed", {}, f"timed out after {timeout_s:g} s", started
+    except MemoryError as err:
+        return "failed", {}, f"MemoryError: {err or 'out of memory'}{_memory_limit()}", started
     except Exception as err:  # a failed task is recorded, the campaign goes on
         msg = f"{type(err).__name__}: {err}".splitlines()[0]
         if not isinstance(err, (ArithmeticError, RuntimeError, ValueError)):
             msg += " | " + traceback.format_exc(limit=2).splitlines()[-1]
         return "failed", {}, msg, started
+
+
+def _memory_limit():
+    """' (the process is limited to N MB: [solver] memory_limit_mb)' when its address space is capped."""
+    import resource
+    limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    if limit == resource.RLIM_INFINITY:
+        return ""
+    return f" (the process is limited to {limit / 2**20:.0f} MB: [solver] memory_limit_mb)"
 
 
 def warm_up(campaign):
@@ -106,14 +121,16 @@ def warm_up(campaign):
     where it has one (the fast solver loads its compiled functions by solving
     the first compression and throwing it away): 0.6-1 s here, mostly
     importing numba and its first loads from the on-disk compile cache; or
-    what its `[test]` fault needs. A worker does this while rank 0 prepares
-    the store, rank 0 in a thread as it starts serving (`warm_up_behind`),
-    so it is not paid again in the run. Nothing is recorded; a failure here is left for
-    the task itself to meet and report."""
+    what its `[test]` faults need. Each rank's task process does this
+    (`campaign.task_process`) while the rank starts up and prepares the
+    store, so it is not paid in the run. Nothing is recorded; a failure here
+    is left for the task itself to meet and report."""
     if not campaign.shells:
         return
     shell, fault = campaign.shells[0], campaign.test.fault(0)
     try:
+        for other in set(campaign.test.by_row.values()) - {fault}:
+            faults.prepare(other, shell)
         if fault:
             faults.prepare(fault, shell)
             return
@@ -126,17 +143,6 @@ def warm_up(campaign):
             solver.warm_up(shell)
     except Exception:  # noqa: BLE001  (the task reports it, with its message)
         pass
-
-
-def warm_up_behind(campaign):
-    """`warm_up` in a thread of its own, started now; join it before the
-    process's first task. Rank 0 warms up this way while it serves the
-    workers, so that none waits for its warm-up (0.4-0.6 s) with only the few
-    tasks it holds; it starts once the store, which the workers wait for, is
-    made."""
-    thread = threading.Thread(target=warm_up, args=(campaign,), name="warm-up", daemon=True)
-    thread.start()
-    return thread
 
 
 def execute(campaign, task, payload):
@@ -152,12 +158,21 @@ def execute(campaign, task, payload):
 def entry(campaign, task, attempts, rank, outcome):
     """Task `task`'s journal entry from its `outcome` = (state, results, error,
     started) as `execute` returns it: a compression's `row` and `results`, or a
-    trial task's `task` and per-cell `cells`."""
+    trial task's `task` and per-cell `cells`. A failed task's message ends
+    with where it ran, '(rank R on HOST)'."""
     state, results, error, started = outcome
+    if state == "failed":
+        error = f"{error} (rank {rank} on {_host()})"
     n = len(campaign.shells)
     key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
     return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
             "started": started}
+
+
+@functools.cache
+def _host():
+    """This machine's name, as a failed task's message gives it."""
+    return socket.gethostname()
 
 
 def run_task(campaign, task, payload, attempts, rank):

@@ -2,6 +2,8 @@
 tasks, trial tasks after the compressions they wait for, batch sizes,
 look-ahead, when rank 0 computes, and what a retry or a resume hands out."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -145,3 +147,20 @@ def test_the_threshold_is_the_served_share_of_rank_0s_time():
     q.timed(1, T)
     q.served(1, c_edge * 1.01)                          # b_load = b + 1: the batch grows instead
     assert q.batch_size() == b + 1 and q.master_computes()
+
+
+def test_rank_0_takes_about_master_batch_s_of_tasks_at_once():
+    """Rank 0 sends its own tasks to its task process ~MASTER_BATCH_S at a time:
+    one before any task is timed, ⌊MASTER_BATCH_S / T̄⌋ (never more than a
+    worker's batch) once timed, one for tasks longer than that; alone, a whole batch."""
+    p = Policy(rows=range(100_000), waits={}, n=100_000, workers=1)
+    assert p.master_batch() == 1
+    for _ in range(50):
+        p.timed(1000, 1000 * 1e-4)                          # 0.1 ms tasks
+    assert p.master_batch() == math.floor(policy.MASTER_BATCH_S / p.task_s) <= p.batch_size()
+    for _ in range(50):
+        p.timed(10, 10 * 0.05)                              # 50 ms tasks: longer than MASTER_BATCH_S
+    assert p.master_batch() == 1
+    alone = Policy(rows=range(100_000), waits={}, n=100_000, workers=0)
+    alone.timed(1000, 1000 * 1e-4)
+    assert alone.master_batch() == alone.batch_size() > 1
