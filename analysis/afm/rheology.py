@@ -21,6 +21,7 @@ Population: medians and quartiles of β_B and β_S and the Wilcoxon signed-rank 
 turnover reading predicts, and two-sided).
 """
 
+import warnings
 import zlib
 
 import numpy as np
@@ -130,7 +131,9 @@ def intervals_errors():
 
 
 def _interval(x):
-    with np.errstate(invalid="ignore"):
+    """Percentile 95 % interval along the last axis (NaN where every draw is NaN)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)        # all-NaN rows: excluded curves
         lo, hi = np.nanpercentile(x, [100 * (1 - intervals.LEVEL) / 2, 100 * (1 + intervals.LEVEL) / 2], axis=-1)
     return lo, hi
 
