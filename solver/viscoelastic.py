@@ -116,7 +116,7 @@ def complex_moduli(shell: Shell, bulk_loss_angle_rad: float, shear_loss_angle_ra
     B = shell.bending_stiffness
     total = shell.bulk_mN_per_m + shell.shear_mN_per_m
     if shell.bending_pN_um is None and total > 0:
-        b = B * (kb + ks) / total
+        b = B * ((kb + ks) / total)
     else:
         b = complex(B)
     return {"bulk": kb, "shear": ks, "bending": b}
