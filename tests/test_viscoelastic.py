@@ -71,3 +71,16 @@ def test_cli_zero_angles_give_the_elastic_modulus_and_bad_input_exits_2():
                 ("--frequency", "1", "--bulk-loss-angle", "-0.1", "--shear-loss-angle", "0")):
         r = _compress(*bad)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_viscous_interior_and_loss_angles_add_at_first_order():
+    """With the Stokes interior (`solver.viscous.prepare`) the complex moduli's loss and the
+    fluid's add to first order: arg C(δ, η) = arg C(δ, 0) + arg C(0, η) for small δ and ωη."""
+    from solver.viscous import prepare
+    shell = Shell(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
+    lin = prepare(relaxed(shell))[0]
+    parts = hessian_parts(shell, lin)
+    both, angles, fluid = (np.angle(correction(parts, db, ds, 1.0, eta)) for db, ds, eta in
+                           ((0.01, 0.02, 0.5), (0.01, 0.02, 0.0), (0.0, 0.0, 0.5)))
+    assert fluid > 1e-3 and angles > 1e-3
+    assert both == pytest.approx(angles + fluid, rel=0.01)
