@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from analysis import calibration as cal_mod
-from outputs.ownership import OutputDir, json_document
+from outputs.ownership import OutputDir
 from solver.errors import InputError
 
 
@@ -208,8 +208,7 @@ def run(store, out, partial=False, progress=None):
     store, out = Path(store), Path(out)
     if not store.exists():
         raise InputError(f"{store}: no such store")
-    out = OutputDir(out, written_before_manifests=lambda d: json_document(d / "calibration.json").get("format")
-                    == cal_mod.FORMAT)    # refused now if not ours (a file, someone else's folder)
+    out = OutputDir(out)              # refused now if not ours (a file, someone else's folder)
     marks = [("start", time.perf_counter())]
     inputs = read(store, partial)
     marks.append(("read_s", time.perf_counter()))

@@ -5,6 +5,7 @@ imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
 
+from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from solver.cli import add_bending, names_of
 
 OUT_HELP = ("output folder (created if missing); a non-empty folder cortex did not write is refused "
@@ -86,10 +87,10 @@ def add_inversion_options(p):
                         "(the paper's phenomenological law, for comparison); a calibration file without "
                         "emulator tables (from `cortex analysis calibrate`) defaults to law")
     add_bending(p, "bending variant of the calibration")
-    p.add_argument("--volume-sd", type=float, default=0.075, metavar="REL",
-                   help="relative SD of the cell volume in the 95 %% intervals (default 0.075)")
-    p.add_argument("--height-sd", type=float, default=0.5, metavar="UM",
-                   help="SD of the height offset per cell in the intervals, um (default 0.5)")
+    p.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
+                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
+    p.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
+                   help="SD of the height offset per cell in the intervals, um (default %(default)s)")
     p.add_argument("--draws", type=int, default=100, help="Monte-Carlo draws per cell (default 100)")
     p.add_argument("--seed", type=int, default=0, help="seed of the interval draws (default 0)")
 
@@ -129,14 +130,7 @@ def viscosity(args):
 def build_calibration(args):
     from analysis import shipped
     from outputs.ownership import OutputDir
-    from solver.errors import InputError
-
-    def ours(path):
-        try:
-            return path.is_file() and shipped.load(path) is not None
-        except InputError:
-            return False
-    out = OutputDir(args.out, written_before_manifests=lambda d: ours(d / CALIBRATION_FILE))
+    out = OutputDir(args.out)
     out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
     doc = shipped.build(args.emulator_store, args.law_store, progress=_say)
     with out.writing(CALIBRATION_FILE) as path:

@@ -25,9 +25,7 @@ moduli K_j, tension γ_a, residual RMS s over n used heights), draw m = 1..M:
 If a draw's offset and noise were the cell's own, its refit would be the truth; the
 interval of ln K̃_S is the percentile one, [q_2.5, q_97.5] of the refitted
 l_m = ln K̃_S,m, and ν's is its image through ν = (1 - K̃_S)/(1 + K̃_S) (decreasing:
-the ends swap). (The earlier scheme refitted the moduli the drawn truth would show at
-the measured heights and reported the basic interval [2 l* - q_97.5, 2 l* - q_2.5];
-with the height offset alone it held the truth for 89 % of cells, docs/emulator.md.)
+the ends swap).
 
 The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(h̃), A(V, h) = R_cell² Â(h̃),
 so ĝ and Â are tabulated once (`solver.geometry.droplet` at R_cell = 1 on a fine
@@ -44,16 +42,14 @@ from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
 from analysis.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
 
 DRAWS = 100
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
-VOLUME_SD = 0.075            # relative
-HEIGHT_SD_UM = 0.5           # one offset per cell
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
-LEVEL = 0.95
 
 
 @lru_cache(maxsize=1)

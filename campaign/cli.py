@@ -11,11 +11,7 @@ def register(sub):
     cs = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     r = cs.add_parser("run", help="run or resume a campaign",
                       description="Run or resume the campaign of CONFIG into STORE. Rerunning the same "
-                                  "command resumes: done tasks are skipped, interrupted ones redone. "
-                                  "Exit status: 0 all done, 1 some tasks failed, 2 bad input (also a "
-                                  "--store that is a folder or a file that is not a campaign store: it is "
-                                  "left as it is), 3 stopped by SIGTERM/SIGINT (rerun to resume), 5 could "
-                                  "not write, e.g. disk full (free space, then rerun to resume).")
+                                  "command resumes: done tasks are skipped, interrupted ones redone.")
     r.add_argument("config", metavar="CONFIG.toml", help="campaign file")
     r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
                    "a folder, or an existing file that is not a campaign store, is refused")
@@ -44,7 +40,7 @@ def run(args):
     import gc
     import os
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
-    # and a rank's own BLAS threads only spun on its neighbour's (paper campaign, 2 ranks: 0.967 of the time)
+    # and a rank's own BLAS threads would only spin on its neighbour's
     from campaign import config, scheduler
     from solver.errors import InputError
     campaign = config.load(args.config)
@@ -63,7 +59,7 @@ def run(args):
     elif MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
         print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
     gc.freeze()      # all closed: the interpreter's last collections then skip numba's compiled functions
-    return status    # (walking them took ~0.1 s a process, as long as 7 % of the paper campaign)
+    return status    # (walking them costs ~0.1 s a process)
 
 
 def status(args):

@@ -44,8 +44,8 @@ trial tasks (len(bending) · len(nu) · len(height_error_mode) · studies), is
 counted from the list lengths alone and must not exceed `[campaign]
 max_tasks`. The default, MAX_TASKS = 100,000, makes a store of about 50 MB
 (some 500 bytes a row); checking 100,000 compressions takes 16 ms here,
-fingerprinting and naming them (as a store is made) 0.07 and 0.1 s (50 s
-before these were made cheap: `campaign.grid.Grid.texts`).
+fingerprinting and naming them (as a store is made, from the grid's axes:
+`campaign.grid.Grid.texts`) 0.07 and 0.1 s.
 """
 
 import hashlib

@@ -22,9 +22,7 @@ number of entries not yet journalled.
 
 A record is complete when all its bytes and its CRC are there: a kill or a
 full disk can only cut the last one, which `trim_cut` removes before a run
-appends (no row holds it: rows follow the journal's fsync). Journals of
-earlier versions, one JSON line per entry, are read too (also mixed with
-records a later run appended).
+appends (no row holds it: rows follow the journal's fsync).
 """
 
 import json
@@ -137,22 +135,10 @@ def _trial_entry(k, t, arrays):
 
 
 def _frames(fh):
-    """(end offset, entries) of each complete record or earlier-version JSON
-    line from the file's position on, up to the first one cut short."""
+    """(end offset, entries) of each complete record from the file's position
+    on, up to the first one cut short."""
     while True:
-        start = fh.tell()
         lead = fh.read(_HEAD)
-        if lead[:1] == b"{":                          # an entry of an earlier version, one JSON line
-            fh.seek(start)
-            line = fh.readline()
-            try:
-                entry = json.loads(line) if line.endswith(b"\n") else None
-            except (json.JSONDecodeError, UnicodeDecodeError):
-                entry = None
-            if entry is None:
-                return
-            yield fh.tell(), [entry]
-            continue
         if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
             return
         n_head, n_data = _SIZES.unpack(lead[len(MAGIC):])
@@ -175,7 +161,7 @@ def read(path, start=0):
 
 
 def complete_bytes(path):
-    """How many leading bytes of the journal are complete records (or lines)."""
+    """How many leading bytes of the journal are complete records."""
     end = 0
     with open(path, "rb") as fh:
         for end, _ in _frames(fh):
@@ -208,17 +194,7 @@ def sync(fh):
 
 
 def is_ours(path):
-    """A journal: empty, or beginning with one of our records, or (earlier
-    versions) its first line one of our entries (a compression's `row` or a
-    trial task's `task`, with its `state`)."""
+    """A journal: empty, or beginning with one of our records."""
     with open(path, "rb") as fh:
         lead = fh.read(len(MAGIC))
-        if not lead or lead == MAGIC:
-            return True
-        fh.seek(0)
-        first = fh.readline()
-    try:
-        entry = json.loads(first)
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        return False
-    return isinstance(entry, dict) and "state" in entry and ("row" in entry or "task" in entry)
+    return not lead or lead == MAGIC

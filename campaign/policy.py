@@ -31,7 +31,7 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   serving leaves it time, `ρ = W c̄ / (b T̄) ≤ MASTER_LOAD_MAX` (b without
   the guided term), and it serves at most `MASTER_WORKERS_MAX` workers:
   beyond that, one task of rank 0 delays W workers' answers for the gain of
-  one rank in W + 1 (docs/performance.md has the measurements).
+  one rank in W + 1 (docs/performance.md, "The engine").
 - **Retries** are the scheduler's input: which tasks are to do (pending, and
   failed ones with --retry-failed) is decided from the store before the run.
 

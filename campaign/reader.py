@@ -49,10 +49,7 @@ def _task_columns(path, names):
         n = len(f["state"])
         block = np.empty((len(floats), n))
         for i, key in enumerate(floats):
-            if key in f:
-                f[key].read_direct(block[i])
-            else:                         # a store made before the viscous columns lacks them
-                block[i] = np.nan
+            f[key].read_direct(block[i])
         cols = {k: f[k][:] for k in ("state", "attempts") + names if k not in floats and k != "error"}
         cols.update(zip(floats, block))
         cols[FLOATS] = block
@@ -93,11 +90,8 @@ def _errors(dset, wanted):
 
 
 def _strings(dset, few=False):
-    """A string column as an object array of str: fixed-length ASCII, or of
-    variable length in stores of earlier versions. `few`: a column of a few
-    distinct values (bending), decoded once each."""
-    if dset.dtype.kind != "S":
-        return dset.asstr()[:].astype(object)
+    """A fixed-length ASCII string column as an object array of str. `few`: a
+    column of a few distinct values (bending), decoded once each."""
     raw = dset[:]
     if few:
         names, index = np.unique(raw, return_inverse=True)

@@ -8,8 +8,6 @@ path one scattered write per column where the runs are many; `put`); the
 last entry of a row wins.
 """
 
-import base64
-
 import numpy as np
 
 from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
@@ -34,8 +32,7 @@ def write_entries(f, entries, cells, contiguous=False):
         "error": np.array([e.get("error", "") for e in batch], object),
         "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
         "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-    present = [key for key in RESULTS if key in f]    # a store made before the viscous columns lacks them
-    columns.update(zip(present, results_table(results, present).T))
+    columns.update(zip(RESULTS, results_table(results, RESULTS).T))
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 
@@ -93,13 +90,6 @@ def trial_columns(entry, N, m):
            "started_unix_s": np.full(N, entry.get("started", np.nan), float)}
     for key in CELL_KEYS + HEIGHT_KEYS:
         shape = (N,) if key in CELL_KEYS else (N, m)
-        out[key] = as_array(cells[key]) if key in cells else np.full(shape, np.nan)
+        out[key] = np.asarray(cells[key], float) if key in cells else np.full(shape, np.nan)
     return out
 
-
-def as_array(value):
-    """A journalled float array: an array (records), or, in the JSON lines of
-    earlier versions, base64 of its float64 bytes or a plain list."""
-    if isinstance(value, dict):
-        return np.frombuffer(base64.b64decode(value["f8"]), "<f8").reshape(value["shape"]).copy()
-    return np.asarray(value, float)

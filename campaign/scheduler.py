@@ -70,7 +70,7 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
         return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
     parallel_file = open_parallel(store_path, comm) if path == "mpio" else None   # every rank
     gc.freeze()      # what the imports made, out of the collector's sight: the collections the result
-    #                  entries trigger walked it each time (rank 0's cost per entry 2.7 -> 1.6 us to unpickle)
+    #                  entries trigger would walk it each time (unpickling an entry 2.7 us instead of 1.6)
     if comm.Get_rank() != 0:
         _worker(comm, campaign, parallel_file and Writer(parallel_file))
         return EXIT_DONE

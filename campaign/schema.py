@@ -5,8 +5,7 @@ One row per compression task (the grid, `campaign.config`): its parameters
 index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
 (fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
 variable-length strings; the journal keeps a message whole); `task_id` and
-`bending` are fixed-length ASCII (stores of earlier versions have them of
-variable length; the readers take both).
+`bending` are fixed-length ASCII.
 
 The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
 row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with

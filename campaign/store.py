@@ -94,7 +94,6 @@ class Store:
     def _prepare(self, campaign, ranks):
         """Trials added, journal trimmed and replayed, rows left running pending again, this run logged."""
         self._add_trials(campaign)
-        self._refuse_variable_length_errors()
         self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
         journal.trim_cut(self.journal_path)
         write_entries(self.file, journal.read(self.journal_path, self.file.attrs.get("journal_bytes", 0)),
@@ -158,12 +157,6 @@ class Store:
         f.flush()
         f.attrs.update(config_text=campaign.text, trials_fingerprint=campaign.trials_fingerprint)
         f.flush()
-
-    def _refuse_variable_length_errors(self):
-        if self.parallel and any(name in self.file and self.file[name].dtype.kind == "O"
-                                 for name in ("error", "trials/error")):
-            raise InputError(f"{self.path} was made by an earlier version (variable-length error strings, "
-                             "which parallel HDF5 cannot write): use --write-path rank0, or --new")
 
     def _pending_again(self):
         """Rows a kill left `running` are pending again."""

@@ -1,9 +1,8 @@
 """A store's files: which are ours, opening one to read, setting one aside.
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
-(the rule of `outputs.ownership`): an HDF5 file with our `format` attribute
-(or, made before it had one, our fingerprint and state rows), or one a kill
-left unreadable with our journal and lock beside it.
+(the rule of `outputs.ownership`): an HDF5 file with our `format` attribute,
+or one a kill left unreadable with our journal and lock beside it.
 """
 
 import os
@@ -36,8 +35,8 @@ def is_our_store(path):
     if hdf5_format(path) == FORMAT:
         return True
     try:
-        with open_read(path) as f:
-            return "fingerprint" in f.attrs and "config_text" in f.attrs and "state" in f
+        open_read(path).close()
+        return False                                  # readable HDF5 without our format: not ours
     except InputError:
         return os.path.isfile(path + ".lock") and os.path.isfile(path + ".journal") \
             and journal.is_ours(path + ".journal")

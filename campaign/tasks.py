@@ -131,10 +131,9 @@ def warm_up(campaign):
 def warm_up_behind(campaign):
     """`warm_up` in a thread of its own, started now; join it before the
     process's first task. Rank 0 warms up this way while it serves the
-    workers: warmed up in its first task instead, it answered no worker for
-    as long (0.4-0.6 s), and each ran out of work after the few tasks it held.
-    (Started before rank 0 makes the store, it slowed that, which the
-    workers wait for, as much as it gained.)"""
+    workers, so that none waits for its warm-up (0.4-0.6 s) with only the few
+    tasks it holds; it starts once the store, which the workers wait for, is
+    made."""
     thread = threading.Thread(target=warm_up, args=(campaign,), name="warm-up", daemon=True)
     thread.start()
     return thread

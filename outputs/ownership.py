@@ -11,9 +11,7 @@ itself. Two kinds of output path:
   it then gets a manifest, `.cortex-outputs`, one line per file the project
   wrote there. A later run may replace exactly those files. A non-empty
   folder without the manifest, or a file in it that the manifest does not
-  list, is refused; except a folder a version before manifests wrote,
-  recognised by one of our files in it (the command says which), where the
-  files of the names the command writes may be replaced.
+  list, is refused.
 
 A refusal is `InputError` (one line, exit status 2), raised before anything
 is written.
@@ -67,20 +65,15 @@ def hdf5_format(path):
 class OutputDir:
     """An output folder that holds only what the project wrote (its manifest)."""
 
-    def __init__(self, path, what="--out", written_before_manifests=None):
-        """`written_before_manifests(folder)`: True for a folder of this command's
-        outputs made by a version without manifests (recognised by a file of ours in
-        it); the files of the names this command writes may then be replaced."""
+    def __init__(self, path, what="--out"):
         self.path, self.what = Path(path), what
         self.manifest = self.path / MANIFEST
         if os.path.lexists(self.path) and not self.path.is_dir():
             raise InputError(f"{what} {self.path}: exists and is not a directory")
-        self.ours, self.legacy = self._listed(), False
+        self.ours = self._listed()
         if self.path.is_dir() and self.ours is None and any(self.path.iterdir()):
-            self.legacy = bool(written_before_manifests and written_before_manifests(self.path))
-            if not self.legacy:
-                raise InputError(f"{what} {self.path}: a folder that cortex did not write (no {MANIFEST} "
-                                 "in it) and not empty; choose a new or empty folder (it is left as it is)")
+            raise InputError(f"{what} {self.path}: a folder that cortex did not write (no {MANIFEST} "
+                             "in it) and not empty; choose a new or empty folder (it is left as it is)")
         self.ours = self.ours or set()
 
     def _listed(self):
@@ -94,7 +87,7 @@ class OutputDir:
         """Refuse now if any of `names` exists here and the project did not write it."""
         for name in names:
             target = self.path / name
-            if os.path.lexists(target) and name not in self.ours and not (self.legacy and target.is_file()):
+            if os.path.lexists(target) and name not in self.ours:
                 raise InputError(f"{self.what} {self.path}: {name} is there and cortex did not write it "
                                  f"(not in {MANIFEST}); it is left as it is (choose another folder)")
 

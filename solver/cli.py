@@ -49,8 +49,13 @@ def _add_geometry(sub):
         "geometry", help="the droplet shape of a confined cell (SPEC section 1)",
         description="Solve the stress-free droplet shape of a cell of volume V between plates "
                     "a gap h apart: contact and equator radii, mean curvature, areas, and the "
-                    "force per unit tension F_a/gamma_a = 2 H A_c (um; times mN/m gives nN).")
-    p.add_argument("--volume", type=float, required=True, metavar="UM3", help="cell volume V, um^3")
+                    "force per unit tension F_a/gamma_a = 2 H A_c (um; times mN/m gives nN). With "
+                    "--equator-radius instead of --volume, V is the volume of the droplet of that "
+                    "height and equatorial radius (as an image of the confined cell measures them).")
+    v = p.add_mutually_exclusive_group(required=True)
+    v.add_argument("--volume", type=float, metavar="UM3", help="cell volume V, um^3")
+    v.add_argument("--equator-radius", type=float, metavar="UM",
+                   help="equatorial radius R_eq of the confined cell, um: V follows from (h, R_eq)")
     p.add_argument("--height", type=float, nargs="+", required=True, metavar="UM",
                    help="plate gap h, um (several give one line each)")
     p.add_argument("--json", action="store_true", help="one JSON object per height")
@@ -117,8 +122,12 @@ def _add_poroelastic(sub):
 
 
 def geometry(args):
-    from solver.geometry import droplet
-    d = droplet(args.volume, args.height)
+    from solver.geometry import droplet, volume_from_image
+    if args.equator_radius is not None:
+        volume = [volume_from_image(h, args.equator_radius) for h in args.height]
+    else:
+        volume = args.volume
+    d = droplet(volume, args.height)
     rows = [d.row(i) for i in range(len(args.height))]
     for row, ht in zip(rows, d.h_tilde):
         row["h_tilde"] = float(ht)
@@ -130,7 +139,11 @@ def geometry(args):
             ("equator_radius_um", "R_eq [um]"), ("mean_curvature_per_um", "H [1/um]"),
             ("surface_area_um2", "A [um^2]"), ("contact_area_um2", "A_c [um^2]"),
             ("force_per_tension_um", "F_a/gamma_a [um]")]
-    print(f"droplet shape, V = {args.volume:g} um^3, R_cell = {float(d.cell_radius_um.flat[0]):.4f} um")
+    if args.equator_radius is not None:
+        cols.insert(1, ("volume_um3", "V [um^3]"))
+        print(f"droplet shape, R_eq = {args.equator_radius:g} um")
+    else:
+        print(f"droplet shape, V = {args.volume:g} um^3, R_cell = {float(d.cell_radius_um.flat[0]):.4f} um")
     print("  ".join(f"{label:>16}" for _, label in cols))
     for row in rows:
         print("  ".join(f"{row[key]:16.6g}" for key, _ in cols))

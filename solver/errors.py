@@ -1,22 +1,12 @@
 """The exception types that say *whose* fault a stop is, and the exit statuses
-every `cortex` command maps them to (one table, shown in the README and in
-each `--help`).
+every `cortex` command maps them to.
 
-| status | meaning                                                        |
-|--------|----------------------------------------------------------------|
-| 0      | done                                                           |
-| 1      | done, but some tasks (or cells) failed: see the report/status  |
-| 2      | bad input: a malformed file, an impossible parameter, a path   |
-|        | that is not ours to write; nothing was written                 |
-| 3      | stopped by a signal (SIGTERM/SIGINT): rerun the same command   |
-|        | to resume                                                      |
-| 4      | no equilibrium found (a solver did not converge)               |
-| 5      | could not write (disk full, quota, I/O error): free space, then|
-|        | rerun the same command to resume                               |
-
-The command line turns `InputError` into one line on stderr and status 2,
-`SolverError` into status 4 and `WriteError` (or an `OSError` with ENOSPC,
-EDQUOT or EIO) into status 5; every package raises them (or a subclass).
+`EXIT_STATUSES` is the one table of (status, meaning): every `--help` ends
+with it (`EXIT_STATUS_HELP`) and docs/cli.md shows it (`exit_status_table()`,
+checked by tests/test_exit_statuses.py). The command line turns `InputError`
+into one line on stderr and status 2, `SolverError` into status 4 and
+`WriteError` (or an `OSError` with ENOSPC, EDQUOT or EIO) into status 5;
+every package raises them (or a subclass).
 """
 
 import errno
@@ -28,9 +18,27 @@ EXIT_SIGNAL = 3
 EXIT_NO_EQUILIBRIUM = 4
 EXIT_WRITE_FAILED = 5
 
-EXIT_STATUS_HELP = ("exit status: 0 done; 1 some tasks or cells failed; 2 bad input (nothing written); "
-                    "3 stopped by a signal (rerun to resume); 4 no equilibrium found; "
-                    "5 could not write (free space, then rerun to resume)")
+EXIT_STATUSES = (
+    (EXIT_DONE, "done"),
+    (EXIT_SOME_FAILED, "done, but some tasks (or cells) failed: see the report or `cortex campaign status` "
+                       "(`campaign run --retry-failed` reruns them)"),
+    (EXIT_BAD_INPUT, "bad input: a malformed file, an impossible parameter, a path that is not ours to write "
+                     "(nothing was written)"),
+    (EXIT_SIGNAL, "stopped by a signal (SIGTERM, SIGINT/Ctrl-C): rerun the same command to resume"),
+    (EXIT_NO_EQUILIBRIUM, "no equilibrium found (`cortex compress`: the solver did not converge)"),
+    (EXIT_WRITE_FAILED, "could not write (disk full, quota, I/O error): free space, then rerun the same "
+                        "command to resume"),
+)
+
+
+def exit_status_table():
+    """`EXIT_STATUSES` as the Markdown table docs/cli.md shows."""
+    rows = [f"| {status} | {meaning} |" for status, meaning in EXIT_STATUSES]
+    return "\n".join(["| status | meaning |", "|---|---|", *rows])
+
+
+EXIT_STATUS_HELP = "exit status: " + "; ".join(f"{status} {meaning.replace('`', '')}"
+                                               for status, meaning in EXIT_STATUSES)
 
 WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.EROFS})
 

@@ -210,6 +210,33 @@ def _droplet(volume, height):
                    cell_radius_um=R_cell, h_tilde=h_tilde)
 
 
+def volume_from_image(height, equator_radius):
+    """The volume V (µm³) of the droplet of gap h and equatorial radius R_eq (µm),
+    as an image of a confined cell measures them.
+
+    With R_eq = 1 the shape is k = R_c/R_eq alone: its half height z(k) falls
+    from 1 at the free sphere (k = 0) to 0 as the cell flattens, so k solves
+    2 z(k) = h / R_eq (Brent's method on [0, k_max]) and V = 2 v(k) R_eq³, v the
+    half volume. Raises InputError for h or R_eq not positive and finite, h
+    above the sphere's 2 R_eq, or a shape flatter than `droplet` supports."""
+    h, r = float(height), float(equator_radius)
+    if not (np.isfinite(h) and np.isfinite(r) and h > 0 and r > 0):
+        raise InputError(f"height and equator radius must be positive numbers of um (got {h:g}, {r:g})")
+    eta = h / r
+    if eta > 2.0 * (1.0 + 1e-12):
+        raise InputError(f"height {h:g} um exceeds twice the equator radius {r:g} um (a free sphere's is 2 R_eq)")
+
+    def half_height(k):
+        return float(_half_integrals(k)[0]) - eta / 2.0
+
+    if half_height(_K_MAX) > 0:
+        raise InputError(f"height {h:g} um against equator radius {r:g} um: flatter than the flattest "
+                         "shape supported")
+    from scipy.optimize import brentq
+    k = 0.0 if eta >= 2.0 else brentq(half_height, 0.0, _K_MAX, xtol=1e-14)
+    return 2.0 * float(_half_integrals(k)[1]) * r**3
+
+
 def meridian(volume, height, psi):
     """The upper free surface at tangent angles ψ (0 at the contact line, π/2 at
     the equator) of the shape for one (V, h): returns (r, z, s) in µm with z

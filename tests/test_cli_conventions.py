@@ -56,7 +56,7 @@ IDS = [" ".join(words) for words, _ in COMMANDS]
 def test_the_tree_has_every_command():
     assert {"geometry", "compress", "poroelastic", "campaign run", "campaign status", "analysis calibrate",
             "analysis viscosity", "analysis build-calibration", "analysis invert", "afm synth", "afm import",
-            "afm analyze", "doctor"} == set(IDS)
+            "afm analyze", "afm tension", "doctor"} == set(IDS)
 
 
 @pytest.mark.parametrize("words,parser", COMMANDS, ids=IDS)
@@ -71,7 +71,7 @@ def test_every_command_takes_json_and_out_is_a_folder(words, parser):
 @pytest.mark.parametrize("words,parser", COMMANDS, ids=IDS)
 def test_same_things_have_the_same_names_and_checked_choices(words, parser):
     opts = options(parser)
-    assert "--forward" not in opts or opts["--forward"].dest == "solver"   # the older name of --solver
+    assert "--forward" not in opts
     if "--bending" in opts:
         assert tuple(opts["--bending"].choices) == tuple(BENDING_VARIANTS), words
     if "--solver" in opts:

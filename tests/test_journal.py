@@ -1,11 +1,8 @@
 """The journal codec (campaign.journal): entries come back bit for bit, a
-record cut anywhere is ignored and trimmed, journals of earlier versions (one
-JSON line per entry) are read, also with records appended after them; and the
-engine's version comes from package metadata, not from the command-line
-package."""
+record cut anywhere is ignored and trimmed, what is not a journal is not
+ours; and the engine's version comes from package metadata, not from the
+command-line package."""
 
-import base64
-import json
 import subprocess
 import sys
 
@@ -94,21 +91,6 @@ def test_a_corrupt_last_record_is_ignored(tmp_path):
     path = tmp_path / "j"
     path.write_bytes(journal.encode(entries()[:2]) + bytes(last))
     assert len(journal.read(path)) == 2
-
-
-def test_earlier_json_lines_are_read_and_records_after_them(tmp_path):
-    old = dict(entries()[2])
-    old["cells"] = {k: ({"f8": base64.b64encode(np.ascontiguousarray(v, "<f8").tobytes()).decode(),
-                         "shape": list(np.shape(v))} if isinstance(v, np.ndarray) else v)
-                    for k, v in old["cells"].items()}
-    lines = (json.dumps(entries()[0]) + "\n" + json.dumps(old) + "\n").encode()
-    path = tmp_path / "j"
-    path.write_bytes(lines + journal.encode(entries()[3:4]) + b'{"row": 9, "sta')
-    assert journal.is_ours(path)
-    back = journal.read(path)
-    assert [e.get("row", e.get("task")) for e in back] == [3, 0, 4]
-    journal.trim_cut(path)
-    assert len(path.read_bytes()) == len(lines) + len(journal.encode(entries()[3:4]))
 
 
 def test_what_is_not_a_journal(tmp_path):

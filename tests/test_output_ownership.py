@@ -223,29 +223,6 @@ def test_afm_synth_refuses_a_folder(afm, tmp_path, capsys):
     assert snapshot(out) == before
 
 
-def test_afm_analyze_output_of_a_version_before_manifests(afm, tmp_path, capsys):
-    """A folder of our outputs without a manifest (older versions) is recognised
-    by its summary.json: our file names are replaced, any other file kept."""
-    cal, data = afm
-    out = tmp_path / "out"
-    args = ["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out)]
-    assert main(args) == 0
-    (out / MANIFEST).unlink()
-    (out / "my-notes.txt").write_text("keep\n")
-    (out / "report.md").write_text("old report\n")
-    assert main(args) == 0
-    assert (out / "my-notes.txt").read_text() == "keep\n"
-    assert (out / "report.md").read_text().startswith("# Measured cells")
-    assert "my-notes.txt" not in (out / MANIFEST).read_text() and "report.md" in (out / MANIFEST).read_text()
-    (out / "summary.json").write_text("{}")                           # no longer recognisable as ours
-    (out / MANIFEST).unlink()
-    before = snapshot(out)
-    capsys.readouterr()
-    assert main(args) == 2
-    _refused(capsys, "afm analyze")
-    assert snapshot(out) == before
-
-
 def test_a_store_is_never_set_aside_onto_an_existing_file(tmp_path):
     """--new keeps the old store as STORE.bak-<time>; a file already of that name is kept too."""
     from campaign.store_files import set_aside

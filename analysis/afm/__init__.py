@@ -5,9 +5,9 @@ Public API (imported on first use):
 
 - `read_experiment(path)` / `write_experiment(path, cells)`: the native
   experiment file (HDF5) of `Cell`s; `load_cells(paths)`: cells from an
-  experiment, a single-cell CSV, or JPK files and folders.
-- `import_cells(paths, volume_um3=..., volumes_csv=...)`: JPK files ->
-  (recordings, cells), as `cortex afm import`.
+  experiment, a single-cell CSV, or JPK or Bruker files and folders.
+- `import_cells(paths, volume_um3=..., volumes_csv=...)`: JPK and Bruker
+  NanoScope files -> (recordings, cells), as `cortex afm import`.
 - `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic
   recordings, as `cortex afm synth`.
 - `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell

@@ -11,11 +11,13 @@
                                              (`analysis.afm.analyze_report`).
 
 DIR gets cells.csv, segments.csv, summary.json (the selected variant),
+population.json (the selected variant's population answer: per frequency the
+random-effects fit, the paired tests, the trend; `analysis.afm.population_answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
 report.md, which also lists the recordings not analysed.
 
-Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK files and
-folders of them (`jpk_import.import_cells`, with the volume and dish options
+Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
+NanoScope files and folders of them (`jpk_import.import_cells`, with the volume and dish options
 of `cortex afm import`).
 
 With the emulator (the default method) every cell and frequency has a 95 %
@@ -35,7 +37,7 @@ from pathlib import Path
 from analysis.afm.analyze import analyze
 from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
-from outputs.ownership import OutputDir, json_document
+from outputs.ownership import OutputDir
 from solver.errors import InputError
 
 
@@ -77,22 +79,23 @@ class Fitted:
     tables: dict = field(default_factory=dict)
     sums: dict = field(default_factory=dict)
     segments: object = None
+    population: dict | None = None          # population.json (`analysis.afm.population_answer`)
     rheology: object = None      # the viscoelastic reading's table and summary, when on
 
 
 def load(paths, jpk_options=None):
-    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK
-    files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
-    from analysis.afm.jpk_import import import_cells, is_jpk
+    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
+    Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
+    from analysis.afm.jpk_import import import_cells, is_instrument_file
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
-    if all(is_jpk(p) for p in paths):
+    if all(is_instrument_file(p) for p in paths):
         return import_cells(paths, **(jpk_options or {}))[1]
     if len(paths) != 1:
-        raise InputError("give one experiment (.h5) or CSV file, or JPK files and folders (not a mixture)")
+        raise InputError("give one experiment (.h5) or CSV file, or JPK or Bruker files and folders (not a mixture)")
     given = [k for k, v in (jpk_options or {}).items() if v is not None]
     if given:
-        raise InputError(f"{paths[0]}: --volume(s) and --dish-* apply to JPK files only; the experiment "
-                         "and CSV formats carry their own volumes and heights")
+        raise InputError(f"{paths[0]}: --volume(s), --dish-* and --spring-constant apply to Bruker and JPK files "
+                         "only; the experiment and CSV formats carry their own volumes and heights")
     path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
@@ -102,7 +105,7 @@ def load(paths, jpk_options=None):
         from analysis.afm.csvformat import read_csv_cell
         return [read_csv_cell(path)]
     raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
-                     "a JPK file or a folder of them)")
+                     "a JPK or Bruker file or a folder of them)")
 
 
 def _calibration(path, method, bending):
@@ -157,6 +160,8 @@ def fit(rec, settings):
         fitted.sums[variant] = _with_medians(summary(tab), tab, settings.method)
         if variant == settings.bending:
             fitted.segments = segs
+    from analysis.afm.population_answer import answer
+    fitted.population = answer(fitted.tables[settings.bending])
     if settings.phase:
         _viscoelastic(rec, settings, fitted)
     return fitted
@@ -205,10 +210,14 @@ def write(out, rec, fitted, settings):
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
+    _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if settings.method == "emulator":
         figs.append(nu_intervals(fitted.tables[bending], out))
-    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs) + markdown_skipped(None, rec.skipped)
+    from analysis.afm.population_figures import population_figures
+    figs += population_figures(fitted.tables[bending], fitted.population, out)
+    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs,
+                    fitted.population) + markdown_skipped(None, rec.skipped)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
         _write(out, "rheology.csv", _csv(fitted.rheology))
@@ -222,10 +231,10 @@ def run(data, calibration_path, out, settings=Settings()):
     skipped recordings. `calibration_path` None: the shipped calibration."""
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration_path, settings)
-    out = OutputDir(out, written_before_manifests=lambda d: {"bending", "frequencies"}
-                    <= set(json_document(d / "summary.json")))   # refused now if not ours
-    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES]
-              + (["rheology.csv"] if settings.phase else [])
+    out = OutputDir(out)                              # refused now if not ours
+    from analysis.afm.population_figures import POPULATION_FIGURES
+    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
+               "population.json", *POPULATION_FIGURES] + (["rheology.csv"] if settings.phase else [])
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:
         report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
@@ -233,4 +242,4 @@ def run(data, calibration_path, out, settings=Settings()):
     fitted = fit(rec, settings)
     report = write(out, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
-            "table": fitted.tables[settings.bending], "skipped": rec.skipped}
+            "table": fitted.tables[settings.bending], "skipped": rec.skipped, "population": fitted.population}

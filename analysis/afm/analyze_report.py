@@ -1,6 +1,8 @@
 """report.md of `cortex afm analyze` (`analysis.afm.analyze_pipeline`), as text.
 
-Sections: the method and variant, the emulator's median ν per frequency with
+Sections: the method and variant, the population answer (the trend's sentence
+first, the deconvolved populations, the paired tests: `analysis.afm.population_report`),
+the emulator's median ν per frequency with
 its bootstrap 95 % interval (emulator only), the population table of every
 variant (median and IQR of ν, the lognormal fit of K̃_S), the Mann-Whitney
 p-values, the count of results outside the calibration grid, the excluded
@@ -55,13 +57,17 @@ def _outside(tab):
             "`outside_calibration` in cells.csv)."]
 
 
-def markdown(name, bending, tables, sums, figs):
-    """The report of the analysed cells: `tables` and `sums` per variant, `figs` the figures' paths."""
+def markdown(name, bending, tables, sums, figs, population=None):
+    """The report of the analysed cells: `tables` and `sums` per variant, `figs` the figures' paths,
+    `population` the selected variant's population.json."""
     tab = tables[bending]
     method = tab["method"].iloc[0] if "method" in tab else "law"
     lines = [f"# Measured cells: {name}", "",
              f"Method: `{method}`. Calibration variant: `{bending}`. "
              f"{tab['cell_id'].nunique()} cells.", ""]
+    if population is not None:
+        from analysis.afm.population_report import markdown_population
+        lines += markdown_population(population, sums[bending]["mann_whitney_p"])
     if method == "emulator":
         lines += _emulator_medians(bending, sums[bending])
     lines += _populations(sums)

@@ -1,4 +1,4 @@
-"""`cortex afm synth`, `cortex afm import` and `cortex afm analyze` (argparse
+"""`cortex afm synth`, `cortex afm import`, `cortex afm analyze` and `cortex afm tension` (argparse
 only; the work is imported when the command runs).
 
 Conventions shared with every command: `--out` is a folder (synth and import
@@ -8,22 +8,33 @@ on stdout; `--solver` names the forward model as in `cortex compress`
 (`solver.compression.METHODS`, plus `law`); `--bending` is one of
 `solver.model.BENDING_VARIANTS`."""
 
+from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
 
 
-def _jpk_options(p):
-    """The volume and dish-reference options of JPK recordings (docs/jpk.md)."""
+def _jpk_options(p, free_radius=False, dish_default="0"):
+    """The volume, dish-reference and spring-constant options of instrument recordings
+    (docs/jpk.md, docs/bruker.md); `free_radius` adds --radius-um to the volumes,
+    `dish_default` says what stands for Z without a dish option."""
     v = p.add_mutually_exclusive_group()
     v.add_argument("--volumes", metavar="TABLE.csv",
-                   help="cell volumes: CSV with columns cell_id, volume_um3[, volume_source]")
+                   help="cell volumes: CSV with columns cell_id and volume_um3, or equator_radius_um with "
+                        "imaged_height_um (the confined droplet's), or diameter_um (the free cell's); "
+                        "[volume_source]")
     v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
+    if free_radius:
+        v.add_argument("--radius-um", type=float, metavar="R", help="one free-cell radius (um) for every cell")
     d = p.add_mutually_exclusive_group()
     d.add_argument("--dish-height-um", type=float, metavar="Z",
-                   help="height channel value (um) at which the cantilever touches the bare dish (default 0): "
-                        "cell height h = z + F/k - Z")
+                   help=f"height channel value (um) at which the cantilever touches the bare dish (default "
+                        f"{dish_default}): cell height h = z + F/k - Z")
     d.add_argument("--dish-curve", metavar="FILE",
-                   help="a JPK force curve on the bare dish: Z = z + F/k at its largest approach force")
+                   help="a force curve on the bare dish: Z = z + F/k at its largest approach force")
+    p.add_argument("--spring-constant", type=float, metavar="N_PER_M",
+                   help="cantilever spring constant k (N/m) of NanoScope Analysis text exports, which hold none "
+                        "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
 
 
 def jpk_options(args):
@@ -31,17 +42,21 @@ def jpk_options(args):
     from solver.errors import InputError
     if args.volume is not None and not args.volume > 0:
         raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
+    if args.spring_constant is not None and not args.spring_constant > 0:
+        raise InputError(f"--spring-constant must be a positive number of N/m (got {args.spring_constant})")
     return {"volume_um3": args.volume, "volumes_csv": args.volumes, "dish_um": args.dish_height_um,
-            "dish_curve": args.dish_curve}
+            "dish_curve": args.dish_curve, "spring_constant_N_per_m": args.spring_constant}
 
 
 def register(sub):
-    p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics",
+    p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics, "
+                       "cortical tension",
                        description="AFM recordings of confined cells (SPEC 6).")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     _add_synth(s)
     _add_import(s)
     _add_analyze(s)
+    _add_tension(s)
 
 
 def _add_synth(s):
@@ -54,11 +69,11 @@ def _add_synth(s):
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--solver", "--forward", dest="solver", choices=names_of(SOLVERS, extra=("law", "emulator")),
+    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law", "emulator")),
                    default="fast", metavar="SOLVER",
                    help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
                         "calibration law (needs --calibration), or emulator (viscoelastic cells only: the shipped "
-                        "emulator and complex table); --forward is the older name")
+                        "emulator and complex table)")
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     g.add_argument("--bulk-exponent", type=float, metavar="BETA_B",
                    help="viscoelastic cells: population median of beta_B, |K_B*| ~ f^beta_B and delta_B = "
@@ -72,11 +87,14 @@ def _add_synth(s):
 
 def _add_import(s):
     from analysis.cli import OUT_HELP
-    m = s.add_parser("import", help="JPK text exports and binary JPK files into DIR/experiment.h5",
-                     description="Read JPK text exports (.txt), .jpk-force, .jpk-force-map and .jpk-qi-data (-series) "
-                                 "files (each map or QI pixel its own recording) into the native experiment "
-                                 "format, DIR/experiment.h5. Every cell needs a volume. See docs/jpk.md.")
-    m.add_argument("files", nargs="+", metavar="FILES", help="JPK files or folders of them")
+    m = s.add_parser("import", help="JPK and Bruker NanoScope recordings into DIR/experiment.h5",
+                     description="Read JPK text exports (.txt, .txt.gz), .jpk-force, .jpk-force-map and .jpk-qi-data "
+                                 "(-series) files (each map or QI pixel its own recording), Bruker NanoScope force "
+                                 "curves (.000, .001, ...) and their NanoScope Analysis text exports into the "
+                                 "native experiment format, DIR/experiment.h5. Every cell needs a volume. The "
+                                 "first file that cannot be read stops the import (status 2, nothing written). "
+                                 "See docs/jpk.md, docs/bruker.md.")
+    m.add_argument("files", nargs="+", metavar="FILES", help="JPK or Bruker files, or folders of them")
     m.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     _jpk_options(m)
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
@@ -88,12 +106,13 @@ def _add_analyze(s):
     from analysis.cli import OUT_HELP, add_inversion_options
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
-                                 "calibration, with 95 % intervals), population statistics, figures and "
-                                 "DIR/report.md. Recordings without a modulation segment are listed in the "
+                                 "calibration, with 95 % intervals), population statistics, the population answer "
+                                 "(DIR/population.json: the frequency trend, the populations with the "
+                                 "measurement error taken out, paired tests), figures and DIR/report.md. Recordings without a modulation segment are listed in the "
                                  "report (exit status 1).")
     a.add_argument("data", nargs="+", metavar="DATA",
                    help="experiment (.h5, or the folder `afm synth`/`afm import` wrote it to), "
-                        "single-cell CSV, or JPK files and folders of them")
+                        "single-cell CSV, or JPK or Bruker files and folders of them")
     a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(a)
     _jpk_options(a)
@@ -109,6 +128,33 @@ def _add_analyze(s):
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler="analysis.afm.cli:analyze")
+
+
+def _add_tension(s):
+    from analysis.cli import OUT_HELP
+    from solver.cli import names_of
+    t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
+                     description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
+                                 "ramp onto the free cell fitted by the exact droplet model and by the "
+                                 "small-deformation formula (contact point, T, R², the automatic fit window), "
+                                 "each pause from its force and the droplet shape at its height, with 95 % "
+                                 "intervals. Recordings that cannot be analysed are listed (exit status 1). "
+                                 "See docs/tension.md.")
+    t.add_argument("files", nargs="+", metavar="FILES",
+                   help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
+                        "experiments (.h5) or single-cell CSV files")
+    _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
+    t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
+                   help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
+    t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
+                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
+    t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
+                   help="SD of a pause's height in the intervals, um (default %(default)s)")
+    t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
+                   "report.md")
+    t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "
+                   "not_analysed {file or cell: reason}, table, report")
+    t.set_defaults(handler="analysis.afm.cli:tension")
 
 
 def synth(args):
@@ -256,3 +302,48 @@ def analyze(args):
             print(f"not analysed: {cell}: {reason}")
         print(f"report: {result['report']}")
     return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
+
+
+def tension(args):
+    import json
+
+    from analysis.afm.tension import ErrorModel
+    from analysis.afm.tension_pipeline import Options, run
+    from analysis.cli import plain
+    from solver.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
+    for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
+        if not value >= 0:
+            raise InputError(f"{name} must be >= 0 (got {value})")
+    options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
+                      dish_um=args.dish_height_um, dish_curve=args.dish_curve,
+                      spring_constant_N_per_m=args.spring_constant,
+                      errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
+    result = run(args.files, options, args.out)
+    if args.json:
+        finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731
+        print(json.dumps(plain({"rows": [{k: finite(plain(v)) for k, v in r.items()} for r in result["rows"]],
+                                "not_analysed": result["skipped"], "table": _str(result["table"]),
+                                "report": _str(result["report"])})))
+    else:
+        for r in result["rows"]:
+            print(_tension_line(r))
+        for what, reason in result["skipped"].items():
+            print(f"not analysed: {what}: {reason}")
+        if result["report"]:
+            print(f"report: {result['report']}")
+    return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
+
+
+def _str(path):
+    return None if path is None else str(path)
+
+
+def _tension_line(r):
+    """One analysed part in a line: tension, interval, pressure, height, and the ramp's contact and comparison."""
+    text = (f"{r['cell_id']}: {r['part']} {r['segment']}: T {r['tension_mN_per_m']:.4g} mN/m "
+            f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
+            f"h {r['height_um']:.4g} um")
+    if r["part"] == "approach":
+        text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
+                 f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
+    return text

@@ -1,4 +1,5 @@
-"""Reader for JPK text exports (`force-save-*.txt`, JPK instrument software).
+"""Reader for JPK text exports (`force-save-*.txt`, JPK instrument software;
+also gzip-compressed, `.txt.gz`, read as they are).
 
 The file is a sequence of segments, each a block of `# key: value` header
 lines (`segment`, `columns`, `units`, `springConstant` (N/m), `sensitivity`
@@ -26,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
+from analysis.afm.textfiles import export_name, open_text
 from solver.errors import InputError
 
 LENGTH_TO_UM = {"m": 1e6, "um": 1.0, "µm": 1.0, "nm": 1e-3}
@@ -54,7 +56,7 @@ class JpkExport:
 def _blocks(path):
     """Split the file into (header lines, data lines) per segment."""
     glob, blocks, cur = {}, [], None
-    with open(path, encoding="utf-8", errors="strict") as fh:
+    with open_text(path, encoding="utf-8") as fh:
         for lineno, line in enumerate(fh, 1):
             s = line.strip()
             if not s:
@@ -172,6 +174,8 @@ def read_jpk(path):
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a JPK text export (binary data; a binary JPK archive is read by its "
                          "suffix: .jpk-force, .jpk-force-map, .jpk-qi-data)") from None
+    except (OSError, EOFError) as err:
+        raise InputError(f"{path}: cannot be read ({err})") from None
     if not blocks:
         raise InputError(f"{path}: no segments (no '# segmentIndex:' header)")
     segments = []
@@ -221,5 +225,5 @@ def read_jpk_recording(path):
     k = {s.spring_constant_N_per_m for s in export.segments}
     if len(k) != 1:
         raise InputError(f"{export.path}: segments disagree on the spring constant {sorted(k)}")
-    return Recording(cell_id=export.path.stem, spring_constant_N_per_m=k.pop(), segments=segments,
+    return Recording(cell_id=export_name(export.path), spring_constant_N_per_m=k.pop(), segments=segments,
                      source=str(export.path), date=export.header.get("date", ""))

@@ -1,7 +1,9 @@
 """One force curve as the instrument recorded it, before it becomes a `Cell`.
 
 Readers of JPK files (text exports, `.jpk-force` archives, one per pixel of
-`.jpk-force-map`/`.jpk-qi-data`) return `Recording`s: the cantilever's
+`.jpk-force-map`/`.jpk-qi-data`) and of Bruker NanoScope files (force
+curves and their text exports: approach, a pause for a hold, retract)
+return `Recording`s: the cantilever's
 spring constant k (N/m) and its segments in order, each with its kind
 (`approach`, `pause`, `modulation`, `retract`: JPK's styles extend, pause,
 modulation, retract), duration (s), sample count, for a modulation its

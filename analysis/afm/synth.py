@@ -10,6 +10,8 @@ K_B(f) = K_B(1 Hz) (f / 1 Hz)^β, K_B(1 Hz) = 25 mN/m · lognormal(0, 0.15),
 loss angle δ = β π/2 at every frequency. K̃_S(f) = exp(μ_f + σ_f z) with one
 z ~ N(0, 1) per cell (a stiff cell is stiff at every frequency), (μ_f, σ_f)
 the published populations; K_S = K̃_S K_B(f); true ν = (1 - K̃_S)/(1 + K̃_S).
+truth.json also holds the trend slope of ln K̃_S per decade these populations
+imply for the design (`true_trend`).
 
 Protocol: heights from h̃ ~ U(0.70, 0.745) down in steps of 0.5 or 1 µm
 (per cell) to h̃ ≥ 0.49; each step = an `approach` segment (0.2 µm/s, then a
@@ -176,7 +178,17 @@ def generate(n_cells=85, seed=0, errors=True, forward=None):
                          "n_cells": len(vals), "cells": vals}
     truth = {"seed": seed, "errors": errors, "error_model": ERRORS if errors else None,
              "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, "populations": {str(k): v for k, v in POPULATIONS.items()},
-             "frequencies": per_f, "cells": truths}
+             "frequencies": per_f, "cells": truths, **true_trend(n_cells)}
     if getattr(forward, "viscoelastic", False):
         truth.update(forward.describe())
     return cells, truth
+
+
+def true_trend(n_cells):
+    """The trend slope of ln K̃_S per decade the populations imply: the one the mixed model of
+    `analysis.afm.trend` converges to for this design (`pseudo_true_slope`), and the least-squares
+    line through the four (log10 f, μ_f) for comparison (μ_f is not linear in log10 f)."""
+    from analysis.afm.trend import pseudo_true_slope
+    x = np.log10(list(POPULATIONS))
+    return {"trend_slope_ln_ks_per_decade": pseudo_true_slope(POPULATIONS, subset_sizes(n_cells)),
+            "trend_slope_ols_ln_ks_per_decade": float(np.polyfit(x, [m for m, _ in POPULATIONS.values()], 1)[0])}

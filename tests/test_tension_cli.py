@@ -1,0 +1,161 @@
+"""`cortex afm tension`: synthetic droplets through JPK archives and the native
+format, the bad-input paths (one line, exit 2, nothing written; in a batch the
+rest analysed, exit 1), and the real JPK exports in ../shared/data/jpk/."""
+
+import json
+
+import numpy as np
+import pytest
+
+from analysis.afm.csvformat import write_csv_cell
+from analysis.afm.jpk_import import to_cell
+from analysis.afm.tension_synth import droplet_recording
+from conftest import ROOT
+from cortex.cli import main
+from jpk_writer import write_force
+from solver.geometry import cell_radius
+
+DATA = ROOT.parent / "shared" / "data" / "jpk"
+TEXT = DATA / "force-save-2020.10.29-12.06.06.196.txt"
+QI = DATA / "qi-data-2021.05.30-14.22.26.978_8777_8777.txt"
+need = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
+BRUKER = DATA.parent / "bruker" / "MDA-MB231_Dish2_Cell1.000"
+BRUKER_TEXT = DATA.parent / "bruker" / "MDA-MB231_Dish2_Cell1.000-NanoScope-Analysis.txt"
+need_bruker = pytest.mark.skipif(not BRUKER.is_file(), reason=f"shared test data not found at {BRUKER}")
+VOLUME = 3000.0
+
+
+def _cell(cell_id, tension, h_tilde=0.7, seed=0):
+    depth = 2.0 * float(cell_radius(VOLUME)) * (1.0 - h_tilde)
+    rec = droplet_recording(VOLUME, tension, depth, cell_id=cell_id, noise_nN=0.02, baseline_nN=1.0, seed=seed)
+    return to_cell(rec, VOLUME, "synthetic")
+
+
+def _json(capsys, *argv):
+    status = main(["afm", "tension", *map(str, argv), "--json"])
+    return status, json.loads(capsys.readouterr().out)
+
+
+def test_jpk_archives_give_back_the_tensions(tmp_path, capsys):
+    truth = {"a": 0.5, "b": 1.5}
+    for cid, t in truth.items():
+        write_force(tmp_path / f"{cid}.jpk-force", _cell(cid, t), dish_um=20.0)
+    out = tmp_path / "out"
+    status, doc = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volume", VOLUME, "--out", out)
+    assert status == 0 and doc["not_analysed"] == {}
+    for row in doc["rows"]:
+        assert row["tension_mN_per_m"] == pytest.approx(truth[row["cell_id"]], rel=0.01)
+        assert row["tension_lo95_mN_per_m"] < row["tension_mN_per_m"] < row["tension_hi95_mN_per_m"]
+    assert sorted((r["cell_id"], r["part"]) for r in doc["rows"]) == [
+        ("a", "approach"), ("a", "pause"), ("b", "approach"), ("b", "pause")]
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [".cortex-outputs", "report.md", "tension.csv", "tension_a.png", "tension_b.png"]
+    import pandas as pd
+    table = pd.read_csv(out / "tension.csv")
+    assert "pressure_Pa" in table and "tension_mN_per_m" in table and len(table) == 4
+    # the same recordings with the dish given: the pause heights are the recorded gaps
+    status, dish = _json(capsys, tmp_path / "a.jpk-force", "--volume", VOLUME, "--dish-height-um", 20.0)
+    pause = next(r for r in dish["rows"] if r["part"] == "pause")
+    assert pause["height_reference"] == "dish" and pause["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
+    # volumes from a table (a wrong one for b: its tension comes out otherwise)
+    (tmp_path / "v.csv").write_text(f"cell_id,volume_um3\na,{VOLUME}\nb,{2 * VOLUME}\n")
+    status, table = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volumes", tmp_path / "v.csv")
+    by = {(r["cell_id"], r["part"]): r for r in table["rows"]}
+    assert by["a", "approach"]["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
+    assert by["b", "approach"]["volume_um3"] == 2 * VOLUME
+    assert abs(by["b", "approach"]["tension_mN_per_m"] / 1.5 - 1) > 0.05
+
+
+def test_the_native_format_and_the_small_deformation_model(tmp_path, capsys):
+    path = write_csv_cell(tmp_path / "c.csv", _cell("c", 1.0))
+    status, doc = _json(capsys, path, "--model", "small-deformation")
+    ramp = next(r for r in doc["rows"] if r["part"] == "approach")
+    assert status == 0 and ramp["model"] == "small-deformation" and ramp["compare_model"] == "droplet"
+    assert ramp["compare_tension_mN_per_m"] == pytest.approx(1.0, rel=0.01)
+    assert ramp["tension_mN_per_m"] < 0.8                # the small-deformation formula's bias at h~ = 0.7
+
+
+def _bad(tmp_path, capsys, *argv):
+    """Run, expect exit 2, one line on stderr, the --out folder never made."""
+    out = tmp_path / "never"
+    status = main(["afm", "tension", *map(str, argv), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and len(err.splitlines()) == 1 and not out.exists()
+    return err
+
+
+def test_bad_input_is_one_line_and_exit_2_with_nothing_written(tmp_path, capsys):
+    flat = write_csv_cell(tmp_path / "flat.csv", _cell("flat", 0.0))          # no tension: no contact
+    assert "without contact" in _bad(tmp_path, capsys, flat)
+    no_force = _cell("noforce", 1.0)
+    pause = next(s for s in no_force.segments if s.kind == "pause")
+    no_force.force_nN[pause.start:pause.stop] = 0.0                           # below the baseline (1 nN)
+    assert "pause without force" in _bad(tmp_path, capsys, write_csv_cell(tmp_path / "nf.csv", no_force))
+    corrupt = tmp_path / "corrupt.jpk-force"
+    corrupt.write_bytes(b"PK\x03\x04 not really a zip")
+    assert "corrupt.jpk-force" in _bad(tmp_path, capsys, corrupt, "--volume", VOLUME)
+    write_force(tmp_path / "ok.jpk-force", _cell("ok", 1.0))
+    assert "no volume" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force")
+    assert "--radius-um" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force", "--radius-um", -3)
+    assert "apply to instrument files only" in _bad(tmp_path, capsys, flat, "--volume", VOLUME)
+    assert "no such file" in _bad(tmp_path, capsys, tmp_path / "missing.txt", "--volume", VOLUME)
+
+
+def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
+    write_force(tmp_path / "good.jpk-force", _cell("good", 1.0))
+    write_force(tmp_path / "flat.jpk-force", _cell("flat", 0.0))
+    (tmp_path / "corrupt.jpk-force").write_bytes(b"garbage")
+    out = tmp_path / "out"
+    status, doc = _json(capsys, tmp_path / "good.jpk-force", tmp_path / "flat.jpk-force",
+                        tmp_path / "corrupt.jpk-force", "--volume", VOLUME, "--out", out)
+    assert status == 1
+    assert {r["cell_id"] for r in doc["rows"]} == {"good"}
+    assert set(doc["not_analysed"]) == {"flat", str(tmp_path / "corrupt.jpk-force")}
+    assert "without contact" in doc["not_analysed"]["flat"]
+    report = (out / "report.md").read_text()
+    assert "Not analysed" in report and "flat" in report
+
+
+def test_figure_names_are_files_and_never_shared():
+    from analysis.afm.tension_pipeline import file_names
+    assert list(file_names(["a b", "a_b", "c/d"]).values()) == ["tension_a_b.png", "tension_a_b-2.png",
+                                                                 "tension_c_d.png"]
+
+
+@need
+def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
+    """The text export with its constant-force pause (docs/tension.md has the
+    numbers): R = 6.8 µm, the radius the published tool assumes for its test data."""
+    status, doc = _json(capsys, TEXT, "--radius-um", 6.8)
+    assert status == 0
+    ramp, pause = doc["rows"]
+    assert (ramp["part"], pause["part"]) == ("approach", "pause")
+    assert 6.595 < ramp["contact_um"] < 7.095            # within the ramp's wedge heights
+    assert ramp["tension_mN_per_m"] > 0 and pause["tension_mN_per_m"] > 0
+    assert pause["force_nN"] == pytest.approx(18.6 - 7.9, abs=0.15)    # pause force above the free baseline
+    # with the height channel taken as the gap (Z = 0): a pause at h~ ≈ 0.49
+    status, dish = _json(capsys, TEXT, "--radius-um", 6.8, "--dish-height-um", 0)
+    pause = next(r for r in dish["rows"] if r["part"] == "pause")
+    assert pause["height_um"] == pytest.approx(6.656, abs=0.002) and pause["height_reference"] == "dish"
+    assert np.isfinite(pause["tension_mN_per_m"]) and pause["pressure_Pa"] > 0
+
+
+@need
+def test_the_real_qi_pixel_is_a_clean_droplet_ramp(capsys):
+    status, doc = _json(capsys, QI, "--radius-um", 6.8)
+    ramp, = doc["rows"]
+    assert status == 0 and ramp["r2"] > 0.95 and ramp["compare_r2"] > 0.95
+    assert 3.77 < ramp["contact_um"] < 6.3
+
+
+@need_bruker
+def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
+    """The same curve, read from the NanoScope file and from NanoScope Analysis's
+    export (its spring constant from the file beside it): one tension."""
+    status, doc = _json(capsys, BRUKER, BRUKER_TEXT, "--radius-um", 6.8)
+    assert status == 0 and doc["not_analysed"] == {}
+    binary, text = doc["rows"]
+    assert binary["part"] == text["part"] == "approach" and binary["r2"] > 0.95 and text["r2"] > 0.95
+    assert text["tension_mN_per_m"] == pytest.approx(binary["tension_mN_per_m"], rel=0.02)
+    assert text["depth_um"] == pytest.approx(binary["depth_um"], abs=0.05)
+    assert text["compare_tension_mN_per_m"] == pytest.approx(binary["compare_tension_mN_per_m"], rel=0.03)
