@@ -54,6 +54,9 @@ def _tensor_spline(coords, values, degrees):
     return NdBSpline(tuple(knots), c, tuple(ks))
 
 
+tensor_spline = _tensor_spline       # public: `analysis.viscoelastic_table` splines its coefficients alike
+
+
 @dataclass
 class Table:
     """One bending variant's grid of K/K_B (shape: len of each axis in AXES order)."""

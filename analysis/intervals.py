@@ -105,6 +105,11 @@ def _truth_moduli(k_seen, true, measured, gamma_t, *, dh):
     return (k_seen - c0) / c1
 
 
+# The bootstrap's pieces, public for the viscoelastic intervals (`analysis.viscoelastic_fit`).
+droplet_shape = _shape
+truth_moduli = _truth_moduli
+
+
 def cell_intervals(emulator, bending, theta, curves, rms, *, draws=DRAWS,
                    volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
                    steps=GN_STEPS):

@@ -89,7 +89,13 @@ def _add_compress(sub):
                         "loss angle, elastic_modulus_mN_per_m without viscosity; the secant K becomes "
                         "compression_modulus_mN_per_m); fast solver only")
     p.add_argument("--frequency", type=float, default=None, metavar="HZ",
-                   help="oscillation frequency f, Hz (needed with --viscosity)")
+                   help="oscillation frequency f, Hz (needed with --viscosity or the loss angles)")
+    p.add_argument("--bulk-loss-angle", type=float, default=None, metavar="RAD",
+                   help="viscoelastic cortex: K_B* = K_B e^(i delta_B); with --shear-loss-angle and --frequency "
+                        "(and optionally --viscosity) report K* = K C by the correspondence principle "
+                        "(docs/viscoelastic.md; the secant K becomes compression_modulus_mN_per_m)")
+    p.add_argument("--shear-loss-angle", type=float, default=None, metavar="RAD",
+                   help="viscoelastic cortex: K_S* = K_S e^(i delta_S)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.set_defaults(handler="solver.cli:compress")
 
@@ -148,13 +154,19 @@ def compress(args):
     from solver.compression import compress as run
     from solver.errors import EXIT_NO_EQUILIBRIUM, SolverError
     from solver.model import Shell
+    angles = _loss_angles(args)
     shell = Shell(volume_um3=args.volume, h0_um=args.h0, dh_um=args.dh,
                   bulk_mN_per_m=args.bulk, shear_mN_per_m=args.shear,
                   tension_mN_per_m=args.tension, bending=args.bending,
-                  bending_pN_um=args.bending_pN_um, thickness_um=args.thickness,
-                  resolution=args.resolution, viscosity_Pa_s=args.viscosity, frequency_hz=args.frequency)
+                  bending_pN_um=args.bending_pN_um, thickness_um=args.thickness, resolution=args.resolution,
+                  **({} if angles else dict(viscosity_Pa_s=args.viscosity, frequency_hz=args.frequency)))
     try:
         result = run(shell, args.solver).to_dict()
+        if angles:
+            from solver.viscoelastic import viscoelastic_keys
+            result["compression_modulus_mN_per_m"] = result["modulus_mN_per_m"]
+            result.update(viscoelastic_keys(shell, result["modulus_mN_per_m"], args.frequency, *angles,
+                                            viscosity_Pa_s=args.viscosity or 0.0))
     except SolverError as err:
         print(f"cortex compress: the {args.solver} solver failed: {err}", file=sys.stderr)
         return EXIT_NO_EQUILIBRIUM
@@ -165,6 +177,23 @@ def compress(args):
     for key, value in result.items():
         print(f"{key:<{width}}  {value:.6g}" if isinstance(value, float) else f"{key:<{width}}  {value}")
     return 0
+
+
+def _loss_angles(args):
+    """(δ_B, δ_S) of a viscoelastic compression, or None; InputError if incomplete."""
+    from solver.errors import InputError
+    from solver.model import check_viscous_inputs
+    given = (args.bulk_loss_angle, args.shear_loss_angle)
+    if given == (None, None):
+        return None
+    if None in given or args.frequency is None:
+        raise InputError("--bulk-loss-angle and --shear-loss-angle go together, with --frequency")
+    if args.solver != "fast":
+        raise InputError("a viscoelastic cell needs the fast solver (its linear response uses the Hessian)")
+    check_viscous_inputs(args.viscosity or 0.0, args.frequency)
+    from solver.viscoelastic import check_loss_angles
+    check_loss_angles(*given)
+    return given
 
 
 def poroelastic(args):

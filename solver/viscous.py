@@ -70,6 +70,7 @@ class Linearised:
     G: object = None     # q -> fluid boundary displacements (`prepare`)
     D: np.ndarray = None  # Gᵀ R_1 G: the fluid condensed onto q, per unit η (Pa·µm²/µm)
     shell: object = None
+    held: bool = False   # whether the contact label l is held (a gauge, or at its bound)
 
 
 def _zp_derivative(lag, u, zp, part):
@@ -94,14 +95,29 @@ def linearise(shell):
     if not held and abs(g[-2]) > 1e-4 * lag.force_scale:
         raise SolverError("the contact line is held at the touching label (dE*/dl = "
                           f"{g[-2]:.3g}): no smooth linear response")
+    lin = Linearised(lag=lag, u=u, zp=zp, H=full_hessian(lag, u, zp, H), force_nN=-0.5 * dzp, h_mean_um=2 * zp)
+    lin.held = held
+    if held:                     # l is a gauge (tension only) or at its least value: hold it
+        hold_label(lin.H, 1.0)
+    return lin
+
+
+def full_hessian(lag, u, zp, H=None):
+    """The Hessian of L in q = (u, z_p) at (u, z_p): `H` (the Hessian in u, evaluated
+    here if not given) bordered by the column in z_p (`_zp_derivative`)."""
     n = lag.size
     full = np.zeros((n + 1, n + 1))
-    full[:n, :n] = H
+    full[:n, :n] = lag.evaluate(u, zp)[3] if H is None else H
     full[:n, n] = full[n, :n] = _zp_derivative(lag, u, zp, 1)
     full[n, n] = _zp_derivative(lag, u, zp, 2)
-    if held:                     # l is a gauge (tension only) or at its least value: hold it
-        full[n - 2, :], full[:, n - 2], full[n - 2, n - 2] = 0.0, 0.0, 1.0
-    return Linearised(lag=lag, u=u, zp=zp, H=full, force_nN=-0.5 * dzp, h_mean_um=2 * zp)
+    return full
+
+
+def hold_label(H, diagonal):
+    """Hold the contact label l (unknown n - 2 of q) in the Hessian H of q: its row
+    and column zero, `diagonal` on the diagonal (1 for the Hessian, 0 for a part of it)."""
+    k = H.shape[0] - 3
+    H[k, :], H[:, k], H[k, k] = 0.0, 0.0, diagonal
 
 
 def _node_jacobian(lin):
@@ -190,30 +206,36 @@ def _droplet_slopes(shell, h):
     return g[1], (g[2] - g[0]) / (2 * STEP_H), A[1], (A[2] - A[0]) / (2 * STEP_H)
 
 
-def shell_response(lin, viscosity_Pa_s, frequency_hz):
-    """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`."""
+def shell_response(lin, viscosity_Pa_s, frequency_hz, extra=None):
+    """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`
+    (`extra`: a matrix added to the shell's Hessian, e.g. `solver.viscoelastic`'s
+    complex moduli; the fluid term is skipped where η = 0)."""
     n = lin.lag.size
     c = 2.0 * NN_PER_PA_UM2 * 2j * np.pi * frequency_hz * viscosity_Pa_s
-    S = lin.H + c * lin.D
+    S = lin.H + c * lin.D if viscosity_Pa_s else lin.H.astype(complex)
+    if extra is not None:
+        S = S + extra
     dq = np.empty(n + 1, complex)
     dq[n] = -0.5                                          # δz_p for δh = -1
     dq[:n] = np.linalg.solve(S[:n, :n], -S[:n, n] * dq[n])
     return dq, -0.5 * (S[n] @ dq)
 
 
-def respond(lin, viscosity_Pa_s, frequency_hz):
+def respond(lin, viscosity_Pa_s, frequency_hz, extra=None):
     """Solve the coupled linear system at (η, f) for δh = -1 µm: a Response.
     With the fluid condensed onto the shell (`prepare`: D = Gᵀ R_1 G, R_1 the
     fluid's reaction per unit η and displacement), the shell's equations
 
         (H_uu + c D_uu) δu = -(H_u,zp + c D_u,zp) δz_p,   c = 2·1e-3 iωη,
 
-    and δF = -(1/2) (H_zp,q + c D_zp,q) δq."""
+    and δF = -(1/2) (H_zp,q + c D_zp,q) δq (`extra` added to H: `shell_response`;
+    `dissipation` is the fluid's alone, 0 where η = 0)."""
     check_viscous_inputs(viscosity_Pa_s, frequency_hz)
     start = time.perf_counter()
     omega = 2 * np.pi * frequency_hz
-    dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz)
-    dissipation = omega**2 * viscosity_Pa_s * np.real(np.conj(dq) @ (lin.D @ dq)) * NN_PER_PA_UM2
+    dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz, extra)
+    dissipation = (omega**2 * viscosity_Pa_s * np.real(np.conj(dq) @ (lin.D @ dq)) * NN_PER_PA_UM2
+                   if viscosity_Pa_s else 0.0)
     power = -0.5 * np.real(dF * np.conj(1j * omega * -1.0))
     g, dg, area, darea = _droplet_slopes(lin.shell, lin.h_mean_um)
     dgamma = (dF - lin.force_nN / g * dg * -1.0) / g

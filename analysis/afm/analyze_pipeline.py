@@ -23,7 +23,12 @@ of `cortex afm import`).
 With the emulator (the default method) every cell and frequency has a 95 %
 interval of ν and K̃_S (`nu_lo95`, `nu_hi95`, `ks_lo95`, `ks_hi95` in cells.csv),
 and every frequency's median ν a bootstrap 95 % interval (`median_nu_lo95`,
-`median_nu_hi95` in the summaries); figure `nu_intervals.png`."""
+`median_nu_hi95` in the summaries); figure `nu_intervals.png`.
+
+With `Settings.phase` (the command's default; `--no-phase` turns it off) the selected
+variant's cells table also gets the viscoelastic columns per cell and frequency,
+DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instrument
+phase and the paired test), report.md a section (`analysis.afm.rheology`)."""
 
 import json
 from dataclasses import dataclass, field
@@ -48,6 +53,9 @@ class Settings:
     method: str = "law"
     errors: object = None
     jpk_options: dict | None = None
+    phase: bool = False          # the viscoelastic reading (`analysis.afm.rheology`)
+    lags: dict | None = None     # instrument phase lag (rad) per frequency (Hz)
+    lag_source: str | None = None
 
 
 @dataclass
@@ -72,6 +80,7 @@ class Fitted:
     sums: dict = field(default_factory=dict)
     segments: object = None
     population: dict | None = None          # population.json (`analysis.afm.population_answer`)
+    rheology: object = None      # the viscoelastic reading's table and summary, when on
 
 
 def load(paths, jpk_options=None):
@@ -153,7 +162,25 @@ def fit(rec, settings):
             fitted.segments = segs
     from analysis.afm.population_answer import answer
     fitted.population = answer(fitted.tables[settings.bending])
+    if settings.phase:
+        _viscoelastic(rec, settings, fitted)
     return fitted
+
+
+def _viscoelastic(rec, settings, fitted):
+    """The viscoelastic reading of the selected variant (`analysis.afm.rheology`): its
+    cells table gains the per-frequency columns; `fitted.rheology` = (table, summary)."""
+    from analysis.afm.rheology import analyze as rheology
+    emulator = rec.emulator
+    if emulator is None:
+        from analysis.shipped import load as load_calibration
+        emulator = load_calibration(None)[1]
+    b = settings.bending
+    table, rheo, summ = rheology(fitted.tables[b], fitted.segments, emulator, b, settings.errors, settings.lags,
+                                 settings.lag_source)
+    fitted.tables[b] = table
+    fitted.sums[b] = {**fitted.sums[b], "viscoelastic": summ}
+    fitted.rheology = rheo
 
 
 def _write(out, name, write):
@@ -191,6 +218,10 @@ def write(out, rec, fitted, settings):
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs,
                     fitted.population) + markdown_skipped(None, rec.skipped)
+    if fitted.rheology is not None:
+        from analysis.afm.rheology import markdown as rheology_markdown
+        _write(out, "rheology.csv", _csv(fitted.rheology))
+        text += rheology_markdown(fitted.rheology, fitted.sums[bending]["viscoelastic"])
     return _write(out, "report.md", lambda p: p.write_text(text))
 
 
@@ -203,7 +234,7 @@ def run(data, calibration_path, out, settings=Settings()):
     out = OutputDir(out)                              # refused now if not ours
     from analysis.afm.population_figures import POPULATION_FIGURES
     out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
-               "population.json", *POPULATION_FIGURES]
+               "population.json", *POPULATION_FIGURES] + (["rheology.csv"] if settings.phase else [])
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:
         report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))

@@ -69,11 +69,17 @@ def _add_synth(s):
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law",)),
+    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law", "emulator")),
                    default="fast", metavar="SOLVER",
                    help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
-                        "calibration law (needs --calibration)")
+                        "calibration law (needs --calibration), or emulator (viscoelastic cells only: the shipped "
+                        "emulator and complex table)")
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
+    g.add_argument("--bulk-exponent", type=float, metavar="BETA_B",
+                   help="viscoelastic cells: population median of beta_B, |K_B*| ~ f^beta_B and delta_B = "
+                        "beta_B pi/2 (per-cell SD 0.03; with --shear-exponent; docs/viscoelastic.md)")
+    g.add_argument("--shear-exponent", type=float, metavar="BETA_S",
+                   help="viscoelastic cells: population median of beta_S (with --bulk-exponent)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler="analysis.afm.cli:synth")
@@ -110,6 +116,15 @@ def _add_analyze(s):
     a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(a)
     _jpk_options(a)
+    a.add_argument("--no-phase", action="store_true",
+                   help="skip the viscoelastic reading of the loss angles (on by default: DIR/rheology.csv, "
+                        "loss-angle columns in cells.csv, the paired test in summary.json)")
+    ph = a.add_mutually_exclusive_group()
+    ph.add_argument("--phase-reference", metavar="FILE",
+                    help="a recording on the bare dish (.h5 or .csv): the instrument's phase lag per frequency, "
+                         "added back to every loss angle")
+    ph.add_argument("--phase-lag-rad", metavar="F=RAD,...",
+                    help="the instrument's phase lag per frequency, e.g. 1=0.02,10=0.2")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler="analysis.afm.cli:analyze")
@@ -184,12 +199,42 @@ def _forward(args):
     """The forward model that `--solver`, `--bending` and `--calibration` name."""
     from analysis.afm import synth as sy
     from solver.errors import InputError
+    given = (args.bulk_exponent, args.shear_exponent)
+    if given != (None, None):
+        return _viscoelastic_forward(args, given)
+    if args.solver == "emulator":
+        raise InputError("--solver emulator makes viscoelastic cells only: give --bulk-exponent and --shear-exponent")
     if args.solver != "law":
         return sy.solver_forward(args.bending, method=args.solver)
     if not args.calibration:
         raise InputError("--solver law needs --calibration CAL.json")
     from analysis.calibration import Calibration
     return sy.law_forward(Calibration.load(args.calibration)[args.bending])
+
+
+def _viscoelastic_forward(args, exponents):
+    from analysis.afm import synth_rheology as sr
+    from solver.errors import InputError
+    if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
+        raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
+    if args.solver not in ("fast", "emulator"):
+        raise InputError("viscoelastic cells need --solver fast or emulator")
+    complex_forward = sr.emulator_complex if args.solver == "emulator" else sr.solver_complex
+    return sr.ViscoelasticForward(*exponents, complex_forward(args.bending), seed=args.seed)
+
+
+def phase_settings(args):
+    """(phase on, lags {Hz: rad} or None, where they came from) of `afm analyze`."""
+    from analysis.afm import rheology
+    if args.no_phase:
+        return False, None, None
+    if args.phase_lag_rad:
+        return True, rheology.parse_lags(args.phase_lag_rad), f"--phase-lag-rad {args.phase_lag_rad}"
+    if args.phase_reference:
+        from analysis.afm.analyze_pipeline import load
+        lags = rheology.reference_lags(load(args.phase_reference))
+        return True, lags, f"measured on the bare dish ({args.phase_reference})"
+    return True, None, None
 
 
 def import_(args):
@@ -247,7 +292,8 @@ def analyze(args):
     from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
     result = run(experiment_in(args.data), args.calibration, args.out,
-                 Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args)))
+                 Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args),
+                          **dict(zip(("phase", "lags", "lag_source"), phase_settings(args)))))
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
                                 **(result["summary"] or {})})))

@@ -93,7 +93,10 @@ def _parameters(i, rng):
 
 def _moduli(p, freqs, forward, truth):
     """K (mN/m) at every mean height per frequency: K_B = K_B(1 Hz) f^β,
-    K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B."""
+    K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B.
+    A viscoelastic forward model (`analysis.afm.synth_rheology`) makes its own."""
+    if getattr(forward, "viscoelastic", False):
+        return forward.moduli(p, freqs, truth)
     K = {}
     for f in freqs:
         bulk = p["bulk1"] * f**BETA
@@ -106,8 +109,8 @@ def _moduli(p, freqs, forward, truth):
 def _protocol(rng, p, freqs, K):
     """The recording's time s, height µm and elastic Δγ (mN/m; NaN on the
     approaches) and its segments: per mean height an approach and a wait, then
-    the oscillations at every frequency (the area lags by δ = β π/2)."""
-    delta = BETA * np.pi / 2
+    the oscillations at every frequency (the area lags by δ = β π/2, or where K
+    is complex by arg K per height)."""
     t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * p["D"]
     for j, h_m in enumerate(p["h_means"]):
         move = (h_prev - h_m) / SPEED_UM_PER_S
@@ -121,10 +124,11 @@ def _protocol(rng, p, freqs, K):
             periods = 2 if f < 0.05 else 5
             s = np.arange(0.0, periods / f, 1.0 / RATE_HZ)
             w = 2 * np.pi * f
+            delta = float(np.angle(K[f][j])) if np.iscomplexobj(K[f]) else BETA * np.pi / 2
             h = h_m - AMPLITUDE_UM * np.sin(w * s)
             fpt, area = shape_of(p["V"], np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
             a_lag, a_mean = area[s.size:2 * s.size], area[-1]
-            g_chunks.append(K[f][j] * (a_lag - a_mean) / a_mean)
+            g_chunks.append(abs(K[f][j]) * (a_lag - a_mean) / a_mean)
             t_chunks.append(t0 + s), h_chunks.append(h)
             segs.append(Segment("oscillation", n0, n0 + s.size, f))
             n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
@@ -175,6 +179,8 @@ def generate(n_cells=85, seed=0, errors=True, forward=None):
     truth = {"seed": seed, "errors": errors, "error_model": ERRORS if errors else None,
              "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, "populations": {str(k): v for k, v in POPULATIONS.items()},
              "frequencies": per_f, "cells": truths, **true_trend(n_cells)}
+    if getattr(forward, "viscoelastic", False):
+        truth.update(forward.describe())
     return cells, truth
 
 

@@ -1,0 +1,241 @@
+"""The viscoelastic reading of a recording: complex moduli per cell and frequency, power
+laws across frequencies, the paired test of β_S against β_B (SPEC 10).
+
+Per cell and frequency (`analysis.viscoelastic_fit`): the measured K*_j = |K_j| e^{iδ_j}
+at each used height (δ_j the segment's loss angle minus the instrument's lag at that
+frequency, `instrument_lags`), fitted for K_B = |K_B*|, δ_B, K_S = |K_S*|, δ_S with 95 %
+intervals and the complex ν*; only curves the magnitude-only analysis includes.
+
+Per cell with ≥ 3 such frequencies, power laws by least squares in ln f:
+
+    ln K_B(f) = ln K_B,1Hz + β_B ln(f / 1 Hz),   ln K_S(f) = ln K_S,1Hz + β_S ln(f / 1 Hz),
+
+and in every bootstrap draw the same fit of that draw's moduli (a cell's frequencies
+share its draws of the volume and height errors), whose percentiles are the 95 %
+intervals of β. A power-law (structural damping) material has δ = βπ/2 at every
+frequency: `bulk_power_law_consistent` says whether the mean fitted δ_B over the
+frequencies minus β_B π/2 has a 95 % interval holding 0 (likewise shear).
+
+Population: medians and quartiles of β_B and β_S and the Wilcoxon signed-rank test of
+β_S - β_B over the cells (`scipy.stats.wilcoxon`; one-sided, β_S > β_B, as the
+turnover reading predicts, and two-sided).
+"""
+
+import warnings
+import zlib
+
+import numpy as np
+import pandas as pd
+from scipy.stats import wilcoxon
+
+from analysis import intervals
+from analysis.emulator_fit import Curves
+from analysis.inversion import to_curves, used_heights
+from analysis.viscoelastic_fit import complex_poisson, draws, fit
+from solver.errors import InputError
+
+MIN_FREQUENCIES = 3
+RHEOLOGY_COLUMNS = ("cell_id", "bulk_exponent", "bulk_exponent_lo95", "bulk_exponent_hi95", "shear_exponent",
+                    "shear_exponent_lo95", "shear_exponent_hi95", "bulk_1hz_mN_per_m", "shear_1hz_mN_per_m")
+NO_LAG = "none given: the loss angles include the instrument's own phase lag"
+
+
+def parse_lags(text):
+    """`F=RAD,...` -> {frequency_hz: lag_rad}; InputError (one line) if malformed."""
+    lags = {}
+    for item in filter(None, (p.strip() for p in text.split(","))):
+        try:
+            f, rad = item.split("=")
+            f, rad = float(f), float(rad)
+        except ValueError:
+            raise InputError(f"--phase-lag-rad: '{item}' is not F=RAD (e.g. 1=0.05,10=0.3)") from None
+        if not (np.isfinite(f) and f > 0 and np.isfinite(rad) and abs(rad) < np.pi):
+            raise InputError(f"--phase-lag-rad: '{item}' needs a frequency > 0 Hz and |lag| < pi rad")
+        lags[f] = rad
+    if not lags:
+        raise InputError("--phase-lag-rad: give F=RAD pairs separated by commas")
+    return lags
+
+
+def reference_lags(cells):
+    """{frequency_hz: lag_rad} from recordings on the bare dish: per oscillation segment the
+    phase of the force relative to the compression -h(t) (`analysis.afm.timeseries.fit_sinusoid`),
+    the median per frequency (a hard dish answers in phase, so this is the instrument's lag)."""
+    from analysis.afm.timeseries import fit_sinusoid
+    phases = {}
+    for cell in cells:
+        for s in cell.oscillations():
+            t = cell.time_s[s.start:s.stop] - cell.time_s[s.start]
+            fitted = fit_sinusoid(t, np.vstack([cell.force_nN[s.start:s.stop], -cell.height_um[s.start:s.stop]]),
+                                  s.frequency_hz)
+            lag = np.angle(np.exp(1j * (fitted["phase"][0] - fitted["phase"][1])))
+            phases.setdefault(float(s.frequency_hz), []).append(-float(lag))
+    if not phases:
+        raise InputError("--phase-reference: the recording has no oscillation segment")
+    return {f: float(np.median(v)) for f, v in phases.items()}
+
+
+def instrument_lags(lags, frequencies):
+    """Lag (rad) per frequency of the data (0 where none was given). The instrument makes the
+    recorded force trail by its lag, so δ_true = δ_measured + lag. InputError if lags were
+    given but not for every frequency of the data."""
+    if lags is None:
+        return {f: 0.0 for f in frequencies}
+    missing = [f for f in frequencies if not any(np.isclose(f, g) for g in lags)]
+    if missing:
+        raise InputError(f"instrument phase: no lag for {', '.join(f'{f:g}' for f in missing)} Hz "
+                         f"(given for {', '.join(f'{f:g}' for f in sorted(lags))} Hz)")
+    return {f: next(v for g, v in lags.items() if np.isclose(f, g)) for f in frequencies}
+
+
+def _cell_normals(cell_ids, draws_, seed):
+    """(rows, M, 2) standard normals, the same for every row of one cell."""
+    cache = {}
+    for c in set(cell_ids):
+        cache[c] = np.random.default_rng([seed, zlib.crc32(str(c).encode())]).standard_normal((draws_, 2))
+    return np.stack([cache[c] for c in cell_ids])
+
+
+def per_frequency(table, segments, emulator, bending, table_c, errors=None, lags=None):
+    """Fit every included (cell, frequency) of `table` (the magnitude-only analysis, emulator
+    columns) to the complex K* of `segments`: the new columns (a DataFrame aligned with
+    `table`) and the draws θ_m (rows, M, 4) with θ*."""
+    errors = errors or intervals_errors()
+    freqs = sorted(segments["frequency_hz"].unique())
+    lag = instrument_lags(lags, freqs)
+    segs = segments.assign(_delta=segments["loss_angle_rad"] + segments["frequency_hz"].map(lag))
+    segs = segs.merge(table[["cell_id", "frequency_hz", "volume_um3", "tension_mN_per_m"]],
+                      on=["cell_id", "frequency_hz"], how="inner", suffixes=("_seg", ""))
+    keys, arr = to_curves(segs, ("cell_id", "frequency_hz"),
+                          columns=("h_tilde", "modulus_mN_per_m", "_delta", "volume_um3"))
+    pos = pd.MultiIndex.from_frame(keys[["cell_id", "frequency_hz"]])
+    idx = pos.get_indexer(pd.MultiIndex.from_frame(table[["cell_id", "frequency_hz"]]))
+    h, k, d = (arr[c][idx] for c in ("h_tilde", "modulus_mN_per_m", "_delta"))
+    use = used_heights(h, k)[0]
+    tension, volume = table["tension_mN_per_m"].to_numpy(float), table["volume_um3"].to_numpy(float)
+    curves = Curves(h, k, use, tension, volume)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lnk = np.log(np.where(use, k, 1.0)) + 1j * np.where(use, d, 0.0)
+    start = np.column_stack([np.log(table["bulk_mN_per_m"]), np.log(table["ks_tilde"])])
+    start[table["excluded_reason"].notna().to_numpy()] = np.nan
+    theta, s2 = fit(table_c, emulator, bending, curves, lnk, start)
+    normals = _cell_normals(table["cell_id"].tolist(), errors.draws, errors.seed)
+    th_m = draws(table_c, emulator, bending, theta, s2, curves, lnk, normals, volume_sd=errors.volume_rel_sd,
+                 height_sd_um=errors.height_sd_um, seed=errors.seed)
+    return _columns(theta, th_m, table["frequency_hz"].map(lag).to_numpy(float)), theta, th_m
+
+
+def intervals_errors():
+    from analysis.invert_table import Errors
+    return Errors()
+
+
+def _interval(x):
+    """Percentile 95 % interval along the last axis (NaN where every draw is NaN)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)        # all-NaN rows: excluded curves
+        lo, hi = np.nanpercentile(x, [100 * (1 - intervals.LEVEL) / 2, 100 * (1 + intervals.LEVEL) / 2], axis=-1)
+    return lo, hi
+
+
+def _columns(theta, th_m, lag):
+    """The per-frequency columns from θ* and the draws."""
+    out = {}
+    for name, col in (("bulk_loss_angle_rad", 2), ("shear_loss_angle_rad", 3)):
+        lo, hi = _interval(th_m[..., col])
+        out[name], out[name.replace("_rad", "_lo95_rad")], out[name.replace("_rad", "_hi95_rad")] = theta[:, col], lo, hi
+    for name, x, xm in (("viscoelastic_bulk_mN_per_m", theta[:, 0], th_m[..., 0]),
+                        ("viscoelastic_shear_mN_per_m", theta[:, 0] + theta[:, 1], th_m[..., 0] + th_m[..., 1])):
+        lo, hi = _interval(xm)
+        out[name], out[name.replace("_mN", "_lo95_mN")], out[name.replace("_mN", "_hi95_mN")] = \
+            np.exp(x), np.exp(lo), np.exp(hi)
+    nu = complex_poisson(np.nan_to_num(theta))
+    ok = np.isfinite(theta).all(axis=1)
+    out["nu_complex_real"], out["nu_complex_imag"] = np.where(ok, nu.real, np.nan), np.where(ok, nu.imag, np.nan)
+    out["instrument_phase_rad"] = lag
+    return pd.DataFrame(out)
+
+
+def _slopes(x, y):
+    """Least-squares slope and intercept of y against x along the first axis (NaN-free columns)."""
+    xm = x.mean()
+    slope = ((x - xm)[:, None] * (y - y.mean(axis=0))).sum(axis=0) / ((x - xm) ** 2).sum()
+    return slope, y.mean(axis=0) - slope * xm
+
+
+def power_laws(table, theta, th_m):
+    """One row per cell with ≥ MIN_FREQUENCIES fitted frequencies: exponents with intervals,
+    the 1 Hz moduli, and the power-law check of the loss angles."""
+    rows = []
+    ok = np.isfinite(theta).all(axis=1)
+    for cell, g in table[ok].groupby("cell_id", sort=True):
+        if len(g) < MIN_FREQUENCIES:
+            continue
+        i = g.index.to_numpy()
+        x = np.log(g["frequency_hz"].to_numpy(float))
+        row = {"cell_id": cell, "n_frequencies": len(g)}
+        for name, y, ym, col in (("bulk", theta[i, 0], th_m[i, :, 0], 2),
+                                 ("shear", theta[i, 0] + theta[i, 1], th_m[i, :, 0] + th_m[i, :, 1], 3)):
+            beta, c = _slopes(x, y[:, None])
+            beta_m, _ = _slopes(x, ym)
+            lo, hi = _interval(beta_m)
+            d_lo, d_hi = _interval(th_m[i, :, col].mean(axis=0) - beta_m * np.pi / 2)
+            row.update({f"{name}_exponent": float(beta[0]), f"{name}_exponent_lo95": float(lo),
+                        f"{name}_exponent_hi95": float(hi), f"{name}_1hz_mN_per_m": float(np.exp(c[0])),
+                        f"{name}_loss_angle_mean_rad": float(theta[i, col].mean()),
+                        f"{name}_power_law_loss_angle_rad": float(beta[0] * np.pi / 2),
+                        f"{name}_power_law_consistent": bool(d_lo <= 0.0 <= d_hi)})
+        rows.append(row)
+    cols = list(RHEOLOGY_COLUMNS) + ["n_frequencies"] + [f"{n}_{k}" for n in ("bulk", "shear") for k in
+                                                         ("loss_angle_mean_rad", "power_law_loss_angle_rad",
+                                                          "power_law_consistent")]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def paired_test(rheology):
+    """The population of exponents and the Wilcoxon signed-rank test of β_S against β_B."""
+    b, s = rheology["bulk_exponent"].to_numpy(float), rheology["shear_exponent"].to_numpy(float)
+    out = {"test": "Wilcoxon signed-rank, shear_exponent - bulk_exponent over the cells", "n_cells": int(b.size)}
+    for name, x in (("bulk_exponent", b), ("shear_exponent", s)):
+        q = np.percentile(x, [25, 50, 75]) if x.size else [np.nan] * 3
+        out[name] = {"median": float(q[1]), "q25": float(q[0]), "q75": float(q[2])}
+    if b.size < 2 or np.all(s - b == 0):
+        out.update(median_difference=float(np.median(s - b)) if b.size else None, p_value_greater=None,
+                   p_value_two_sided=None, shear_exponent_greater=None)
+        return out
+    out["median_difference"] = float(np.median(s - b))
+    out["p_value_greater"] = float(wilcoxon(s, b, alternative="greater").pvalue)
+    out["p_value_two_sided"] = float(wilcoxon(s, b).pvalue)
+    out["shear_exponent_greater"] = bool(out["p_value_greater"] < 0.05)
+    return out
+
+
+def analyze(table, segments, emulator, bending, errors=None, lags=None, lag_source=None):
+    """The viscoelastic reading: (table with the per-frequency columns, rheology table,
+    summary dict with the instrument phase and the paired test)."""
+    from analysis.viscoelastic_table import shipped
+    cols, theta, th_m = per_frequency(table, segments, emulator, bending, shipped(), errors, lags)
+    table = pd.concat([table.reset_index(drop=True), cols], axis=1)
+    rheology = power_laws(table, theta, th_m)
+    summ = {"instrument_phase": lag_source or NO_LAG,
+            "instrument_phase_rad": {str(f): v for f, v in sorted((lags or {}).items())},
+            "paired_test": paired_test(rheology)}
+    return table, rheology, summ
+
+
+def markdown(rheology, summ):
+    """report.md's section on the viscoelastic reading."""
+    t = summ["paired_test"]
+    lines = ["", "## Viscoelastic cortex (SPEC 10)", "",
+             f"Instrument phase: {summ['instrument_phase']}.", "",
+             f"{t['n_cells']} cells with >= {MIN_FREQUENCIES} frequencies (rheology.csv): power laws "
+             "|K_B*| = K_B,1Hz f^beta_B, |K_S*| = K_S,1Hz f^beta_S.", ""]
+    if t["n_cells"]:
+        b, s = t["bulk_exponent"], t["shear_exponent"]
+        lines += ["| exponent | median | quartiles |", "|---|---|---|",
+                  f"| beta_B | {b['median']:.3f} | {b['q25']:.3f} - {b['q75']:.3f} |",
+                  f"| beta_S | {s['median']:.3f} | {s['q25']:.3f} - {s['q75']:.3f} |", ""]
+    if t.get("p_value_greater") is not None:
+        lines.append(f"Wilcoxon signed-rank, beta_S - beta_B (median {t['median_difference']:.3f}): "
+                     f"p = {t['p_value_greater']:.3g} for beta_S > beta_B, {t['p_value_two_sided']:.3g} two-sided.")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,164 @@
+"""The complex forward model fast: the correspondence factor C tabulated (SPEC 10).
+
+The measured complex modulus of a viscoelastic cell (`solver.viscoelastic`) is
+
+    K*(h̃) = K_sec(h̃; K_B, K_S, γ_a) · C(h̃, K̃_S, γ̃_a, δ_B, δ_S),
+
+K_sec the elastic modulus the emulator gives (`analysis.emulator`, K_B f(h̃, K̃_S, γ̃_a; V)),
+C = K*_lin(δ_B, δ_S)/K*_lin(0, 0) the linear response's complex factor (no viscosity).
+C is dimensionless; with lengths scaled by R_cell and moduli by |K_B*| it depends on
+(h̃, K̃_S = |K_S*|/|K_B*|, γ̃_a = γ_a/|K_B*|, δ_B, δ_S), weakly on t_c/R and not on Δh.
+
+Why a table, and this one: the inversion evaluates the forward model ~10⁶ times per
+experiment (Gauss-Newton steps × bootstrap draws × heights), and one solver call is
+~10 ms after a ~0.1 s linearisation. At one (h̃, K̃_S, γ̃_a) the linearisation is done
+once and every (δ_B, δ_S) is one dense complex solve (the Hessian is linear in the
+moduli: `solver.viscoelastic.hessian_parts`), so each grid node costs a linearisation
+and a 7 × 7 grid of loss angles in [0, 1] rad. ln C is smooth and analytic in the
+angles: per node a polynomial of total degree DEGREE in (δ_B, δ_S) without constant
+term (C = 1 at zero angles) fits the 49 solves to ~2e-5; its complex coefficients are
+splined like the emulator (quadratic in ln V over three volumes, cubic in h̃, ln K̃_S,
+ln γ̃_a, on the emulator's grid: C moves by ~3e-3 rad in phase between V = 4300 and
+6200 µm³, through the bending stiffness's (t_c/R)²). `bench/viscoelastic.py` measures the table against the solver at random
+points between the nodes.
+
+Only the `standard` bending variant is tabulated (the factor C changes with B by far
+less than with the angles: B/(K_B R²) ~ 1e-5).
+"""
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import BSpline, NdBSpline
+
+from analysis.emulator import tensor_spline
+from solver.errors import InputError
+
+DATA = Path(__file__).parent / "data" / "viscoelastic_table.json"
+H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)
+KS_TILDE = (0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56, 5.12)
+GAMMA_TILDE = (0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
+ANGLES = tuple(np.linspace(0.0, 1.0, 7))
+DEGREE = 4
+VOLUMES_UM3 = (3000.0, 4300.0, 6500.0)
+BULK_MN_PER_M = 25.0
+TERMS = tuple((i, j) for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i) if i + j > 0)
+
+
+def _monomials(db, ds):
+    """(..., len(TERMS)) monomials δ_B^i δ_S^j and their derivatives by δ_B and δ_S."""
+    db, ds = np.asarray(db, float)[..., None], np.asarray(ds, float)[..., None]
+    i = np.array([t[0] for t in TERMS])
+    j = np.array([t[1] for t in TERMS])
+    pow_ = lambda x, k: np.where(k >= 0, x ** np.maximum(k, 0), 0.0)  # noqa: E731
+    m = pow_(db, i) * pow_(ds, j)
+    return m, i * pow_(db, i - 1) * pow_(ds, j), j * pow_(db, i) * pow_(ds, j - 1)
+
+
+def node_coefficients(volume_um3, h_tilde, ks_tilde, gamma_tilde, bending="standard"):
+    """Complex coefficients (len(TERMS),) of ln C at one grid node: linearise the solver once,
+    solve every (δ_B, δ_S) of ANGLES², least squares in the monomials."""
+    from solver.geometry import cell_radius
+    from solver.model import Shell
+    from solver.viscoelastic import correction, hessian_parts
+    h_m = h_tilde * 2.0 * float(cell_radius(volume_um3))
+    shell = Shell(volume_um3=volume_um3, h0_um=h_m + 0.25, bulk_mN_per_m=BULK_MN_PER_M,
+                  shear_mN_per_m=BULK_MN_PER_M * ks_tilde, tension_mN_per_m=BULK_MN_PER_M * gamma_tilde,
+                  bending=bending)
+    parts = hessian_parts(shell)
+    db, ds = (a.ravel() for a in np.meshgrid(ANGLES, ANGLES, indexing="ij"))
+    lnc = np.array([np.log(correction(parts, a, b, 1.0)) for a, b in zip(db, ds)])
+    coef, *_ = np.linalg.lstsq(_monomials(db, ds)[0], lnc, rcond=None)
+    return coef
+
+
+def build(volumes=VOLUMES_UM3, progress=None):
+    """The table's coefficients on the grid: a dict ready for json (`ComplexTable.from_json`)."""
+    shape = (len(volumes), len(H_TILDE), len(KS_TILDE), len(GAMMA_TILDE))
+    coef = np.zeros(shape + (len(TERMS),), complex)
+    for idx in np.ndindex(shape):
+        coef[idx] = node_coefficients(volumes[idx[0]], H_TILDE[idx[1]], KS_TILDE[idx[2]], GAMMA_TILDE[idx[3]])
+        if progress:
+            progress(idx)
+    return {"volume_um3": [float(v) for v in volumes], "h_tilde": list(H_TILDE), "ks_tilde": list(KS_TILDE),
+            "gamma_tilde": list(GAMMA_TILDE), "angles_rad": [float(a) for a in ANGLES], "degree": DEGREE,
+            "bending": "standard", "terms": [list(t) for t in TERMS],
+            "ln_c_real": coef.real.tolist(), "ln_c_imag": coef.imag.tolist()}
+
+
+@dataclass
+class ComplexTable:
+    """ln C(h̃, K̃_S, γ̃_a, δ_B, δ_S) and its derivatives, from the tabulated coefficients."""
+
+    spline: object
+    has_volume: bool = True
+
+    def at_volume(self, volume_um3):
+        """The table at one volume (the V axis's basis contracted out: a third of the work
+        per evaluation), whose `log_factor` ignores its volume argument."""
+        s = self.spline
+        basis = BSpline.design_matrix([np.log(volume_um3)], s.t[0], s.k[0], extrapolate=True).toarray()[0]
+        return ComplexTable(NdBSpline(s.t[1:], np.tensordot(basis, s.c, axes=(0, 0)), s.k[1:]), has_volume=False)
+
+    @classmethod
+    def from_json(cls, doc, where="viscoelastic table"):
+        try:
+            axes = [np.asarray(doc[k], float) for k in ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")]
+            coef = np.asarray(doc["ln_c_real"], float) + 1j * np.asarray(doc["ln_c_imag"], float)
+            if [tuple(t) for t in doc["terms"]] != list(TERMS):
+                raise ValueError("terms differ from this version's")
+        except (KeyError, TypeError, ValueError) as err:
+            raise InputError(f"{where}: malformed ({err})") from None
+        values = np.concatenate([coef.real, coef.imag], axis=-1)
+        coords = [np.log(axes[0]), axes[1], np.log(axes[2]), np.log(axes[3])]
+        return cls(tensor_spline(coords, values, (2, 3, 3, 3)))
+
+    def log_factor(self, h_tilde, ks_tilde, gamma_tilde, db, ds, volume_um3=4300.0, derivatives=False):
+        """ln C at the points (arrays broadcast); with `derivatives` also its derivatives by
+        ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape)."""
+        h, ks, g, db, ds, v = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde,
+                                                                                  db, ds, volume_um3)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.stack(([np.log(v).ravel()] if self.has_volume else []) + [h.ravel(), np.log(ks).ravel(),
+                                                                               np.log(g).ravel()], axis=-1)
+        lead = (0,) if self.has_volume else ()
+        n = len(TERMS)
+        m, mb, ms = (a.reshape(-1, n) for a in _monomials(db.ravel(), ds.ravel()))
+
+        def contract(c):
+            c = c[:, :n] + 1j * c[:, n:]
+            return [np.sum(c * w, axis=1).reshape(h.shape) for w in (m, mb, ms)]
+
+        value, d_b, d_s = contract(self.spline(x))
+        if not derivatives:
+            return value
+        d_ks = contract(self.spline(x, nu=lead + (0, 1, 0)))[0]
+        d_g = contract(self.spline(x, nu=lead + (0, 0, 1)))[0]
+        return value, d_ks, d_g, d_b, d_s
+
+
+@lru_cache(maxsize=1)
+def shipped() -> ComplexTable:
+    """The table shipped in the package (`analysis/data/viscoelastic_table.json`)."""
+    if not DATA.is_file():
+        raise InputError(f"{DATA}: the viscoelastic table is missing (rebuild: python -m analysis.viscoelastic_table)")
+    return ComplexTable.from_json(json.loads(DATA.read_text()), where=str(DATA))
+
+
+def main():
+    """Rebuild the shipped table (about 15 min on one core)."""
+    import sys
+    done = [0]
+
+    def progress(idx):
+        done[0] += 1
+        if done[0] % 40 == 0:
+            print(f"{done[0]} nodes", file=sys.stderr)
+    DATA.write_text(json.dumps(build(progress)) + "\n")
+
+
+if __name__ == "__main__":
+    main()
