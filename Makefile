@@ -56,6 +56,7 @@ demo: setup
 	@# analysed with the calibration shipped in the package: nu per frequency with 95 % intervals
 	@[ -e results/demo-cells/experiment.h5 ] || $(BIN)/cortex afm synth --cells 12 --seed 7 --out results/demo-cells
 	$(BIN)/cortex afm analyze results/demo-cells --out results/demo-cells/analysis
+	@grep -m1 '^\*\*Trend' results/demo-cells/analysis/report.md
 	@sed -n '/^Median/,/^Each cell/p' results/demo-cells/analysis/report.md
 	@echo "true medians: results/demo-cells/truth.json; per cell: results/demo-cells/analysis/cells.csv"
 
