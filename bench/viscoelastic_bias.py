@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 from analysis.emulator_fit import invert_curves_emulator  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 from analysis.viscoelastic_table import shipped  # noqa: E402
+from solver.elasticity import shear_ratio  # noqa: E402
 
 NUS = (0.2, 0.5, 0.7)
 ANGLES = ((0.16, 0.16), (0.16, 0.31), (0.16, 0.47), (0.31, 0.16), (0.08, 0.47), (0.31, 0.63))
@@ -31,7 +32,7 @@ def main():
     h = np.linspace(0.5, 0.75, 6)
     rows = []
     for nu in NUS:
-        ks = (1 - nu) / (1 + nu)
+        ks = float(shear_ratio(nu))
         for db, ds in ANGLES:
             K = emu.modulus(h, 25.0, ks, 1.5) * np.exp(table.log_factor(h, ks, 1.5 / 25.0, db, ds))
             fit = invert_curves_emulator(h[None], np.abs(K)[None], 1.5, 4300.0, emu).iloc[0]

@@ -17,6 +17,7 @@ emulator and `analysis.viscoelastic_table`; what the long round trips in bench/ 
 import numpy as np
 
 from analysis.afm.synth import POPULATIONS
+from solver.elasticity import poisson_of_ratio
 
 SPREAD = 0.03                     # per-cell SD of both exponents around their medians
 EXPONENT_RANGE = (0.0, 0.6)
@@ -77,7 +78,7 @@ class ViscoelasticForward:
             K[f] = self.forward(p["V"], p["h_means"], bulk, shear, p["tension"], db, ds)
             ks = shear / bulk
             truth["frequencies"][f] = {
-                "nu": float((1 - ks) / (1 + ks)), "ks_tilde": float(ks), "bulk_mN_per_m": float(bulk),
+                "nu": float(poisson_of_ratio(ks)), "ks_tilde": float(ks), "bulk_mN_per_m": float(bulk),
                 "shear_mN_per_m": float(shear), "bulk_loss_angle_rad": float(db), "shear_loss_angle_rad": float(ds),
                 "bulk_complex_mN_per_m": [float(bulk * np.cos(db)), float(bulk * np.sin(db))],
                 "shear_complex_mN_per_m": [float(shear * np.cos(ds)), float(shear * np.sin(ds))]}

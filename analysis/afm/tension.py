@@ -25,6 +25,7 @@ For a ramp the tension's interval from the volume error is [T(V_-), T(V_+)]
 """
 
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from solver.geometry import cell_radius
 
 DRAWS = 2000
 FLATTEST = 0.05           # draws flatter than this h̃ (beyond any cell) are left out
-Z95 = 1.959963984540054
+Z95 = NormalDist().inv_cdf((1.0 + LEVEL) / 2.0)   # the normal quantile of the intervals' level
 PA_PER_MN_PER_M_PER_UM = 1e3
 
 
