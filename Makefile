@@ -4,7 +4,7 @@
 #   make setup           .venv/: the default stack (MPICH wheel from PyPI, serial h5py), the solver compiled
 #   make setup-parallel  .venv-mpio/: Debian's MPICH + parallel HDF5, h5py built with MPI
 #   make demo            the main job, end to end
-#   make test            the whole suite, MPI tests on both stacks
+#   make test            the type checker, then the whole suite, MPI tests on both stacks
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
 #   make calibration     rebuild the shipped calibration (analysis/data/calibration.json)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
@@ -20,7 +20,7 @@ PVENV  := .venv-mpio
 NP     ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: setup setup-parallel demo test test-serial test-mpi test-mpi-parallel bench bench-full clean
+.PHONY: setup setup-parallel demo test typecheck test-serial test-mpi test-mpi-parallel bench bench-full clean
 
 setup: $(VENV)/.installed
 
@@ -60,7 +60,11 @@ demo: setup
 	@sed -n '/^Median/,/^Each cell/p' results/demo-cells/analysis/report.md
 	@echo "true medians: results/demo-cells/truth.json; per cell: results/demo-cells/analysis/cells.csv"
 
-test: test-serial test-mpi test-mpi-parallel
+test: typecheck test-serial test-mpi test-mpi-parallel
+
+# The type checker over the typed packages (pyproject.toml, [tool.mypy]).
+typecheck: setup
+	$(BIN)/python -m mypy
 
 test-serial: setup
 	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)

@@ -20,7 +20,7 @@ Public API (imported on first use):
   the inversion methods.
 """
 
-from solver.lazy_exports import lazy_exports
+from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "calibrate": "analysis.calibration", "Calibration": "analysis.calibration", "Law": "analysis.calibration",

@@ -36,7 +36,7 @@ import pandas as pd
 
 from analysis import calibration as cal_mod
 from outputs.ownership import OutputDir
-from solver.errors import InputError
+from common.errors import InputError
 
 
 @dataclass

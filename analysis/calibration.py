@@ -27,7 +27,7 @@ import pandas as pd
 
 from analysis import laws
 from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio  # noqa: F401 (poisson, shear_ratio: this module's names for them)
-from solver.errors import InputError
+from common.errors import InputError
 
 FORMAT = "cortex-calibration"
 NEEDED = ("bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m", "h_tilde",

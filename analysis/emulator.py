@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import BSpline, NdBSpline, make_interp_spline
 
-from solver.errors import InputError
+from common.errors import InputError
 
 AXES = ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")
 LOG_AXES = (True, False, True, True)       # which axes are interpolated in their logarithm
@@ -233,7 +233,7 @@ def from_results(results, progress=None, resolution=1.0):
 def _refill(results, resolution, progress):
     """(results with every failed row solved again on a finer mesh, the list of those rows)."""
     from solver.compression import compress
-    from solver.errors import SolverError
+    from common.errors import SolverError
     from solver.model import Shell
     frame = results.copy()
     refilled = []

@@ -25,9 +25,10 @@ import numpy as np
 from analysis import intervals
 from analysis.emulator_fit import Curves, invert_curves_emulator
 from analysis.inversion import invert_curves, to_curves, used_heights
-from solver.errors import InputError
+from common.errors import InputError
+from common.names import INVERSION_METHODS
 
-METHODS = ("emulator", "law")
+METHODS = INVERSION_METHODS
 DEFAULT_VOLUME_UM3 = 4300.0
 
 

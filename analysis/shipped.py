@@ -25,7 +25,7 @@ from pathlib import Path
 
 from analysis.calibration import FORMAT, Calibration, _nan_to_none, read_document
 from analysis.emulator import Emulator, from_results
-from solver.errors import InputError
+from common.errors import InputError
 
 VERSION = 2
 SHIPPED_NAME = "calibration.json"

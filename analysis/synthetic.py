@@ -125,7 +125,7 @@ def solver_results(variants=("standard",), grid=PAPER_GRID, method="fast", progr
     (`solver.compression.compress`), no campaign: for tests and checks where
     no store exists. Slow: one solve per grid point and variant."""
     from solver.compression import compress
-    from solver.errors import SolverError
+    from common.errors import SolverError
     from solver.model import Shell
     keys = ("volume_um3", "bulk_mN_per_m", "shear_mN_per_m", "h0_um", "tension_mN_per_m", "dh_um")
     rows = []

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from solver.errors import InputError
+from common.errors import InputError
 
 REQUIRED = ("cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m")
 OPTIONAL = ("frequency_hz", "volume_um3")

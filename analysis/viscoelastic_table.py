@@ -35,7 +35,7 @@ import numpy as np
 from scipy.interpolate import BSpline, NdBSpline
 
 from analysis.emulator import tensor_spline
-from solver.errors import InputError
+from common.errors import InputError
 
 DATA = Path(__file__).parent / "data" / "viscoelastic_table.json"
 H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)

@@ -17,7 +17,7 @@ import numpy as np
 
 from analysis.figures import _save, plt
 from campaign.reader import read_results
-from solver.errors import InputError
+from common.errors import InputError
 
 TOLERANCE = 0.01      # the 1 % of "the elastic calibration is valid"
 STYLES = ("-", "--", ":", "-.")

@@ -40,7 +40,7 @@ import numpy as np
 
 from solver.compression import compress
 from solver.elasticity import poisson_ratio
-from solver.errors import InputError, SolverError
+from common.errors import InputError, SolverError
 from solver.model import Shell
 
 BULK = 25.0

@@ -13,7 +13,7 @@ Public API (imported on first use):
   `read_provenance(store)`: what made it.
 """
 
-from solver.lazy_exports import lazy_exports
+from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "load_config": "campaign.config:load", "Campaign": "campaign.config",

@@ -44,7 +44,7 @@ def run(args):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
     # and a rank's own BLAS threads would only spin on its neighbour's
     from campaign import config, scheduler
-    from solver.errors import InputError
+    from common.errors import InputError
     campaign = config.load(args.config)
     from campaign import isolation
     isolation.start_early(campaign)   # the task process, forked before MPI loads; it warms up meanwhile

@@ -65,7 +65,7 @@ from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
 from solver.elasticity import poisson_ratio, shear_modulus
-from solver.errors import InputError
+from common.errors import InputError
 from solver.model import BENDING_VARIANTS
 
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}

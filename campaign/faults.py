@@ -44,7 +44,7 @@ import time
 from dataclasses import dataclass, field
 
 from campaign.schema import RESULTS
-from solver.errors import InputError
+from common.errors import InputError
 
 FAULTS = ("raise", "hang", "nan", "segv", "spin", "memory", "noop", "fake_law")
 ROW_KEYS = ("raise_task", "hang_task", "nan_task", "segv_task", "spin_task", "memory_task")

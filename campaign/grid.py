@@ -35,7 +35,7 @@ import math
 import operator
 from collections.abc import Sequence
 
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius
 from solver.model import Shell
 

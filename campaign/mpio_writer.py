@@ -11,7 +11,7 @@ the journal.
 """
 
 from campaign.rows import write_entries
-from solver.errors import InputError
+from common.errors import InputError
 
 
 def write_path(requested, size):

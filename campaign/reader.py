@@ -23,7 +23,7 @@ from campaign import journal
 from campaign.rows import runs, trial_columns
 from campaign.schema import DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT
 from campaign.store_files import open_read
-from solver.errors import InputError
+from common.errors import InputError
 
 _OVERLAY = {"state": "state", "attempts": "attempts", "rank": "rank", "error": "error",
             "started": "started_unix_s"}

@@ -46,7 +46,7 @@ from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
 from campaign.isolation import Isolated, memory_share_mb
 from campaign.trial_inputs import TrialInputs
-from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
+from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4

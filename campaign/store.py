@@ -50,7 +50,7 @@ from campaign.rows import put, write_entries
 from campaign.schema import PENDING, RUNNING
 from campaign.store_files import check_store_path, open_read, set_aside
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
-from solver.errors import InputError
+from common.errors import InputError
 
 ROWS_S = 1.0    # s: on the rank0 path the journal is fsync'd and rows written at most this often (an
                 # HDF5 write per column costs ~0.3 ms, an fsync ~1 ms: per batch of a few tasks that was

@@ -11,7 +11,7 @@ import shutil
 from campaign import journal
 from campaign.schema import FORMAT
 from outputs.ownership import check_file, hdf5_format
-from solver.errors import InputError
+from common.errors import InputError
 
 
 def open_read(path):

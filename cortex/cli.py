@@ -5,11 +5,11 @@ Each package's `cli.register(subparsers)` adds its sub-commands and sets
 the command runs, so `cortex --help` and `cortex geometry` stay fast and never
 load MPI or HDF5.
 
-Errors from bad input (`solver.errors.InputError`, missing or unreadable files)
+Errors from bad input (`common.errors.InputError`, missing or unreadable files)
 become one line on stderr and exit status 2; a solver that finds no
 equilibrium, status 4; a write that fails (disk full), status 5; SIGTERM
 or Ctrl-C, status 3 (`cortex campaign run` handles them itself and stops
-cleanly). The whole table is in `solver.errors` and in every `--help`. A
+cleanly). The whole table is in `common.errors` and in every `--help`. A
 reader that stops early (`cortex campaign status STORE | head -1`) ends the
 command quietly, status 0.
 
@@ -26,7 +26,7 @@ import os
 import signal
 import sys
 
-from solver.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
+from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
 
 REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
@@ -73,7 +73,7 @@ def build_parser():
 
 
 def _add_exit_statuses(parser):
-    """Every command's --help ends with the one exit-status table (solver.errors)."""
+    """Every command's --help ends with the one exit-status table (common.errors)."""
     parser.epilog = "\n".join(filter(None, (parser.epilog, EXIT_STATUS_HELP)))
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):

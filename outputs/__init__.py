@@ -6,7 +6,7 @@ Public API: `OutputDir(path)` (an output folder with its manifest),
 `check_file(path, is_ours, what)` (a single output file), `write_atomically(path, data)`.
 """
 
-from solver.lazy_exports import lazy_exports
+from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "OutputDir": "outputs.ownership", "check_file": "outputs.ownership", "MANIFEST": "outputs.ownership",

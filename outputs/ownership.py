@@ -21,7 +21,7 @@ import os
 from pathlib import Path
 
 from outputs.writing import named_failures
-from solver.errors import InputError
+from common.errors import InputError
 
 MANIFEST = ".cortex-outputs"
 HEADER = "# files written here by cortex; a rerun replaces only these\n"

@@ -1,5 +1,5 @@
 """Writing files so that a full disk stops cleanly: one line naming the file
-(`solver.errors.WriteError`, exit status 5), and nothing left half-written.
+(`common.errors.WriteError`, exit status 5), and nothing left half-written.
 
 HDF5 must never be the one that meets a full file system: HDF5 2.0 then
 crashes (a segmentation fault while it creates a dataset) or leaves its
@@ -17,7 +17,7 @@ import os
 import shutil
 import tempfile
 
-from solver.errors import WriteError, is_write_failure
+from common.errors import WriteError, is_write_failure
 
 _images = itertools.count()
 ROOM_MARGIN_BYTES = 64 * 1024    # kept free beyond what a growing HDF5 file is expected to need

@@ -12,10 +12,10 @@ Public API (imported on first use):
   campaign file).
 - `effective_modulus(V, h0, h1, gamma_a, F)`: SPEC 3.
 - `InputError`, `SolverError`, `WriteError` and the `EXIT_*` statuses live in
-  `solver.errors`.
+  `common.errors`.
 """
 
-from solver.lazy_exports import lazy_exports
+from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "droplet": "solver.geometry", "Droplet": "solver.geometry", "cell_radius": "solver.geometry",
@@ -23,5 +23,5 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Shell": "solver.model", "BENDING_VARIANTS": "solver.model",
     "compress": "solver.compression", "Compression": "solver.compression", "METHODS": "solver.compression",
     "effective_modulus": "solver.modulus",
-    "InputError": "solver.errors", "SolverError": "solver.errors", "WriteError": "solver.errors",
+    "InputError": "common.errors", "SolverError": "common.errors", "WriteError": "common.errors",
 })

@@ -152,7 +152,7 @@ def geometry(args):
 
 def compress(args):
     from solver.compression import compress as run
-    from solver.errors import EXIT_NO_EQUILIBRIUM, SolverError
+    from common.errors import EXIT_NO_EQUILIBRIUM, SolverError
     from solver.model import Shell
     angles = _loss_angles(args)
     shell = Shell(volume_um3=args.volume, h0_um=args.h0, dh_um=args.dh,
@@ -181,7 +181,7 @@ def compress(args):
 
 def _loss_angles(args):
     """(δ_B, δ_S) of a viscoelastic compression, or None; InputError if incomplete."""
-    from solver.errors import InputError
+    from common.errors import InputError
     from solver.model import check_viscous_inputs
     given = (args.bulk_loss_angle, args.shear_loss_angle)
     if given == (None, None):

@@ -14,7 +14,7 @@ import importlib
 import time
 from dataclasses import dataclass, field
 
-from solver.errors import InputError
+from common.errors import InputError
 from solver.model import Shell
 from solver.modulus import effective_modulus
 from solver.solution import Solution

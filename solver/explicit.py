@@ -38,7 +38,7 @@ plate's normal reactions on the nodes it holds (exact for the discrete energy).
 import numpy as np
 
 from solver import surface_forces as sf
-from solver.errors import SolverError
+from common.errors import SolverError
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
 from solver.model import Shell

@@ -41,7 +41,7 @@ from functools import lru_cache
 import numpy as np
 
 from solver import fast_contact, fast_newton
-from solver.errors import SolverError
+from common.errors import SolverError
 from solver.fast_contact import LOG_PSI_MIN
 from solver.fast_energy import Lagrangian, NewtonMatrix
 from solver.fast_mesh import reference

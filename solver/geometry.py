@@ -48,7 +48,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from solver.errors import InputError
+from common.errors import InputError
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(12)
 _INTERVALS = 24          # most geometric intervals from β/8 to the upper limit

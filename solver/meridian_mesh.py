@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.path import Path
 from scipy.spatial import Delaunay
 
-from solver.errors import SolverError
+from common.errors import SolverError
 
 GRADING = 0.25     # growth of the element size per µm away from the shell
 MARGIN = 0.6       # interior points keep at least MARGIN h(x) from the boundary

@@ -14,10 +14,11 @@ from functools import lru_cache
 import numpy as np
 
 from solver.elasticity import bending_stiffness, poisson_ratio
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import sphere_height
+from common.names import BENDINGS
 
-BENDING_VARIANTS = {"standard": 1.0, "double": 2.0, "none": 0.0}
+BENDING_VARIANTS = dict(zip(BENDINGS, (1.0, 2.0, 0.0)))   # name -> factor on B
 PN_UM_PER_MN_PER_M_UM2 = 1000.0   # 1 mN/m·µm² = 1000 pN·µm
 
 

@@ -35,7 +35,7 @@ f in Hz, moduli in Pa (a 3D modulus: the layer's, not the shell's 2D one).
 
 import numpy as np
 
-from solver.errors import InputError
+from common.errors import InputError
 
 UM = 1e-6   # m per µm
 

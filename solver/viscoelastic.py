@@ -48,7 +48,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from solver.errors import InputError
+from common.errors import InputError
 from solver.fast_energy import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
 from solver.viscous import full_hessian, hold_label, linearise, prepare, respond

@@ -45,7 +45,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.sparse import coo_matrix, csc_matrix
 
-from solver.errors import SolverError
+from common.errors import SolverError
 from solver.fast import contact_at_least, equilibrium
 from solver.geometry import droplet
 from solver.model import check_viscous_inputs

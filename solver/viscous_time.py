@@ -18,7 +18,7 @@ damping), integrated by the second-order backward difference formula
 import numpy as np
 from scipy.linalg import lu_factor, lu_solve
 
-from solver.errors import InputError
+from common.errors import InputError
 from solver.model import check_viscous_inputs
 from solver.viscous import NN_PER_PA_UM2, shell_response
 

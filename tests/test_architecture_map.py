@@ -7,7 +7,9 @@ import re
 
 from conftest import ROOT
 
-PACKAGES = ("cortex", "solver", "campaign", "analysis", "analysis/afm", "outputs")
+TOP = ("cortex", "common", "solver", "campaign", "analysis", "outputs")
+PACKAGES = tuple(str(init.parent.relative_to(ROOT)) for top in TOP
+                 for init in sorted((ROOT / top).rglob("__init__.py")))
 
 
 def _modules():

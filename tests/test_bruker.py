@@ -19,7 +19,7 @@ from analysis.afm.bruker_text import read_columns, read_nanoscope_text
 from analysis.afm.jpk_import import import_cells, read_file, read_recordings
 from conftest import ROOT
 from cortex.cli import main
-from solver.errors import EXIT_BAD_INPUT, EXIT_SOME_FAILED, InputError
+from common.errors import EXIT_BAD_INPUT, EXIT_SOME_FAILED, InputError
 
 SHARED = Path(os.environ.get("CORTEX_SHARED_DATA", ROOT.parent / "shared" / "data"))
 DATA = SHARED / "bruker"

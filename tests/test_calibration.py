@@ -10,7 +10,7 @@ import pytest
 from analysis import laws
 from analysis.calibration import Calibration, calibrate, poisson, shear_ratio
 from analysis.synthetic import PAPER_GRID, reference_law, results_table
-from solver.errors import InputError
+from common.errors import InputError
 
 H = np.array([14.75, 13.75, 12.75, 11.75, 10.75, 9.75]) / 20.1727   # the paper grid's h~
 

@@ -9,7 +9,7 @@ import pytest
 
 from campaign import faults
 from campaign.tasks import compute
-from solver.errors import InputError
+from common.errors import InputError
 from solver.model import Shell
 
 SHELL = Shell(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)

@@ -17,7 +17,7 @@ from analysis.synthetic import reference_law
 from conftest import CORTEX, ROOT, cortex
 from cortex.cli import build_parser, main
 from solver.compression import METHODS as SOLVERS
-from solver.errors import EXIT_BAD_INPUT, EXIT_STATUS_HELP
+from common.errors import EXIT_BAD_INPUT, EXIT_STATUS_HELP
 from solver.model import BENDING_VARIANTS
 
 TINY = """

@@ -18,7 +18,7 @@ from analysis.shipped import load, shipped_path
 from campaign.config import load as load_campaign
 from campaign.reader import read_results
 from conftest import BIN, ROOT
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius, droplet
 from solver.modulus import effective_modulus
 

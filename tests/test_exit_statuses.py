@@ -1,4 +1,4 @@
-"""Every command honours the one exit-status table (`solver.errors`): a
+"""Every command honours the one exit-status table (`common.errors`): a
 signal during any command gives 3 and one line (SIGTERM like Ctrl-C), a
 failed write 5, and the one table in the docs (docs/cli.md) is the code's."""
 
@@ -8,7 +8,7 @@ import signal
 
 import pytest
 
-import solver.errors as errors
+import common.errors as errors
 from conftest import ROOT
 from cortex.cli import main
 

@@ -8,7 +8,7 @@ import pytest
 
 from solver import explicit
 from solver import surface_forces as sf
-from solver.errors import SolverError
+from common.errors import SolverError
 from solver.geometry import droplet
 from solver.model import Shell
 

@@ -9,7 +9,7 @@ import pytest
 
 from solver import fast
 from solver.compression import compress
-from solver.errors import SolverError
+from common.errors import SolverError
 from solver.model import Shell
 
 GRID = dict(shear=(8.33, 10.0, 15.0, 20.0, 25.0), h0=(15.0, 14.0, 13.0, 12.0, 11.0, 10.0),

@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import quad, simpson
 
 from conftest import cortex
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius, droplet, meridian, profile, sphere_height
 
 VOLUMES = [500.0, 1500.0, 4300.0, 9000.0, 20000.0]          # µm³

@@ -12,7 +12,7 @@ import random
 import pytest
 
 from campaign import config, grid
-from solver.errors import InputError
+from common.errors import InputError
 from solver.model import Shell
 
 BAD = {"volume_um3": [-1.0, 0.0], "h0_um": [30.0, 0.4, -2.0], "dh_um": [13.0, 0.0],

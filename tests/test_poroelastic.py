@@ -12,7 +12,7 @@ from scipy.sparse.linalg import spsolve
 
 from conftest import cortex as run_cortex
 from solver import poroelastic as pe
-from solver.errors import InputError
+from common.errors import InputError
 
 
 def layer_stress_fd(K, k_perm, eta, t, omega, n=4000):

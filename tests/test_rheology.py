@@ -13,7 +13,7 @@ from analysis.afm.synth_rheology import ViscoelasticForward, solver_complex
 from analysis.invert_table import Errors
 from analysis.shipped import load
 from conftest import cortex
-from solver.errors import InputError
+from common.errors import InputError
 
 
 @pytest.fixture(scope="module")

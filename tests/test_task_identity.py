@@ -16,7 +16,7 @@ import pytest
 
 from campaign import config, schema
 from conftest import ROOT
-from solver.errors import InputError
+from common.errors import InputError
 
 ODD = {"volume_um3": ["4300", "3000.5", "6000"], "h0_um": ["12", "11.5", "10.000000000000002", "14.25"],
        "dh_um": ["0.5", "1", "0.30000000000000004"], "bulk_mN_per_m": ["25.0", "0.0", "-0.0", "1e-300", "3e22"],

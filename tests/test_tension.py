@@ -10,7 +10,7 @@ from analysis.afm.tension import ErrorModel, pause_tension, pressure_Pa, ramp_in
 from analysis.afm.tension_pipeline import Options, Trace, analyse
 from analysis.afm.tension_synth import droplet_force_nN, droplet_recording
 from solver.droplet_table import mean_curvature_per_um, unit_shape
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius, droplet
 
 DEPTHS_H_TILDE = (0.95, 0.9, 0.8, 0.7, 0.6, 0.5)

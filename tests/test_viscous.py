@@ -11,7 +11,7 @@ import pytest
 
 from conftest import cortex as run_cortex
 from solver import fast, viscous
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import droplet
 from solver.model import Shell
 

@@ -80,6 +80,6 @@ def test_small_viscous_campaign_and_its_analysis(tmp_path):
 
 
 def test_viscous_axes_and_montecarlo_trials_are_refused_together(tmp_path):
-    from solver.errors import InputError
+    from common.errors import InputError
     with pytest.raises(InputError, match="montecarlo"):
         load(write(tmp_path, GRID + "viscosity_Pa_s = 1.0\nfrequency_hz = 1.0\n[montecarlo]\nnu = [0.5]\n"))

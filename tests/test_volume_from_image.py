@@ -11,7 +11,7 @@ import pytest
 
 from analysis.afm.jpk_import import read_volumes
 from cortex.cli import main
-from solver.errors import EXIT_BAD_INPUT, InputError
+from common.errors import EXIT_BAD_INPUT, InputError
 from solver.geometry import droplet, volume_from_image
 
 

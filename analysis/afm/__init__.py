@@ -16,7 +16,7 @@ Public API (imported on first use):
   analyze` into a folder; `population_summary(table)`.
 """
 
-from solver.lazy_exports import lazy_exports
+from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",

@@ -21,7 +21,7 @@ import pandas as pd
 
 from analysis.afm.timeseries import segment_moduli
 from analysis.inversion import invert_cell
-from solver.errors import InputError
+from common.errors import InputError
 
 TENSION_TOLERANCE = 0.10
 

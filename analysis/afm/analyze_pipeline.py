@@ -38,7 +38,7 @@ from analysis.afm.analyze import analyze
 from analysis.afm.figures import FIGURES
 from analysis.afm.population import summary
 from outputs.ownership import OutputDir
-from solver.errors import InputError
+from common.errors import InputError
 
 
 NO_OSCILLATION = "no modulation (oscillation) segment"

@@ -36,7 +36,7 @@ import numpy as np
 
 from analysis.afm.bruker_header import Header, read_header
 from analysis.afm.recording import RecordedSegment, Recording
-from solver.errors import InputError
+from common.errors import InputError
 
 DEFLECTION_CHANNELS = ("DeflectionError", "Deflection")
 HEIGHT_CHANNELS = ("ZSensor", "Height")

@@ -22,7 +22,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from solver.errors import InputError
+from common.errors import InputError
 
 MAGIC = b"\\*Force file list"
 IMAGE_MAGIC = b"\\*File list"

@@ -24,7 +24,7 @@ import numpy as np
 from analysis.afm.bruker import read_curve
 from analysis.afm.recording import RecordedSegment, Recording
 from analysis.afm.textfiles import export_name, read_bytes
-from solver.errors import InputError
+from common.errors import InputError
 
 LENGTH_TO_NM = {"nm": 1.0, "µm": 1e3, "um": 1e3, "m": 1e9}
 FORCE_TO_NN = {"nN": 1.0, "pN": 1e-3, "µN": 1e3, "uN": 1e3, "N": 1e9}

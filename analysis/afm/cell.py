@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.errors import InputError
+from common.errors import InputError
 
 KINDS = ("approach", "pause", "retract", "oscillation")
 

@@ -39,7 +39,7 @@ def _jpk_options(p, free_radius=False, dish_default="0"):
 
 def jpk_options(args):
     """`import_cells` keyword arguments from the parsed options."""
-    from solver.errors import InputError
+    from common.errors import InputError
     if args.volume is not None and not args.volume > 0:
         raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
     if args.spring_constant is not None and not args.spring_constant > 0:
@@ -164,7 +164,7 @@ def synth(args):
     from analysis.afm.h5format import write_experiment
     from analysis.cli import say_result
     from outputs.writing import write_atomically
-    from solver.errors import InputError
+    from common.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
     out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
@@ -186,7 +186,7 @@ def new_experiment_folder(path, names):
     import os
 
     from outputs.ownership import OutputDir
-    from solver.errors import InputError
+    from common.errors import InputError
     out = OutputDir(path)
     out.check(names)
     if os.path.lexists(out.path / EXPERIMENT):
@@ -198,7 +198,7 @@ def new_experiment_folder(path, names):
 def _forward(args):
     """The forward model that `--solver`, `--bending` and `--calibration` name."""
     from analysis.afm import synth as sy
-    from solver.errors import InputError
+    from common.errors import InputError
     given = (args.bulk_exponent, args.shear_exponent)
     if given != (None, None):
         return _viscoelastic_forward(args, given)
@@ -214,7 +214,7 @@ def _forward(args):
 
 def _viscoelastic_forward(args, exponents):
     from analysis.afm import synth_rheology as sr
-    from solver.errors import InputError
+    from common.errors import InputError
     if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
     if args.solver not in ("fast", "emulator"):
@@ -289,7 +289,7 @@ def analyze(args):
 
     from analysis.afm.analyze_pipeline import Settings, run
     from analysis.cli import inversion_settings, plain
-    from solver.errors import EXIT_DONE, EXIT_SOME_FAILED
+    from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
     result = run(experiment_in(args.data), args.calibration, args.out,
                  Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args),
@@ -310,7 +310,7 @@ def tension(args):
     from analysis.afm.tension import ErrorModel
     from analysis.afm.tension_pipeline import Options, run
     from analysis.cli import plain
-    from solver.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
+    from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
     for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
         if not value >= 0:
             raise InputError(f"{name} must be >= 0 (got {value})")

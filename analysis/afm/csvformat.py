@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.afm.cell import Cell, Segment
-from solver.errors import InputError
+from common.errors import InputError
 
 COLUMNS = ("time_s", "force_nN", "height_um", "segment", "kind", "frequency_hz")
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from analysis.afm.cell import Cell, Segment
 from outputs.writing import hdf5_image, write_atomically
-from solver.errors import InputError
+from common.errors import InputError
 
 FORMAT, VERSION = "cortex-afm", 1
 SEG_DTYPE = np.dtype([("kind", h5py.string_dtype()), ("start", "i8"), ("stop", "i8"), ("frequency_hz", "f8")])

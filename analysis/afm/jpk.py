@@ -28,7 +28,7 @@ import pandas as pd
 
 from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
 from analysis.afm.textfiles import export_name, open_text
-from solver.errors import InputError
+from common.errors import InputError
 
 LENGTH_TO_UM = {"m": 1e6, "um": 1.0, "µm": 1.0, "nm": 1e-3}
 FORCE_TO_NN = {"N": 1e9, "nN": 1.0, "pN": 1e-3}

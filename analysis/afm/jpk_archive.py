@@ -31,7 +31,7 @@ from pathlib import Path
 from analysis.afm.jpk_channels import convert, multiplier
 from analysis.afm.jpk_properties import parse_properties, resolve_shared, subtree
 from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
-from solver.errors import InputError
+from common.errors import InputError
 
 SUFFIXES = (".jpk-force", ".jpk-force-map", ".jpk-qi-data", ".jpk-qi-series")
 _SEGMENT = re.compile(r"^(index/(\d+)/)?segments/(\d+)/")

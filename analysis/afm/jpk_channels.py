@@ -26,7 +26,7 @@ not the sample count) raises InputError naming the channel.
 import numpy as np
 
 from analysis.afm.jpk_properties import subtree
-from solver.errors import InputError
+from common.errors import InputError
 
 ENCODER_DTYPES = {"signedshort": ">i2", "unsignedshort": ">u2", "signedinteger": ">i4",
                   "unsignedinteger": ">u4", "signedlong": ">i8", "unsignedlong": ">u8"}

@@ -44,7 +44,7 @@ import pandas as pd
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.jpk_archive import SUFFIXES, read_archive
 from analysis.afm.recording import Recording
-from solver.errors import InputError
+from common.errors import InputError
 
 TEXT_SUFFIXES = (".txt", ".txt.gz")
 NATIVE_KIND = {"approach": "approach", "pause": "pause", "retract": "retract", "modulation": "oscillation"}

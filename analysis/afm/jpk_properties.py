@@ -14,7 +14,7 @@ entry `NAME.K.REST` (from `shared-data/header.properties`), which
 
 import re
 
-from solver.errors import InputError
+from common.errors import InputError
 
 _ESCAPES = {"t": "\t", "n": "\n", "r": "\r", "f": "\f"}
 _ESCAPE = re.compile(r"\\(u[0-9a-fA-F]{4}|.)")

@@ -40,9 +40,10 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
-from solver.errors import InputError
+from common.errors import InputError
+from common.names import RAMP_MODELS
 
-MODELS = ("droplet", "small-deformation")
+MODELS = RAMP_MODELS
 GRID = 41
 ROUNDS = 8
 BASELINE_FRACTION = 0.3

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from solver.errors import InputError
+from common.errors import InputError
 
 STYLES = {"extend": "approach", "pause": "pause", "modulation": "modulation", "retract": "retract"}
 # Height channels in order of preference: the measured (sensor) heights before the piezo's command.

@@ -32,7 +32,7 @@ from analysis import intervals
 from analysis.emulator_fit import Curves
 from analysis.inversion import to_curves, used_heights
 from analysis.viscoelastic_fit import complex_poisson, draws, fit
-from solver.errors import InputError
+from common.errors import InputError
 
 MIN_FREQUENCIES = 3
 RHEOLOGY_COLUMNS = ("cell_id", "bulk_exponent", "bulk_exponent_lo95", "bulk_exponent_hi95", "shear_exponent",

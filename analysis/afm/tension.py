@@ -32,7 +32,7 @@ import numpy as np
 from analysis.afm.ramp_fit import RampFit, refit
 from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius
 
 DRAWS = 2000

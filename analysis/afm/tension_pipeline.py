@@ -33,7 +33,7 @@ import numpy as np
 
 from analysis.afm.ramp_fit import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension import ErrorModel, pause_tension, pressure_Pa, ramp_interval
-from solver.errors import InputError
+from common.errors import InputError
 from solver.geometry import cell_radius
 
 NATIVE = (".h5", ".hdf5", ".csv")

@@ -10,7 +10,7 @@ import gzip
 import io
 from pathlib import Path
 
-from solver.errors import InputError
+from common.errors import InputError
 
 GZIP_MAGIC = b"\x1f\x8b"
 COMPRESSED_SUFFIX = ".gz"

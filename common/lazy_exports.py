@@ -12,13 +12,16 @@ the public name differs from the one in its module.
 
 import importlib
 import sys
+from collections.abc import Callable
+from typing import Any
 
 
-def lazy_exports(package, table):
+def lazy_exports(package: str, table: dict[str, str]
+                 ) -> tuple[list[str], Callable[[str], Any], Callable[[], list[str]]]:
     """(`__all__`, module `__getattr__`, module `__dir__`) for `package`, whose
     public names are the keys of `table` (PEP 562)."""
 
-    def __getattr__(name):
+    def __getattr__(name: str) -> Any:
         if name not in table:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
         module, _, attr = table[name].partition(":")
@@ -26,7 +29,7 @@ def lazy_exports(package, table):
         setattr(sys.modules[package], name, value)        # the next look-up is a plain attribute
         return value
 
-    def __dir__():
+    def __dir__() -> list[str]:
         return sorted(set(vars(sys.modules[package])) | set(table))
 
     return list(table), __getattr__, __dir__

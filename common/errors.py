@@ -31,7 +31,7 @@ EXIT_STATUSES = (
 )
 
 
-def exit_status_table():
+def exit_status_table() -> str:
     """`EXIT_STATUSES` as the Markdown table docs/cli.md shows."""
     rows = [f"| {status} | {meaning} |" for status, meaning in EXIT_STATUSES]
     return "\n".join(["| status | meaning |", "|---|---|", *rows])
@@ -57,6 +57,6 @@ class WriteError(OSError):
     names the file and says to free space and rerun to resume."""
 
 
-def is_write_failure(err):
+def is_write_failure(err: BaseException) -> bool:
     """True for an OSError that a full or failing disk raises (ENOSPC, EDQUOT, EIO, ...)."""
     return isinstance(err, WriteError) or (isinstance(err, OSError) and err.errno in WRITE_ERRNOS)
