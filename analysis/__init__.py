@@ -26,7 +26,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "calibrate": "analysis.calibration", "Calibration": "analysis.calibration", "Law": "analysis.calibration",
     "load_calibration": "analysis.shipped:load", "shipped_path": "analysis.shipped",
     "Emulator": "analysis.emulator",
-    "invert_cell": "analysis.inversion", "CellInversion": "analysis.inversion",
-    "invert_rows": "analysis.invert_table", "Errors": "analysis.invert_table", "METHODS": "analysis.invert_table",
-    "reconstruct": "analysis.reconstruction",
+    "invert_cell": "analysis.invert.inversion", "CellInversion": "analysis.invert.inversion",
+    "invert_rows": "analysis.invert.method", "Errors": "analysis.invert.intervals", "METHODS": "analysis.invert.table",
+    "reconstruct": "analysis.calibrate.reconstruction",
 })

@@ -5,7 +5,7 @@ imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
 
-from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from solver.cli import add_bending, names_of
 
 OUT_HELP = ("output folder (created if missing); a non-empty folder cortex did not write is refused "
@@ -81,7 +81,7 @@ def add_inversion_options(p):
     """--calibration, --method, --bending and the interval's error options (shared with `cortex afm analyze`)."""
     p.add_argument("--calibration", metavar="CAL.json",
                    help="calibration file (default: the one shipped with the package)")
-    p.add_argument("--method", choices=names_of("analysis.invert_table:METHODS"), default=None, metavar="METHOD",
+    p.add_argument("--method", choices=names_of("analysis.invert.table:METHODS"), default=None, metavar="METHOD",
                    help="inversion method, %(choices)s: emulator (the default: K_B and K_S/K_B fitted on the "
                         "solver's tables) or law "
                         "(the paper's phenomenological law, for comparison); a calibration file without "
@@ -96,19 +96,19 @@ def add_inversion_options(p):
 
 
 def inversion_settings(args):
-    """(Calibration or None, Emulator or None, provenance, Errors) from the shared options."""
-    from analysis.invert_table import Errors
-    from analysis.shipped import load
-    cal, emu, prov = load(args.calibration)
+    """(the `CalibrationFile`, read once, and the `Errors`) from the shared options."""
+    from analysis.invert.intervals import Errors
+    from analysis.shipped import read
+    file = read(args.calibration)
     if args.method is None:
-        args.method = "emulator" if emu is not None else "law"
+        args.method = "emulator" if file.emulator is not None else "law"
     errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
                     seed=args.seed).check()
-    return cal, emu, prov, errors
+    return file, errors
 
 
 def calibrate(args):
-    from analysis.calibrate_pipeline import run
+    from analysis.calibrate.pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     laws = result["calibration"].laws
     say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},
@@ -150,14 +150,14 @@ def say_result(args, result, line):
 def invert(args):
     import json
 
-    from analysis.invert_table import invert_rows
-    from analysis.table_input import read_table
+    from analysis.invert.method import invert_rows
+    from analysis.invert.table_input import read_table
     from outputs.ownership import OutputDir
     rows = read_table(args.table)
-    cal, emu, _, errors = inversion_settings(args)
+    file, errors = inversion_settings(args)
     out = OutputDir(args.out)
     out.check(["cells.csv"])                        # refused before any work if not ours
-    table = invert_rows(rows, args.method, cal, emu, args.bending, errors)
+    table = invert_rows(rows, args.method, file.calibration, file.emulator, args.bending, errors)
     with out.writing("cells.csv") as path:
         table.to_csv(path, index=False)
     if args.json:

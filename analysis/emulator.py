@@ -149,16 +149,16 @@ class Emulator:
                              f"(it has: {', '.join(self.tables) or 'none'})")
         return self.tables[bending]
 
-    def ratio(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def ratio(self, h_tilde, ks_tilde, gamma_tilde, volume_um3, bending="standard"):
         """K/K_B = 1 - s + exp(y) at the given points (arrays broadcast)."""
         return 1.0 - OFFSET + np.exp(self[bending].log_excess(h_tilde, ks_tilde, gamma_tilde, volume_um3))
 
-    def modulus(self, h_tilde, bulk, ks_tilde, tension, volume_um3=4300.0, bending="standard"):
+    def modulus(self, h_tilde, bulk, ks_tilde, tension, volume_um3, bending="standard"):
         """K = K_B f(h̃, K̃_S, γ_a/K_B; V) in mN/m (K_B and γ_a in mN/m)."""
         bulk = np.asarray(bulk, float)
         return bulk * self.ratio(h_tilde, ks_tilde, np.asarray(tension, float) / bulk, volume_um3, bending)
 
-    def grad_log(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def grad_log(self, h_tilde, ks_tilde, gamma_tilde, volume_um3, bending="standard"):
         """(ln(K/K_B), ∂ ln(K/K_B)/∂ ln K̃_S, ∂ ln(K/K_B)/∂ ln γ̃_a) at the points."""
         t = self[bending]
         args = (h_tilde, ks_tilde, gamma_tilde, volume_um3)
@@ -172,7 +172,7 @@ class Emulator:
         """{axis: (low, high)} of the tabulated grid."""
         return {a: (min(v), max(v)) for a, v in self[bending].axes.items()}
 
-    def inside(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def inside(self, h_tilde, ks_tilde, gamma_tilde, volume_um3, bending="standard"):
         """True where every coordinate lies within the tabulated grid."""
         box = self.domain(bending)
         ok = True

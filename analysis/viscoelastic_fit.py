@@ -13,12 +13,12 @@ equally weighted; damped Gauss-Newton on the 4 × 4 normal equations, vectorised
 over curves, from the magnitude-only fit's (ln K_B, ln K̃_S) and δ_B = δ_S = the
 median measured phase. Then ν* = (K_B* - K_S*)/(K_B* + K_S*) (complex).
 
-Intervals (95 %): the parametric bootstrap of `analysis.intervals` carried to complex
+Intervals (95 %): the parametric bootstrap of `analysis.invert.intervals` carried to complex
 moduli. Per draw m a truth the cell could have had (volume V(1 + σ_V ε_m), one height
 offset σ_h η_m, the tension that keeps the resting force), the true K*_j,m that
 would make the analysis see the measured K*_j times e^{e_j,m} (e complex, each part
 N(0, s²), s² = SS/(2n - 4) the fit's residual variance; the map from a true K to the
-seen one is affine with real coefficients, `analysis.intervals.truth_moduli`), and
+seen one is affine with real coefficients, `analysis.invert.intervals.truth_moduli`), and
 the refit θ_m. The draws (ε_m, η_m) are given per curve by the caller, so that a cell's
 frequencies share them (`analysis.afm.rheology` fits power laws across frequencies
 draw by draw). Intervals are percentiles of θ_m.
@@ -26,8 +26,8 @@ draw by draw). Intervals are percentiles of θ_m.
 
 import numpy as np
 
-from analysis import intervals
-from analysis.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.invert import intervals
+from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
 from solver.geometry import cell_radius
 
 STEPS = 8             # Gauss-Newton steps of the fit
@@ -36,13 +36,13 @@ MAX_STEP = np.array([0.5, 0.5, 0.2, 0.2])
 ANGLE_BOUNDS = (-0.3, 1.3)      # rad: δ kept within (the table is fitted over 0-1 rad)
 
 
-def _model(table, slice_, theta, h, tension):
-    """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ."""
+def _model(table, slice_, theta, h, tension, volume_um3):
+    """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ (tables at one volume)."""
     bulk = np.exp(theta[:, 0])[:, None]
     ks = np.exp(theta[:, 1])[:, None]
     g = tension[:, None] / bulk
     lr, f_ks, f_g = slice_.grad_log(h, ks, g)
-    lc, c_ks, c_g, c_b, c_s = table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4],
+    lc, c_ks, c_g, c_b, c_s = table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4], volume_um3,
                                                   derivatives=True)
     value = theta[:, :1] + lr + lc
     jac = np.stack([1.0 - f_g - c_g, f_ks + c_ks, c_b, c_s], axis=-1)
@@ -50,7 +50,7 @@ def _model(table, slice_, theta, h, tension):
 
 
 def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
-    """Refit θ per row of `curves` (an `analysis.emulator_fit.Curves`, K unused) to the measured
+    """Refit θ per row of `curves` (an `analysis.invert.emulator_fit.Curves`, K unused) to the measured
     ln K* `lnk` (rows, m), starting from `theta` (rows, 4); rows of one volume share an
     emulator slice. Returns θ (rows, 4) and the residual sum of squares (rows,)."""
     h, _, use, tension, volume = curves
@@ -61,7 +61,7 @@ def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
         sl, tsl = emulator[bending].at_volume(v), table.at_volume(v)
         xr, hr, ur, tr, kr = x[rows], filled_heights(h[rows], use[rows]), use[rows], tension[rows], lnk[rows]
         for it in range(steps + 1):
-            value, jac = _model(tsl, sl, xr, hr, tr)
+            value, jac = _model(tsl, sl, xr, hr, tr, v)
             r = np.where(ur, np.nan_to_num(kr - value), 0.0)
             if it == steps:
                 break

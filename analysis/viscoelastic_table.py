@@ -116,7 +116,7 @@ class ComplexTable:
         coords = [np.log(axes[0]), axes[1], np.log(axes[2]), np.log(axes[3])]
         return cls(tensor_spline(coords, values, (2, 3, 3, 3)))
 
-    def log_factor(self, h_tilde, ks_tilde, gamma_tilde, db, ds, volume_um3=4300.0, derivatives=False):
+    def log_factor(self, h_tilde, ks_tilde, gamma_tilde, db, ds, volume_um3, derivatives=False):
         """ln C at the points (arrays broadcast); with `derivatives` also its derivatives by
         ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape)."""
         h, ks, g, db, ds, v = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde,

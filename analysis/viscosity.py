@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.figures import _save, plt
+from analysis.calibrate.figures import _save, plt
 from campaign.reader import read_results
 from common.errors import InputError
 

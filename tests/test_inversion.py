@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from analysis.calibration import Calibration, poisson, shear_ratio
-from analysis.inversion import invert_cell, invert_curves
+from analysis.invert.inversion import invert_cell, invert_curves
 from analysis.laws import modulus_law
 from analysis.synthetic import reference_law
 

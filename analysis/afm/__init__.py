@@ -11,7 +11,7 @@ Public API (imported on first use):
 - `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic
   recordings, as `cortex afm synth`.
 - `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell
-  table, per-segment table); `analyze_experiment(data, calibration_path, out,
+  table, per-segment table); `analyze_experiment(data, calibration_file, out,
   AnalyzeSettings(bending, method, errors, jpk_options))`: the whole `cortex afm
   analyze` into a folder; `population_summary(table)`.
 """
@@ -24,6 +24,6 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "load_cells": "analysis.afm.analyze_pipeline:load",
     "import_cells": "analysis.afm.jpk_import",
     "synthesize": "analysis.afm.synth:generate",
-    "analyze_cells": "analysis.afm.analyze:analyze", "analyze_cell": "analysis.afm.analyze",
+    "analyze_cells": "analysis.afm.analyze_pipeline:analyze", "analyze_cell": "analysis.afm.analyze",
     "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings", "population_summary": "analysis.afm.population:summary",
 })

@@ -8,7 +8,7 @@ on stdout; `--solver` names the forward model as in `cortex compress`
 (`solver.compression.METHODS`, plus `law`); `--bending` is one of
 `solver.model.BENDING_VARIANTS`."""
 
-from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
@@ -290,8 +290,8 @@ def analyze(args):
     from analysis.afm.analyze_pipeline import Settings, run
     from analysis.cli import inversion_settings, plain
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    _, _, _, errors = inversion_settings(args)          # also settles the default --method
-    result = run(experiment_in(args.data), args.calibration, args.out,
+    file, errors = inversion_settings(args)          # also settles the default --method
+    result = run(experiment_in(args.data), file, args.out,
                  Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args),
                           **dict(zip(("phase", "lags", "lag_source"), phase_settings(args)))))
     if args.json:

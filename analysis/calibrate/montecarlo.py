@@ -3,7 +3,7 @@ height errors put into the recovered Poisson ratios?
 
 Each trial is one simulated cell of true ν whose K(h̃) curve was computed
 with an erroneous volume and erroneous heights. It is inverted exactly as a
-measured cell (`analysis.inversion.invert_curves`) with its bending variant's
+measured cell (`analysis.invert.inversion.invert_curves`) with its bending variant's
 calibration and γ_a = the mean over its heights of `tension_seen` (the active
 tension an experimenter would infer at rest with the erroneous geometry).
 Excluded cells (the filters of SPEC 6) are left out of the statistics and
@@ -24,7 +24,7 @@ recovered ν of its included cells. Over the repetitions:
 import numpy as np
 import pandas as pd
 
-from analysis.inversion import invert_curves, to_curves
+from analysis.invert.inversion import invert_curves, to_curves
 
 KEYS = ["bending", "nu_true", "height_error_mode", "study", "cell", "trial_id"]
 GROUP = ["bending", "nu_true", "height_error_mode"]

@@ -1,7 +1,7 @@
 """Inversion by the emulator (SPEC 9): per cell, K_B and K̃_S from the measured
 K(h̃), γ_a measured.
 
-Model of cell i at its used heights j (`analysis.inversion.used_heights`):
+Model of cell i at its used heights j (`analysis.invert.inversion.used_heights`):
 
     K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.emulator`)
 
@@ -17,7 +17,7 @@ point K_B = Σ K f / Σ f² (f at γ_a/K_B, three sweeps); the best of them.
 Bounds: K̃_S within the emulator's grid widened by KS_MARGIN on both sides;
 a fit at a bound is excluded (the answer lies beyond the tabulated ν).
 Then ν = (1 - K̃_S)/(1 + K̃_S), R² = 1 - SS_res/SS_tot over the used heights,
-and the published filters (`analysis.inversion.exclusions`). `outside_emulator`
+and the published filters (`analysis.invert.inversion.exclusions`). `outside_emulator`
 flags a fit whose K̃_S, γ̃_a, heights or volume leave the tabulated grid (the
 spline extrapolates there); `nu_beyond_isotropic` flags ν > 0.5, the limit of
 an isotropic 3-D material (reported as it is).
@@ -30,7 +30,7 @@ import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from analysis.inversion import exclusions, used_heights
+from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
@@ -121,14 +121,14 @@ def fit(emulator, bending, curves):
 def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending="standard"):
     """Invert many cells (rows of NaN-padded (cells, heights) arrays; `tension` γ_a
     and `volume` V per cell). Returns a DataFrame with the columns of
-    `analysis.inversion.invert_curves` (α is NaN: the emulator has none) plus
+    `analysis.invert.inversion.invert_curves` (α is NaN: the emulator has none) plus
     `outside_emulator`, `nu_beyond_isotropic`, `rms_mN_per_m`."""
     h = np.atleast_2d(np.asarray(h_tilde, float))
     k = np.atleast_2d(np.asarray(modulus, float))
     tension = np.broadcast_to(np.asarray(tension, float), h.shape[:1]).copy()
     volume = np.broadcast_to(np.asarray(volume, float), h.shape[:1]).copy()
     use, n, top = used_heights(h, k)
-    use &= (tension > 0)[:, None] & (volume > 0)[:, None]
+    use &= (tension > 0)[:, None]
     curves = Curves(h, k, use, tension, volume)
     theta = fit(emulator, bending, curves)
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])

@@ -1,4 +1,4 @@
-"""report.md of `cortex analysis calibrate` (`analysis.calibrate_pipeline`), as text.
+"""report.md of `cortex analysis calibrate` (`analysis.calibrate.pipeline`), as text.
 
 One function per section: the header (what was used and left out), the
 calibration laws (SPEC 4) with the goodness of every fitting stage and the α
@@ -13,7 +13,7 @@ from importlib.metadata import version
 
 import numpy as np
 
-from analysis.figures import ORDER
+from analysis.calibrate.figures import ORDER
 
 
 def solver_checks(done):
@@ -163,7 +163,7 @@ def _montecarlo(mc_records):
 
 
 def render(inputs, result, checks, figs):
-    """report.md as text: `inputs` and `result` of `analysis.calibrate_pipeline`
+    """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration
     variants = [v for v in ORDER if v in cal.laws] + [v for v in cal.laws if v not in ORDER]

@@ -2,7 +2,7 @@
 ratio recovered from every simulated K(h̃) curve against the true one.
 
 Each (K_B, K_S, γ_a) curve of a bending variant is inverted exactly as a
-measured cell (`analysis.inversion.invert_curves`: heights 0.5 ≤ h̃ ≤ 0.75,
+measured cell (`analysis.invert.inversion.invert_curves`: heights 0.5 ≤ h̃ ≤ 0.75,
 K_B and α fitted with λ fixed, the filters) with γ_a KNOWN (the simulation's
 active tension), so the error measures the calibration law plus the
 free-K_B fit on the measured-cell height window, not tension estimation.
@@ -13,7 +13,7 @@ of the log law and the cubics alone.
 import numpy as np
 import pandas as pd
 
-from analysis.inversion import invert_curves, to_curves
+from analysis.invert.inversion import invert_curves, to_curves
 from solver.elasticity import poisson_of_ratio
 
 KEYS = ["bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"]

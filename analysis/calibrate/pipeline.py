@@ -8,7 +8,7 @@ The three stages are one function each, and the data passes through them once:
     fit(inputs, say)            calibration (SPEC 4), reconstruction check, Monte-Carlo
                                 study (SPEC 5), all in memory;
     write(out, inputs, result)  the tables, the figures and report.md
-                                (`analysis.calibrate_report`) into DIR.
+                                (`analysis.calibrate.report`) into DIR.
 
 Nothing is written before the input is checked and fitted. DIR gets:
 
@@ -128,8 +128,8 @@ def fit(inputs, say, marks):
     """Calibration, reconstruction check and Monte-Carlo study of `inputs` as
     `Fitted` (bad data is refused here, before any output); adds to
     inputs.left_out what could not be used and to `marks` the stage times."""
-    from analysis import montecarlo as mc_mod
-    from analysis import reconstruction as rec_mod
+    from analysis.calibrate import montecarlo as mc_mod
+    from analysis.calibrate import reconstruction as rec_mod
 
     done, trials, left_out = inputs.done, inputs.trials, inputs.left_out
     calibration, fits, loglaw = cal_mod.calibrate(done)
@@ -168,7 +168,7 @@ def _tables(result):
 
 def _figures(done, result, out):
     """The figures' paths (PNG; a PDF beside each)."""
-    from analysis import figures
+    from analysis.calibrate import figures
     cal = result.calibration
     figs = [figures.modulus_curves(done, cal, result.fits, out)[0],
             figures.alpha_law(cal, result.fits, out)[0],
@@ -183,7 +183,7 @@ def _figures(done, result, out):
 def write(out, inputs, result, say):
     """Write every output of the module docstring into the `OutputDir` out;
     returns the report's path."""
-    from analysis.calibrate_report import render, solver_checks
+    from analysis.calibrate.report import render, solver_checks
 
     say(f"writing {out.path}/")
     tables = _tables(result)
