@@ -71,7 +71,7 @@ def build(emulator_store: str | PathLike[str], law_store: str | PathLike[str] | 
     from analysis.calibrate.pipeline import read_store
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
-    doc = {"format": FORMAT, "version": VERSION, "variants": {},
+    doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "variants": {},
            "emulator": emulator.to_json(),
            "provenance": {"emulator": _store_provenance(emulator_store),
                           "built": {"date": time.strftime("%Y-%m-%d"), "code_version": version("cortex-poisson")}}}

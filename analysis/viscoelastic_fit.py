@@ -24,11 +24,20 @@ frequencies share them (`analysis.afm.rheology` fits power laws across frequenci
 draw by draw). Intervals are percentiles of θ_m.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+import numpy.typing as npt
 
 from analysis.invert import intervals
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
 from solver.geometry import cell_radius
+
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
+    from analysis.viscoelastic_table import ComplexTable
 
 STEPS = 8             # Gauss-Newton steps of the fit
 DRAW_STEPS = 4        # ... of each bootstrap refit, from θ*
@@ -49,7 +58,8 @@ def _model(table, slice_, theta, h, tension, volume_um3):
     return value, jac
 
 
-def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
+def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+                 lnk: npt.NDArray[np.complex128], steps: int = STEPS) -> tuple[Any, Any]:
     """Refit θ per row of `curves` (an `analysis.invert.emulator_fit.Curves`, K unused) to the measured
     ln K* `lnk` (rows, m), starting from `theta` (rows, 4); rows of one volume share an
     emulator slice. Returns θ (rows, 4) and the residual sum of squares (rows,)."""
@@ -76,7 +86,8 @@ def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
     return x, ss
 
 
-def fit(table, emulator, bending, curves, lnk, start):
+def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, lnk: npt.NDArray[np.complex128],
+        start: npt.NDArray[np.float64]) -> tuple[Any, Any]:
     """θ* per curve from `start` (rows, 2: the magnitude-only (ln K_B, ln K̃_S)); NaN where
     `start` is not finite. Returns θ* (rows, 4) and the residual variance s² per component."""
     ok = np.isfinite(start).all(axis=1) & (curves.use.sum(axis=1) >= 3)
@@ -93,8 +104,10 @@ def fit(table, emulator, bending, curves, lnk, start):
     return theta, s2
 
 
-def draws(table, emulator, bending, theta, s2, curves, lnk, normals, *, volume_sd=intervals.VOLUME_SD,
-          height_sd_um=intervals.HEIGHT_SD_UM, dh_um=intervals.DH_UM, seed=0):
+def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], s2: npt.NDArray[np.float64],
+          curves: Curves, lnk: npt.NDArray[np.complex128], normals: npt.NDArray[np.float64], *,
+          volume_sd: float = intervals.VOLUME_SD, height_sd_um: float = intervals.HEIGHT_SD_UM,
+          dh_um: float = intervals.DH_UM, seed: int = 0) -> npt.NDArray[np.float64]:
     """θ_m (rows, M, 4) of the bootstrap; `normals` (rows, M, 2): each row's (ε_m, η_m)."""
     h, _, use, tension, volume = curves
     rows, M = normals.shape[:2]
@@ -129,7 +142,7 @@ def draws(table, emulator, bending, theta, s2, curves, lnk, normals, *, volume_s
     return out
 
 
-def complex_poisson(theta):
+def complex_poisson(theta: npt.NDArray[np.float64]) -> Any:
     """ν* = (K_B* - K_S*)/(K_B* + K_S*) per row of θ = (ln K_B, ln K̃_S, δ_B, δ_S)."""
     kb = np.exp(1j * theta[:, 2])
     ks = np.exp(theta[:, 1] + 1j * theta[:, 3])
