@@ -8,15 +8,23 @@ study (SPEC 5), then the figures. Tables are Markdown; numbers go through
 `_fmt` (4 significant digits unless told, '-' for missing or non-finite).
 """
 
+from __future__ import annotations
+
 import time
 from importlib.metadata import version
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pandas as pd
 
 from analysis.calibrate.figures import ORDER
 
+if TYPE_CHECKING:
+    from analysis.calibrate.pipeline import Fitted, Inputs
 
-def solver_checks(done):
+
+def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
     """Per variant: the largest volume error and the droplet-vs-shell area-increase deviation."""
     rows = []
     for bending, g in done.groupby("bending", sort=False):
@@ -162,7 +170,7 @@ def _montecarlo(mc_records):
                      f"{_fmt(r['pooled_median'], 3)} / {_fmt(r['pooled_iqr'], 3)}"] for r in mc_records]), ""]
 
 
-def render(inputs, result, checks, figs):
+def render(inputs: Inputs, result: Fitted, checks: list[dict[str, Any]], figs: list[Path]) -> str:
     """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration

@@ -23,9 +23,12 @@ spline extrapolates there); `nu_beyond_isotropic` flags ν > 0.5, the limit of
 an isotropic 3-D material (reported as it is).
 """
 
-from collections import namedtuple
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
@@ -33,22 +36,32 @@ from scipy.optimize import least_squares
 from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
 
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
+
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25
 NU_ISOTROPIC_MAX = 0.5
 
 
-# Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
-# γ_a (mN/m) and V (µm³) per cell.
-Curves = namedtuple("Curves", "h k use tension volume")
+class Curves(NamedTuple):
+    """Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
+    γ_a (mN/m) and V (µm³) per cell."""
+
+    h: Any
+    k: Any
+    use: Any
+    tension: Any
+    volume: Any
 
 
-def ks_bounds(emulator, bending):
+def ks_bounds(emulator: Emulator, bending: str) -> tuple[float, float]:
+    """The fit's bounds of ln K̃_S: the emulator's grid widened by KS_MARGIN."""
     lo, hi = emulator.domain(bending)["ks_tilde"]
     return np.log(lo / KS_MARGIN), np.log(hi * KS_MARGIN)
 
 
-def filled_heights(h, use):
+def filled_heights(h: npt.ArrayLike, use: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """h̃ with unused entries replaced by a harmless value (they are masked out)."""
     return np.where(use, h, 0.6)
 
@@ -75,7 +88,8 @@ def _start(emulator, bending, curves):
     return best
 
 
-def model(emulator, bending, theta, h, tension, volume):
+def model(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], h: npt.ArrayLike, tension: npt.NDArray[np.float64],
+          volume: npt.NDArray[np.float64]) -> tuple[Any, Any, Any]:
     """K (mN/m) and its derivatives by (ln K_B, ln K̃_S), for θ of shape (cells, 2)."""
     bulk, ks = np.exp(theta[:, 0])[:, None], np.exp(theta[:, 1])[:, None]
     lr, d_ks, d_g = emulator.grad_log(h, ks, tension[:, None] / bulk, volume[:, None], bending)
@@ -83,7 +97,7 @@ def model(emulator, bending, theta, h, tension, volume):
     return K, K * (1.0 - d_g), K * d_ks
 
 
-def fit(emulator, bending, curves):
+def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.float64]:
     """θ = (ln K_B, ln K̃_S) per cell (rows of `Curves`), least squares over all
     cells at once. Cells without usable heights get NaN."""
     h, k, use, tension, volume = curves
@@ -118,7 +132,8 @@ def fit(emulator, bending, curves):
     return theta
 
 
-def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending="standard"):
+def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike, volume: npt.ArrayLike, emulator: Emulator,
+                           bending: str = "standard") -> pd.DataFrame:
     """Invert many cells (rows of NaN-padded (cells, heights) arrays; `tension` γ_a
     and `volume` V per cell). Returns a DataFrame with the columns of
     `analysis.invert.inversion.invert_curves` (α is NaN: the emulator has none) plus

@@ -38,12 +38,14 @@ Per frequency: the median ν of the included cells with a percentile bootstrap
 published ones) and the draws.
 """
 
+from __future__ import annotations
+
 from dataclasses import dataclass
 from functools import lru_cache
-
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
@@ -53,6 +55,9 @@ from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from common.errors import InputError
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
+
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
 
 DRAWS = 100
 GN_STEPS = 4
@@ -69,7 +74,8 @@ class Errors:
     draws: int = DRAWS
     seed: int = 0
 
-    def check(self) -> "Errors":
+    def check(self) -> Errors:
+        """Itself, or InputError (one line) for an impossible error or draw count."""
         if not (0 <= self.volume_rel_sd < 0.5):
             raise InputError(f"--volume-sd must be in [0, 0.5) (got {self.volume_rel_sd:g})")
         if not (0 <= self.height_sd_um < 5):
@@ -137,9 +143,10 @@ droplet_shape = _shape
 truth_moduli = _truth_moduli
 
 
-def cell_intervals(emulator, bending, theta, curves, rms, *, draws=DRAWS,
-                   volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
-                   steps=GN_STEPS):
+def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+                   rms: npt.NDArray[np.float64], *, draws: int = DRAWS,
+                   volume_sd: float = VOLUME_SD, height_sd_um: float = HEIGHT_SD_UM, dh_um: float = DH_UM,
+                   seed: int = 0, steps: int = GN_STEPS) -> tuple[Any, Any, Any, Any]:
     """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (rows of `curves`, an
     `analysis.invert.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
     NaN where θ is not finite)."""
@@ -197,10 +204,10 @@ def _gauss_newton(table, x, curves, *, steps, bounds):
     return x
 
 
-def median_interval(nu, resamples=2000, seed=0):
-    """(median, lo, hi): the median of `nu` (finite values) and its percentile
+def median_interval(values: npt.ArrayLike, resamples: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """(median, lo, hi): the median of ν (`values`, finite ones) and its percentile
     bootstrap 95 % interval; NaN ends with fewer than 2 values."""
-    nu = np.asarray(nu, float)
+    nu = np.asarray(values, float)
     nu = nu[np.isfinite(nu)]
     if nu.size == 0:
         return float("nan"), float("nan"), float("nan")
