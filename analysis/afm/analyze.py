@@ -26,14 +26,13 @@ import pandas as pd
 
 from analysis.afm.timeseries import segment_moduli
 from analysis.invert.inversion import invert_cell
-from analysis.invert.table import invert_with
+from analysis.invert.table import CurveInversion, invert_with
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
     from analysis.calibration import Calibration
     from analysis.invert.intervals import Errors
-    from analysis.invert.method import Inversion
 
 TENSION_TOLERANCE = 0.10
 
@@ -83,7 +82,7 @@ def analyze_each(cells: list[Cell], calibration: Calibration,
     return pd.DataFrame(rows), pd.concat(segs, ignore_index=True)
 
 
-def analyze_together(cells: list[Cell], inversion: Inversion, bending: str = "standard",
+def analyze_together(cells: list[Cell], inversion: CurveInversion, bending: str = "standard",
                      errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """All cells at once by `inversion` (with intervals): (per cell-and-frequency DataFrame,
     per-segment DataFrame)."""

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from os import PathLike
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
@@ -98,7 +97,7 @@ class Fitted:
     rheology: pd.DataFrame | None = None      # the viscoelastic reading's table, when on
 
 
-def load(paths: str | PathLike[str] | Sequence[str | PathLike[str]],
+def load(paths: str | Path | Sequence[str | Path],
          jpk_options: dict[str, Any] | None = None) -> list[Cell]:
     """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
     Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
@@ -136,14 +135,14 @@ def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
     return inversion
 
 
-def read(data: str | PathLike[str] | Sequence[str | PathLike[str]], calibration: CalibrationFile,
+def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
          settings: Settings) -> Recordings:
     """`Recordings` of `data` (a path or a list of paths) with the inversion the
     calibration file (`analysis.shipped.read`) serves. InputError for bad input."""
     cells = load(data, settings.jpk_options)
     inversion = _inversion(calibration, settings.method, settings.bending)
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
-    name = Path(data).name if isinstance(data, (str, PathLike)) else ", ".join(Path(d).name for d in data)
+    name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
     variants = [settings.bending] + [v for v in inversion.variants() if v != settings.bending]
     return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
                       inversion=inversion, emulator=calibration.emulator, variants=variants)
@@ -153,14 +152,16 @@ def analyze(cells: list[Cell], calibration: Calibration | None, bending: str = "
             emulator: Emulator | None = None, errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """All cells by the method named (`analysis.invert.method.choose`): (per cell-and-frequency
     DataFrame, per-segment DataFrame)."""
-    return choose(method, calibration, emulator).analyze_cells(cells, bending, errors)
+    from analysis.afm import analyze as cell_analyses
+    return choose(method, calibration, emulator).analyze_cells(cells, bending, errors, cell_analyses)
 
 
 def fit(rec: Recordings, settings: Settings) -> Fitted:
     """Every cell of `rec` with every variant: a `Fitted`."""
+    from analysis.afm import analyze as cell_analyses
     fitted = Fitted()
     for variant in rec.variants:
-        tab, segs = rec.inversion.analyze_cells(rec.cells, variant, settings.errors)
+        tab, segs = rec.inversion.analyze_cells(rec.cells, variant, settings.errors, cell_analyses)
         fitted.tables[variant] = tab
         fitted.sums[variant] = rec.inversion.summarise(summary(tab), tab)
         if variant == settings.bending:
@@ -206,8 +207,9 @@ def _csv(table):
 def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -> Path:
     """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
     from analysis.afm.analyze_report import markdown, markdown_skipped
-    from analysis.afm.figures import figures      # matplotlib: only now
+    from analysis.afm.figures import figures, nu_intervals      # matplotlib: only now
     bending = settings.bending
+    assert fitted.population is not None, "fit() gives the population answer"
     for variant in rec.variants:        # the selected one first (the manifest's order)
         _write(out, f"cells_{variant}.csv", _csv(fitted.tables[variant]))
         _write(out, f"summary_{variant}.json", _json(fitted.sums[variant]))
@@ -217,7 +219,7 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
-    figs += rec.inversion.figures(fitted.tables[bending], out)
+    figs += rec.inversion.figures(fitted.tables[bending], out, nu_intervals)
     from analysis.afm.population_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, rec.inversion, fitted.tables, fitted.sums, figs,
@@ -229,23 +231,23 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     return _write(out, "report.md", lambda p: p.write_text(text))
 
 
-def run(data: str | PathLike[str] | Sequence[str | PathLike[str]], calibration: CalibrationFile,
-        out: str | PathLike[str], settings: Settings = Settings()) -> dict[str, Any]:
+def run(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
+        out: str | Path, settings: Settings = Settings()) -> dict[str, Any]:
     """Analyse `data` (a path or a list of paths) into DIR `out` (read -> fit ->
     write) with the calibration file `calibration` (`analysis.shipped.read`, read
     once); the result has the report's path, the summary, the table and the
     skipped recordings."""
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration, settings)
-    out = OutputDir(out)                              # refused now if not ours
+    folder = OutputDir(out)                           # refused now if not ours
     from analysis.afm.population_figures import POPULATION_FIGURES
-    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
+    folder.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
                "population.json", *POPULATION_FIGURES] + (["rheology.csv"] if settings.phase else [])
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:
-        report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
+        report = _write(folder, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
         return {"report": report, "summary": None, "table": None, "skipped": rec.skipped}
     fitted = fit(rec, settings)
-    report = write(out, rec, fitted, settings)
+    report = write(folder, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
             "table": fitted.tables[settings.bending], "skipped": rec.skipped, "population": fitted.population}

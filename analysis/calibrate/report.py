@@ -13,15 +13,12 @@ from __future__ import annotations
 import time
 from importlib.metadata import version
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.calibrate.figures import ORDER
-
-if TYPE_CHECKING:
-    from analysis.calibrate.pipeline import Fitted, Inputs
 
 
 def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
@@ -170,7 +167,7 @@ def _montecarlo(mc_records):
                      f"{_fmt(r['pooled_median'], 3)} / {_fmt(r['pooled_iqr'], 3)}"] for r in mc_records]), ""]
 
 
-def render(inputs: Inputs, result: Fitted, checks: list[dict[str, Any]], figs: list[Path]) -> str:
+def render(inputs: Any, result: Any, checks: list[dict[str, Any]], figs: list[Path]) -> str:
     """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration

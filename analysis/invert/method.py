@@ -12,9 +12,11 @@ An `Inversion` turns curves K(h̃) of cells into ν, K̃_S and K_B:
   compare with published numbers.
 
 Callers ask the object: its bending `variants()`, its inversion of curves
-(`invert`), of measured cells (`analyze_cells`, `analysis.afm.analyze`), what it
-adds to a summary (`summarise`), to a report (`report`) and to the figures
-(`figures`). `of(calibration, emulator)` builds the one a calibration file serves
+(`invert`), of measured cells (`analyze_cells`: the law hands them to the
+caller's `analyze_each`, the emulator to its `analyze_together`; for
+`cortex afm analyze` those of `analysis.afm.analyze`), what it adds to a summary
+(`summarise`), to a report (`report`) and to the figures (`figures`: the
+emulator draws its intervals with the figure the caller gives). `of(calibration, emulator)` builds the one a calibration file serves
 (None where the file lacks the part it `needs`); `choose(method, ...)` by name,
 `invert_rows(rows, method, ...)` a table of curves by name (`analysis.invert.table`).
 """
@@ -22,8 +24,9 @@ adds to a summary (`summarise`), to a report (`report`) and to the figures
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -43,6 +46,18 @@ if TYPE_CHECKING:
 
 Array = npt.NDArray[np.float64]
 INTERVAL_COLUMNS = ("nu_lo95", "nu_hi95", "ks_lo95", "ks_hi95")
+Tables = tuple[pd.DataFrame, pd.DataFrame]
+
+
+class CellAnalyses(Protocol):
+    """How a caller analyses measured cells (`analysis.afm.analyze`): one cell at a time by
+    a law, or all at once by an inversion with intervals; each gives (per cell-and-frequency
+    table, per-segment table)."""
+
+    def analyze_each(self, cells: list[Cell], calibration: Calibration, bending: str = ...) -> Tables: ...
+
+    def analyze_together(self, cells: list[Cell], inversion: Any, bending: str = ...,
+                         errors: intervals.Errors | None = ...) -> Tables: ...
 
 
 class Inversion(ABC):
@@ -70,9 +85,9 @@ class Inversion(ABC):
         intervals (NaN where the method gives none) and the method's own columns."""
 
     @abstractmethod
-    def analyze_cells(self, cells: list[Cell], bending: str,
-                      errors: intervals.Errors | None) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """Measured cells: (per cell-and-frequency table, per-segment table) (`analysis.afm.analyze`)."""
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+                      analyses: CellAnalyses) -> Tables:
+        """Measured cells by the caller's `analyses`: (per cell-and-frequency table, per-segment table)."""
 
     def summarise(self, summary: dict[str, Any], table: pd.DataFrame) -> dict[str, Any]:
         """The population summary of `table` with what the method adds to it."""
@@ -82,8 +97,10 @@ class Inversion(ABC):
         """The lines the method adds to report.md (before the population table)."""
         return []
 
-    def figures(self, table: pd.DataFrame, out: Any) -> list[Path]:
-        """The figures the method adds, drawn into the `OutputDir` `out`."""
+    def figures(self, table: pd.DataFrame, out: Any, intervals_figure: Callable[[pd.DataFrame, Any], Path]
+                ) -> list[Path]:
+        """The figures the method adds into the `OutputDir` `out` (`intervals_figure`: the
+        caller's figure of each cell's 95 % interval)."""
         return []
 
 
@@ -112,10 +129,9 @@ class LawInversion(Inversion):
             out[col] = np.nan
         return out
 
-    def analyze_cells(self, cells: list[Cell], bending: str,
-                      errors: intervals.Errors | None) -> tuple[pd.DataFrame, pd.DataFrame]:
-        from analysis.afm.analyze import analyze_each
-        return analyze_each(cells, self.calibration, bending)
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+                      analyses: CellAnalyses) -> Tables:
+        return analyses.analyze_each(cells, self.calibration, bending)
 
 
 class EmulatorInversion(Inversion):
@@ -150,10 +166,9 @@ class EmulatorInversion(Inversion):
         out["nu_lo95"], out["nu_hi95"], out["ks_lo95"], out["ks_hi95"] = nu_lo, nu_hi, ks_lo, ks_hi
         return out
 
-    def analyze_cells(self, cells: list[Cell], bending: str,
-                      errors: intervals.Errors | None) -> tuple[pd.DataFrame, pd.DataFrame]:
-        from analysis.afm.analyze import analyze_together
-        return analyze_together(cells, self, bending, errors)
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+                      analyses: CellAnalyses) -> Tables:
+        return analyses.analyze_together(cells, self, bending, errors)
 
     def summarise(self, summary: dict[str, Any], table: pd.DataFrame) -> dict[str, Any]:
         """Each frequency's bootstrap 95 % interval of the median ν and its count of ν > 0.5."""
@@ -178,9 +193,9 @@ class EmulatorInversion(Inversion):
         return lines + ["", "Each cell's 95 % interval (`nu_lo95`, `nu_hi95` in cells.csv) includes the volume "
                         "and height errors and the fit's residuals (parametric bootstrap through the emulator).", ""]
 
-    def figures(self, table: pd.DataFrame, out: Any) -> list[Path]:
-        from analysis.afm.figures import nu_intervals      # matplotlib: only now
-        return [nu_intervals(table, out)]
+    def figures(self, table: pd.DataFrame, out: Any, intervals_figure: Callable[[pd.DataFrame, Any], Path]
+                ) -> list[Path]:
+        return [intervals_figure(table, out)]
 
 
 INVERSIONS: dict[str, type[Inversion]] = {c.name: c for c in (EmulatorInversion, LawInversion)}

@@ -19,7 +19,7 @@ the method's other columns.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -29,13 +29,21 @@ from analysis.invert.intervals import Errors
 from analysis.invert.inversion import to_curves
 from common.names import INVERSION_METHODS
 
-if TYPE_CHECKING:
-    from analysis.invert.method import Inversion
-
 METHODS = INVERSION_METHODS
-__all__ = ["METHODS", "Errors", "curves", "invert_with"]
+__all__ = ["METHODS", "Errors", "CurveInversion", "curves", "invert_with"]
 
 Array = npt.NDArray[np.float64]
+
+
+class CurveInversion(Protocol):
+    """What this module asks of an inversion (`analysis.invert.method.Inversion`): its name
+    and its inversion of curves."""
+
+    @property
+    def name(self) -> str: ...
+
+    def invert(self, h: Array, k: Array, tension: Array, volume: Array, bending: str,
+               errors: Errors | None) -> pd.DataFrame: ...
 
 
 def curves(rows: pd.DataFrame) -> tuple[pd.DataFrame, Array, Array, Array, Array]:
@@ -52,7 +60,7 @@ def curves(rows: pd.DataFrame) -> tuple[pd.DataFrame, Array, Array, Array, Array
     return keys.drop(columns=["_f", "n_rows"]), arr["h_tilde"], arr["modulus_mN_per_m"], tension, volume
 
 
-def invert_with(inversion: Inversion, rows: pd.DataFrame, bending: str = "standard",
+def invert_with(inversion: CurveInversion, rows: pd.DataFrame, bending: str = "standard",
                 errors: Errors | None = None) -> pd.DataFrame:
     """Invert every curve of `rows` (DataFrame, columns as in the module docstring) by `inversion`."""
     keys, h, k, tension, volume = curves(rows)
