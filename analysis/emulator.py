@@ -94,7 +94,8 @@ class Table:
             cols = [np.log(a) if log else a for a, log in zip(arrays, LOG_AXES)]
         return np.stack(cols, axis=-1), arrays[0].shape
 
-    def log_excess(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def log_excess(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                   volume_um3: npt.ArrayLike,
                    nu: tuple[int, int, int, int] = (0, 0, 0, 0)) -> Any:
         """y = ln(K/K_B - 1 + s) (or its partial derivative `nu` in the spline's coordinates)."""
         x, shape = self._points(h_tilde, ks_tilde, gamma_tilde, volume_um3)
@@ -130,7 +131,8 @@ class VolumeSlice:
 
     spline: NdBSpline
 
-    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, values_only: bool = False) -> Any:
+    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                 values_only: bool = False) -> Any:
         """ln(K/K_B) and (unless `values_only`) its derivatives by ln K̃_S and ln γ̃_a."""
         h, ks, g = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde)))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -156,18 +158,21 @@ class Emulator:
                              f"(it has: {', '.join(self.tables) or 'none'})")
         return self.tables[bending]
 
-    def ratio(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def ratio(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+              volume_um3: npt.ArrayLike,
               bending: str = "standard") -> Any:
         """K/K_B = 1 - s + exp(y) at the given points (arrays broadcast)."""
         return 1.0 - OFFSET + np.exp(self[bending].log_excess(h_tilde, ks_tilde, gamma_tilde, volume_um3))
 
-    def modulus(self, h_tilde: npt.ArrayLike, bulk: npt.ArrayLike, ks_tilde: npt.ArrayLike, tension: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def modulus(self, h_tilde: npt.ArrayLike, bulk: npt.ArrayLike, ks_tilde: npt.ArrayLike, tension: npt.ArrayLike,
+                volume_um3: npt.ArrayLike,
                 bending: str = "standard") -> Any:
         """K = K_B f(h̃, K̃_S, γ_a/K_B; V) in mN/m (K_B and γ_a in mN/m)."""
         bulk = np.asarray(bulk, float)
         return bulk * self.ratio(h_tilde, ks_tilde, np.asarray(tension, float) / bulk, volume_um3, bending)
 
-    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                 volume_um3: npt.ArrayLike,
                  bending: str = "standard") -> tuple[Any, Any, Any]:
         """(ln(K/K_B), ∂ ln(K/K_B)/∂ ln K̃_S, ∂ ln(K/K_B)/∂ ln γ̃_a) at the points."""
         t = self[bending]
@@ -182,7 +187,8 @@ class Emulator:
         """{axis: (low, high)} of the tabulated grid."""
         return {a: (min(v), max(v)) for a, v in self[bending].axes.items()}
 
-    def inside(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def inside(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+               volume_um3: npt.ArrayLike,
                bending: str = "standard") -> Any:
         """True where every coordinate lies within the tabulated grid."""
         box = self.domain(bending)

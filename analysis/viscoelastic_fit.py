@@ -104,7 +104,8 @@ def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, l
     return theta, s2
 
 
-def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], s2: npt.NDArray[np.float64],
+def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64],
+          s2: npt.NDArray[np.float64],
           curves: Curves, lnk: npt.NDArray[np.complex128], normals: npt.NDArray[np.float64], *,
           volume_sd: float = intervals.VOLUME_SD, height_sd_um: float = intervals.HEIGHT_SD_UM,
           dh_um: float = intervals.DH_UM, seed: int = 0) -> npt.NDArray[np.float64]:

@@ -123,7 +123,8 @@ class ComplexTable:
         coords = [np.log(axes[0]), axes[1], np.log(axes[2]), np.log(axes[3])]
         return cls(tensor_spline(coords, values, (2, 3, 3, 3)))
 
-    def log_factor(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike, db: npt.ArrayLike, ds: npt.ArrayLike, volume_um3: npt.ArrayLike,
+    def log_factor(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                   db: npt.ArrayLike, ds: npt.ArrayLike, volume_um3: npt.ArrayLike,
                    derivatives: bool = False) -> Any:
         """ln C at the points (arrays broadcast); with `derivatives` also its derivatives by
         ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape)."""

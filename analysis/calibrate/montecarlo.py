@@ -93,7 +93,8 @@ def summarise(cells: pd.DataFrame) -> tuple[list[dict[str, Any]], pd.DataFrame]:
     return out, studies
 
 
-def montecarlo(trials: pd.DataFrame, calibration: Calibration) -> tuple[list[dict[str, Any]], pd.DataFrame, pd.DataFrame]:
+def montecarlo(trials: pd.DataFrame, calibration: Calibration
+               ) -> tuple[list[dict[str, Any]], pd.DataFrame, pd.DataFrame]:
     """Invert every trial and summarise: (records, per-study DataFrame, per-cell DataFrame)."""
     cells = invert_trials(trials, calibration)
     records, studies = summarise(cells)

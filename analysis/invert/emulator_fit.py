@@ -88,7 +88,8 @@ def _start(emulator, bending, curves):
     return best
 
 
-def model(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], h: npt.ArrayLike, tension: npt.NDArray[np.float64],
+def model(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], h: npt.ArrayLike,
+          tension: npt.NDArray[np.float64],
           volume: npt.NDArray[np.float64]) -> tuple[Any, Any, Any]:
     """K (mN/m) and its derivatives by (ln K_B, ln K̃_S), for θ of shape (cells, 2)."""
     bulk, ks = np.exp(theta[:, 0])[:, None], np.exp(theta[:, 1])[:, None]
@@ -132,7 +133,8 @@ def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.floa
     return theta
 
 
-def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike, volume: npt.ArrayLike, emulator: Emulator,
+def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike,
+                           volume: npt.ArrayLike, emulator: Emulator,
                            bending: str = "standard") -> pd.DataFrame:
     """Invert many cells (rows of NaN-padded (cells, heights) arrays; `tension` γ_a
     and `volume` V per cell). Returns a DataFrame with the columns of

@@ -72,7 +72,8 @@ def used_heights(h: npt.NDArray[np.float64], k: npt.NDArray[np.float64]) -> tupl
     return use, use.sum(axis=1), np.where(use, h, -np.inf).max(axis=1)
 
 
-def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[Any], tension: npt.NDArray[Any], nu: npt.NDArray[Any], r2: npt.NDArray[Any],
+def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[Any], tension: npt.NDArray[Any],
+               nu: npt.NDArray[Any], r2: npt.NDArray[Any],
                extra: Iterable[tuple[Any, Callable[[int], str]]] = ()) -> npt.NDArray[np.object_]:
     """The published filters (module docstring) as one reason per cell (None: passes),
     the first that applies; `extra`: (mask, reason(i)) checks of the method,
@@ -95,7 +96,8 @@ def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[
     return reasons
 
 
-def invert_curves(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike, calibration: Calibration | Law,
+def invert_curves(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike,
+                  calibration: Calibration | Law,
                   bending: str = "standard") -> pd.DataFrame:
     """Invert many cells: `h_tilde`, `modulus` (mN/m) of shape (cells, heights),
     NaN where a cell has no value; `tension` γ_a (mN/m) of shape (cells,).

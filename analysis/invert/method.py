@@ -16,9 +16,12 @@ Callers ask the object: its bending `variants()`, its inversion of curves
 caller's `analyze_each`, the emulator to its `analyze_together`; for
 `cortex afm analyze` those of `analysis.afm.analyze`), what it adds to a summary
 (`summarise`), to a report (`report`) and to the figures (`figures`: the
-emulator draws its intervals with the figure the caller gives). `of(calibration, emulator)` builds the one a calibration file serves
-(None where the file lacks the part it `needs`); `choose(method, ...)` by name,
-`invert_rows(rows, method, ...)` a table of curves by name (`analysis.invert.table`).
+emulator draws its intervals with the figure the caller gives).
+
+`of(calibration, emulator)` builds the one a calibration file serves (None where
+the file lacks the part it `needs`); `choose(method, ...)` builds one by name,
+`invert_rows(rows, method, ...)` inverts a table of curves by name
+(`analysis.invert.table`).
 """
 
 from __future__ import annotations
