@@ -2,8 +2,14 @@
 object `cortex campaign status --json` prints) on stdout; progress and
 messages go to stderr."""
 
+from __future__ import annotations
 
-def register(sub):
+import argparse
+
+from cortex.options import Commands
+
+
+def register(sub: Commands) -> None:
     p = sub.add_parser("campaign", help="run, resume and inspect simulation campaigns (MPI)",
                        description="Run a campaign of shell compressions and Monte-Carlo error trials "
                                    "across MPI ranks into one HDF5 store (mpiexec -n N cortex campaign "
@@ -26,17 +32,17 @@ def register(sub):
                         "HDF5; needs h5py built with MPI), rank0 (rank 0 writes all), auto (mpio where "
                         "h5py has MPI and there are 2 or more ranks; the default). Both give the same rows; "
                         "the one used is printed and kept in the store's `runs` attribute")
-    r.set_defaults(handler="campaign.cli:run")
+    r.set_defaults(handler=run)
     s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
                       description="Summarise a store (also while its campaign is running).")
     s.add_argument("store", metavar="STORE.h5")
     s.add_argument("--json", action="store_true", help="one JSON object: tasks, done, failed, running, pending, "
                    "tasks_per_s, eta_s, failures ([task_id, error]), failed_tasks (each with its parameters, rank, "
                    "host and error) (and trials)")
-    s.set_defaults(handler="campaign.cli:status")
+    s.set_defaults(handler=status)
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     from campaign import signals
     signals.install()               # first: a signal from here on stops cleanly (exit 3)
     import gc
@@ -66,7 +72,7 @@ def run(args):
     return status    # (walking them costs ~0.1 s a process)
 
 
-def status(args):
+def status(args: argparse.Namespace) -> int:
     import json
     from campaign.reader import summary
     info = summary(args.store)

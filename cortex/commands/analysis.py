@@ -5,15 +5,17 @@ imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
 
-from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
-from solver.cli import add_bending, names_of
+from __future__ import annotations
 
-OUT_HELP = ("output folder (created if missing); a non-empty folder cortex did not write is refused "
-            "(DIR/.cortex-outputs lists what cortex wrote there, which a rerun may replace)")
+import argparse
+
+from cortex.options import OUT_HELP, Commands, add_inversion_options, inversion_settings
+from cortex.results import plain, say_result
+
 CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
 
 
-def register(sub):
+def register(sub: Commands) -> None:
     p = sub.add_parser("analysis", help="calibration laws and Monte-Carlo study of a finished campaign",
                        description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
@@ -22,7 +24,7 @@ def register(sub):
         add(s)
 
 
-def _add_calibrate(s):
+def _add_calibrate(s: Commands) -> None:
     c = s.add_parser("calibrate", help="fit the calibration laws, check them, write DIR/report.md",
                      description="Fit K(h~) = K_B (1 + alpha exp(h~/lambda)) per bending variant, "
                                  "alpha = C ln(K_S/K_B) + D with cubic C, D in gamma_a/K_B; check the "
@@ -34,10 +36,10 @@ def _add_calibrate(s):
                    help="analyse an unfinished store with what is done, saying what was left out")
     c.add_argument("--json", action="store_true", help="one JSON object: report, lambda per bending variant, "
                    "left_out, wall_s")
-    c.set_defaults(handler="analysis.cli:calibrate")
+    c.set_defaults(handler=calibrate)
 
 
-def _add_viscosity(s):
+def _add_viscosity(s: Commands) -> None:
     v = s.add_parser("viscosity", help="|K*|/K and loss angle of a viscous-interior campaign",
                      description="Tabulate and plot the viscous-interior study (SPEC 7) of a campaign "
                                  "with viscosity_Pa_s and frequency_hz grid axes: |K*|/K and the loss "
@@ -47,10 +49,10 @@ def _add_viscosity(s):
     v.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
     v.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     v.add_argument("--json", action="store_true", help="one JSON object: report and the rows of viscosity.csv")
-    v.set_defaults(handler="analysis.cli:viscosity")
+    v.set_defaults(handler=viscosity)
 
 
-def _add_build_calibration(s):
+def _add_build_calibration(s: Commands) -> None:
     b = s.add_parser("build-calibration", help="the calibration file: emulator tables + paper law + provenance",
                      description="Build DIR/calibration.json (format version 2) from a finished emulator "
                                  "campaign store (campaigns/emulator.toml) and, optionally, the paper "
@@ -61,10 +63,10 @@ def _add_build_calibration(s):
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP + "; a folder holding only a "
                    "calibration.json cortex wrote (like analysis/data) is accepted")
     b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
-    b.set_defaults(handler="analysis.cli:build_calibration")
+    b.set_defaults(handler=build_calibration)
 
 
-def _add_invert(s):
+def _add_invert(s: Commands) -> None:
     i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
                      description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
                                  "tension_mN_per_m (optional frequency_hz, volume_um3; one row per cell "
@@ -74,40 +76,10 @@ def _add_invert(s):
     i.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(i)
     i.add_argument("--json", action="store_true", help="print the per-cell results as a JSON list")
-    i.set_defaults(handler="analysis.cli:invert")
+    i.set_defaults(handler=invert)
 
 
-def add_inversion_options(p):
-    """--calibration, --method, --bending and the interval's error options (shared with `cortex afm analyze`)."""
-    p.add_argument("--calibration", metavar="CAL.json",
-                   help="calibration file (default: the one shipped with the package)")
-    p.add_argument("--method", choices=names_of("analysis.invert_table:METHODS"), default=None, metavar="METHOD",
-                   help="inversion method, %(choices)s: emulator (the default: K_B and K_S/K_B fitted on the "
-                        "solver's tables) or law "
-                        "(the paper's phenomenological law, for comparison); a calibration file without "
-                        "emulator tables (from `cortex analysis calibrate`) defaults to law")
-    add_bending(p, "bending variant of the calibration")
-    p.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
-                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
-    p.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
-                   help="SD of the height offset per cell in the intervals, um (default %(default)s)")
-    p.add_argument("--draws", type=int, default=100, help="Monte-Carlo draws per cell (default 100)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the interval draws (default 0)")
-
-
-def inversion_settings(args):
-    """(Calibration or None, Emulator or None, provenance, Errors) from the shared options."""
-    from analysis.invert_table import Errors
-    from analysis.shipped import load
-    cal, emu, prov = load(args.calibration)
-    if args.method is None:
-        args.method = "emulator" if emu is not None else "law"
-    errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
-                    seed=args.seed).check()
-    return cal, emu, prov, errors
-
-
-def calibrate(args):
+def calibrate(args: argparse.Namespace) -> int:
     from analysis.calibrate_pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     laws = result["calibration"].laws
@@ -117,7 +89,7 @@ def calibrate(args):
     return 0
 
 
-def viscosity(args):
+def viscosity(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from analysis.viscosity import run
@@ -127,7 +99,7 @@ def viscosity(args):
     return 0
 
 
-def build_calibration(args):
+def build_calibration(args: argparse.Namespace) -> int:
     from analysis import shipped
     from outputs.ownership import OutputDir
     out = OutputDir(args.out)
@@ -141,13 +113,7 @@ def build_calibration(args):
     return 0
 
 
-def say_result(args, result, line):
-    """A command's result: `result` as one JSON object on stdout with --json, else `line`."""
-    import json
-    print(json.dumps(plain(result)) if args.json else line)
-
-
-def invert(args):
+def invert(args: argparse.Namespace) -> int:
     import json
 
     from analysis.invert_table import invert_rows
@@ -170,19 +136,7 @@ def invert(args):
     return 0
 
 
-def plain(x):
-    """`x` with numpy scalars as Python numbers and NaN as None, in dicts and lists too (for json.dumps)."""
-    import math
-    if isinstance(x, dict):
-        return {k: plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [plain(v) for v in x]
-    if hasattr(x, "item"):
-        x = x.item()
-    return None if isinstance(x, float) and math.isnan(x) else x
-
-
-def _say(message):
+def _say(message: str) -> None:
     import sys
     print(message, file=sys.stderr)
 

@@ -5,16 +5,28 @@ Conventions shared with every command: `--out` is a folder (synth and import
 write DIR/experiment.h5, synth also DIR/truth.json, under the folder's
 manifest rules of `outputs.ownership.OutputDir`); `--json` prints the results
 on stdout; `--solver` names the forward model as in `cortex compress`
-(`solver.compression.METHODS`, plus `law`); `--bending` is one of
-`solver.model.BENDING_VARIANTS`."""
+(`common.names.SOLVERS`, plus `law` and `emulator`); `--bending` is one of
+`common.names.BENDINGS`."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from common.names import RAMP_MODELS, SOLVERS
+from cortex.options import OUT_HELP, Commands, add_bending, add_inversion_options, inversion_settings
+from cortex.results import plain, say_result
+
+if TYPE_CHECKING:
+    from outputs.ownership import OutputDir
 
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
 
 
-def _jpk_options(p, free_radius=False, dish_default="0"):
+def _jpk_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
     """The volume, dish-reference and spring-constant options of instrument recordings
     (docs/jpk.md, docs/bruker.md); `free_radius` adds --radius-um to the volumes,
     `dish_default` says what stands for Z without a dish option."""
@@ -37,7 +49,7 @@ def _jpk_options(p, free_radius=False, dish_default="0"):
                         "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
 
 
-def jpk_options(args):
+def jpk_options(args: argparse.Namespace) -> dict[str, Any]:
     """`import_cells` keyword arguments from the parsed options."""
     from common.errors import InputError
     if args.volume is not None and not args.volume > 0:
@@ -48,7 +60,7 @@ def jpk_options(args):
             "dish_curve": args.dish_curve, "spring_constant_N_per_m": args.spring_constant}
 
 
-def register(sub):
+def register(sub: Commands) -> None:
     p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics, "
                        "cortical tension",
                        description="AFM recordings of confined cells (SPEC 6).")
@@ -59,9 +71,7 @@ def register(sub):
     _add_tension(s)
 
 
-def _add_synth(s):
-    from analysis.cli import OUT_HELP
-    from solver.cli import SOLVERS, add_bending, names_of
+def _add_synth(s: Commands) -> None:
     g = s.add_parser("synth", help="write a synthetic experiment: DIR/experiment.h5 and DIR/truth.json",
                      description="Simulate AFM recordings of --cells cells of known Poisson ratio (SPEC 6) "
                                  "into DIR/experiment.h5 and their true values into DIR/truth.json.")
@@ -69,7 +79,7 @@ def _add_synth(s):
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
-    g.add_argument("--solver", choices=names_of(SOLVERS, extra=("law", "emulator")),
+    g.add_argument("--solver", choices=(*SOLVERS, "law", "emulator"),
                    default="fast", metavar="SOLVER",
                    help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
                         "calibration law (needs --calibration), or emulator (viscoelastic cells only: the shipped "
@@ -82,11 +92,10 @@ def _add_synth(s):
                    help="viscoelastic cells: population median of beta_S (with --bulk-exponent)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
-    g.set_defaults(handler="analysis.afm.cli:synth")
+    g.set_defaults(handler=synth)
 
 
-def _add_import(s):
-    from analysis.cli import OUT_HELP
+def _add_import(s: Commands) -> None:
     m = s.add_parser("import", help="JPK and Bruker NanoScope recordings into DIR/experiment.h5",
                      description="Read JPK text exports (.txt, .txt.gz), .jpk-force, .jpk-force-map and .jpk-qi-data "
                                  "(-series) files (each map or QI pixel its own recording), Bruker NanoScope force "
@@ -99,11 +108,10 @@ def _add_import(s):
     _jpk_options(m)
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
                    "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
-    m.set_defaults(handler="analysis.afm.cli:import_")
+    m.set_defaults(handler=import_)
 
 
-def _add_analyze(s):
-    from analysis.cli import OUT_HELP, add_inversion_options
+def _add_analyze(s: Commands) -> None:
     a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
                      description="Invert every cell and frequency (default: on the emulator of the shipped "
                                  "calibration, with 95 % intervals), population statistics, the population answer "
@@ -127,12 +135,10 @@ def _add_analyze(s):
                     help="the instrument's phase lag per frequency, e.g. 1=0.02,10=0.2")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
-    a.set_defaults(handler="analysis.afm.cli:analyze")
+    a.set_defaults(handler=analyze)
 
 
-def _add_tension(s):
-    from analysis.cli import OUT_HELP
-    from solver.cli import names_of
+def _add_tension(s: Commands) -> None:
     t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
                                  "ramp onto the free cell fitted by the exact droplet model and by the "
@@ -144,7 +150,7 @@ def _add_tension(s):
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
     _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
-    t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
+    t.add_argument("--model", choices=RAMP_MODELS, default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
     t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
@@ -154,15 +160,14 @@ def _add_tension(s):
                    "report.md")
     t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "
                    "not_analysed {file or cell: reason}, table, report")
-    t.set_defaults(handler="analysis.afm.cli:tension")
+    t.set_defaults(handler=tension)
 
 
-def synth(args):
+def synth(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm import synth as sy
     from analysis.afm.h5format import write_experiment
-    from analysis.cli import say_result
     from outputs.writing import write_atomically
     from common.errors import InputError
     if args.cells < 1:
@@ -179,7 +184,7 @@ def synth(args):
     return 0
 
 
-def new_experiment_folder(path, names):
+def new_experiment_folder(path: str, names: list[str]) -> OutputDir:
     """The --out folder (`OutputDir`) that will hold a new DIR/experiment.h5:
     refused before any work if a file of `names` there is not ours, or if the
     folder already holds an experiment (measurements are never replaced, even ours)."""
@@ -195,7 +200,7 @@ def new_experiment_folder(path, names):
     return out
 
 
-def _forward(args):
+def _forward(args: argparse.Namespace) -> Any:
     """The forward model that `--solver`, `--bending` and `--calibration` name."""
     from analysis.afm import synth as sy
     from common.errors import InputError
@@ -212,7 +217,7 @@ def _forward(args):
     return sy.law_forward(Calibration.load(args.calibration)[args.bending])
 
 
-def _viscoelastic_forward(args, exponents):
+def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | None, float | None]) -> Any:
     from analysis.afm import synth_rheology as sr
     from common.errors import InputError
     if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
@@ -223,7 +228,7 @@ def _viscoelastic_forward(args, exponents):
     return sr.ViscoelasticForward(*exponents, complex_forward(args.bending), seed=args.seed)
 
 
-def phase_settings(args):
+def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] | None, str | None]:
     """(phase on, lags {Hz: rad} or None, where they came from) of `afm analyze`."""
     from analysis.afm import rheology
     if args.no_phase:
@@ -237,7 +242,7 @@ def phase_settings(args):
     return True, None, None
 
 
-def import_(args):
+def import_(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.h5format import write_experiment
@@ -253,7 +258,7 @@ def import_(args):
     return 0
 
 
-def _summary_line(rec):
+def _summary_line(rec: Any) -> str:
     """cell, spring constant and segments by kind (count, samples, total duration, frequencies)."""
     parts = []
     for kind in ("approach", "pause", "modulation", "retract"):
@@ -270,12 +275,12 @@ def _summary_line(rec):
 TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours (may be replaced)
 
 
-def _is_our_truth(path):
+def _is_our_truth(path: Any) -> bool:
     from outputs.ownership import json_document
     return json_document(path).get("format") == TRUTH_FORMAT
 
 
-def experiment_in(paths):
+def experiment_in(paths: Sequence[str]) -> Sequence[str]:
     """DATA as given, except that a single folder holding DIR/experiment.h5 (what
     `afm synth` and `afm import` write) stands for that file."""
     from pathlib import Path
@@ -284,11 +289,10 @@ def experiment_in(paths):
     return paths
 
 
-def analyze(args):
+def analyze(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.analyze_pipeline import Settings, run
-    from analysis.cli import inversion_settings, plain
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
     result = run(experiment_in(args.data), args.calibration, args.out,
@@ -304,12 +308,11 @@ def analyze(args):
     return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
 
 
-def tension(args):
+def tension(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.tension import ErrorModel
     from analysis.afm.tension_pipeline import Options, run
-    from analysis.cli import plain
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
     for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
         if not value >= 0:
@@ -334,11 +337,11 @@ def tension(args):
     return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
 
 
-def _str(path):
+def _str(path: object) -> str | None:
     return None if path is None else str(path)
 
 
-def _tension_line(r):
+def _tension_line(r: dict[str, Any]) -> str:
     """One analysed part in a line: tension, interval, pressure, height, and the ramp's contact and comparison."""
     text = (f"{r['cell_id']}: {r['part']} {r['segment']}: T {r['tension_mN_per_m']:.4g} mN/m "
             f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "

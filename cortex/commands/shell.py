@@ -1,50 +1,22 @@
-"""Command-line entry points of the physics: `cortex geometry`, `cortex compress`,
-`cortex poroelastic`; and `names_of`, the choices of an option taken from the
-name list's one home without importing it before a parser needs it."""
+"""`cortex geometry`, `cortex compress`, `cortex poroelastic`: the physics of one
+cell from the command line (the solver imported when the command runs)."""
 
-import importlib
+from __future__ import annotations
+
+import argparse
 import json
 import sys
 
-
-class names_of:
-    """The names of `module.attr` (a dict or tuple, e.g. `solver.model.BENDING_VARIANTS`)
-    as argparse `choices`, imported only when a parser checks a value or prints its
-    help: `cortex --help` stays free of numpy. Extra names may follow (`extra`)."""
-
-    def __init__(self, spec, extra=()):
-        self.spec, self.extra = spec, tuple(extra)
-
-    def _names(self):
-        module, _, attr = self.spec.partition(":")
-        return (*getattr(importlib.import_module(module), attr), *self.extra)
-
-    def __iter__(self):
-        return iter(self._names())
-
-    def __contains__(self, name):
-        return name in self._names()
-
-    def __len__(self):
-        return len(self._names())
+from common.names import SOLVERS
+from cortex.options import Commands, add_bending
 
 
-BENDING = "solver.model:BENDING_VARIANTS"
-SOLVERS = "solver.compression:METHODS"
-
-
-def add_bending(p, what="bending variant"):
-    """`--bending VARIANT`, checked against solver.model.BENDING_VARIANTS (default standard)."""
-    p.add_argument("--bending", choices=names_of(BENDING), default="standard", metavar="VARIANT",
-                   help=f"{what}: %(choices)s (default %(default)s)")
-
-
-def register(sub):
+def register(sub: Commands) -> None:
     for add in (_add_geometry, _add_compress, _add_poroelastic):
         add(sub)
 
 
-def _add_geometry(sub):
+def _add_geometry(sub: Commands) -> None:
     p = sub.add_parser(
         "geometry", help="the droplet shape of a confined cell (SPEC section 1)",
         description="Solve the stress-free droplet shape of a cell of volume V between plates "
@@ -59,10 +31,10 @@ def _add_geometry(sub):
     p.add_argument("--height", type=float, nargs="+", required=True, metavar="UM",
                    help="plate gap h, um (several give one line each)")
     p.add_argument("--json", action="store_true", help="one JSON object per height")
-    p.set_defaults(handler="solver.cli:geometry")
+    p.set_defaults(handler=geometry)
 
 
-def _add_compress(sub):
+def _add_compress(sub: Commands) -> None:
     p = sub.add_parser(
         "compress", help="one compression h0 -> h0 - dh of the elastic cortical shell",
         description="Compress the elastic cortex shell (SPEC section 2) from gap h0 to h0 - dh at "
@@ -79,7 +51,7 @@ def _add_compress(sub):
     p.add_argument("--bending-pN-um", type=float, default=None, metavar="B",
                    help="explicit bending stiffness, pN um (overrides --bending)")
     p.add_argument("--thickness", type=float, default=0.2, metavar="UM", help="cortex thickness t_c, um (0.2)")
-    p.add_argument("--solver", choices=names_of(SOLVERS), default="fast", metavar="SOLVER",
+    p.add_argument("--solver", choices=SOLVERS, default="fast", metavar="SOLVER",
                    help="%(choices)s; fast: direct equilibrium (default); explicit: the published gradient "
                         "flow (the campaign file's [solver] method)")
     p.add_argument("--resolution", type=float, default=1.0, help="mesh refinement factor (1)")
@@ -97,10 +69,10 @@ def _add_compress(sub):
     p.add_argument("--shear-loss-angle", type=float, default=None, metavar="RAD",
                    help="viscoelastic cortex: K_S* = K_S e^(i delta_S)")
     p.add_argument("--json", action="store_true", help="one JSON object")
-    p.set_defaults(handler="solver.cli:compress")
+    p.set_defaults(handler=compress)
 
 
-def _add_poroelastic(sub):
+def _add_poroelastic(sub: Commands) -> None:
     p = sub.add_parser(
         "poroelastic", help="the poroelastic layer's effective modulus (SPEC section 8)",
         description="Effective compression modulus of a poroelastic layer of thickness t_c "
@@ -118,10 +90,10 @@ def _add_poroelastic(sub):
     p.add_argument("--scaffold-modulus-Pa", type=float, default=None, metavar="K",
                    help="drained compression modulus of the scaffold, Pa (adds the exact K_eff)")
     p.add_argument("--json", action="store_true", help="one JSON object")
-    p.set_defaults(handler="solver.cli:poroelastic")
+    p.set_defaults(handler=poroelastic)
 
 
-def geometry(args):
+def geometry(args: argparse.Namespace) -> int:
     from solver.geometry import droplet, volume_from_image
     if args.equator_radius is not None:
         volume = [volume_from_image(h, args.equator_radius) for h in args.height]
@@ -150,7 +122,7 @@ def geometry(args):
     return 0
 
 
-def compress(args):
+def compress(args: argparse.Namespace) -> int:
     from solver.compression import compress as run
     from common.errors import EXIT_NO_EQUILIBRIUM, SolverError
     from solver.model import Shell
@@ -179,7 +151,7 @@ def compress(args):
     return 0
 
 
-def _loss_angles(args):
+def _loss_angles(args: argparse.Namespace) -> tuple[float, float] | None:
     """(δ_B, δ_S) of a viscoelastic compression, or None; InputError if incomplete."""
     from common.errors import InputError
     from solver.model import check_viscous_inputs
@@ -196,7 +168,7 @@ def _loss_angles(args):
     return given
 
 
-def poroelastic(args):
+def poroelastic(args: argparse.Namespace) -> int:
     import numpy as np
 
     from solver import poroelastic as pe

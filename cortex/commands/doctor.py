@@ -8,22 +8,28 @@ from /proc/self/maps, so the report says which MPI library is really loaded,
 and whether mpi4py and HDF5 share it.
 """
 
+from __future__ import annotations
+
+import argparse
 import json
 import os
 import platform
 import sys
+from typing import Any
+
+from cortex.options import Commands
 
 
-def register(sub):
+def register(sub: Commands) -> None:
     p = sub.add_parser("doctor", help="say which MPI library and HDF5 build are active",
                        description="Report the Python, MPI library and h5py/HDF5 build in use "
                                    "(and whether h5py was built with MPI, which enables the "
                                    "parallel store write path).")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(handler="cortex.doctor:run")
+    p.set_defaults(handler=run)
 
 
-def loaded_libraries(*stems):
+def loaded_libraries(*stems: str) -> list[str]:
     """Real paths of the shared libraries mapped in this process whose file
     name starts with one of `stems` (e.g. "libmpi", "libhdf5"); [] off Linux."""
     try:
@@ -35,7 +41,7 @@ def loaded_libraries(*stems):
                    if os.path.basename(p).startswith(stems) and ".so" in p})
 
 
-def _hint(err):
+def _hint(err: Exception) -> str:
     """What to do when mpi4py cannot load its MPI library."""
     wrapper = os.path.join(os.path.dirname(sys.executable), "with-mpi")
     if "libmpi" in str(err) and os.path.exists(wrapper):
@@ -43,7 +49,7 @@ def _hint(err):
     return ""
 
 
-def report():
+def report() -> dict[str, Any]:
     """Versions and capabilities of the active stack, as a dict."""
     from cortex import __version__
     import h5py
@@ -66,7 +72,7 @@ def report():
     return out
 
 
-def run(args):
+def run(args: argparse.Namespace) -> int:
     info = report()
     if args.json:
         print(json.dumps(info))
