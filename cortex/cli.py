@@ -28,7 +28,7 @@ import signal
 import sys
 from collections.abc import Callable, Sequence
 from types import FrameType
-from typing import Any, NoReturn
+from typing import Any, NoReturn, cast
 
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
@@ -67,8 +67,8 @@ def build_parser() -> Parser:
         "ratio, and invert AFM recordings. Units: um, mN/m, nN, s."))
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for register in REGISTRARS:
-        register(sub)
+    for register in REGISTRARS:         # (their parsers are `Parser`s: they use no more than argparse's API)
+        register(cast(Commands, sub))
     _add_exit_statuses(parser)
     return parser
 

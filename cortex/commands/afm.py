@@ -217,7 +217,7 @@ def _forward(args: argparse.Namespace) -> Any:
     return sy.law_forward(Calibration.load(args.calibration)[args.bending])
 
 
-def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | None, float | None]) -> Any:
+def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[Any, Any]) -> Any:
     from analysis.afm import synth_rheology as sr
     from common.errors import InputError
     if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
@@ -295,9 +295,11 @@ def analyze(args: argparse.Namespace) -> int:
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     _, _, _, errors = inversion_settings(args)          # also settles the default --method
-    result = run(experiment_in(args.data), args.calibration, args.out,
-                 Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=jpk_options(args),
-                          **dict(zip(("phase", "lags", "lag_source"), phase_settings(args)))))
+    data, options = experiment_in(args.data), jpk_options(args)
+    phase, lags, lag_source = phase_settings(args)
+    settings = Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=options,
+                        phase=phase, lags=lags, lag_source=lag_source)
+    result = run(data, args.calibration, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
                                 **(result["summary"] or {})})))
