@@ -7,7 +7,7 @@ about half a second on a busy machine."""
 __all__ = ["__version__"]
 
 
-def __getattr__(name):
+def __getattr__(name: str) -> str:
     if name != "__version__":
         raise AttributeError(f"module 'cortex' has no attribute {name!r}")
     from importlib.metadata import PackageNotFoundError, version
