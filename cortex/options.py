@@ -11,6 +11,8 @@ from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from common.names import BENDINGS, INVERSION_METHODS
 
 if TYPE_CHECKING:
+    from analysis.calibration import Calibration
+    from analysis.emulator import Emulator
     from analysis.invert_table import Errors
 
 Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"   # what add_subparsers returns
@@ -43,7 +45,7 @@ def add_inversion_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the interval draws (default 0)")
 
 
-def inversion_settings(args: argparse.Namespace) -> tuple[Any, Any, Any, Errors]:
+def inversion_settings(args: argparse.Namespace) -> tuple[Calibration | None, Emulator | None, dict[str, Any], Errors]:
     """(Calibration or None, Emulator or None, provenance, Errors) from the shared options."""
     from analysis.invert_table import Errors
     from analysis.shipped import load
