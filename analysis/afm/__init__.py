@@ -20,10 +20,10 @@ from common.lazy_exports import lazy_exports
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
-    "read_experiment": "analysis.afm.h5format", "write_experiment": "analysis.afm.h5format",
+    "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
     "load_cells": "analysis.afm.analyze_pipeline:load",
-    "import_cells": "analysis.afm.jpk_import",
-    "synthesize": "analysis.afm.synth:generate",
+    "import_cells": "analysis.afm.formats.instruments",
+    "synthesize": "analysis.afm.synth.cells:generate",
     "analyze_cells": "analysis.afm.analyze:analyze", "analyze_cell": "analysis.afm.analyze",
-    "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings", "population_summary": "analysis.afm.population:summary",
+    "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings", "population_summary": "analysis.afm.population.summary:summary",
 })

@@ -144,7 +144,7 @@ def _add_tension(s):
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
     _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
-    t.add_argument("--model", choices=names_of("analysis.afm.ramp_fit:MODELS"), default="droplet", metavar="MODEL",
+    t.add_argument("--model", choices=names_of("analysis.afm.tension.ramp:MODELS"), default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
     t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
@@ -160,8 +160,8 @@ def _add_tension(s):
 def synth(args):
     import json
 
-    from analysis.afm import synth as sy
-    from analysis.afm.h5format import write_experiment
+    from analysis.afm.synth import cells as sy
+    from analysis.afm.formats.h5 import write_experiment
     from analysis.cli import say_result
     from outputs.writing import write_atomically
     from common.errors import InputError
@@ -197,7 +197,7 @@ def new_experiment_folder(path, names):
 
 def _forward(args):
     """The forward model that `--solver`, `--bending` and `--calibration` name."""
-    from analysis.afm import synth as sy
+    from analysis.afm.synth import cells as sy
     from common.errors import InputError
     given = (args.bulk_exponent, args.shear_exponent)
     if given != (None, None):
@@ -213,7 +213,7 @@ def _forward(args):
 
 
 def _viscoelastic_forward(args, exponents):
-    from analysis.afm import synth_rheology as sr
+    from analysis.afm.synth import rheology as sr
     from common.errors import InputError
     if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
@@ -240,8 +240,8 @@ def phase_settings(args):
 def import_(args):
     import json
 
-    from analysis.afm.h5format import write_experiment
-    from analysis.afm.jpk_import import import_cells
+    from analysis.afm.formats.h5 import write_experiment
+    from analysis.afm.formats.instruments import import_cells
     out = new_experiment_folder(args.out, [EXPERIMENT])
     recs, cells = import_cells(args.files, **jpk_options(args))
     with out.writing(EXPERIMENT) as path:
@@ -307,8 +307,8 @@ def analyze(args):
 def tension(args):
     import json
 
-    from analysis.afm.tension import ErrorModel
-    from analysis.afm.tension_pipeline import Options, run
+    from analysis.afm.tension.pause import ErrorModel
+    from analysis.afm.tension.pipeline import Options, run
     from analysis.cli import plain
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
     for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):

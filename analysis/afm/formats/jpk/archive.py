@@ -17,7 +17,7 @@ t_i = t_N + (i + 1/2) T / n with t_N the sum of the durations before it
 reference `force-segment-header.force-segment-header-info.*=K`, or else from the
 top-level `<type>.settings.force-settings.segment.N.*`); a `modulation`
 segment (settings type `sine-z-modulation-segment-settings`) has `frequency`
-(Hz) and `amplitude` (m) there. Channels are decoded by `jpk_channels`:
+(Hz) and `amplitude` (m) there. Channels are decoded by `channels`:
 the force F = `vDeflection` in its `force` slot (N -> nN), the spring constant
 k its force multiplier (N/m), the height z the first channel of
 `recording.HEIGHT_CHANNELS` in its default slot (m -> µm).
@@ -28,9 +28,9 @@ import zipfile
 import zlib
 from pathlib import Path
 
-from analysis.afm.jpk_channels import convert, multiplier
-from analysis.afm.jpk_properties import parse_properties, resolve_shared, subtree
-from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
+from analysis.afm.formats.jpk.channels import convert, multiplier
+from analysis.afm.formats.jpk.properties import parse_properties, resolve_shared, subtree
+from analysis.afm.formats.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
 from common.errors import InputError
 
 SUFFIXES = (".jpk-force", ".jpk-force-map", ".jpk-qi-data", ".jpk-qi-series")

@@ -1,6 +1,6 @@
 """Binary channels of a JPK archive: raw numbers -> physical values.
 
-A channel's properties (after `jpk_properties.resolve_shared`, all under
+A channel's properties (after `properties.resolve_shared`, all under
 `channel.NAME.`) give its storage and a chain of linear conversions:
 
 - data type: `data.type` (`short`, `integer`, `long`, `float`, `double`) or, in
@@ -25,7 +25,7 @@ not the sample count) raises InputError naming the channel.
 
 import numpy as np
 
-from analysis.afm.jpk_properties import subtree
+from analysis.afm.formats.jpk.properties import subtree
 from common.errors import InputError
 
 ENCODER_DTYPES = {"signedshort": ">i2", "unsignedshort": ">u2", "signedinteger": ">i4",

@@ -29,7 +29,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from analysis.afm.ramp_fit import RampFit, refit
+from analysis.afm.tension.ramp import RampFit, refit
 from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from common.errors import InputError

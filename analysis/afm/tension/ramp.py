@@ -1,7 +1,7 @@
 """Cortical tension from an approach ramp onto a free (spherical) cell (SPEC 11).
 
 Data: the ramp's forces F_i (nN) and wedge heights x_i (µm): the height channel
-plus the deflection, x = z + F/k - Z (`jpk_import.wedge_height_um`: the
+plus the deflection, x = z + F/k - Z (`formats.instruments.wedge_height_um`: the
 cantilever's bending subtracted from the piezo travel), falling as the cantilever
 descends. With x0 the contact point (where the wedge meets the top of the free
 cell of radius R) the deformation is δ_i = max(x0 - x_i, 0), and

@@ -4,7 +4,7 @@ curves K/K_B of every included cell."""
 
 import numpy as np
 
-from analysis.afm.population import nu_density
+from analysis.afm.population.summary import nu_density
 
 
 FIGURES = ("nu_histograms.png", "nu_boxplots.png", "k_curves.png")

@@ -1,14 +1,34 @@
 """What `cortex afm tension --out DIR` writes: tension.csv (the rows, columns in
-`tension_pipeline.COLUMNS`, units in their names), one figure per recording
+`COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
 and the comparison model; each pause's force over time with the mean of its last
 half) and report.md (the table in short, the window rule, what was not analysed)."""
 
+import re
+
 import numpy as np
 import pandas as pd
 
-from analysis.afm.tension_pipeline import COLUMNS, REPORT, TABLE, file_names
+TABLE, REPORT = "tension.csv", "report.md"
+COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
+           "tension_hi95_mN_per_m", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
+           "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
+           "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
+           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
+
+
+def file_names(cell_ids) -> dict[str, str]:
+    """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
+    [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
+    names, taken = {}, set()
+    for cell_id in cell_ids:
+        stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
+        while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
+            n += 1
+        names[cell_id] = name
+        taken.add(name)
+    return names
 
 
 def _ramp_axes(ax, plot, radius):

@@ -25,7 +25,7 @@ approach segments, where the wedge rests on the dish; without either, Z = 0
 (the height channel already measured from the dish). On the real files the
 force rises as z falls in every approach segment (a test checks it), so z
 grows away from the dish. A NanoScope height is the piezo's travel from an
-arbitrary origin (`analysis/afm/bruker.py`): its cell heights need Z.
+arbitrary origin (`analysis/afm/formats/bruker/nanoscope.py`): its cell heights need Z.
 
 Volumes: one value for every cell, or a table (CSV with columns `cell_id`,
 `volume_um3`, or `equator_radius_um` with `imaged_height_um` (the volume of
@@ -42,8 +42,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.jpk_archive import SUFFIXES, read_archive
-from analysis.afm.recording import Recording
+from analysis.afm.formats.jpk.archive import SUFFIXES, read_archive
+from analysis.afm.formats.recording import Recording
 from common.errors import InputError
 
 TEXT_SUFFIXES = (".txt", ".txt.gz")
@@ -53,7 +53,7 @@ NAMES = "JPK (.txt, .txt.gz, " + ", ".join(SUFFIXES) + ") or Bruker NanoScope (.
 
 def _name_kind(path):
     """'archive', 'text' or 'nanoscope' by the file's name; None for any other name."""
-    from analysis.afm.bruker import is_nanoscope_name
+    from analysis.afm.formats.bruker.nanoscope import is_nanoscope_name
     name = Path(path).name.lower()
     if name.endswith(SUFFIXES):
         return "archive"
@@ -73,7 +73,7 @@ def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) ->
     file's first bytes (NanoScope header, JPK `#` header lines, else a
     NanoScope Analysis export); `spring_constant_N_per_m` (N/m) serves the
     exports that hold none (NanoScope Analysis)."""
-    from analysis.afm.textfiles import head
+    from analysis.afm.formats.textfiles import head
     path = Path(path)
     kind = _name_kind(path)
     if kind is None:
@@ -84,12 +84,12 @@ def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) ->
         return read_archive(path)
     start = head(path, 4096)
     if start.startswith(b"\\*") or kind == "nanoscope":          # a NanoScope header: \*Force file list
-        from analysis.afm.bruker import read_nanoscope
+        from analysis.afm.formats.bruker.nanoscope import read_nanoscope
         return [read_nanoscope(path)]
     if start.lstrip().startswith(b"#"):
-        from analysis.afm.jpk import read_jpk_recording
+        from analysis.afm.formats.jpk.text import read_jpk_recording
         return [read_jpk_recording(path)]
-    from analysis.afm.bruker_text import read_nanoscope_text
+    from analysis.afm.formats.bruker.text import read_nanoscope_text
     return [read_nanoscope_text(path, spring_constant_N_per_m)]
 
 

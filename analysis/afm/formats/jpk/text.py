@@ -17,7 +17,7 @@ its duration and, for a modulation, frequency (Hz) and amplitude (m -> µm)
 from the global header's `force-settings.segment.N.*`; the time is
 `seriesTime` (from the start of the recording) where present, else the
 segment's `time` plus the durations of the segments before it. Binary
-archives are read by `jpk_archive`.
+archives are read by `archive`.
 """
 
 from dataclasses import dataclass, field
@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
-from analysis.afm.textfiles import export_name, open_text
+from analysis.afm.formats.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
+from analysis.afm.formats.textfiles import export_name, open_text
 from common.errors import InputError
 
 LENGTH_TO_UM = {"m": 1e6, "um": 1.0, "µm": 1.0, "nm": 1e-3}

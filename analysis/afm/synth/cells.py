@@ -94,7 +94,7 @@ def _parameters(i, rng):
 def _moduli(p, freqs, forward, truth):
     """K (mN/m) at every mean height per frequency: K_B = K_B(1 Hz) f^β,
     K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B.
-    A viscoelastic forward model (`analysis.afm.synth_rheology`) makes its own."""
+    A viscoelastic forward model (`analysis.afm.synth.rheology`) makes its own."""
     if getattr(forward, "viscoelastic", False):
         return forward.moduli(p, freqs, truth)
     K = {}
@@ -186,9 +186,9 @@ def generate(n_cells=85, seed=0, errors=True, forward=None):
 
 def true_trend(n_cells):
     """The trend slope of ln K̃_S per decade the populations imply: the one the mixed model of
-    `analysis.afm.trend` converges to for this design (`pseudo_true_slope`), and the least-squares
+    `analysis.afm.population.trend` converges to for this design (`pseudo_true_slope`), and the least-squares
     line through the four (log10 f, μ_f) for comparison (μ_f is not linear in log10 f)."""
-    from analysis.afm.trend import pseudo_true_slope
+    from analysis.afm.population.trend import pseudo_true_slope
     x = np.log10(list(POPULATIONS))
     return {"trend_slope_ln_ks_per_decade": pseudo_true_slope(POPULATIONS, subset_sizes(n_cells)),
             "trend_slope_ols_ln_ks_per_decade": float(np.polyfit(x, [m for m, _ in POPULATIONS.values()], 1)[0])}

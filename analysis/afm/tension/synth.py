@@ -14,7 +14,7 @@ of SD `height_noise_um`. The pause holds x at the bottom (constant height) for
 
 import numpy as np
 
-from analysis.afm.recording import RecordedSegment, Recording, segment_times
+from analysis.afm.formats.recording import RecordedSegment, Recording, segment_times
 from solver.geometry import cell_radius, droplet
 
 RATE_HZ = 1000.0

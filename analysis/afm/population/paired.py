@@ -7,7 +7,7 @@ so the signs agree but the ranks of the differences need not), with the median
 difference of ν. A cell is its own control: what makes one cell stiffer than
 another at every frequency (and a measurement error a cell carries to all its
 frequencies, its height offset, its volume) cancels in the difference, which the
-unpaired Mann-Whitney test (`analysis.afm.population.summary`) cannot do.
+unpaired Mann-Whitney test (`analysis.afm.population.summary.summary`) cannot do.
 
 Cells at three or more frequencies: the Friedman test (`scipy.stats.friedmanchisquare`,
 ranks within each cell; the same for ν and ln K̃_S) on the set of ≥ 3 frequencies

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from analysis.afm.random_effects import CHI2
+from analysis.afm.population.random_effects import CHI2
 from solver.elasticity import poisson_of_ratio
 
 LOG_SD_BOUNDS = (np.log(1e-4), np.log(20.0))       # ln τ and ln σ_e searched in this range

@@ -6,7 +6,7 @@ Per cell (drawn in order, reproducibly from the experiment's seed):
     |K_B*|(f) = K_B,1Hz (f / 1 Hz)^β_B,   |K_S*|(f) = K̃_S,1Hz K_B,1Hz (f / 1 Hz)^β_S,
     δ_B = β_B π/2,   δ_S = β_S π/2          (a power-law, structural-damping material),
 
-K_B,1Hz and γ_a as for elastic cells (`analysis.afm.synth`), K̃_S,1Hz = exp(μ + σ z) with the
+K_B,1Hz and γ_a as for elastic cells (`analysis.afm.synth.cells`), K̃_S,1Hz = exp(μ + σ z) with the
 published 1 Hz population (μ, σ) = (-0.70, 0.82). The recording at each mean height is made
 with K*(h̃) = K_sec · C (`solver.viscoelastic`): |K*| sets the tension's amplitude, arg K*
 its lead over the area. Forward models: `solver` (the fast solver's compression for K_sec,
@@ -16,7 +16,7 @@ emulator and `analysis.viscoelastic_table`; what the long round trips in bench/ 
 
 import numpy as np
 
-from analysis.afm.synth import POPULATIONS
+from analysis.afm.synth.cells import POPULATIONS
 from solver.elasticity import poisson_of_ratio
 
 SPREAD = 0.03                     # per-cell SD of both exponents around their medians
@@ -55,7 +55,7 @@ def emulator_complex(bending="standard"):
 
 
 class ViscoelasticForward:
-    """The synthetic experiment's forward model for viscoelastic cells (`analysis.afm.synth`)."""
+    """The synthetic experiment's forward model for viscoelastic cells (`analysis.afm.synth.cells`)."""
 
     viscoelastic = True
 
