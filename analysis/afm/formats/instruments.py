@@ -39,11 +39,12 @@ without a volume is an error. Segment kinds: approach, pause and retract are kep
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.formats.jpk.archive import SUFFIXES, read_archive
-from analysis.afm.formats.recording import Recording
+from analysis.afm.formats.recording import RecordedSegment, Recording
 from common.errors import InputError
 
 TEXT_SUFFIXES = (".txt", ".txt.gz")
@@ -108,7 +109,7 @@ def read_recordings(paths: list, spring_constant_N_per_m: float | None = None) -
             raise InputError(f"{p}: no such file or folder")
         else:
             recs += read_file(p, spring_constant_N_per_m)
-    seen = {}
+    seen: dict[str, str] = {}
     for r in recs:
         if r.cell_id in seen:
             raise InputError(f"cell id '{r.cell_id}' twice ({seen[r.cell_id]} and {r.source})")
@@ -174,17 +175,17 @@ def read_volumes(path: str | Path) -> dict[str, tuple[float, str]]:
     return table
 
 
-def wedge_height_um(segment, spring_constant_N_per_m):
+def wedge_height_um(segment: RecordedSegment, spring_constant_N_per_m: float) -> npt.NDArray[np.float64]:
     """z + F/k (µm) of every sample: the height of the (bent) cantilever's wedge."""
     return segment.height_um + 1e-3 * segment.force_nN / spring_constant_N_per_m
 
 
-def dish_from_curve(path):
+def dish_from_curve(path: str | Path) -> float:
     """Z (µm) from a force curve on the bare dish: z + F/k where its approach force is largest."""
-    rec = read_recordings([path])
-    if len(rec) != 1:
-        raise InputError(f"{path}: a dish curve must hold one recording (has {len(rec)})")
-    rec = rec[0]
+    recs = read_recordings([path])
+    if len(recs) != 1:
+        raise InputError(f"{path}: a dish curve must hold one recording (has {len(recs)})")
+    rec = recs[0]
     app = [s for s in rec.segments if s.kind == "approach" and s.n_samples]
     if not app:
         raise InputError(f"{path}: dish curve without an approach segment")
@@ -193,7 +194,7 @@ def dish_from_curve(path):
     return float(wedge_height_um(best, rec.spring_constant_N_per_m)[i])
 
 
-def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
+def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: float = 0.0) -> Cell:
     """One recording as a native `Cell` (h = z + F/k - Z), validated."""
     segs, parts, n0 = [], [], 0
     for s in rec.segments:
@@ -218,8 +219,9 @@ def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
     return cell.validate(f"{rec.source}: ")
 
 
-def import_cells(paths, volume_um3=None, volumes_csv=None, dish_um=None, dish_curve=None,
-                 spring_constant_N_per_m=None):
+def import_cells(paths: list[str | Path], volume_um3: float | None = None, volumes_csv: str | Path | None = None,
+                 dish_um: float | None = None, dish_curve: str | Path | None = None,
+                 spring_constant_N_per_m: float | None = None) -> tuple[list[Recording], list[Cell]]:
     """(recordings, cells) of instrument files, every cell with its volume and height."""
     recs = read_recordings(paths, spring_constant_N_per_m)
     if dish_curve is not None:

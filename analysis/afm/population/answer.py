@@ -14,6 +14,8 @@ Without per-cell intervals (the `law` method) every s is 0: τ is then the raw
 spread and the measurement fields are null.
 """
 
+from collections.abc import Iterable
+
 import numpy as np
 import pandas as pd
 
@@ -62,7 +64,7 @@ def answer(table: pd.DataFrame) -> dict:
     doc = {"measurement_from_intervals": has, "frequencies": per_frequency(ok, has), **paired_tests(table)}
     freqs = sorted(ok["frequency_hz"].unique())
     obs = trend.Observations.of(ok["cell_id"], ok["frequency_hz"], ok["ln_ks"], ok["s"])
-    band = np.geomspace(freqs[0], freqs[-1], BAND_POINTS) if len(freqs) > 1 else []
+    band: Iterable[float] = np.geomspace(freqs[0], freqs[-1], BAND_POINTS) if len(freqs) > 1 else []
     fitted = trend.fit(obs, sorted(set(map(float, freqs)) | set(map(float, band))))
     if fitted is None:
         doc["trend"] = None

@@ -27,6 +27,7 @@ nothing written); otherwise the command ends with status 1.
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,7 @@ def _instrument(path, options, table, dish):
     return out
 
 
-def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
+def read(paths: list[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
     """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
     instrument readers (and pandas) are imported only for what needs them."""
     if options.model not in MODELS:
@@ -141,7 +142,7 @@ def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
                 _instrument(p, options, table, dish)
         except InputError as err:
             skipped[str(p)] = str(err) if str(p) in str(err) else f"{p}: {err}"
-    seen = {}
+    seen: dict[str, str] = {}
     for t in traces:
         if t.cell_id in seen:
             raise InputError(f"cell id '{t.cell_id}' twice ({seen[t.cell_id]} and {t.source})")
@@ -223,7 +224,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
-def run(paths: list, options: Options = Options(), out: str | Path | None = None) -> dict:
+def run(paths: list[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
     (exit 2, nothing written) when nothing could be analysed."""

@@ -6,9 +6,16 @@ and the comparison model; each pause's force over time with the mean of its last
 half) and report.md (the table in short, the window rule, what was not analysed)."""
 
 import re
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
+
+if TYPE_CHECKING:
+    from analysis.afm.tension.pipeline import Analysed, Options
+    from outputs.ownership import OutputDir
 
 TABLE, REPORT = "tension.csv", "report.md"
 COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
@@ -18,10 +25,11 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
 
 
-def file_names(cell_ids) -> dict[str, str]:
+def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
     """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
     [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
-    names, taken = {}, set()
+    names: dict[str, str] = {}
+    taken: set[str] = set()
     for cell_id in cell_ids:
         stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
         while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
@@ -62,7 +70,7 @@ def _pause_axes(ax, plot):
     ax.legend(fontsize=7, loc="upper left")
 
 
-def figure(path, cell_id, analysed):
+def figure(path: Path, cell_id: str, analysed: "Analysed") -> None:
     """One recording's figure: a panel per analysed part."""
     from matplotlib.figure import Figure      # no pyplot: no figure manager to make and close
     n = len(analysed.plots)
@@ -81,7 +89,7 @@ def _num(row, key, spec):
     return "—" if value != value else format(value, spec)
 
 
-def markdown(rows, skipped, options, figures):
+def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], options: "Options", figures: list[Path]) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
              f"Ramp model: **{options.model}** (the other model for comparison). Volume errors: relative SD "
@@ -102,7 +110,8 @@ def markdown(rows, skipped, options, figures):
     return "\n".join(lines)
 
 
-def write(folder, rows, done, skipped, options):
+def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, "Analysed"], skipped: dict[str, str],
+          options: "Options") -> tuple[Path, Path]:
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
         pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)

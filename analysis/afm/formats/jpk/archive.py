@@ -40,7 +40,7 @@ _SEGMENT = re.compile(r"^(index/(\d+)/)?segments/(\d+)/")
 class _Archive:
     """The zip, with every read turned into InputError on damage."""
 
-    def __init__(self, path):
+    def __init__(self, path: Path) -> None:
         self.path = path
         try:
             self.zip = zipfile.ZipFile(path)
@@ -48,7 +48,7 @@ class _Archive:
         except (zipfile.BadZipFile, OSError, EOFError):
             raise InputError(f"{path}: not a JPK archive (not a zip file, or truncated)") from None
 
-    def read(self, name):
+    def read(self, name: str) -> bytes:
         if name not in self.names:
             raise InputError(f"{self.path}: '{name}' missing from the archive")
         try:
@@ -56,7 +56,7 @@ class _Archive:
         except (zipfile.BadZipFile, zlib.error, EOFError, OSError):
             raise InputError(f"{self.path}: '{name}' unreadable (truncated or corrupt archive)") from None
 
-    def properties(self, name):
+    def properties(self, name: str) -> dict[str, str]:
         try:
             text = self.read(name).decode("iso-8859-1")
         except UnicodeDecodeError:
@@ -118,7 +118,7 @@ def _segment(arc, top, shared, folder, index, start_s):
 
 def _layout(arc):
     """{pixel (None for a single curve): [segment indices]}, every segment with its header."""
-    found = {}
+    found: dict[int | None, set[int]] = {}
     for name in arc.names:
         m = _SEGMENT.match(name)
         if m:
@@ -129,7 +129,7 @@ def _layout(arc):
     return {p: sorted(s) for p, s in sorted(found.items(), key=lambda kv: -1 if kv[0] is None else kv[0])}
 
 
-def read_archive(path):
+def read_archive(path: str | Path) -> list[Recording]:
     """All recordings of a binary JPK archive (one, or one per map/QI pixel)."""
     path = Path(path)
     if not path.is_file():
