@@ -8,8 +8,7 @@ Public API (imported on first use):
   experiment, a single-cell CSV, or JPK or Bruker files and folders.
 - `import_cells(paths, volume_um3=..., volumes_csv=...)`: JPK and Bruker
   NanoScope files -> (recordings, cells), as `cortex afm import`.
-- `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic
-  recordings, as `cortex afm synth`.
+- `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic recordings, as `cortex afm synth`.
 - `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell
   table, per-segment table); `analyze_experiment(data, calibration_path, out,
   AnalyzeSettings(bending, method, errors, jpk_options))`: the whole `cortex afm
@@ -32,8 +31,7 @@ if TYPE_CHECKING:           # what the type checker sees of the names below
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
     "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
-    "load_cells": "analysis.afm.analyze_pipeline:load",
-    "import_cells": "analysis.afm.formats.instruments",
+    "load_cells": "analysis.afm.analyze_pipeline:load", "import_cells": "analysis.afm.formats.instruments",
     "synthesize": "analysis.afm.synth.cells:generate",
     "analyze_cells": "analysis.afm.analyze:analyze", "analyze_cell": "analysis.afm.analyze",
     "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings",

@@ -25,7 +25,7 @@ reason; if nothing is left, the first reason is the InputError (exit status 2,
 nothing written); otherwise the command ends with status 1.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,7 @@ import numpy as np
 
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from common.errors import InputError
 from solver.geometry import cell_radius
 
@@ -64,16 +65,6 @@ class Trace:
     volume_source: str
     parts: list
     dish_known: bool
-
-
-@dataclass
-class Analysed:
-    """The rows of one recording and what its figure shows: per part (kind, x or t,
-    F, fit, comparison fit) and the cell's radius."""
-
-    rows: list
-    plots: list = field(default_factory=list)
-    radius_um: float = float("nan")
 
 
 def _volume(cell_id, options, table):
@@ -232,7 +223,6 @@ def run(paths: list[str | Path], options: Options = Options(), out: str | Path |
     traces, skipped = read(paths, options)
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:
-        from analysis.afm.tension.report import REPORT, TABLE, file_names
         folder.check([TABLE, REPORT] + list(file_names(t.cell_id for t in traces).values()))
     done = {}
     for t in traces:
@@ -246,6 +236,5 @@ def run(paths: list[str | Path], options: Options = Options(), out: str | Path |
     rows = [r for a in done.values() for r in a.rows]
     table = report = None
     if folder is not None:
-        from analysis.afm.tension.report import write
-        table, report = write(folder, rows, done, skipped, options)
+        table, report = write(folder, rows, done, skipped, options.model, options.errors)
     return {"rows": rows, "skipped": skipped, "table": table, "report": report}
