@@ -36,6 +36,7 @@ without a volume is an error. Segment kinds: approach, pause and retract are kep
 `modulation` is the native `oscillation`, with its frequency and amplitude.
 """
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -94,7 +95,7 @@ def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) ->
     return [read_nanoscope_text(path, spring_constant_N_per_m)]
 
 
-def read_recordings(paths: list, spring_constant_N_per_m: float | None = None) -> list[Recording]:
+def read_recordings(paths: Sequence[str | Path], spring_constant_N_per_m: float | None = None) -> list[Recording]:
     """Every recording of `paths` (files, or folders of them: not recursive), cell ids unique.
     The first file that cannot be read stops it (InputError, one line)."""
     recs = []
@@ -219,7 +220,7 @@ def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: floa
     return cell.validate(f"{rec.source}: ")
 
 
-def import_cells(paths: list[str | Path], volume_um3: float | None = None, volumes_csv: str | Path | None = None,
+def import_cells(paths: Sequence[str | Path], volume_um3: float | None = None, volumes_csv: str | Path | None = None,
                  dish_um: float | None = None, dish_curve: str | Path | None = None,
                  spring_constant_N_per_m: float | None = None) -> tuple[list[Recording], list[Cell]]:
     """(recordings, cells) of instrument files, every cell with its volume and height."""

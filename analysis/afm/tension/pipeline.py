@@ -2,10 +2,11 @@
 
 read     every FILE on its own: an experiment (.h5/.hdf5) or single-cell CSV
          (heights are gaps, volumes their own), else an instrument file or a
-         folder of them through `formats.instruments.read_recordings` (heights
-         x = z + F/k - Z, `formats.instruments.wedge_height_um`, with Z the dish reference
-         when one is given), each recording with its volume (`--volume`,
-         `--volumes` via `formats.instruments.read_volumes`, or `--radius-um` R: V = 4πR³/3);
+         folder of them through `formats.instruments.read_recordings`
+         (heights x = z + F/k - Z, `formats.instruments.wedge_height_um`, with
+         Z the dish reference when one is given), each recording with its
+         volume (`--volume`, `--volumes` via `formats.instruments.read_volumes`,
+         or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
          fitted (`ramp`: the selected model and, for comparison, the other
          one, each on its own automatic window; the interval from the volume
@@ -25,6 +26,7 @@ reason; if nothing is left, the first reason is the InputError (exit status 2,
 nothing written); otherwise the command ends with status 1.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -110,7 +112,7 @@ def _instrument(path, options, table, dish):
     return out
 
 
-def read(paths: list[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
+def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
     """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
     instrument readers (and pandas) are imported only for what needs them."""
     if options.model not in MODELS:
@@ -215,7 +217,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
-def run(paths: list[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
+def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
     (exit 2, nothing written) when nothing could be analysed."""
