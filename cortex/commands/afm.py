@@ -166,8 +166,8 @@ def _add_tension(s: Commands) -> None:
 def synth(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.afm import synth as sy
-    from analysis.afm.h5format import write_experiment
+    from analysis.afm.synth import cells as sy
+    from analysis.afm.formats.h5 import write_experiment
     from outputs.writing import write_atomically
     from common.errors import InputError
     if args.cells < 1:
@@ -202,7 +202,7 @@ def new_experiment_folder(path: str, names: list[str]) -> OutputDir:
 
 def _forward(args: argparse.Namespace) -> Any:
     """The forward model that `--solver`, `--bending` and `--calibration` name."""
-    from analysis.afm import synth as sy
+    from analysis.afm.synth import cells as sy
     from common.errors import InputError
     given = (args.bulk_exponent, args.shear_exponent)
     if given != (None, None):
@@ -218,7 +218,7 @@ def _forward(args: argparse.Namespace) -> Any:
 
 
 def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[Any, Any]) -> Any:
-    from analysis.afm import synth_rheology as sr
+    from analysis.afm.synth import rheology as sr
     from common.errors import InputError
     if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
@@ -245,8 +245,8 @@ def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] |
 def import_(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.afm.h5format import write_experiment
-    from analysis.afm.jpk_import import import_cells
+    from analysis.afm.formats.h5 import write_experiment
+    from analysis.afm.formats.instruments import import_cells
     out = new_experiment_folder(args.out, [EXPERIMENT])
     recs, cells = import_cells(args.files, **jpk_options(args))
     with out.writing(EXPERIMENT) as path:
@@ -313,8 +313,8 @@ def analyze(args: argparse.Namespace) -> int:
 def tension(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.afm.tension import ErrorModel
-    from analysis.afm.tension_pipeline import Options, run
+    from analysis.afm.tension.pause import ErrorModel
+    from analysis.afm.tension.pipeline import Options, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
     for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
         if not value >= 0:

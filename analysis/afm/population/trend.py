@@ -30,12 +30,15 @@ error shared by a cell's frequencies (its height offset, its volume) is part of
 u_c for the slope; it makes the slope's interval conservative, not biased.
 """
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy import optimize
 
-from analysis.afm.random_effects import CHI2
+from analysis.afm.population.random_effects import CHI2
 from solver.elasticity import poisson_of_ratio
 
 LOG_SD_BOUNDS = (np.log(1e-4), np.log(20.0))       # ln τ and ln σ_e searched in this range
@@ -51,7 +54,8 @@ class Observations:
     s2: np.ndarray
 
     @classmethod
-    def of(cls, cell_ids, freq_hz, ln_ks, s) -> "Observations":
+    def of(cls, cell_ids: npt.ArrayLike, freq_hz: npt.ArrayLike, ln_ks: npt.ArrayLike, s: npt.ArrayLike
+           ) -> "Observations":
         """From columns; rows with a non-finite value are left out."""
         x, y, s = np.log10(np.asarray(freq_hz, float)), np.asarray(ln_ks, float), np.asarray(s, float)
         keep = np.isfinite(x) & np.isfinite(y) & np.isfinite(s)
@@ -90,7 +94,7 @@ def _maximise(obs, fixed=None, start=None):
     """max over θ of ℓ (with β_k held if `fixed`), from `start` or from two starts (σ_e may sit
     at its bound): (ℓ, θ)."""
     starts = [start] if start is not None else [(np.log(0.5), np.log(0.2)), (np.log(0.5), np.log(0.02))]
-    best = None
+    best: Any = None
     for s in starts:
         r = optimize.minimize(lambda t: -_gls(obs, t, fixed)[0], np.asarray(s, float), method="Nelder-Mead",
                               bounds=[LOG_SD_BOUNDS] * 2, options={"xatol": 1e-4, "fatol": 1e-7})
@@ -137,7 +141,7 @@ class Trend:
                 "frequencies": [{"frequency_hz": f, **v} for f, v in self.at.items()]}
 
 
-def fit(obs: Observations, frequencies_hz=()) -> Trend | None:
+def fit(obs: Observations, frequencies_hz: Iterable[float] = ()) -> Trend | None:
     """The mixed model of `obs`; the line's ln K̃_S and ν with 95 % intervals at `frequencies_hz`.
     None with fewer than two distinct frequencies or three observations."""
     if np.unique(obs.x).size < 2 or obs.y.size < 3:
@@ -157,7 +161,8 @@ def fit(obs: Observations, frequencies_hz=()) -> Trend | None:
                  int(obs.cell.max() + 1), int(obs.y.size), at)
 
 
-def pseudo_true_slope(populations: dict, design) -> float:
+def pseudo_true_slope(populations: dict[float, tuple[float, float]],
+                      design: Iterable[tuple[tuple[float, ...], int]]) -> float:
     """The slope b the model converges to (maximum expected ℓ) for cells whose true
     ln K̃_S(f) = μ_f + σ_f z, z ~ N(0, 1) one per cell, measured without error:
     `populations` {f (Hz): (μ_f, σ_f)}, `design` [(frequencies, number of cells), ...].

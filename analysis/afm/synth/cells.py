@@ -31,12 +31,19 @@ per cell, recorded volume × (1 + N(0, 0.075)). Blebbing cells (8 %, also
 without errors): γ_a jumps by a factor U(1.25, 1.6) at a random time.
 """
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol, cast
+
 import numpy as np
+import numpy.typing as npt
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.timeseries import shape_of
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
+
+if TYPE_CHECKING:
+    from analysis.calibration import Law
 
 POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
 SUBSETS = (((0.1, 1.0, 10.0), 50), ((0.02, 0.1, 1.0, 10.0), 10), ((0.02,), 25))
@@ -48,20 +55,36 @@ ERRORS = {"force_noise_nN": 0.2, "drift_nN_per_s": 0.001, "height_offset_sd_um":
           "volume_rel_sd": 0.075, "bleb_fraction": 0.08}
 
 
-def law_forward(law):
+Forward = Callable[[float, npt.NDArray[np.float64], float, float, float], np.ndarray]
+"""forward(V (µm³), mean heights (µm), K_B, K_S, γ_a (mN/m)) -> |K| (mN/m) at each height."""
+
+
+class ModuliModel(Protocol):
+    """A forward model that draws its own moduli (`analysis.afm.synth.rheology.ViscoelasticForward`)."""
+
+    viscoelastic: bool
+
+    def moduli(self, p: dict[str, Any], freqs: tuple[float, ...], truth: dict[str, Any]) -> dict[float, np.ndarray]: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+
+def law_forward(law: "Law") -> Forward:
     """Stand-in forward model: K = K_B (1 + α(K̃_S, γ̃_a) exp(h̃/λ)) of a calibration `Law`."""
-    def forward(volume, heights, bulk, shear, tension):
+    def forward(volume: float, heights: npt.NDArray[np.float64], bulk: float, shear: float, tension: float
+                ) -> np.ndarray:
         h_tilde = np.asarray(heights) / (2.0 * float(cell_radius(volume)))
         return bulk * (1.0 + law.alpha_of(shear / bulk, tension / bulk) * np.exp(h_tilde / law.lam))
     return forward
 
 
-def solver_forward(bending="standard", method="fast", dh_um=2 * AMPLITUDE_UM):
+def solver_forward(bending: str = "standard", method: str = "fast", dh_um: float = 2 * AMPLITUDE_UM) -> Forward:
     """Forward model from the solver: |K| of a compression h_m + Δh/2 -> h_m - Δh/2."""
     from solver.compression import compress
     from solver.model import Shell
 
-    def forward(volume, heights, bulk, shear, tension):
+    def forward(volume: float, heights: npt.NDArray[np.float64], bulk: float, shear: float, tension: float
+                ) -> np.ndarray:
         return np.array([compress(Shell(volume_um3=float(volume), h0_um=float(h) + dh_um / 2, dh_um=dh_um,
                                         bulk_mN_per_m=float(bulk), shear_mN_per_m=float(shear),
                                         tension_mN_per_m=float(tension), bending=bending), method)
@@ -69,7 +92,7 @@ def solver_forward(bending="standard", method="fast", dh_um=2 * AMPLITUDE_UM):
     return forward
 
 
-def subset_sizes(n_cells):
+def subset_sizes(n_cells: int) -> list[tuple[tuple[float, ...], int]]:
     total = sum(n for _, n in SUBSETS)
     sizes = [round(n_cells * n / total) for _, n in SUBSETS]
     sizes[0] += n_cells - sum(sizes)
@@ -94,7 +117,7 @@ def _parameters(i, rng):
 def _moduli(p, freqs, forward, truth):
     """K (mN/m) at every mean height per frequency: K_B = K_B(1 Hz) f^β,
     K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B.
-    A viscoelastic forward model (`analysis.afm.synth_rheology`) makes its own."""
+    A viscoelastic forward model (`analysis.afm.synth.rheology`) makes its own."""
     if getattr(forward, "viscoelastic", False):
         return forward.moduli(p, freqs, truth)
     K = {}
@@ -117,7 +140,9 @@ def _protocol(rng, p, freqs, K):
         wait = rng.uniform(50.0, 150.0)
         t = t0 + np.arange(0.0, move + wait, 1.0 / APPROACH_RATE_HZ)
         h = np.where(t - t0 < move, h_prev - SPEED_UM_PER_S * (t - t0), h_m)
-        t_chunks.append(t), h_chunks.append(h), g_chunks.append(np.full(t.size, np.nan))
+        t_chunks.append(t)
+        h_chunks.append(h)
+        g_chunks.append(np.full(t.size, np.nan))
         segs.append(Segment("approach", n0, n0 + t.size))
         n0, t0, h_prev = n0 + t.size, t[-1] + 1.0 / APPROACH_RATE_HZ, h_m
         for f in freqs:
@@ -129,7 +154,8 @@ def _protocol(rng, p, freqs, K):
             fpt, area = shape_of(p["V"], np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
             a_lag, a_mean = area[s.size:2 * s.size], area[-1]
             g_chunks.append(abs(K[f][j]) * (a_lag - a_mean) / a_mean)
-            t_chunks.append(t0 + s), h_chunks.append(h)
+            t_chunks.append(t0 + s)
+            h_chunks.append(h)
             segs.append(Segment("oscillation", n0, n0 + s.size, f))
             n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
     return np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks), segs
@@ -159,7 +185,8 @@ def _cell(i, freqs, rng, forward, errors):
     return cell, truth
 
 
-def generate(n_cells=85, seed=0, errors=True, forward=None):
+def generate(n_cells: int = 85, seed: int = 0, errors: bool = True, forward: Forward | ModuliModel | None = None
+             ) -> tuple[list[Cell], dict[str, Any]]:
     """Return (cells, truth): truth has per frequency the true median ν of the
     non-blebbing cells and every cell's true values."""
     forward = forward or solver_forward()
@@ -168,7 +195,8 @@ def generate(n_cells=85, seed=0, errors=True, forward=None):
     for freqs, n in subset_sizes(n_cells):
         for _ in range(n):
             c, t = _cell(i, freqs, rng, forward, errors)
-            cells.append(c), truths.append(t)
+            cells.append(c)
+            truths.append(t)
             i += 1
     per_f = {}
     for f in POPULATIONS:
@@ -180,15 +208,15 @@ def generate(n_cells=85, seed=0, errors=True, forward=None):
              "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, "populations": {str(k): v for k, v in POPULATIONS.items()},
              "frequencies": per_f, "cells": truths, **true_trend(n_cells)}
     if getattr(forward, "viscoelastic", False):
-        truth.update(forward.describe())
+        truth.update(cast(ModuliModel, forward).describe())
     return cells, truth
 
 
-def true_trend(n_cells):
+def true_trend(n_cells: int) -> dict[str, float]:
     """The trend slope of ln K̃_S per decade the populations imply: the one the mixed model of
-    `analysis.afm.trend` converges to for this design (`pseudo_true_slope`), and the least-squares
+    `analysis.afm.population.trend` converges to for this design (`pseudo_true_slope`), and the least-squares
     line through the four (log10 f, μ_f) for comparison (μ_f is not linear in log10 f)."""
-    from analysis.afm.trend import pseudo_true_slope
+    from analysis.afm.population.trend import pseudo_true_slope
     x = np.log10(list(POPULATIONS))
     return {"trend_slope_ln_ks_per_decade": pseudo_true_slope(POPULATIONS, subset_sizes(n_cells)),
             "trend_slope_ols_ln_ks_per_decade": float(np.polyfit(x, [m for m, _ in POPULATIONS.values()], 1)[0])}

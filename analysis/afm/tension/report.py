@@ -1,14 +1,54 @@
 """What `cortex afm tension --out DIR` writes: tension.csv (the rows, columns in
-`tension_pipeline.COLUMNS`, units in their names), one figure per recording
+`COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
 and the comparison model; each pause's force over time with the mean of its last
 half) and report.md (the table in short, the window rule, what was not analysed)."""
 
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import pandas as pd
 
-from analysis.afm.tension_pipeline import COLUMNS, REPORT, TABLE, file_names
+from analysis.afm.tension.pause import ErrorModel
+
+if TYPE_CHECKING:
+    from outputs.ownership import OutputDir
+
+TABLE, REPORT = "tension.csv", "report.md"
+COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
+           "tension_hi95_mN_per_m", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
+           "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
+           "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
+           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
+
+
+@dataclass
+class Analysed:
+    """The rows of one recording and what its figure shows: per part (kind, x or t,
+    F, fit, comparison fit) and the cell's radius."""
+
+    rows: list
+    plots: list = field(default_factory=list)
+    radius_um: float = float("nan")
+
+
+def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
+    """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
+    [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
+    names: dict[str, str] = {}
+    taken: set[str] = set()
+    for cell_id in cell_ids:
+        stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
+        while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
+            n += 1
+        names[cell_id] = name
+        taken.add(name)
+    return names
 
 
 def _ramp_axes(ax, plot, radius):
@@ -42,7 +82,7 @@ def _pause_axes(ax, plot):
     ax.legend(fontsize=7, loc="upper left")
 
 
-def figure(path, cell_id, analysed):
+def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
     """One recording's figure: a panel per analysed part."""
     from matplotlib.figure import Figure      # no pyplot: no figure manager to make and close
     n = len(analysed.plots)
@@ -61,11 +101,12 @@ def _num(row, key, spec):
     return "—" if value != value else format(value, spec)
 
 
-def markdown(rows, skipped, options, figures):
+def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: ErrorModel,
+             figures: list[Path]) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
-             f"Ramp model: **{options.model}** (the other model for comparison). Volume errors: relative SD "
-             f"{options.errors.volume_sd:g}; height error SD {options.errors.height_sd_um:g} um; 95 % intervals. "
+             f"Ramp model: **{model}** (the other model for comparison). Volume errors: relative SD "
+             f"{errors.volume_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
              "Fit window: deformations up to the deepest one reached (at most R), and as much baseline above "
              "the contact; see docs/tension.md.", "",
              "| cell | part | T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | h̃ | contact (um) | R² | "
@@ -82,7 +123,8 @@ def markdown(rows, skipped, options, figures):
     return "\n".join(lines)
 
 
-def write(folder, rows, done, skipped, options):
+def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analysed], skipped: dict[str, str],
+          model: str, errors: ErrorModel) -> tuple[Path, Path]:
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
         pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)
@@ -91,7 +133,7 @@ def write(folder, rows, done, skipped, options):
         with folder.writing(names[cell_id]) as path:
             figure(path, cell_id, analysed)
         figures.append(path)
-    text = markdown(rows, skipped, options, figures)
+    text = markdown(rows, skipped, model, errors, figures)
     with folder.writing(REPORT) as report:
         report.write_text(text)
     return table, report

@@ -1,7 +1,7 @@
 """Cortical tension from an approach ramp onto a free (spherical) cell (SPEC 11).
 
 Data: the ramp's forces F_i (nN) and wedge heights x_i (µm): the height channel
-plus the deflection, x = z + F/k - Z (`jpk_import.wedge_height_um`: the
+plus the deflection, x = z + F/k - Z (`formats.instruments.wedge_height_um`: the
 cantilever's bending subtracted from the piezo travel), falling as the cantilever
 descends. With x0 the contact point (where the wedge meets the top of the free
 cell of radius R) the deformation is δ_i = max(x0 - x_i, 0), and
@@ -37,6 +37,7 @@ so has a fit with fewer than MIN_BASELINE window samples above the contact
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
@@ -52,7 +53,7 @@ MIN_BASELINE = 5
 MIN_SAMPLES = 20
 
 
-def force_per_tension_um(model: str, depth_um, radius_um: float) -> np.ndarray:
+def force_per_tension_um(model: str, depth_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
     """F/T (µm; × mN/m gives nN) of `model` at deformations δ (µm, ≤ 0: no contact)
     of a free cell of radius R (µm)."""
     d = np.clip(np.asarray(depth_um, float), 0.0, None)
@@ -76,10 +77,10 @@ class RampFit:
     r2: float
     window_lo_um: float
     window_hi_um: float
-    window: np.ndarray
+    window: npt.NDArray[np.bool_]
     depth_um: float
 
-    def force_nN(self, x_um, radius_um):
+    def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
         return self.baseline_nN + self.tension_mN_per_m * force_per_tension_um(
             self.model, self.contact_um - np.asarray(x_um, float), radius_um)
@@ -118,14 +119,14 @@ def _fit_window(x, f, lo, hi, model, radius, near=None):
     return x0, float(t[0]), float(fb[0]), float(s[0])
 
 
-def baseline_noise(force_nN):
+def baseline_noise(force_nN: npt.NDArray[np.float64]) -> tuple[float, float]:
     """(baseline median, noise SD) of the first BASELINE_FRACTION of a ramp."""
     head = np.asarray(force_nN, float)[: max(int(BASELINE_FRACTION * len(force_nN)), 3)]
     sd = 1.4826 * np.median(np.abs(np.diff(head) - np.median(np.diff(head)))) / np.sqrt(2.0)
     return float(np.median(head)), float(max(sd, 1e-12 * max(1.0, abs(np.median(head)))))
 
 
-def contact_guess(x_um, force_nN):
+def contact_guess(x_um: npt.NDArray[np.float64], force_nN: npt.ArrayLike) -> tuple[float, int]:
     """Where the force leaves the baseline (µm), the index of the deepest sample;
     InputError if the ramp shows no contact."""
     f = np.asarray(force_nN, float)
@@ -142,8 +143,8 @@ def contact_guess(x_um, force_nN):
     return float(x_um[below[-1]] if below.size else x_um[0]), deepest
 
 
-def fit_ramp(x_um, force_nN, radius_um: float, model: str = "droplet", cap_um: float | None = None,
-             start: float | None = None) -> RampFit:
+def fit_ramp(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, model: str = "droplet",
+             cap_um: float | None = None, start: float | None = None) -> RampFit:
     """T and the contact point of one approach ramp by `model`, on the window of the
     module's rule (deformations up to `cap_um`, default R); `start` a first contact
     point (default `contact_guess`). InputError for a ramp without contact."""
@@ -169,7 +170,7 @@ def fit_ramp(x_um, force_nN, radius_um: float, model: str = "droplet", cap_um: f
     return _result(model, f[mask], mask, lo_hi, x0 - x[mask].min(), (x0, t, fb, sse))
 
 
-def refit(fit: RampFit, x_um, force_nN, radius_um: float) -> RampFit:
+def refit(fit: RampFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float) -> RampFit:
     """`fit`'s model refitted on its own window for another cell radius (one round:
     the window kept, the contact and T fitted again)."""
     x, f = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]

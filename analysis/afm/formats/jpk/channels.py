@@ -1,6 +1,6 @@
 """Binary channels of a JPK archive: raw numbers -> physical values.
 
-A channel's properties (after `jpk_properties.resolve_shared`, all under
+A channel's properties (after `properties.resolve_shared`, all under
 `channel.NAME.`) give its storage and a chain of linear conversions:
 
 - data type: `data.type` (`short`, `integer`, `long`, `float`, `double`) or, in
@@ -24,8 +24,9 @@ not the sample count) raises InputError naming the channel.
 """
 
 import numpy as np
+import numpy.typing as npt
 
-from analysis.afm.jpk_properties import subtree
+from analysis.afm.formats.jpk.properties import subtree
 from common.errors import InputError
 
 ENCODER_DTYPES = {"signedshort": ">i2", "unsignedshort": ">u2", "signedinteger": ">i4",
@@ -67,7 +68,8 @@ def _storage(ch, where):
     return ENCODER_DTYPES[etype], subtree(encoder, "scaling")
 
 
-def base_values(ch, raw, n_samples, where):
+def base_values(ch: dict[str, str], raw: bytes, n_samples: int, where: str
+                ) -> tuple[npt.NDArray[np.float64], str]:
     """The stored samples in the channel's base unit (e.g. V): (values, unit)."""
     dtype, scaling = _storage(ch, where)
     itemsize = np.dtype(dtype).itemsize
@@ -81,7 +83,7 @@ def base_values(ch, raw, n_samples, where):
     return offset + mult * x, unit
 
 
-def conversion_chain(ch, slot, where):
+def conversion_chain(ch: dict[str, str], slot: str | None, where: str) -> list[tuple[float, float, str]]:
     """[(offset, multiplier, unit), ...] from the base slot up to `slot`."""
     cs = subtree(ch, "conversion-set")
     base = cs.get("conversions.base")
@@ -100,7 +102,8 @@ def conversion_chain(ch, slot, where):
     return chain[::-1]
 
 
-def convert(ch, raw, n_samples, slot, where):
+def convert(ch: dict[str, str], raw: bytes, n_samples: int, slot: str | None, where: str
+            ) -> tuple[npt.NDArray[np.float64], str]:
     """Samples converted to conversion slot `slot` (None: the set's default): (values, unit)."""
     x, unit = base_values(ch, raw, n_samples, where)
     slot = slot or subtree(ch, "conversion-set").get("conversions.default")
@@ -111,6 +114,6 @@ def convert(ch, raw, n_samples, slot, where):
     return x, unit
 
 
-def multiplier(ch, slot, where):
+def multiplier(ch: dict[str, str], slot: str, where: str) -> float:
     """The multiplier of one conversion slot (e.g. `force`: the spring constant, N/m)."""
     return conversion_chain(ch, slot, where)[-1][1]

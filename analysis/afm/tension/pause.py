@@ -28,8 +28,9 @@ from dataclasses import dataclass
 from statistics import NormalDist
 
 import numpy as np
+import numpy.typing as npt
 
-from analysis.afm.ramp_fit import RampFit, refit
+from analysis.afm.tension.ramp import RampFit, refit
 from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from common.errors import InputError
@@ -41,7 +42,7 @@ Z95 = NormalDist().inv_cdf((1.0 + LEVEL) / 2.0)   # the normal quantile of the i
 PA_PER_MN_PER_M_PER_UM = 1e3
 
 
-def pressure_Pa(tension_mN_per_m, mean_curvature_per_um) -> np.ndarray:
+def pressure_Pa(tension_mN_per_m: npt.ArrayLike, mean_curvature_per_um: npt.ArrayLike) -> np.ndarray:
     """ΔP = 2 γ H in Pa (γ in mN/m, H in 1/µm)."""
     return 2.0 * PA_PER_MN_PER_M_PER_UM * np.asarray(tension_mN_per_m) * np.asarray(mean_curvature_per_um)
 
@@ -103,7 +104,7 @@ def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth
                         float(force_nN), float(height_um), height_um / (2.0 * radius))
 
 
-def ramp_interval(fit: RampFit, x_um, force_nN, volume_um3: float,
+def ramp_interval(fit: RampFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
                   errors: ErrorModel = ErrorModel()) -> tuple[float, float, float, float]:
     """(T_lo, T_hi, ΔP_lo, ΔP_hi) of a ramp fit from the volume error: refits at
     V (1 ± 1.96 σ_V) on the fit's window; ΔP = 2 T / R of the free cell."""

@@ -16,6 +16,7 @@ the end, so no file is left half-written and a full disk is one clear error. Rea
 (`Cell.validate`) and raises InputError naming the file and cell.
 """
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import h5py
@@ -29,7 +30,7 @@ FORMAT, VERSION = "cortex-afm", 1
 SEG_DTYPE = np.dtype([("kind", h5py.string_dtype()), ("start", "i8"), ("stop", "i8"), ("frequency_hz", "f8")])
 
 
-def write_experiment(path, cells):
+def write_experiment(path: str | Path, cells: Iterable[Cell]) -> Path:
     """Write `cells` to `path` (built in memory, written atomically: a full
     disk gives a WriteError naming `path`, never a half-written file)."""
     return Path(write_atomically(path, hdf5_image(lambda f: _fill(f, cells))))
@@ -76,7 +77,7 @@ def _segments(seg, amp, where):
         raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
 
 
-def read_experiment(path):
+def read_experiment(path: str | Path) -> list[Cell]:
     """All cells of an experiment file, validated."""
     path = Path(path)
     if not path.is_file():

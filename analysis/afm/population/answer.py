@@ -1,24 +1,26 @@
 """population.json of `cortex afm analyze`: the population answer from the cells table.
 
 Per frequency (the included cells, y = ln K̃_S, s from each cell's 95 % interval):
-the random-effects fit (`analysis.afm.random_effects`: μ, between-cell SD τ,
+the random-effects fit (`analysis.afm.population.random_effects`: μ, between-cell SD τ,
 measurement SD s_m and its share of the observed variance, with 95 % intervals),
 beside the raw numbers (mean and SD of y, median and IQR of ν) and the ν the
 deconvolved population N(μ, τ²) implies (median ν = ν(e^μ); quartiles
 ν(e^(μ ± 0.674 τ)), ν falling as K̃_S rises). The paired tests
-(`analysis.afm.paired`) and the trend over all cells and frequencies
-(`analysis.afm.trend`, with the line's ν at each measured frequency and on a
+(`analysis.afm.population.paired`) and the trend over all cells and frequencies
+(`analysis.afm.population.trend`, with the line's ν at each measured frequency and on a
 grid of frequencies for the figure's band).
 
 Without per-cell intervals (the `law` method) every s is 0: τ is then the raw
 spread and the measurement fields are null.
 """
 
+from collections.abc import Iterable
+
 import numpy as np
 import pandas as pd
 
-from analysis.afm import random_effects, trend
-from analysis.afm.paired import paired_tests
+from analysis.afm.population import random_effects, trend
+from analysis.afm.population.paired import paired_tests
 from solver.elasticity import poisson_of_ratio
 
 BAND_POINTS = 9          # frequencies of the trend's band (log-spaced over the measured range)
@@ -62,7 +64,7 @@ def answer(table: pd.DataFrame) -> dict:
     doc = {"measurement_from_intervals": has, "frequencies": per_frequency(ok, has), **paired_tests(table)}
     freqs = sorted(ok["frequency_hz"].unique())
     obs = trend.Observations.of(ok["cell_id"], ok["frequency_hz"], ok["ln_ks"], ok["s"])
-    band = np.geomspace(freqs[0], freqs[-1], BAND_POINTS) if len(freqs) > 1 else []
+    band: Iterable[float] = np.geomspace(freqs[0], freqs[-1], BAND_POINTS) if len(freqs) > 1 else []
     fitted = trend.fit(obs, sorted(set(map(float, freqs)) | set(map(float, band))))
     if fitted is None:
         doc["trend"] = None

@@ -14,8 +14,10 @@ cantilever approaches the dish).
 """
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from common.errors import InputError
 
@@ -25,7 +27,7 @@ HEIGHT_CHANNELS = ("smoothedMeasuredHeight", "measuredHeight", "strainGaugeHeigh
                    "height")
 
 
-def kind_of(style, where):
+def kind_of(style: str | None, where: str) -> str:
     """Our segment kind for a JPK segment style."""
     if style not in STYLES:
         raise InputError(f"{where}: unknown segment style {style!r} (known: {', '.join(STYLES)})")
@@ -36,17 +38,17 @@ def kind_of(style, where):
 class RecordedSegment:
     kind: str
     duration_s: float
-    time_s: np.ndarray
-    force_nN: np.ndarray
-    height_um: np.ndarray
+    time_s: npt.NDArray[np.floating[Any]]
+    force_nN: npt.NDArray[np.floating[Any]]
+    height_um: npt.NDArray[np.floating[Any]]
     frequency_hz: float = float("nan")
     amplitude_um: float = float("nan")
 
     @property
-    def n_samples(self):
+    def n_samples(self) -> int:
         return int(len(self.time_s))
 
-    def summary(self):
+    def summary(self) -> dict[str, Any]:
         osc = self.kind == "modulation"
         return {"kind": self.kind, "duration_s": float(self.duration_s), "n_samples": self.n_samples,
                 "frequency_hz": float(self.frequency_hz) if osc else None,
@@ -57,17 +59,17 @@ class RecordedSegment:
 class Recording:
     cell_id: str
     spring_constant_N_per_m: float
-    segments: list = field(default_factory=list)
+    segments: list[RecordedSegment] = field(default_factory=list)
     source: str = ""
     date: str = ""
 
-    def summary(self):
+    def summary(self) -> dict[str, Any]:
         """What `cortex afm import --json` prints for this recording."""
         return {"cell_id": self.cell_id, "spring_constant_N_per_m": float(self.spring_constant_N_per_m),
                 "source": self.source, "segments": [s.summary() for s in self.segments]}
 
 
-def segment_times(start_s, duration_s, n):
+def segment_times(start_s: float, duration_s: float, n: int) -> npt.NDArray[np.floating[Any]]:
     """Sample times of a segment of n samples over `duration_s` from `start_s`:
     t_i = start + (i + 1/2) · duration / n (the mid-sample times JPK's own text
     export writes)."""

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.afm.bruker import read_curve
-from analysis.afm.recording import RecordedSegment, Recording
-from analysis.afm.textfiles import export_name, read_bytes
+from analysis.afm.formats.bruker.nanoscope import read_curve
+from analysis.afm.formats.recording import RecordedSegment, Recording
+from analysis.afm.formats.textfiles import export_name, read_bytes
 from common.errors import InputError
 
 LENGTH_TO_NM = {"nm": 1.0, "µm": 1e3, "um": 1e3, "m": 1e9}

@@ -100,7 +100,8 @@ def read_header(path: Path, data: bytes) -> Header:
             raise InputError(f"{path}: a NanoScope image file, not a force curve ('\\*Force file list')")
         raise InputError(f"{path}: not a NanoScope force file (does not start with '\\*Force file list')")
     text = data[:HEADER_MAX_BYTES].split(b"\x1a", 1)[0].decode("latin-1")
-    header, entries, ended = Header(path=Path(path)), None, False
+    header, ended = Header(path=Path(path)), False
+    entries: dict[str, str] | None = None
     for line in text.splitlines():
         line = line.strip()
         if not line.startswith("\\"):

@@ -25,7 +25,7 @@ from common.errors import InputError
 COLUMNS = ("time_s", "force_nN", "height_um", "segment", "kind", "frequency_hz")
 
 
-def write_csv_cell(path, cell):
+def write_csv_cell(path: str | Path, cell: Cell) -> str | Path:
     seg = np.empty(len(cell.time_s), int)
     kind = np.empty(len(cell.time_s), object)
     freq = np.full(len(cell.time_s), np.nan)
@@ -78,7 +78,7 @@ def _segments(df):
     return segments
 
 
-def read_csv_cell(path):
+def read_csv_cell(path: str | Path) -> Cell:
     """One cell of the single-cell CSV format (module docstring); InputError for bad input."""
     path = Path(path)
     if not path.is_file():

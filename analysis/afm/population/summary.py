@@ -7,14 +7,17 @@ included cells; two-sided Mann-Whitney U between every pair of frequencies.
 """
 
 import itertools
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
+import pandas as pd
 from scipy import stats
 
 from solver.elasticity import shear_ratio, shear_ratio_slope
 
 
-def lognormal_fit(ks):
+def lognormal_fit(ks: npt.NDArray[np.float64]) -> tuple[float, float]:
     ks = np.asarray(ks, float)
     ks = ks[np.isfinite(ks) & (ks > 0)]
     if ks.size < 2:
@@ -23,15 +26,15 @@ def lognormal_fit(ks):
     return float(np.log(scale)), float(sigma)
 
 
-def nu_density(nu, mu, sigma):
+def nu_density(nu: npt.ArrayLike, mu: float, sigma: float) -> np.ndarray:
     """Density of ν = (1 - K̃)/(1 + K̃) for K̃ ~ lognormal(μ, σ)."""
     nu = np.asarray(nu, float)
     return stats.lognorm.pdf(shear_ratio(nu), sigma, scale=np.exp(mu)) * shear_ratio_slope(nu)
 
 
-def summary(table):
+def summary(table: pd.DataFrame) -> dict[str, Any]:
     """`table`: rows of `analyze`. Returns the summary dict of summary.json."""
-    out = {"frequencies": [], "mann_whitney_p": {}}
+    out: dict[str, Any] = {"frequencies": [], "mann_whitney_p": {}}
     ok = table[table["excluded_reason"].isna()]
     for f, g in table.groupby("frequency_hz", sort=True):
         good = ok[ok["frequency_hz"] == f]

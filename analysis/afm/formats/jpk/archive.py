@@ -17,7 +17,7 @@ t_i = t_N + (i + 1/2) T / n with t_N the sum of the durations before it
 reference `force-segment-header.force-segment-header-info.*=K`, or else from the
 top-level `<type>.settings.force-settings.segment.N.*`); a `modulation`
 segment (settings type `sine-z-modulation-segment-settings`) has `frequency`
-(Hz) and `amplitude` (m) there. Channels are decoded by `jpk_channels`:
+(Hz) and `amplitude` (m) there. Channels are decoded by `channels`:
 the force F = `vDeflection` in its `force` slot (N -> nN), the spring constant
 k its force multiplier (N/m), the height z the first channel of
 `recording.HEIGHT_CHANNELS` in its default slot (m -> µm).
@@ -28,9 +28,9 @@ import zipfile
 import zlib
 from pathlib import Path
 
-from analysis.afm.jpk_channels import convert, multiplier
-from analysis.afm.jpk_properties import parse_properties, resolve_shared, subtree
-from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
+from analysis.afm.formats.jpk.channels import convert, multiplier
+from analysis.afm.formats.jpk.properties import parse_properties, resolve_shared, subtree
+from analysis.afm.formats.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
 from common.errors import InputError
 
 SUFFIXES = (".jpk-force", ".jpk-force-map", ".jpk-qi-data", ".jpk-qi-series")
@@ -40,7 +40,7 @@ _SEGMENT = re.compile(r"^(index/(\d+)/)?segments/(\d+)/")
 class _Archive:
     """The zip, with every read turned into InputError on damage."""
 
-    def __init__(self, path):
+    def __init__(self, path: Path) -> None:
         self.path = path
         try:
             self.zip = zipfile.ZipFile(path)
@@ -48,7 +48,7 @@ class _Archive:
         except (zipfile.BadZipFile, OSError, EOFError):
             raise InputError(f"{path}: not a JPK archive (not a zip file, or truncated)") from None
 
-    def read(self, name):
+    def read(self, name: str) -> bytes:
         if name not in self.names:
             raise InputError(f"{self.path}: '{name}' missing from the archive")
         try:
@@ -56,7 +56,7 @@ class _Archive:
         except (zipfile.BadZipFile, zlib.error, EOFError, OSError):
             raise InputError(f"{self.path}: '{name}' unreadable (truncated or corrupt archive)") from None
 
-    def properties(self, name):
+    def properties(self, name: str) -> dict[str, str]:
         try:
             text = self.read(name).decode("iso-8859-1")
         except UnicodeDecodeError:
@@ -118,7 +118,7 @@ def _segment(arc, top, shared, folder, index, start_s):
 
 def _layout(arc):
     """{pixel (None for a single curve): [segment indices]}, every segment with its header."""
-    found = {}
+    found: dict[int | None, set[int]] = {}
     for name in arc.names:
         m = _SEGMENT.match(name)
         if m:
@@ -129,7 +129,7 @@ def _layout(arc):
     return {p: sorted(s) for p, s in sorted(found.items(), key=lambda kv: -1 if kv[0] is None else kv[0])}
 
 
-def read_archive(path):
+def read_archive(path: str | Path) -> list[Recording]:
     """All recordings of a binary JPK archive (one, or one per map/QI pixel)."""
     path = Path(path)
     if not path.is_file():

@@ -17,17 +17,18 @@ its duration and, for a modulation, frequency (Hz) and amplitude (m -> µm)
 from the global header's `force-settings.segment.N.*`; the time is
 `seriesTime` (from the start of the recording) where present, else the
 segment's `time` plus the durations of the segments before it. Binary
-archives are read by `jpk_archive`.
+archives are read by `archive`.
 """
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from analysis.afm.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
-from analysis.afm.textfiles import export_name, open_text
+from analysis.afm.formats.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of
+from analysis.afm.formats.textfiles import export_name, open_text
 from common.errors import InputError
 
 LENGTH_TO_UM = {"m": 1e6, "um": 1.0, "µm": 1.0, "nm": 1e-3}
@@ -49,13 +50,15 @@ class JpkSegment:
 @dataclass
 class JpkExport:
     path: Path
-    header: dict
-    segments: list
+    header: dict[str, str]
+    segments: list[JpkSegment]
 
 
 def _blocks(path):
     """Split the file into (header lines, data lines) per segment."""
-    glob, blocks, cur = {}, [], None
+    glob: dict[str, str] = {}
+    blocks: list[dict[str, Any]] = []
+    cur: dict[str, Any] | None = None
     with open_text(path, encoding="utf-8") as fh:
         for lineno, line in enumerate(fh, 1):
             s = line.strip()
@@ -164,7 +167,7 @@ def _segment(path, block, position):
                       spring_constant_N_per_m=k, sensitivity_m_per_V=sens, units=unit)
 
 
-def read_jpk(path):
+def read_jpk(path: str | Path) -> JpkExport:
     """Parse a JPK text export into a `JpkExport` (units µm, nN, s)."""
     path = Path(path)
     if not path.is_file():
@@ -178,7 +181,7 @@ def read_jpk(path):
         raise InputError(f"{path}: cannot be read ({err})") from None
     if not blocks:
         raise InputError(f"{path}: no segments (no '# segmentIndex:' header)")
-    segments = []
+    segments: list[JpkSegment] = []
     for b in blocks:
         segments.append(_segment(path, b, len(segments)))
     return JpkExport(path=path, header=glob, segments=segments)
@@ -195,7 +198,7 @@ def _segment_setting(glob, seg, key):
                          "is not a number") from None
 
 
-def read_jpk_recording(path):
+def read_jpk_recording(path: str | Path) -> Recording:
     """A JPK text export as one `Recording` (units s, nN, µm)."""
     export = read_jpk(path)
     segments, start = [], 0.0

@@ -2,15 +2,23 @@
 induced density, box plots of ν per frequency and variant, normalised K(h̃)
 curves K/K_B of every included cell."""
 
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
-from analysis.afm.population import nu_density
+from analysis.afm.population.summary import nu_density
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from outputs.ownership import OutputDir
 
 
 FIGURES = ("nu_histograms.png", "nu_boxplots.png", "k_curves.png")
 
 
-def _save(fig, out, name):
+def _save(fig: Any, out: "OutputDir", name: str) -> Path:
     """Lay out, write (PNG, 80 dpi) as file `name` of the output folder `out`
     (an `outputs.ownership.OutputDir`) and close a figure; returns its path."""
     import matplotlib.pyplot as plt
@@ -21,7 +29,8 @@ def _save(fig, out, name):
     return path
 
 
-def figures(tables, sums, segs, out):
+def figures(tables: dict[str, "pd.DataFrame"], sums: dict[str, dict[str, Any]], segs: "pd.DataFrame",
+            out: "OutputDir") -> list[Path]:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -70,7 +79,7 @@ def figures(tables, sums, segs, out):
     return paths
 
 
-def nu_intervals(table, out):
+def nu_intervals(table: "pd.DataFrame", out: "OutputDir") -> Path:
     """ν of every included cell with its 95 % interval, one panel per frequency,
     cells sorted by ν."""
     import matplotlib

@@ -1,4 +1,4 @@
-"""Figures of the population answer (`analysis.afm.population_answer`):
+"""Figures of the population answer (`analysis.afm.population.answer`):
 
 - `nu_paired.png`: every cell included at two or more frequencies, its ν with the
   95 % interval per frequency, joined across frequencies (a spaghetti plot);
@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from analysis.afm.figures import _save
-from analysis.afm.population import lognormal_fit, nu_density
+from analysis.afm.population.figures import _save
+from analysis.afm.population.summary import lognormal_fit, nu_density
 from solver.elasticity import poisson_of_ratio
 
 if TYPE_CHECKING:

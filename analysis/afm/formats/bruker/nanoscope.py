@@ -1,6 +1,6 @@
 r"""Reader for Bruker NanoScope force-curve files (`NAME.000`, `.001`, ...).
 
-The file is a text header (`bruker_header`) and, for each recorded channel
+The file is a text header (`header`) and, for each recorded channel
 (one `\*Ciao force image list` each: `\@4:Image Data: S [DeflectionError]
 "Deflection Error"`, `[ZSensor] "Height Sensor"`, ...), a block of
 `Data length` bytes at `Data offset`: little-endian signed integers of
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.afm.bruker_header import Header, read_header
-from analysis.afm.recording import RecordedSegment, Recording
+from analysis.afm.formats.bruker.header import Header, read_header
+from analysis.afm.formats.recording import RecordedSegment, Recording
 from common.errors import InputError
 
 DEFLECTION_CHANNELS = ("DeflectionError", "Deflection")

@@ -56,7 +56,7 @@ def _split(line):
     return key, rest
 
 
-def parse_properties(text, where):
+def parse_properties(text: str, where: str) -> dict[str, str]:
     """The entries of a properties text as a dict of str (InputError if it holds none)."""
     props = {}
     for line in _logical_lines(text):
@@ -67,7 +67,7 @@ def parse_properties(text, where):
     return props
 
 
-def resolve_shared(props, shared, where):
+def resolve_shared(props: dict[str, str], shared: dict[str, str], where: str) -> dict[str, str]:
     """`props` with every `P.NAME.*=K` reference replaced by the shared entries
     `NAME.K.*`, renamed `P.*` (entries of `props` itself win)."""
     out = dict(props)
@@ -86,7 +86,7 @@ def resolve_shared(props, shared, where):
     return out
 
 
-def subtree(props, prefix):
+def subtree(props: dict[str, str], prefix: str) -> dict[str, str]:
     """The entries under `prefix` (a dotted key, without the trailing dot), prefix removed."""
     p = prefix + "."
     return {k[len(p):]: v for k, v in props.items() if k.startswith(p)}

@@ -13,14 +13,15 @@ of SD `height_noise_um`. The pause holds x at the bottom (constant height) for
 """
 
 import numpy as np
+import numpy.typing as npt
 
-from analysis.afm.recording import RecordedSegment, Recording, segment_times
+from analysis.afm.formats.recording import RecordedSegment, Recording, segment_times
 from solver.geometry import cell_radius, droplet
 
 RATE_HZ = 1000.0
 
 
-def droplet_force_nN(volume_um3, tension_mN_per_m, gap_um):
+def droplet_force_nN(volume_um3: float, tension_mN_per_m: float, gap_um: npt.ArrayLike) -> np.ndarray:
     """T · 2 H A_c (nN) at gaps h (µm) of the exact droplet; 0 where h ≥ 2R."""
     gap = np.asarray(gap_um, float)
     top = 2.0 * cell_radius(volume_um3)
@@ -38,9 +39,10 @@ def _segment(kind, x, t0, volume, tension, rng, *, k, baseline_nN, noise_nN, hei
     return RecordedSegment(kind, duration, segment_times(t0, duration, x.size), force, z)
 
 
-def droplet_recording(volume_um3: float, tension_mN_per_m: float, depth_um: float, *, cell_id="synthetic",
-                      n=1000, pause_n=500, above_um=2.0, spring_N_per_m=0.1, baseline_nN=0.0,
-                      noise_nN=0.02, height_noise_um=0.0, seed=0) -> Recording:
+def droplet_recording(volume_um3: float, tension_mN_per_m: float, depth_um: float, *, cell_id: str = "synthetic",
+                      n: int = 1000, pause_n: int = 500, above_um: float = 2.0, spring_N_per_m: float = 0.1,
+                      baseline_nN: float = 0.0, noise_nN: float = 0.02, height_noise_um: float = 0.0,
+                      seed: int = 0) -> Recording:
     """A `Recording` of approach (n samples), constant-height pause and retract on
     a tension-only droplet, compressed by `depth_um` from its free sphere."""
     rng = np.random.default_rng(seed)

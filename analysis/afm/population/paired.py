@@ -7,7 +7,7 @@ so the signs agree but the ranks of the differences need not), with the median
 difference of ν. A cell is its own control: what makes one cell stiffer than
 another at every frequency (and a measurement error a cell carries to all its
 frequencies, its height offset, its volume) cancels in the difference, which the
-unpaired Mann-Whitney test (`analysis.afm.population.summary`) cannot do.
+unpaired Mann-Whitney test (`analysis.afm.population.summary.summary`) cannot do.
 
 Cells at three or more frequencies: the Friedman test (`scipy.stats.friedmanchisquare`,
 ranks within each cell; the same for ν and ln K̃_S) on the set of ≥ 3 frequencies
@@ -15,6 +15,7 @@ with the most cells included at all of them (on a tie, the larger set).
 """
 
 import itertools
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -42,7 +43,7 @@ def paired_tests(table: pd.DataFrame) -> dict:
     """{"paired": {pair: {n_cells, wilcoxon_p, wilcoxon_p_ln_ks, median_diff_nu}}, "friedman_p",
     "friedman_n_cells", "friedman_frequencies_hz"} of a cells table (`analysis.afm.analyze`)."""
     nu, lks = _wide(table, "nu"), np.log(_wide(table, "ks_tilde"))
-    out = {"paired": {}}
+    out: dict[str, Any] = {"paired": {}}
     for a, b in itertools.combinations(sorted(nu.columns), 2):
         both = nu[[a, b]].dropna().index.intersection(lks[[a, b]].dropna().index)
         d_nu = (nu.loc[both, b] - nu.loc[both, a]).to_numpy(float)
@@ -56,7 +57,7 @@ def paired_tests(table: pd.DataFrame) -> dict:
 
 def friedman(wide: pd.DataFrame) -> dict:
     """The Friedman test of `wide` (cells x frequencies) on the best set of ≥ 3 frequencies."""
-    best = (0, ())
+    best: tuple[int, tuple[float, ...]] = (0, ())
     for k in range(3, wide.shape[1] + 1):
         for cols in itertools.combinations(sorted(wide.columns), k):
             n = int(wide[list(cols)].dropna().shape[0])

@@ -42,6 +42,7 @@ random sample of the population (the quality filters do not select on K̃_S).
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy import optimize, stats
 
 LEVEL = 0.95
@@ -118,7 +119,7 @@ def _ends(dev, centre, lo_bound, hi_bound):
     return float(lo), float(hi)
 
 
-def fit(y, s) -> Population:
+def fit(y: npt.NDArray[np.float64], s: npt.NDArray[np.float64]) -> Population:
     """The random-effects fit of ln K̃_S values `y` with measurement SDs `s` (same length;
     non-finite pairs are left out). NaN fields with fewer than 3 cells."""
     y, s = np.asarray(y, float), np.asarray(s, float)
@@ -127,7 +128,8 @@ def fit(y, s) -> Population:
     n = int(y.size)
     s_m = float(np.sqrt(np.mean(s2))) if n else float("nan")
     if n < 3:
-        return Population(n, *[float("nan")] * 6, s_m, *[float("nan")] * 3)
+        nan = float("nan")
+        return Population(n, nan, nan, nan, nan, nan, nan, s_m, nan, nan, nan)
     top = TAU_MAX_FACTOR * (float(np.std(y)) + float(np.sqrt(s2.max())) + 1e-12)
     tau, best_r = _argmax(lambda t: restricted_loglik(y, s2, t), top)
     tau_lo, tau_hi = _ends(lambda t: 2.0 * (best_r - restricted_loglik(y, s2, t)), tau, 0.0, top)

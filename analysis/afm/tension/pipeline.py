@@ -2,22 +2,23 @@
 
 read     every FILE on its own: an experiment (.h5/.hdf5) or single-cell CSV
          (heights are gaps, volumes their own), else an instrument file or a
-         folder of them through `jpk_import.read_recordings` (heights
-         x = z + F/k - Z, `jpk_import.wedge_height_um`, with Z the dish reference
-         when one is given), each recording with its volume (`--volume`,
-         `--volumes` via `jpk_import.read_volumes`, or `--radius-um` R: V = 4πR³/3);
+         folder of them through `formats.instruments.read_recordings`
+         (heights x = z + F/k - Z, `formats.instruments.wedge_height_um`, with
+         Z the dish reference when one is given), each recording with its
+         volume (`--volume`, `--volumes` via `formats.instruments.read_volumes`,
+         or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
-         fitted (`ramp_fit`: the selected model and, for comparison, the other
+         fitted (`ramp`: the selected model and, for comparison, the other
          one, each on its own automatic window; the interval from the volume
-         error, `tension.ramp_interval`), every pause's tension and pressure
-         (`tension.pause_tension`) from its force over its last half, above the
+         error, `pause.ramp_interval`), every pause's tension and pressure
+         (`pause.pause_tension`) from its force over its last half, above the
          first fitted ramp's free baseline (the median force of its first 30 %,
-         `ramp_fit.baseline_noise`: the deflection with nothing touching), at
+         `ramp.baseline_noise`: the deflection with nothing touching), at
          its height: the recorded gap where the dish is known (native files,
          `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
          ramp's contact x0, else the height channel (Z = 0);
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
-         recording (`tension_report`), report.md, which also lists what was not
+         recording (`report`), report.md, which also lists what was not
          analysed.
 
 A file or recording that cannot be read or analysed is set aside with its
@@ -25,24 +26,20 @@ reason; if nothing is left, the first reason is the InputError (exit status 2,
 nothing written); otherwise the command ends with status 1.
 """
 
-import re
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from analysis.afm.ramp_fit import MODELS, baseline_noise, fit_ramp, force_per_tension_um
-from analysis.afm.tension import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
+from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from common.errors import InputError
 from solver.geometry import cell_radius
 
 NATIVE = (".h5", ".hdf5", ".csv")
-TABLE, REPORT = "tension.csv", "report.md"
-COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
-           "tension_hi95_mN_per_m", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
-           "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
-           "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
-           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
 
 
 @dataclass(frozen=True)
@@ -72,16 +69,6 @@ class Trace:
     dish_known: bool
 
 
-@dataclass
-class Analysed:
-    """The rows of one recording and what its figure shows: per part (kind, x or t,
-    F, fit, comparison fit) and the cell's radius."""
-
-    rows: list
-    plots: list = field(default_factory=list)
-    radius_um: float = float("nan")
-
-
 def _volume(cell_id, options, table):
     """(V, how it was obtained) for one recording from the options."""
     if table is not None:
@@ -103,10 +90,10 @@ def _native(path, options):
         raise InputError(f"{path}: --volume(s), --radius-um, --dish-* and --spring-constant apply to instrument "
                          "files only; the experiment and CSV formats carry their own volumes and heights")
     if path.suffix.lower() == ".csv":
-        from analysis.afm.csvformat import read_csv_cell
+        from analysis.afm.formats.csvcell import read_csv_cell
         cells = [read_csv_cell(path)]
     else:
-        from analysis.afm.h5format import read_experiment
+        from analysis.afm.formats.h5 import read_experiment
         cells = read_experiment(path)
     return [Trace(c.cell_id, str(path), c.volume_um3, c.volume_source,
                   [(i, s.kind, c.time_s[s.start:s.stop], c.force_nN[s.start:s.stop], c.height_um[s.start:s.stop])
@@ -114,8 +101,8 @@ def _native(path, options):
 
 
 def _instrument(path, options, table, dish):
-    """Traces of instrument files (`jpk_import.read_recordings`): x = z + F/k - Z."""
-    from analysis.afm.jpk_import import read_recordings, wedge_height_um
+    """Traces of instrument files (`formats.instruments.read_recordings`): x = z + F/k - Z."""
+    from analysis.afm.formats.instruments import read_recordings, wedge_height_um
     out = []
     for r in read_recordings([path], options.spring_constant_N_per_m):
         volume, how = _volume(r.cell_id, options, table)
@@ -125,7 +112,7 @@ def _instrument(path, options, table, dish):
     return out
 
 
-def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
+def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
     """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
     instrument readers (and pandas) are imported only for what needs them."""
     if options.model not in MODELS:
@@ -136,10 +123,10 @@ def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
             raise InputError(f"{name} must be a positive number (got {value})")
     table, dish = None, options.dish_um
     if options.volumes_csv is not None:
-        from analysis.afm.jpk_import import read_volumes
+        from analysis.afm.formats.instruments import read_volumes
         table = read_volumes(options.volumes_csv)
     if options.dish_curve is not None:
-        from analysis.afm.jpk_import import dish_from_curve
+        from analysis.afm.formats.instruments import dish_from_curve
         dish = dish_from_curve(options.dish_curve)
     traces, skipped = [], {}
     for p in map(Path, paths):
@@ -148,7 +135,7 @@ def read(paths: list, options: Options) -> tuple[list[Trace], dict[str, str]]:
                 _instrument(p, options, table, dish)
         except InputError as err:
             skipped[str(p)] = str(err) if str(p) in str(err) else f"{p}: {err}"
-    seen = {}
+    seen: dict[str, str] = {}
     for t in traces:
         if t.cell_id in seen:
             raise InputError(f"cell id '{t.cell_id}' twice ({seen[t.cell_id]} and {t.source})")
@@ -230,20 +217,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
-def file_names(cell_ids) -> dict[str, str]:
-    """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
-    [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
-    names, taken = {}, set()
-    for cell_id in cell_ids:
-        stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
-        while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
-            n += 1
-        names[cell_id] = name
-        taken.add(name)
-    return names
-
-
-def run(paths: list, options: Options = Options(), out: str | Path | None = None) -> dict:
+def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
     (exit 2, nothing written) when nothing could be analysed."""
@@ -264,6 +238,5 @@ def run(paths: list, options: Options = Options(), out: str | Path | None = None
     rows = [r for a in done.values() for r in a.rows]
     table = report = None
     if folder is not None:
-        from analysis.afm.tension_report import write
-        table, report = write(folder, rows, done, skipped, options)
+        table, report = write(folder, rows, done, skipped, options.model, options.errors)
     return {"rows": rows, "skipped": skipped, "table": table, "report": report}

@@ -25,7 +25,7 @@ approach segments, where the wedge rests on the dish; without either, Z = 0
 (the height channel already measured from the dish). On the real files the
 force rises as z falls in every approach segment (a test checks it), so z
 grows away from the dish. A NanoScope height is the piezo's travel from an
-arbitrary origin (`analysis/afm/bruker.py`): its cell heights need Z.
+arbitrary origin (`analysis/afm/formats/bruker/nanoscope.py`): its cell heights need Z.
 
 Volumes: one value for every cell, or a table (CSV with columns `cell_id`,
 `volume_um3`, or `equator_radius_um` with `imaged_height_um` (the volume of
@@ -36,14 +36,16 @@ without a volume is an error. Segment kinds: approach, pause and retract are kep
 `modulation` is the native `oscillation`, with its frequency and amplitude.
 """
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.jpk_archive import SUFFIXES, read_archive
-from analysis.afm.recording import Recording
+from analysis.afm.formats.jpk.archive import SUFFIXES, read_archive
+from analysis.afm.formats.recording import RecordedSegment, Recording
 from common.errors import InputError
 
 TEXT_SUFFIXES = (".txt", ".txt.gz")
@@ -53,7 +55,7 @@ NAMES = "JPK (.txt, .txt.gz, " + ", ".join(SUFFIXES) + ") or Bruker NanoScope (.
 
 def _name_kind(path):
     """'archive', 'text' or 'nanoscope' by the file's name; None for any other name."""
-    from analysis.afm.bruker import is_nanoscope_name
+    from analysis.afm.formats.bruker.nanoscope import is_nanoscope_name
     name = Path(path).name.lower()
     if name.endswith(SUFFIXES):
         return "archive"
@@ -73,7 +75,7 @@ def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) ->
     file's first bytes (NanoScope header, JPK `#` header lines, else a
     NanoScope Analysis export); `spring_constant_N_per_m` (N/m) serves the
     exports that hold none (NanoScope Analysis)."""
-    from analysis.afm.textfiles import head
+    from analysis.afm.formats.textfiles import head
     path = Path(path)
     kind = _name_kind(path)
     if kind is None:
@@ -84,16 +86,16 @@ def read_file(path: str | Path, spring_constant_N_per_m: float | None = None) ->
         return read_archive(path)
     start = head(path, 4096)
     if start.startswith(b"\\*") or kind == "nanoscope":          # a NanoScope header: \*Force file list
-        from analysis.afm.bruker import read_nanoscope
+        from analysis.afm.formats.bruker.nanoscope import read_nanoscope
         return [read_nanoscope(path)]
     if start.lstrip().startswith(b"#"):
-        from analysis.afm.jpk import read_jpk_recording
+        from analysis.afm.formats.jpk.text import read_jpk_recording
         return [read_jpk_recording(path)]
-    from analysis.afm.bruker_text import read_nanoscope_text
+    from analysis.afm.formats.bruker.text import read_nanoscope_text
     return [read_nanoscope_text(path, spring_constant_N_per_m)]
 
 
-def read_recordings(paths: list, spring_constant_N_per_m: float | None = None) -> list[Recording]:
+def read_recordings(paths: Sequence[str | Path], spring_constant_N_per_m: float | None = None) -> list[Recording]:
     """Every recording of `paths` (files, or folders of them: not recursive), cell ids unique.
     The first file that cannot be read stops it (InputError, one line)."""
     recs = []
@@ -108,7 +110,7 @@ def read_recordings(paths: list, spring_constant_N_per_m: float | None = None) -
             raise InputError(f"{p}: no such file or folder")
         else:
             recs += read_file(p, spring_constant_N_per_m)
-    seen = {}
+    seen: dict[str, str] = {}
     for r in recs:
         if r.cell_id in seen:
             raise InputError(f"cell id '{r.cell_id}' twice ({seen[r.cell_id]} and {r.source})")
@@ -174,17 +176,17 @@ def read_volumes(path: str | Path) -> dict[str, tuple[float, str]]:
     return table
 
 
-def wedge_height_um(segment, spring_constant_N_per_m):
+def wedge_height_um(segment: RecordedSegment, spring_constant_N_per_m: float) -> npt.NDArray[np.float64]:
     """z + F/k (µm) of every sample: the height of the (bent) cantilever's wedge."""
     return segment.height_um + 1e-3 * segment.force_nN / spring_constant_N_per_m
 
 
-def dish_from_curve(path):
+def dish_from_curve(path: str | Path) -> float:
     """Z (µm) from a force curve on the bare dish: z + F/k where its approach force is largest."""
-    rec = read_recordings([path])
-    if len(rec) != 1:
-        raise InputError(f"{path}: a dish curve must hold one recording (has {len(rec)})")
-    rec = rec[0]
+    recs = read_recordings([path])
+    if len(recs) != 1:
+        raise InputError(f"{path}: a dish curve must hold one recording (has {len(recs)})")
+    rec = recs[0]
     app = [s for s in rec.segments if s.kind == "approach" and s.n_samples]
     if not app:
         raise InputError(f"{path}: dish curve without an approach segment")
@@ -193,7 +195,7 @@ def dish_from_curve(path):
     return float(wedge_height_um(best, rec.spring_constant_N_per_m)[i])
 
 
-def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
+def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: float = 0.0) -> Cell:
     """One recording as a native `Cell` (h = z + F/k - Z), validated."""
     segs, parts, n0 = [], [], 0
     for s in rec.segments:
@@ -218,8 +220,9 @@ def to_cell(rec, volume_um3, volume_source, dish_um=0.0):
     return cell.validate(f"{rec.source}: ")
 
 
-def import_cells(paths, volume_um3=None, volumes_csv=None, dish_um=None, dish_curve=None,
-                 spring_constant_N_per_m=None):
+def import_cells(paths: Sequence[str | Path], volume_um3: float | None = None, volumes_csv: str | Path | None = None,
+                 dish_um: float | None = None, dish_curve: str | Path | None = None,
+                 spring_constant_N_per_m: float | None = None) -> tuple[list[Recording], list[Cell]]:
     """(recordings, cells) of instrument files, every cell with its volume and height."""
     recs = read_recordings(paths, spring_constant_N_per_m)
     if dish_curve is not None:
