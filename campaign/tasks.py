@@ -134,13 +134,10 @@ def warm_up(campaign):
         if fault:
             faults.prepare(fault, shell)
             return
-        import importlib
-        from solver.compression import METHODS
+        from solver.compression import warm_up as warm_up_solver
         from solver.geometry import droplet
-        solver = importlib.import_module(METHODS[campaign.method])
         droplet(shell.volume_um3, shell.h1_um)
-        if hasattr(solver, "warm_up"):     # a solver's own (the fast one's: its first compression)
-            solver.warm_up(shell)
+        warm_up_solver(shell, campaign.method)     # a solver's own (the fast one's: its first compression)
     except Exception:  # noqa: BLE001  (the task reports it, with its message)
         pass
 

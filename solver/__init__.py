@@ -15,7 +15,16 @@ Public API (imported on first use):
   `common.errors`.
 """
 
+from typing import TYPE_CHECKING
+
 from common.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:     # what editors and the type checker see; at run time each is imported on first use
+    from common.errors import InputError, SolverError, WriteError
+    from solver.compression import METHODS, Compression, compress
+    from solver.geometry import Droplet, cell_radius, droplet, profile, sphere_height
+    from solver.model import BENDING_VARIANTS, Shell
+    from solver.modulus import effective_modulus
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "droplet": "solver.geometry", "Droplet": "solver.geometry", "cell_radius": "solver.geometry",

@@ -179,7 +179,7 @@ def compress(args):
     return 0
 
 
-def _loss_angles(args):
+def _loss_angles(args) -> tuple[float, float] | None:
     """(δ_B, δ_S) of a viscoelastic compression, or None; InputError if incomplete."""
     from common.errors import InputError
     from solver.model import check_viscous_inputs

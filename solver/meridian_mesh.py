@@ -3,7 +3,7 @@
 The domain (upper half, z ≥ 0, by mirror symmetry) is bounded by the axis
 r = 0, the mid-plane z = 0 and the shell's meridian: a polyline from the pole
 (0, z_p) on the axis to the equator (R, 0) on the mid-plane, given node by node
-(`solver.fast_energy` order). Every polyline node is a mesh vertex and every
+(`solver.fast.lagrangian` order). Every polyline node is a mesh vertex and every
 polyline segment a mesh edge, so the mesh's boundary *is* the shell polygon:
 a field that is linear on each segment (the shell's own interpolation) has
 exactly the polygon's volume flux.

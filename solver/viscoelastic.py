@@ -49,9 +49,9 @@ from functools import lru_cache
 import numpy as np
 
 from common.errors import InputError
-from solver.fast_energy import Lagrangian
+from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
-from solver.viscous import full_hessian, hold_label, linearise, prepare, respond
+from solver.viscous import Linearised, full_hessian, hold_label, linearise, prepare, respond
 
 MODULI = ("bulk", "shear", "bending")     # the parts of H weighted by K_B, K_S and B
 RELAX_UM = 1e-3       # the relaxed state at h_m: compressed this far from a droplet at h_m + RELAX_UM
@@ -69,7 +69,7 @@ def relaxed(shell: Shell) -> Shell:
 class Parts:
     """The linearised shell and its Hessian's parts per unit K_B, K_S and B."""
 
-    lin: object
+    lin: Linearised
     parts: dict                 # MODULI -> (n+1, n+1) array
     moduli: dict                # MODULI -> the real value (mN/m, mN/m, mN/m·µm²)
 

@@ -7,7 +7,7 @@ h_m = h0 - Δh/2 (the shell compressed from its stress-free droplet at h0;
 unknown responds at ω; inertia is dropped (Reynolds number ~1e-7).
 
 Shell (generalised coordinates q = (u, z_p), u = node positions, contact
-label l, pressure p; `solver.fast_energy`): the linearised balance of the
+label l, pressure p; `solver.fast.lagrangian`): the linearised balance of the
 elastic forces and the fluid's
 
     H_uu δu + H_u,zp δz_p + G_uᵀ R(iω G δq) = 0,
@@ -41,12 +41,14 @@ equals the mean dissipation (1/2) ∫ 2η ê:ê* dV.
 import time
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from scipy.sparse import coo_matrix, csc_matrix
 
 from common.errors import SolverError
 from solver.fast import contact_at_least, equilibrium
+from solver.fast.lagrangian import Lagrangian
 from solver.geometry import droplet
 from solver.model import check_viscous_inputs
 from solver.stokes import Interior
@@ -61,15 +63,15 @@ H_MAX = 0.5             # µm, largest element of the fluid mesh
 class Linearised:
     """The shell's equilibrium at h_m and its linearisation."""
 
-    lag: object
+    lag: Lagrangian
     u: np.ndarray
     zp: float
     H: np.ndarray        # (n+1, n+1) Hessian in q = (u, z_p)
     force_nN: float      # F_0 at h_m
     h_mean_um: float
-    G: object = None     # q -> fluid boundary displacements (`prepare`)
-    D: np.ndarray = None  # Gᵀ R_1 G: the fluid condensed onto q, per unit η (Pa·µm²/µm)
-    shell: object = None
+    G: Any = None        # q -> fluid boundary displacements (`prepare`)
+    D: Any = None        # Gᵀ R_1 G: the fluid condensed onto q, per unit η (Pa·µm²/µm), an array once set
+    shell: Any = None    # the `Shell`, once `prepare` or `solver.viscoelastic` set it
     held: bool = False   # whether the contact label l is held (a gauge, or at its bound)
 
 
