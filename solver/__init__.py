@@ -8,8 +8,8 @@ Public API (imported on first use):
 - `Shell(...)`: one compression's parameters (SPEC 2); `BENDING_VARIANTS`
   (name -> factor on B).
 - `compress(shell, method)` -> `Compression` (force, K, stretches); `METHODS`,
-  the solver names (`--solver` on the command line, `[solver] method` in a
-  campaign file).
+  the solvers by name (`--solver` on the command line, `[solver] method` in a
+  campaign file): `solver/fast/` and `solver/explicit/`.
 - `effective_modulus(V, h0, h1, gamma_a, F)`: SPEC 3.
 - `InputError`, `SolverError`, `WriteError` and the `EXIT_*` statuses live in
   `common.errors`.
