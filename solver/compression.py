@@ -47,8 +47,13 @@ def warm_up_fast(shell: Shell) -> None:
     warm_up(shell)
 
 
+def warm_up_explicit(shell: Shell) -> None:
+    """`solver.explicit` imported: it has no warm-up of its own (a solve takes minutes)."""
+    import solver.explicit  # noqa: F401
+
+
 METHODS: dict[str, Callable[[Shell], Solution]] = dict(zip(SOLVERS, (solve_fast, solve_explicit)))
-WARM_UPS: dict[str, Callable[[Shell], None]] = {"fast": warm_up_fast}   # the solvers that have one
+WARM_UPS: dict[str, Callable[[Shell], None]] = dict(zip(SOLVERS, (warm_up_fast, warm_up_explicit)))
 
 
 @dataclass
@@ -101,8 +106,7 @@ def compress(shell: Shell, method: str = "fast") -> Compression:
 
 
 def warm_up(shell: Shell, method: str) -> None:
-    """Load what `method`'s solver compiles before the first timed compression,
-    where the solver has a warm-up (`WARM_UPS`; the fast one solves `shell`
-    once and throws the result away)."""
-    if method in WARM_UPS:
-        WARM_UPS[method](shell)
+    """Import `method`'s solver and load what it compiles before the first
+    timed compression (`WARM_UPS`: the fast solver solves `shell` once and
+    throws the result away)."""
+    WARM_UPS[method](shell)
