@@ -19,11 +19,8 @@ it), and that is the answer. Each new label starts from the last
 equilibrium moved along its tangent dx/dl (kept only if that leaves the
 admissible shapes).
 
-The loop was `solver.fast`'s Python until it was compiled here whole: the
-same operations in the same order, except h_xl · dx/dl, summed in index
-order (numpy's dot groups it differently), so a solution agrees with the
-Python loop's to round-off (the Newton iterations are the same). `contact`
-returns a status; `solver.fast` turns it into the same errors as before.
+The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
+returns a status, which `solver.fast` turns into its errors.
 """
 
 import numpy as np
