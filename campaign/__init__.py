@@ -18,6 +18,6 @@ from common.lazy_exports import lazy_exports
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "load_config": "campaign.config:load", "Campaign": "campaign.config",
     "run": "campaign.scheduler",
-    "read_results": "campaign.reader", "read_trials": "campaign.reader", "summary": "campaign.reader",
-    "read_provenance": "campaign.reader",
+    "read_results": "campaign.store.reader", "read_trials": "campaign.store.reader", "summary": "campaign.store.reader",
+    "read_provenance": "campaign.store.reader",
 })

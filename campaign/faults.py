@@ -43,7 +43,7 @@ import signal
 import time
 from dataclasses import dataclass, field
 
-from campaign.schema import RESULTS
+from campaign.store.schema import RESULTS
 from common.errors import InputError
 
 FAULTS = ("raise", "hang", "nan", "segv", "spin", "memory", "noop", "fake_law")
@@ -197,6 +197,6 @@ def kill_mid_write(store, entry):
         return
     store.flush(rows=True)                 # written, then killed: the replay must not redo it
     if "row" in entry:
-        from campaign.schema import DONE
+        from campaign.store.schema import DONE
         store.file["state"][entry["row"]] = DONE
     os.kill(os.getpid(), signal.SIGKILL)

@@ -24,7 +24,7 @@ and rank 0's flag is the one read): no new tasks are handed out, the batches
 in flight finish and are written (a batch holds a worker for at most about
 `policy.BATCH_S`), and the run stops saying how to resume (exit status 3).
 
-On the mpio write path (`campaign.mpio_writer`) a worker also keeps its entries and
+On the mpio write path (`campaign.store.mpio_writer`) a worker also keeps its entries and
 writes their rows when rank 0, after each fsync of the journal, tells it how
 many of its entries the journal holds (TAG_WRITE; the final count comes with
 TAG_STOP, before every rank closes the file together).
@@ -41,9 +41,7 @@ from campaign.policy import Policy, master_may_compute
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
 from campaign import faults
-from campaign.mpio_writer import Writer, open_parallel, write_path
-from campaign.schema import DONE, FAILED, PENDING
-from campaign.store import Store
+from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 from campaign.isolation import Isolated, memory_share_mb
 from campaign.trial_inputs import TrialInputs
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
@@ -59,7 +57,7 @@ NAP_S = (2e-5, 0.001)   # s: ... its first and its longest nap (each nap twice t
 
 def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
     """Run or resume `campaign` into `store_path` with the write path `writes`
-    (auto, mpio or rank0; `campaign.mpio_writer.write_path`); returns the exit status:
+    (auto, mpio or rank0; `campaign.store.mpio_writer.write_path`); returns the exit status:
     0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume).
     Bad input and a failed write (disk full) are raised on rank 0 (the command
     line says why, status 2 or 5); the other ranks return that status quietly.

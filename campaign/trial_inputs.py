@@ -5,7 +5,7 @@ compression that is not done. Workers never read the store."""
 
 import numpy as np
 
-from campaign.schema import DONE, FAILED, PENDING, STATES
+from campaign.store import DONE, FAILED, PENDING, STATES
 
 
 class TrialInputs:

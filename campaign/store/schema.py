@@ -11,7 +11,7 @@ The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
 row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with
 the per-trial columns TRIAL_PER_CELL and (trial, height) arrays
 TRIAL_PER_HEIGHT; their union, in that order, is TRIAL_COLUMNS, the long
-table `campaign.reader.read_trials` returns. The schema imports no physics,
+table `campaign.store.reader.read_trials` returns. The schema imports no physics,
 so the readers (and `cortex campaign status`) load neither numba nor the solver.
 """
 

@@ -19,10 +19,10 @@ import time
 
 import numpy as np
 
-from campaign import journal
-from campaign.rows import runs, trial_columns
-from campaign.schema import DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT
-from campaign.store_files import open_read
+from campaign.store import journal
+from campaign.store.rows import runs, trial_columns
+from campaign.store.schema import DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT
+from campaign.store.files import open_read
 from common.errors import InputError
 
 _OVERLAY = {"state": "state", "attempts": "attempts", "rank": "rank", "error": "error",
@@ -135,7 +135,7 @@ def _trial_arrays(path):
 
 def read_trials(path):
     """Monte-Carlo trial curves, long format: one row per trial and height with
-    the columns TRIAL_COLUMNS (`campaign.schema`), then `error` and `attempts`
+    the columns TRIAL_COLUMNS (`campaign.store.schema`), then `error` and `attempts`
     (how often its study ran); empty, with those columns, for a store without
     trials. Values of trials not done are NaN."""
     import pandas as pd

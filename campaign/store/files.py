@@ -8,8 +8,8 @@ or one a kill left unreadable with our journal and lock beside it.
 import os
 import shutil
 
-from campaign import journal
-from campaign.schema import FORMAT
+from campaign.store import journal
+from campaign.store.schema import FORMAT
 from outputs.ownership import check_file, hdf5_format
 from common.errors import InputError
 

@@ -32,7 +32,7 @@ import zlib
 
 import numpy as np
 
-from campaign.schema import RESULTS, STATES, results_table
+from campaign.store.schema import RESULTS, STATES, results_table
 
 MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")

@@ -10,7 +10,7 @@ them its fsync'd journal holds (`Writer.written_upto`), so rows still follow
 the journal.
 """
 
-from campaign.rows import write_entries
+from campaign.store.rows import write_entries
 from common.errors import InputError
 
 

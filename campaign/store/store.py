@@ -1,19 +1,19 @@
 """The campaign store: rank 0's view of one HDF5 file and its journal.
 
-The file holds one row per task (`campaign.schema`); its attributes keep
+The file holds one row per task (`campaign.store.schema`); its attributes keep
 the campaign file's text, its fingerprint, the code and library versions,
-host and ranks (`campaign.provenance`). Monte-Carlo trials live in the group
+host and ranks (`campaign.store.provenance`). Monte-Carlo trials live in the group
 `trials`; its attribute `trials_fingerprint` identifies them: a store made
 without trials gains them when the campaign file gets a [montecarlo]
 section (its compressions kept); one with other trials is refused.
 
 Kill safety: finished tasks are kept in memory (`record`) and, once per
 batch (`flush`) or every 64 KiB of entries, appended to `STORE.journal` as
-one record (`campaign.journal`), which a killed process cannot lose (the
+one record (`campaign.store.journal`), which a killed process cannot lose (the
 operating system holds it). Rows follow at most once per ROWS_S on the
 rank0 path (at every flush on the mpio path): the journal is fsync'd, and
 only then are the rows of every entry since the last row write written
-(`campaign.rows`) and the file flushed, after which its attribute
+(`campaign.store.rows`) and the file flushed, after which its attribute
 `journal_bytes` says how much of the journal the rows hold. So the rows
 never hold what the durable journal does not; a crash of the machine itself
 can lose at most the last ROWS_S of finished tasks, which the rerun redoes;
@@ -25,16 +25,16 @@ remaining tasks and ends with the same rows as an uninterrupted run. A lock
 file refuses a second run on the same store.
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
-(`campaign.store_files`). A full disk never reaches HDF5 while it grows the
+(`campaign.store.files`). A full disk never reaches HDF5 while it grows the
 file (HDF5 then crashes): new files are built in memory and written by
 Python, growth waits for `ensure_room`, rows are written in place
 (`outputs.writing`); a failed journal write is a WriteError naming the
 journal, and `abort` closes without writing more.
 
-On the mpio path (`campaign.mpio_writer`) rank 0's rows are its own tasks';
+On the mpio path (`campaign.store.mpio_writer`) rank 0's rows are its own tasks';
 the workers write theirs once told the journal holds them; `journal_bytes`
 is set when the run closes. What analysis and `campaign status` read is in
-`campaign.reader`.
+`campaign.store.reader`.
 """
 
 import contextlib
@@ -45,10 +45,10 @@ import time
 
 import numpy as np
 
-from campaign import journal, provenance, schema
-from campaign.rows import put, write_entries
-from campaign.schema import PENDING, RUNNING
-from campaign.store_files import check_store_path, open_read, set_aside
+from campaign.store import journal, provenance, schema
+from campaign.store.rows import put, write_entries
+from campaign.store.schema import PENDING, RUNNING
+from campaign.store.files import check_store_path, open_read, set_aside
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
 from common.errors import InputError
 

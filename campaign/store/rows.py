@@ -10,7 +10,7 @@ last entry of a row wins.
 
 import numpy as np
 
-from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
+from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
 
 RUNS_MAX = 16       # rank0 path: more runs of consecutive rows than this are written as one scattered write
 
