@@ -13,11 +13,18 @@ Public API (imported on first use):
   `read_provenance(store)`: what made it.
 """
 
+from typing import TYPE_CHECKING
+
 from common.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:
+    from campaign.config import Campaign, load as load_config
+    from campaign.scheduler import run
+    from campaign.store.reader import read_provenance, read_results, read_trials, summary
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "load_config": "campaign.config:load", "Campaign": "campaign.config",
     "run": "campaign.scheduler",
-    "read_results": "campaign.store.reader", "read_trials": "campaign.store.reader", "summary": "campaign.store.reader",
-    "read_provenance": "campaign.store.reader",
+    "read_results": "campaign.store.reader", "read_trials": "campaign.store.reader",
+    "summary": "campaign.store.reader", "read_provenance": "campaign.store.reader",
 })

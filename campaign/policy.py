@@ -7,7 +7,7 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   others (grid order within each group); a Monte-Carlo trial task joins the
   queue once every compression it uses has finished (`finished`), behind the
   compressions still queued, so the short tasks come last and even out the
-  ranks' ends. Tasks are numbered: compressions 0..n-1, trial task j is n + j.
+  ranks' ends. A task is its number (`campaign.task_key.TaskNumbers`).
 - **Batch size** (tasks per message). With `W` workers, `R` ranks
   computing, `M` tasks queued, `T̄` the running mean task time and `c̄` rank
   0's running mean cost of serving one result message (receiving it,
@@ -43,6 +43,9 @@ Times are in seconds.
 
 import math
 from collections import deque
+from collections.abc import Iterable, Mapping
+
+from campaign.task_key import TRIAL, TaskKey, TaskNumbers
 
 AHEAD = 4                 # tasks a worker holds at least: outlasts one of rank 0's own tasks
 BATCH_S = 0.2             # s: the work in one batch, unless rank 0's load needs more ...
@@ -69,42 +72,46 @@ class Policy:
     """The queue of tasks to hand out and the rules above.
 
     `rows`: compressions to do (grid indices, any order); `waits`: per trial
-    task to do (its number j), the compressions it uses (grid indices; those
-    not in `rows` are done already); `n`: compressions in the grid; `workers`:
-    ranks other than 0."""
+    task to do (its study's place j), the compressions it uses (grid indices;
+    those not in `rows` are done already); `n`: compressions in the grid;
+    `workers`: ranks other than 0. The queue, `waiting` and `dependents` hold
+    task numbers."""
 
-    def __init__(self, rows, waits, n, workers):
-        self.n, self.workers = n, workers
-        self.task_s, self.cost_s = None, None
-        pending = set(rows)
-        self.waiting, self.dependents = {}, {}
+    def __init__(self, rows: Iterable[int], waits: Mapping[int, Iterable[int]], n: int, workers: int):
+        numbers, self.workers = TaskNumbers(n), workers
+        self.task_s: float | None = None
+        self.cost_s: float | None = None
+        pending = set(numbers.of_compressions(rows))
+        self.waiting: dict[int, int] = {}            # trial task -> compressions it still waits for
+        self.dependents: dict[int, list[int]] = {}   # compression -> trial tasks waiting for it
         for j, deps in waits.items():
-            deps = sorted(set(deps) & pending)
-            self.waiting[j] = len(deps)
-            for r in deps:
-                self.dependents.setdefault(r, []).append(j)
+            trial = numbers.number(TaskKey(TRIAL, j))
+            used = sorted(set(numbers.of_compressions(deps)) & pending)
+            self.waiting[trial] = len(used)
+            for r in used:
+                self.dependents.setdefault(r, []).append(trial)
         first = sorted(r for r in pending if r in self.dependents)
         self.todo = deque(first + sorted(pending - set(first)))
         self.todo.extend(self._ready())
 
-    def _ready(self):
-        """Trial tasks with nothing left to wait for (task numbers), no longer waiting."""
-        ready = [j for j, w in self.waiting.items() if w == 0]
-        for j in ready:
-            del self.waiting[j]
-        return [self.n + j for j in sorted(ready)]
+    def _ready(self) -> list[int]:
+        """Trial tasks with nothing left to wait for, no longer waiting."""
+        ready = sorted(t for t, w in self.waiting.items() if w == 0)
+        for t in ready:
+            del self.waiting[t]
+        return ready
 
-    def finished(self, task):
-        """Task `task` has finished (done or failed): the trial tasks it made ready join the queue."""
-        if task < self.n:
-            ready = []
-            for j in self.dependents.pop(task, []):
-                self.waiting[j] -= 1
-                if self.waiting[j] == 0:          # only these can have become ready
-                    ready.append(j)
-            for j in sorted(ready):
-                del self.waiting[j]
-                self.todo.append(self.n + j)
+    def finished(self, task: int) -> None:
+        """Task `task` has finished (done or failed): the trial tasks it made ready
+        join the queue (only compressions have trial tasks waiting for them)."""
+        ready = []
+        for t in self.dependents.pop(task, []):
+            self.waiting[t] -= 1
+            if self.waiting[t] == 0:          # only these can have become ready
+                ready.append(t)
+        for t in sorted(ready):
+            del self.waiting[t]
+            self.todo.append(t)
 
     def timed(self, tasks, seconds):
         """`tasks` tasks took `seconds` of computing."""
@@ -118,7 +125,7 @@ class Policy:
 
     def _nominal_batch(self):
         """b without the guided term (module docstring)."""
-        T = max(self.task_s, 1e-9)
+        T = max(self.task_s or 0.0, 1e-9)         # timed before it is asked for
         by_time = math.floor(BATCH_S / T)
         by_load = math.ceil(self.workers * (self.cost_s or 0.0) / (MASTER_LOAD_MAX * T))
         return max(1, min(max(by_time, by_load), math.floor(BATCH_S_MAX / T), BATCH_MAX))

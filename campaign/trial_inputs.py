@@ -19,7 +19,7 @@ class TrialInputs:
         self.todo = [j for j in range(len(self.studies)) if redo[j].any()]
         self.done0 = int(np.sum((state == DONE).all(axis=1))) if len(self.studies) else 0
         self.attempts = store.trial_attempts()
-        self.force, self.state, self.error = store.compressions() if self.studies else (None, None, None)
+        self.force, self.state, self.error = store.compressions() if self.studies else (np.zeros(0), np.zeros(0), [])
 
     def waits(self):
         """Per trial task to do: the compressions (grid indices) it uses."""
