@@ -56,6 +56,6 @@ def journal_counts(store):
     """(compression entries, trial-task entries) in the journal of `store`
     as it is on disk now (0, 0 before it exists)."""
     from campaign.store import journal
-    entries = journal.read(f"{store}.journal")
-    trials = sum(1 for e in entries if "task" in e)
-    return len(entries) - trials, trials
+    from campaign.task_key import split
+    compressions, trials = split(journal.read(f"{store}.journal"))
+    return len(compressions), len(trials)
