@@ -12,7 +12,7 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from campaign.config import Campaign
+    from campaign.store.schema import StoredCampaign
 
 DISTRIBUTION = "cortex-poisson"     # pyproject.toml's [project] name
 
@@ -40,7 +40,7 @@ def _now():
     return time.strftime("%Y-%m-%dT%H:%M:%S")
 
 
-def store_attrs(campaign: Campaign, ranks: int) -> dict[str, Any]:
+def store_attrs(campaign: StoredCampaign, ranks: int) -> dict[str, Any]:
     """The attributes a new store is created with."""
     return {"fingerprint": campaign.fingerprint, "trials_fingerprint": campaign.trials_fingerprint,
             "config_text": campaign.text, "name": campaign.name, "method": campaign.method,

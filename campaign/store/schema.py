@@ -23,7 +23,7 @@ import math
 import operator
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -31,8 +31,8 @@ import numpy.typing as npt
 if TYPE_CHECKING:
     import h5py
 
-    from campaign.config import Campaign
     from campaign.grid import Grid
+    from campaign.trials import Study
     from solver.model import Shell
 
 FORMAT = "cortex-campaign-store"    # the file's `format` attribute: what says a file is ours
@@ -62,6 +62,28 @@ TRIAL_PER_CELL = ("trial_id", "state", "nu_true", "bending", "height_error_mode"
 TRIAL_PER_HEIGHT = ("h0_true_um", "h0_used_um", "h1_used_um", "h_tilde", "modulus_mN_per_m",
                     "gamma_eff_mN_per_m", "tension_seen_mN_per_m")
 TRIAL_COLUMNS = TRIAL_PER_CELL + TRIAL_PER_HEIGHT
+
+
+class StoredCampaign(Protocol):
+    """What the store reads of a campaign (`campaign.config.Campaign`): its
+    grid and trial tasks to lay out, its text and fingerprints to keep."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def text(self) -> str: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def shells(self) -> Grid: ...
+    @property
+    def studies(self) -> tuple[Study, ...]: ...
+    @property
+    def trial_cells(self) -> int: ...
+    @property
+    def fingerprint(self) -> str: ...
+    @property
+    def trials_fingerprint(self) -> str: ...
 
 
 _SORTED_JSON = json.JSONEncoder(sort_keys=True)    # json.dumps(..., sort_keys=True) without making one per call
@@ -134,7 +156,7 @@ def _bookkeeping(g, n):
     g.create_dataset("error", data=np.zeros(n, error_dtype()), dtype=error_dtype())
 
 
-def fill(f: h5py.File, campaign: Campaign, attrs: Mapping[str, Any]) -> None:
+def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> None:
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
@@ -152,7 +174,7 @@ def fill(f: h5py.File, campaign: Campaign, attrs: Mapping[str, Any]) -> None:
     f.attrs.update(attrs, format=FORMAT)
 
 
-def fill_trials(g: h5py.Group, campaign: Campaign) -> None:
+def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:
     """One row per trial: study j's cells are rows j N .. j N + N - 1."""
     import h5py
     studies, N = campaign.studies, campaign.trial_cells

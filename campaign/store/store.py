@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING
 
 from campaign.store import journal, provenance, schema
 from campaign.store.rows import put, write_entries
-from campaign.store.schema import PENDING, RUNNING, trial_rows
+from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
 from campaign.store.files import check_store_path, open_read, set_aside
 from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
@@ -61,8 +61,6 @@ from common.errors import InputError
 
 if TYPE_CHECKING:
     import h5py
-
-    from campaign.config import Campaign
 
 ROWS_S = 1.0    # s: on the rank0 path the journal is fsync'd and rows written at most this often (an
                 # HDF5 write per column costs ~0.3 ms, an fsync ~1 ms: per batch of a few tasks that was
@@ -75,7 +73,7 @@ class Store:
     `on_record(store, entry)`, if given, is called after each `record`
     (the fault injection of `campaign.faults` uses it)."""
 
-    def __init__(self, path: str | os.PathLike[str], campaign: Campaign, new: bool = False, ranks: int = 1,
+    def __init__(self, path: str | os.PathLike[str], campaign: StoredCampaign, new: bool = False, ranks: int = 1,
                  parallel: bool = False, on_record: Callable[[Store, Entry], None] | None = None):
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.parallel, self.on_record = parallel, on_record
