@@ -233,7 +233,7 @@ class _Master:
 
     def prepared(self, tasks):
         """(task, payload, attempt) of each task, shown running from the next flush on."""
-        keys = [self.numbers.key(t) for t in tasks]
+        keys = self.numbers.keys(tasks)
         self.store.mark_running(keys)
         out = []
         for t, (kind, i) in zip(tasks, keys):
