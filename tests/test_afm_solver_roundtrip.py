@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from analysis.afm.analyze import analyze
-from analysis.afm.population import summary
-from analysis.afm.synth import generate, solver_forward
+from analysis.afm.population.summary import summary
+from analysis.afm.synth.cells import generate, solver_forward
 from analysis.calibration import calibrate
 from campaign.store.reader import read_results
 from conftest import BIN, ROOT

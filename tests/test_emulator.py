@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.afm.synth import solver_forward
+from analysis.afm.synth.cells import solver_forward
 from analysis.emulator import AXES
 from analysis.emulator_fit import invert_curves_emulator
 from analysis.invert_table import Errors, invert_rows

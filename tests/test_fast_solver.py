@@ -100,10 +100,10 @@ def test_the_compile_cache_follows_every_compiled_source(tmp_path):
     package = tmp_path / "solver"
     package.mkdir()
     here = os.path.dirname(jit.__file__)
-    for name in ("fast_kernel.py", "fast_newton.py", "cli.py"):
+    for name in ("fast_kernel.py", "fast_newton.py", "model.py"):
         (package / name).write_bytes(open(os.path.join(here, name), "rb").read())
     before = jit.cache_dir("base", package)
-    with open(package / "cli.py", "a") as f:
+    with open(package / "model.py", "a") as f:
         f.write("# an edit to a module that compiles nothing\n")
     assert jit.cache_dir("base", package) == before
     with open(package / "fast_kernel.py", "a") as f:
