@@ -63,7 +63,7 @@ def _mean(old, new):
     return new if old is None else (1 - SMOOTHING) * old + SMOOTHING * new
 
 
-def master_may_compute(workers):
+def master_may_compute(workers: int) -> bool:
     """Whether rank 0, serving `workers` workers, ever computes tasks itself."""
     return workers <= MASTER_WORKERS_MAX
 
@@ -113,57 +113,57 @@ class Policy:
             del self.waiting[t]
             self.todo.append(t)
 
-    def timed(self, tasks, seconds):
+    def timed(self, tasks: int, seconds: float) -> None:
         """`tasks` tasks took `seconds` of computing."""
         if tasks > 0:
             self.task_s = _mean(self.task_s, seconds / tasks)
 
-    def served(self, messages, seconds):
+    def served(self, messages: int, seconds: float) -> None:
         """Rank 0 took `seconds` to serve `messages` result messages."""
         if messages > 0:
             self.cost_s = _mean(self.cost_s, seconds / messages)
 
-    def _nominal_batch(self):
+    def _nominal_batch(self) -> int:
         """b without the guided term (module docstring)."""
         T = max(self.task_s or 0.0, 1e-9)         # timed before it is asked for
         by_time = math.floor(BATCH_S / T)
         by_load = math.ceil(self.workers * (self.cost_s or 0.0) / (MASTER_LOAD_MAX * T))
         return max(1, min(max(by_time, by_load), math.floor(BATCH_S_MAX / T), BATCH_MAX))
 
-    def load(self):
+    def load(self) -> float:
         """ρ: the share of rank 0's time serving takes at the nominal batch size."""
         if self.task_s is None or not self.cost_s:
             return 0.0
         return self.workers * self.cost_s / (self._nominal_batch() * max(self.task_s, 1e-9))
 
-    def master_computes(self):
+    def master_computes(self) -> bool:
         """Whether rank 0 computes tasks itself now (module docstring)."""
         if self.workers == 0:
             return True
         return master_may_compute(self.workers) and self.load() <= MASTER_LOAD_MAX
 
-    def master_batch(self):
+    def master_batch(self) -> int:
         """Tasks rank 0 computes at once (module docstring); b with no workers to serve."""
         if self.workers == 0 or self.task_s is None:
             return self.batch_size()
         return max(1, min(math.floor(MASTER_BATCH_S / max(self.task_s, 1e-9)), self.batch_size()))
 
-    def computing(self):
+    def computing(self) -> int:
         """Ranks computing tasks: the workers, and rank 0 when it does."""
         return self.workers + (1 if self.master_computes() else 0)
 
-    def batch_size(self):
+    def batch_size(self) -> int:
         """b of the module docstring."""
         if self.task_s is None:
             return 1
         guided = len(self.todo) // (GUIDE * max(self.computing(), 1))
         return max(1, min(guided, self._nominal_batch()))
 
-    def ahead(self):
+    def ahead(self) -> int:
         """Tasks a worker is kept ahead."""
         return max(AHEAD, 2 * self.batch_size())
 
-    def batches_for(self, in_flight):
+    def batches_for(self, in_flight: int) -> list[list[int]]:
         """The batches (lists of task numbers) to send a worker that holds `in_flight` tasks."""
         out = []
         while self.todo and in_flight < self.ahead():
@@ -172,10 +172,10 @@ class Policy:
             out.append(batch)
         return out
 
-    def take(self, count):
+    def take(self, count: int) -> list[int]:
         """The next `count` tasks (fewer if fewer are queued), no longer queued."""
         return [self.todo.popleft() for _ in range(min(count, len(self.todo)))]
 
-    def left(self):
+    def left(self) -> int:
         """Tasks not yet handed out: queued, or trial tasks still waiting."""
         return len(self.todo) + len(self.waiting)
