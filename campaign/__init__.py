@@ -11,6 +11,10 @@ Public API (imported on first use):
   Monte-Carlo trials as pandas DataFrames; `summary(store)`: counts, failures,
   throughput (what `cortex campaign status --json` prints);
   `read_provenance(store)`: what made it.
+
+The store is a subpackage with a face of its own (`campaign.store`); what a
+task is (a compression or a trial task, its key, number and entry) lives in
+`campaign.task_key`.
 """
 
 from typing import TYPE_CHECKING
