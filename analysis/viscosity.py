@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.calibrate.figures import _save, plt
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from common.errors import InputError
 
 if TYPE_CHECKING:

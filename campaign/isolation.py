@@ -44,7 +44,7 @@ from multiprocessing.connection import Connection
 from campaign.task_process import READY, Slot
 
 GRACE_S = 2.0           # s: past timeout_s, the grace before a task that does not answer is killed
-_early = {}             # the task process `start_early` started, taken by the first `Isolated`
+_early: dict = {}       # the task process `start_early` started, taken by the first `Isolated`
 
 
 def memory_share_mb() -> float:
@@ -180,7 +180,8 @@ class Isolated:
         as pickled bytes of (entries, seconds computing: the task process's
         own count, or the wall time of a batch that lost its process); a task
         that crashed or did not answer is a failed entry (after its retries)."""
-        started, entries, todo, outside = time.perf_counter(), [], list(batch), 0
+        started, todo, outside = time.perf_counter(), list(batch), 0
+        entries: list = []
         while todo:
             raw, lost = self._attempt(todo)
             if lost is None:

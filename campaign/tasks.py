@@ -6,8 +6,8 @@ A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
 non-finite result is failed with its message; nothing escapes, so one bad
 task never stops the others. (A task that kills its process, or is stuck
-where SIGALRM cannot end it, is failed by `campaign.isolation`.) Tasks are numbered:
-the compressions 0..n-1 (grid order), then trial task j is n + j.
+where SIGALRM cannot end it, is failed by `campaign.isolation`.) A task comes
+as its number (`campaign.task_key.TaskNumbers`).
 """
 
 import functools
@@ -18,6 +18,7 @@ import time
 import traceback
 
 from campaign import faults
+from campaign.task_key import COMPRESSION, compression_entry, trial_entry
 from solver.compression import compress
 
 
@@ -134,25 +135,23 @@ def warm_up(campaign):
         if fault:
             faults.prepare(fault, shell)
             return
-        import importlib
-        from solver.compression import METHODS
+        from solver.compression import warm_up as warm_up_solver
         from solver.geometry import droplet
-        solver = importlib.import_module(METHODS[campaign.method])
         droplet(shell.volume_um3, shell.h1_um)
-        if hasattr(solver, "warm_up"):     # a solver's own (the fast one's: its first compression)
-            solver.warm_up(shell)
+        warm_up_solver(shell, campaign.method)     # a solver's own (the fast one's: its first compression)
     except Exception:  # noqa: BLE001  (the task reports it, with its message)
         pass
 
 
 def execute(campaign, task, payload):
-    """Task `task` (a compression row, or n + j for trial task j): (state, results, error, started);
-    `payload` is a trial task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
-    n, test = len(campaign.shells), campaign.test
-    if task < n:
-        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, test.fault(task),
+    """Task number `task`: (state, results, error, started); `payload` is a trial
+    task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
+    (kind, i), test = campaign.numbers.key(task), campaign.test
+    if kind == COMPRESSION:
+        return compute(campaign.shells[i], campaign.method, campaign.timeout_s, test.fault(i),
                        test.compression_sleep_s)
-    return compute_study(campaign.studies[task - n], *payload, campaign.timeout_s, test.trial_sleep_s)
+    forces, errors = payload
+    return compute_study(campaign.studies[i], forces, errors, campaign.timeout_s, test.trial_sleep_s)
 
 
 def entry(campaign, task, attempts, rank, outcome):
@@ -163,10 +162,9 @@ def entry(campaign, task, attempts, rank, outcome):
     state, results, error, started = outcome
     if state == "failed":
         error = f"{error} (rank {rank} on {_host()})"
-    n = len(campaign.shells)
-    key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
-    return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
-            "started": started}
+    kind, i = campaign.numbers.key(int(task))
+    make = compression_entry if kind == COMPRESSION else trial_entry
+    return make(i, results, state, error, int(attempts), int(rank), started)
 
 
 @functools.cache

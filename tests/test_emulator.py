@@ -17,7 +17,7 @@ from analysis.invert.intervals import Errors
 from analysis.invert.method import invert_rows
 from analysis.shipped import load, shipped_path
 from campaign.config import load as load_campaign
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from conftest import BIN, ROOT
 from common.errors import InputError
 from solver.geometry import cell_radius, droplet

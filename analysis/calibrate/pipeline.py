@@ -72,9 +72,9 @@ class Fitted:
 
 
 def read_store(path: str | PathLike[str]) -> tuple[pd.DataFrame, pd.DataFrame | None]:
-    """(results, trials) DataFrames of a campaign store, via `campaign.reader`."""
+    """(results, trials) DataFrames of a campaign store, via `campaign.store.reader`."""
     try:
-        from campaign import reader
+        from campaign.store import reader
     except ModuleNotFoundError as err:
         raise InputError(f"cannot read {path}: the campaign package is not installed ({err.name})") from None
     try:

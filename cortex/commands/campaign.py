@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from mpi4py import MPI
     if MPI.COMM_WORLD.Get_rank() == 0 and args.json:
         import json
-        from campaign.reader import summary
+        from campaign.store.reader import summary
         print(json.dumps({"store": store, "exit_status": status, **summary(store)}))
     elif MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
         print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 
 def status(args: argparse.Namespace) -> int:
     import json
-    from campaign.reader import summary
+    from campaign.store.reader import summary
     info = summary(args.store)
     if args.json:
         print(json.dumps(info))

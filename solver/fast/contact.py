@@ -1,7 +1,7 @@
 """The fast solver's contact search, compiled: the admissible local minimum of E*(l).
 
 E*(l) is the equilibrium energy at fixed contact label l = log ψ_c (the
-Newton iteration of `solver.fast_newton`), G(l) = dE*/dl = g_l (g_x = 0 at
+Newton iteration of `solver.fast.newton`), G(l) = dE*/dl = g_l (g_x = 0 at
 equilibrium) and, by the Schur complement,
 
     dx/dl = -H_xx⁻¹ h_xl,   k = dG/dl = H_ll + h_xl · dx/dl.
@@ -19,17 +19,16 @@ it), and that is the answer. Each new label starts from the last
 equilibrium moved along its tangent dx/dl (kept only if that leaves the
 admissible shapes).
 
-The loop was `solver.fast`'s Python until it was compiled here whole: the
-same operations in the same order, except h_xl · dx/dl, summed in index
-order (numpy's dot groups it differently), so a solution agrees with the
-Python loop's to round-off (the Newton iterations are the same). `contact`
-returns a status; `solver.fast` turns it into the same errors as before.
+The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
+returns a status, which `solver.fast` turns into its errors.
 """
 
 import numpy as np
+import numpy.typing as npt
 
-from solver.fast_mesh import label_positions
-from solver.fast_newton import CONVERGED, block_solve, newton, nodes, shape_ok
+from solver.fast.kernel import Terms
+from solver.fast.mesh import label_positions
+from solver.fast.newton import CONVERGED, block_solve, newton, nodes, shape_ok
 from solver.jit import njit
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
@@ -37,12 +36,12 @@ LOG_PSI_MAX = np.log(1.0)    # at most a radian of the free surface on the plate
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 
-# `contact`'s status beside fast_newton's SINGULAR, REJECTED and NOT_CONVERGED (1-3)
+# `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
 FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
 
 
 @njit(cache=True)
-def gap(u, zp, N, kc):
+def gap(u: npt.NDArray[np.float64], zp: float, N: int, kc: int) -> float:
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
     z = nodes(u, zp, N, kc)[1]
     return np.max(z[kc + 1:]) - zp * (1.0 + 1e-9)
@@ -92,10 +91,12 @@ def _step(G, k):
 
 
 @njit(cache=True)
-def contact(u, zp, labels, shape, terms, order, keep, N, V0, force_scale, tol, maxit, newton_maxit):
+def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]], shape: npt.NDArray[np.float64], terms: Terms,
+            order: npt.NDArray[np.int64], keep: npt.NDArray[np.int64], N: int, V0: float, force_scale: float, tol: float, maxit: int,
+            newton_maxit: int) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
     """The contact search from u at z_p (module docstring): at most `maxit`
     labels, Newton's method at each for at most `newton_maxit` steps; labels
-    and shape those of `solver.fast_mesh.label_positions` (`Reference.arrays`).
+    and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`).
     Returns (status, u, g, iterations, last, lo, hi): FOUND with the
     solution; Newton's status with its last state and `last` its iteration;
     TANGENT_SINGULAR with `last` the zero pivot; NO_CONTACT with the bracket

@@ -36,6 +36,7 @@ Units: µm, mN/m, nN (mN/m·µm), mN/m/µm for pressures and force densities, s.
 from collections import namedtuple
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.frustum import half_volume
 from solver.jit import njit
@@ -53,7 +54,7 @@ Run = namedtuple("Run", "mu dt V0half h0 dh t_comp check_every tau_relax tol max
 
 
 @njit(cache=True)
-def elements(r, z):
+def elements(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """(l_j, ψ_j) of every element: its length and tangent angle to the plate."""
     n = r.size - 1
     l = np.empty(n)
@@ -67,7 +68,7 @@ def elements(r, z):
 
 
 @njit(cache=True)
-def mean_curvature(r, z):
+def mean_curvature(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """Discrete H_i at the nodes (0 at the pole, which lies on the plate)."""
     l, psi = elements(r, z)
     n = r.size - 1
@@ -82,13 +83,13 @@ def mean_curvature(r, z):
 
 
 @njit(cache=True)
-def reference(r0, z0):
+def reference(r0: npt.NDArray[np.float64], z0: npt.NDArray[np.float64]) -> Reference:
     """The `Reference` of the nodes (r0, z0): l0, r̄0 = (r0_j + r0_j+1)/2 and H0."""
     return Reference(elements(r0, z0)[0], 0.5 * (r0[1:] + r0[:-1]), mean_curvature(r0, z0))
 
 
 @njit(cache=True)
-def energy(r, z, ref, mat):
+def energy(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], ref: Reference, mat: Material) -> float:
     """Discrete energy E of the upper half (see module docstring), in mN/m·µm²,
     for the reference `ref` and the material `mat`."""
     l0, rb0, H0 = ref
@@ -189,7 +190,7 @@ def _chain(r, z, l, acc):
 
 
 @njit(cache=True)
-def gradients(r, z, ref, mat, gE, gV):
+def gradients(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], ref: Reference, mat: Material, gE: npt.NDArray[np.float64], gV: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """Fill gE (N+1, 2) with ∂E/∂(r, z) and gV with ∂(V/2)/∂(r, z); returns the
     nodal areas A_i (half node at the equator, π (l_0/2)² at the pole)."""
     n = r.size - 1
@@ -205,7 +206,7 @@ def gradients(r, z, ref, mat, gE, gV):
 
 
 @njit(cache=True)
-def plate_force(kind, gE, gV, p):
+def plate_force(kind: npt.NDArray[np.int64], gE: npt.NDArray[np.float64], gV: npt.NDArray[np.float64], p: float) -> float:
     """F_tot: the z-forces -∂E/∂z + p ∂V/∂z on the nodes held by the plate, which
     the plate balances (nN, pushing the plate outward when positive)."""
     F = 0.0
@@ -216,7 +217,7 @@ def plate_force(kind, gE, gV, p):
 
 
 @njit(cache=True)
-def plate_height(t, run):
+def plate_height(t: float, run: Run) -> float:
     """h(t) = h0 - (Δh/2)(1 - cos(π t / t_comp)) until t_comp, then h1 = h0 - Δh."""
     return run.h0 - 0.5 * run.dh * (1.0 - np.cos(np.pi * min(t, run.t_comp) / run.t_comp))
 
@@ -274,7 +275,8 @@ def _residual(kind, gE, gV, A, p):
 
 
 @njit(cache=True)
-def flow(r, z, kind, ref, mat, run):
+def flow(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], kind: npt.NDArray[np.int64], ref: Reference, mat: Material,
+         run: Run) -> tuple[float, float, int, bool, float]:
     """Explicit gradient flow v_i = μ f_i / A_i with f = -∂E/∂x + p ∂V/∂x.
 
     p is the Lagrange multiplier that keeps dV/dt = (V0 - V)/(10 dt) (volume

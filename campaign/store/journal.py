@@ -9,10 +9,8 @@ messages of failed tasks by position, and per trial task its scalars. The
 data are the arrays' raw bytes: a compression's columns (row, state,
 attempts, rank, started, converged and each of RESULTS present), and per
 trial task its cells' states and float64 arrays (CELL_KEYS, HEIGHT_KEYS), so
-values come back bit for bit. Entries are the dicts the scheduler builds
-(`campaign.scheduler.entry`): a compression's `row` and `results`, or a trial
-task's `task` and per-cell `cells`, each with `state`, `error`, `attempts`,
-`rank`, `started`.
+values come back bit for bit. Entries are those of `campaign.task_key`
+(`CompressionEntry`, `TrialEntry`), as `campaign.tasks.entry` makes them.
 
 The store (`campaign.store.Store`) appends a record at each flush, and
 whenever the entries it keeps reach RECORD_BYTES (without an fsync: that,
@@ -29,10 +27,13 @@ import json
 import os
 import struct
 import zlib
+from collections.abc import Sequence
+from typing import Any, BinaryIO
 
 import numpy as np
 
-from campaign.schema import RESULTS, STATES, results_table
+from campaign.store.schema import RESULTS, STATES, results_table
+from campaign.task_key import Entry, compression_entry, is_compression, split, trial_entry
 
 MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")
@@ -43,20 +44,22 @@ _COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank":
                 "started": np.float64, "converged": np.int8}
 
 
-def approx_bytes(entry):
+def approx_bytes(entry: Entry) -> int:
     """About how many bytes `entry` takes in a record."""
-    size = 64 + 8 * len(entry.get("results") or ())
-    cells = entry.get("cells")
-    return size + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else size
+    if is_compression(entry):
+        return 64 + 8 * len(entry["results"] or ())
+    cells = entry["cells"]
+    return 64 + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else 64
 
 
-def encode(entries):
+def encode(entries: Sequence[Entry]) -> bytes:
     """One record (bytes) holding `entries`."""
-    arrays, header = {}, {"errors": {}, "tasks": []}
-    rows = [e for e in entries if "row" in e]
-    if rows:
-        _compression_arrays(rows, arrays, header["errors"])
-    for k, e in enumerate(e for e in entries if "task" in e):
+    arrays: dict[str, np.ndarray] = {}
+    header: dict[str, Any] = {"errors": {}, "tasks": []}
+    compressions, trials = split(entries)
+    if compressions:
+        _compression_arrays(compressions, arrays, header["errors"])
+    for k, e in enumerate(trials):
         header["tasks"].append(_trial_arrays(k, e, arrays))
     data = [np.ascontiguousarray(a) for a in arrays.values()]
     header["arrays"] = [[name, a.dtype.str, list(a.shape)] for name, a in zip(arrays, data)]
@@ -93,7 +96,7 @@ def _trial_arrays(k, e, arrays):
             "cells": sorted(cells), "cell_errors": cell_errors}
 
 
-def decode(header, data):
+def decode(header: dict[str, Any], data: bytes) -> list[Entry]:
     """The entries of one record (its JSON header and data bytes), in the
     order: compressions, then trial tasks."""
     arrays, offset = {}, 0
@@ -113,9 +116,8 @@ def _compression_entries(arrays, errors):
     for i in range(len(c["row"])):
         results = {key: values[i] for key, values in r.items()}
         results["converged"] = bool(c["converged"][i])
-        out.append({"row": c["row"][i], "results": results, "state": STATES[c["state"][i]],
-                    "error": errors.get(str(i), ""), "attempts": c["attempts"][i], "rank": c["rank"][i],
-                    "started": c["started"][i]})
+        out.append(compression_entry(c["row"][i], results, STATES[c["state"][i]], errors.get(str(i), ""),
+                                     c["attempts"][i], c["rank"][i], c["started"][i]))
     return out
 
 
@@ -130,8 +132,7 @@ def _trial_entry(k, t, arrays):
             cells[key] = [t["cell_errors"].get(str(i), "") for i in range(n)]
         else:
             cells[key] = arrays[f"t{k}.{key}"].copy()
-    return {"task": t["task"], "cells": cells, "state": t["state"], "error": t["error"],
-            "attempts": t["attempts"], "rank": t["rank"], "started": t["started"]}
+    return trial_entry(t["task"], cells, t["state"], t["error"], t["attempts"], t["rank"], t["started"])
 
 
 def _frames(fh):
@@ -148,7 +149,7 @@ def _frames(fh):
         yield fh.tell(), decode(json.loads(body[:n_head]), body[n_head:])
 
 
-def read(path, start=0):
+def read(path: str | os.PathLike[str], start: int = 0) -> list[Entry]:
     """Entries of a journal from byte `start` on (a store's `journal_bytes`:
     everything before is in its rows); a record cut by a kill is ignored."""
     entries = []
@@ -160,7 +161,7 @@ def read(path, start=0):
     return entries
 
 
-def complete_bytes(path):
+def complete_bytes(path: str | os.PathLike[str]) -> int:
     """How many leading bytes of the journal are complete records."""
     end = 0
     with open(path, "rb") as fh:
@@ -169,7 +170,7 @@ def complete_bytes(path):
     return end
 
 
-def trim_cut(path):
+def trim_cut(path: str | os.PathLike[str]) -> None:
     """Cut the journal after its last complete record: a kill or a full disk
     may have left the last one unfinished; it was never fsync'd whole, so no
     row holds it, and records appended after it must stay readable."""
@@ -180,20 +181,20 @@ def trim_cut(path):
                 fh.truncate(end)
 
 
-def append(fh, entries):
+def append(fh: BinaryIO, entries: Sequence[Entry]) -> None:
     """Write one record of `entries` to the open journal `fh` (binary, append),
     as far as the operating system (a kill cannot lose it; `sync` makes it durable)."""
     fh.write(encode(entries))
     fh.flush()
 
 
-def sync(fh):
+def sync(fh: BinaryIO) -> None:
     """Make everything appended to `fh` durable (fsync)."""
     fh.flush()
     os.fsync(fh.fileno())
 
 
-def is_ours(path):
+def is_ours(path: str | os.PathLike[str]) -> bool:
     """A journal: empty, or beginning with one of our records."""
     with open(path, "rb") as fh:
         lead = fh.read(len(MAGIC))

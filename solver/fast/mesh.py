@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 from numpy.polynomial import chebyshev
 
 from solver.frustum import enclosed_volume
@@ -51,7 +52,7 @@ class Reference:
     zcoef: np.ndarray   # Chebyshev series of z0(ψ0) on [0, π/2] (from the mid-plane)
     scale: float = 1.0  # S
 
-    def positions(self, logpsic):
+    def positions(self, logpsic: float) -> tuple[npt.NDArray[np.float64], ...]:
         """(r0, z0, dr0/dl, dz0/dl, d²r0/dl², d²z0/dl²) of every node, pole first
         (the last call's result is kept: Newton's inner steps keep l)."""
         last = self.__dict__.get("_last")
@@ -61,14 +62,15 @@ class Reference:
         object.__setattr__(self, "_last", (logpsic, out))
         return out
 
-    def arrays(self):
+    def arrays(self) -> tuple[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]], npt.NDArray[np.float64]]:
         """(labels, shape), `label_positions`' description of this mesh:
         labels = (η, ζ, ξ, Chebyshev series of z0), shape = (a0, H_d, β, S, h0)."""
         return (self.eta, self.zeta, self.xi, self.zcoef), np.array([self.a0, self.H, self.beta, self.scale, self.h0])
 
 
 @njit(cache=True)
-def label_positions(logpsic, labels, shape):
+def label_positions(logpsic: float, labels: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]],
+                    shape: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], ...]:
     """`Reference.positions` compiled: labels = (η, ζ, ξ, Chebyshev series of
     z0), shape = (a0, H_d, β, S, h0). On the free surface, with
     q = sqrt(sin² ψ0 + β²), dr0/dψ0 = r0 cos ψ0 / q and, as dz/dr = -tan ψ0 on
@@ -137,7 +139,7 @@ def _meridian_series(volume, h0):
 
 
 @lru_cache(maxsize=256)
-def reference(volume, h0, resolution, layer):
+def reference(volume: float, h0: float, resolution: float, layer: float) -> Reference:
     """Reference droplet and graded mesh for `resolution` (1 = default);
     `layer` is the bending layer width sqrt(B/γ_a) (µm).
 

@@ -14,16 +14,17 @@ a_ic -= l_ij a_jc. `solve` applies the swaps and L forwards, then U
 backwards, to the columns of B. The operations are those of the reference
 LAPACK/BLAS routines; an optimised BLAS may group them differently, so
 results agree with scipy's gbsv to round-off. Called from compiled code
-(`solver.fast_newton`), so no Python is crossed per solve.
+(`solver.fast.newton`), so no Python is crossed per solve.
 """
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.jit import njit
 
 
 @njit(cache=True)
-def factor(ab, kl, ku, ipiv):
+def factor(ab: npt.NDArray[np.float64], kl: int, ku: int, ipiv: npt.NDArray[np.int64]) -> int:
     """LU-factorise the band matrix in ab in place (module docstring); the
     pivot rows go to ipiv. Returns 0, or j + 1 if U's diagonal entry j is
     zero (the matrix is singular)."""
@@ -55,7 +56,7 @@ def factor(ab, kl, ku, ipiv):
 
 
 @njit(cache=True)
-def solve(ab, kl, ku, ipiv, B):
+def solve(ab: npt.NDArray[np.float64], kl: int, ku: int, ipiv: npt.NDArray[np.int64], B: npt.NDArray[np.float64]) -> None:
     """Overwrite B (n × m) with A⁻¹ B, ab and ipiv from `factor`."""
     n, kv = ab.shape[1], kl + ku
     for j in range(n - 1):

@@ -4,7 +4,7 @@ Nodes run along the upper half meridian (mirror symmetry): the pole k = 0,
 the plate nodes k ≤ k_c (z = z_p = h/2, sliding in r), the free nodes
 (r, z unknown) and the equator k = N (z = 0). The unknowns are
 u = (r_1..r_N, z_{k_c+1}..z_{N-1}, l = log ψ_c, p); the reference positions
-(r0, z0) of the nodes depend on l (`solver.fast_mesh`).
+(r0, z0) of the nodes depend on l (`solver.fast.mesh`).
 
 Discrete Lagrangian of the whole cell (twice the half), elements e = (k, k+1):
 
@@ -23,7 +23,7 @@ half the dual area).
 
 Every term is a function of a few intermediate quantities (lengths, mid
 radii, angles), so its Hessian is the chain rule J^T (∂²f) J + Σ ∂f ∇²(a);
-the formulas are written out, and compiled, in `solver.fast_kernel` and
+the formulas are written out, and compiled, in `solver.fast.kernel` and
 checked against central differences in the tests. Energies in mN/m·µm² (= 1e-15 J), forces in nN.
 """
 
@@ -31,9 +31,12 @@ from collections import namedtuple
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 from solver.frustum import enclosed_volume, surface_area
-from solver.fast_kernel import L_SLOT, NO_SLOT, P_SLOT, Terms, evaluate
-from solver.fast_newton import block_solve, nodes
+from solver.fast.kernel import L_SLOT, NO_SLOT, P_SLOT, Terms, evaluate
+from solver.fast.mesh import Reference
+from solver.fast.newton import block_solve, nodes
+from solver.model import Shell
 
 BAND = 5    # half-bandwidth of the position block in node order
 
@@ -46,7 +49,21 @@ NewtonMatrix = namedtuple("NewtonMatrix", "band lcol pcol")
 class Lagrangian:
     """L(u; z_p) of one shell on one reference mesh, with exact derivatives."""
 
-    def __init__(self, shell, ref, regularisation=1e-3):
+    V0: float       # the reference mesh's volume (µm³) and area (µm²), set by who made the
+    area0: float    # mesh (`solver.fast.problem`)
+    # the mesh's index arrays, from `_layout` (shared by the Lagrangians of one mesh)
+    ridx: npt.NDArray[np.int64]
+    zidx: npt.NDArray[np.int64]
+    elem_idx: npt.NDArray[np.int64]
+    bend_idx: npt.NDArray[np.int64]
+    band_order: npt.NDArray[np.int64]
+    band_mask: npt.NDArray[np.bool_]
+    band_rows: npt.NDArray[np.int64]
+    band_cols: npt.NDArray[np.int64]
+    slot: npt.NDArray[np.int64]
+    keep: npt.NDArray[np.int64]
+
+    def __init__(self, shell: Shell, ref: Reference, regularisation: float = 1e-3) -> None:
         self.ref = ref
         reg = regularisation * shell.tension_mN_per_m
         self.KB = shell.bulk_mN_per_m + reg
@@ -58,7 +75,6 @@ class Lagrangian:
         self.N = N = self.kc + self.nf              # equator node
         self.nr, self.nz = N, self.nf - 1
         self.size = self.nr + self.nz + 2           # + l, p
-        self.V0 = None
         self.cten = np.full(N, float(self.gamma))
         self.cten[self.nd: self.kc] += 2.0 * self.B * ref.H**2
         vars(self).update(_layout(self.nd, self.nn, self.nf))
@@ -69,11 +85,11 @@ class Lagrangian:
         # natural size of a nodal force: tension times a typical element length
         self.force_scale = (self.gamma + self.KB + self.KS) * ref.a0 * 0.1
 
-    def solve(self, H, rhs):
+    def solve(self, H: NewtonMatrix | npt.NDArray[np.float64], rhs: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Solve the Newton system for the positions and p at fixed l:
         [A b; b^T 0] [x; y] = rhs, with A (positions) banded (a node couples
         to its neighbours within two) and b = ∂²L/∂x∂p, by block elimination
-        (compiled: `solver.fast_newton.block_solve`). H: a `NewtonMatrix` or
+        (compiled: `solver.fast.newton.block_solve`). H: a `NewtonMatrix` or
         the dense Hessian."""
         H = self.banded(H) if isinstance(H, np.ndarray) else H
         rhs = np.ascontiguousarray(np.asarray(rhs, dtype=float).reshape(self.size - 1, -1))
@@ -82,13 +98,13 @@ class Lagrangian:
             raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {info})")
         return out
 
-    def banded(self, H):
+    def banded(self, H: npt.NDArray[np.float64]) -> NewtonMatrix:
         """The dense Hessian H (size × size) as a `NewtonMatrix`."""
         n = self.size
         return NewtonMatrix(np.where(self.band_mask, H[self.band_rows, self.band_cols], 0.0),
                             H[:, n - 2].copy(), H[:, n - 1].copy())
 
-    def dense(self, M):
+    def dense(self, M: NewtonMatrix) -> npt.NDArray[np.float64]:
         """The `NewtonMatrix` M as the dense Hessian (size × size)."""
         n = self.size
         H = np.zeros((n, n))
@@ -97,22 +113,23 @@ class Lagrangian:
         H[:, n - 1] = H[n - 1, :] = M.pcol
         return H
 
-    def nodes(self, u, zp):
+    def nodes(self, u: npt.NDArray[np.float64], zp: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float, float]:
         """(r, z) of every node, ψ_c and p from the unknowns."""
         r, z = nodes(np.asarray(u, dtype=float), float(zp), self.N, self.kc)
         return r, z, np.exp(u[-2]), u[-1]
 
-    def volume(self, u, zp):
+    def volume(self, u: npt.NDArray[np.float64], zp: float) -> float:
         """Enclosed volume V(u) (µm³, `solver.frustum`)."""
         return enclosed_volume(*self.nodes(u, zp)[:2])
 
-    def area(self, u, zp):
+    def area(self, u: npt.NDArray[np.float64], zp: float) -> float:
         """Total area A(u) (µm², contact discs included; `solver.frustum`)."""
         return surface_area(*self.nodes(u, zp)[:2])
 
-    def newton_system(self, u, zp, hessian=True):
+    def newton_system(self, u: npt.NDArray[np.float64], zp: float,
+                      hessian: bool = True) -> tuple[float, npt.NDArray[np.float64], float, NewtonMatrix | None]:
         """L, ∇L (size), ∂L/∂z_p, and the Hessian as a `NewtonMatrix` if asked
-        (compiled: `solver.fast_kernel.evaluate`)."""
+        (compiled: `solver.fast.kernel.evaluate`)."""
         n = self.size
         r, z, _, p = self.nodes(u, zp)
         value, grad, (band, lp) = evaluate((r, z, float(p)), self.ref.positions(u[-2]), self.terms,
@@ -121,10 +138,10 @@ class Lagrangian:
         M = NewtonMatrix(band, lp[0], lp[1]) if hessian else None
         return value + p * self.V0, grad[:n], grad[n], M
 
-    def evaluate(self, u, zp, hessian=True):
+    def evaluate(self, u: npt.NDArray[np.float64], zp: float, hessian: bool = True) -> tuple[float, npt.NDArray[np.float64], float, npt.NDArray[np.float64] | None]:
         """L, ∇L (size), ∂L/∂z_p, and the dense Hessian (size × size) if asked."""
         value, grad, dzp, M = self.newton_system(u, zp, hessian)
-        return value, grad, dzp, self.dense(M) if hessian else None
+        return value, grad, dzp, self.dense(M) if M is not None else None
 
 
 @lru_cache(maxsize=64)
@@ -134,7 +151,7 @@ def _layout(nd, nn, nf):
     its Lagrangians, not to be modified): the global index of each node
     coordinate, of each element's and bending node's unknowns, the node order
     of the positions (the Newton matrix is then banded), its band storage,
-    each index's slot in the Newton matrix (`solver.fast_kernel`) and `keep`,
+    each index's slot in the Newton matrix (`solver.fast.kernel`) and `keep`,
     the unknowns without l."""
     kc = nd + nn
     N = kc + nf

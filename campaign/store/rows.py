@@ -8,24 +8,35 @@ path one scattered write per column where the runs are many; `put`); the
 last entry of a row wins.
 """
 
-import numpy as np
+from __future__ import annotations
 
-from campaign.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table, trial_rows
+from campaign.task_key import Entry, TrialEntry, split
+
+if TYPE_CHECKING:
+    import h5py
 
 RUNS_MAX = 16       # rank0 path: more runs of consecutive rows than this are written as one scattered write
 
 
-def write_entries(f, entries, cells, contiguous=False):
+def write_entries(f: h5py.File, entries: Sequence[Entry], cells: int, contiguous: bool = False) -> None:
     """Write journal entries into their rows of the open file `f`; `cells`:
     trials per study (N)."""
-    _write_trials(f, {e["task"]: e for e in entries if "task" in e}, cells)
-    by_row = {e["row"]: e for e in entries if "row" in e}
+    compressions, trials = split(entries)
+    _write_trials(f, {e["task"]: e for e in trials}, cells)
+    by_row = {e["row"]: e for e in compressions}
     if not by_row:
         return
     rows = np.array(sorted(by_row))
     batch = [by_row[i] for i in rows]
     results = [e.get("results") or {} for e in batch]
-    columns = {
+    columns: dict[str, np.ndarray] = {
         "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
         "attempts": np.array([e["attempts"] for e in batch], np.int32),
         "rank": np.array([e["rank"] for e in batch], np.int32),
@@ -37,7 +48,7 @@ def write_entries(f, entries, cells, contiguous=False):
         put(f[key], rows, values, contiguous)
 
 
-def runs(rows):
+def runs(rows: npt.NDArray[np.int64]) -> list[tuple[int, int, slice]]:
     """Sorted row numbers as (start, stop, index range) of consecutive runs."""
     cuts = np.flatnonzero(np.diff(rows) != 1) + 1
     starts, stops = np.r_[0, cuts], np.r_[cuts, len(rows)]
@@ -49,7 +60,7 @@ def _fit(dset, values):
     return np.array([clip(v) if v else b"" for v in values], dset.dtype) if dset.dtype.kind == "S" else values
 
 
-def put(dset, rows, values, contiguous):
+def put(dset: h5py.Dataset, rows: npt.NDArray[np.int64], values: np.ndarray, contiguous: bool) -> None:
     """dset[rows] = values, by runs of consecutive rows if `contiguous` (parallel
     HDF5 writes no scattered selection) or if there are at most RUNS_MAX of
     them: h5py builds a scattered selection point by point (~9 ms for 512
@@ -73,11 +84,12 @@ def _write_trials(f, by_task, N):
     tasks = np.array(sorted(by_task))
     for start, stop, _ in runs(tasks):
         parts = [trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in range(start, stop)]
+        rows = trial_rows(start, N, stop - start)
         for key in parts[0]:
-            g[key][start * N:stop * N] = _fit(g[key], np.concatenate([p[key] for p in parts]))
+            g[key][rows.start:rows.stop] = _fit(g[key], np.concatenate([p[key] for p in parts]))
 
 
-def trial_columns(entry, N, m):
+def trial_columns(entry: TrialEntry, N: int, m: int) -> dict[str, np.ndarray]:
     """A trial task's journal entry as the columns of its N rows. `cells` holds
     per-cell lists (`state`, `error`, CELL_KEYS) and per-cell lists of
     per-height values (HEIGHT_KEYS); a task that failed as a whole has no

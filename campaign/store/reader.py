@@ -15,15 +15,25 @@ Error messages are read only for rows that can hold one (attempted and not
 done): a done row's message is always empty.
 """
 
+from __future__ import annotations
+
+import os
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from campaign import journal
-from campaign.rows import runs, trial_columns
-from campaign.schema import DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT
-from campaign.store_files import open_read
+from campaign.store import journal
+from campaign.store.rows import runs, trial_columns
+from campaign.store.schema import (DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT,
+                                   trial_rows)
+from campaign.store.files import open_read
+from campaign.task_key import split
 from common.errors import InputError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 _OVERLAY = {"state": "state", "attempts": "attempts", "rank": "rank", "error": "error",
             "started": "started_unix_s"}
@@ -56,9 +66,8 @@ def _task_columns(path, names):
         if "error" in names:
             cols["error"] = _errors(f["error"], (cols["state"] != DONE) & (cols["attempts"] > 0))
         start = f.attrs.get("journal_bytes", 0)
-    for entry in journal.read(str(path) + ".journal", start):
-        if "row" in entry:
-            _overlay(cols, entry)
+    for entry in split(journal.read(str(path) + ".journal", start))[0]:
+        _overlay(cols, entry)
     return cols
 
 
@@ -99,7 +108,7 @@ def _strings(dset, few=False):
     return np.array(raw.astype(f"U{raw.dtype.itemsize}").tolist(), object)
 
 
-def read_results(path):
+def read_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     """One row per compression task: parameters, state and results (NaN where
     not done), with the journal of a running campaign overlaid."""
     import pandas as pd           # here: a campaign run need not load it
@@ -126,16 +135,16 @@ def _trial_arrays(path):
         N = int(g.attrs["cells_per_study"])
         start = f.attrs.get("journal_bytes", 0)
     a["error"] = a["error"].astype(object)
-    for e in journal.read(str(path) + ".journal", start):
-        if "task" in e:
-            for key, values in trial_columns(e, N, a["h0_true_um"].shape[1]).items():
-                a[key][e["task"] * N:e["task"] * N + N] = values
+    for e in split(journal.read(str(path) + ".journal", start))[1]:
+        rows = trial_rows(e["task"], N)
+        for key, values in trial_columns(e, N, a["h0_true_um"].shape[1]).items():
+            a[key][rows.start:rows.stop] = values
     return a
 
 
-def read_trials(path):
+def read_trials(path: str | os.PathLike[str]) -> pd.DataFrame:
     """Monte-Carlo trial curves, long format: one row per trial and height with
-    the columns TRIAL_COLUMNS (`campaign.schema`), then `error` and `attempts`
+    the columns TRIAL_COLUMNS (`campaign.store.schema`), then `error` and `attempts`
     (how often its study ran); empty, with those columns, for a store without
     trials. Values of trials not done are NaN."""
     import pandas as pd
@@ -150,7 +159,7 @@ def read_trials(path):
     return pd.DataFrame(columns)
 
 
-def summary(path, now=time.time):
+def summary(path: str | os.PathLike[str], now: Callable[[], float] = time.time) -> dict[str, Any]:
     """Counts by state, failures with their messages, throughput and ETA;
     `now()` is the clock (Unix s) a running campaign's rate is taken up to."""
     cols = _task_columns(path, ("started_unix_s", "wall_s", "error", "rank"))
@@ -185,7 +194,7 @@ def _failures(path, state, error):
     return [[str(t), str(error[i])] for t, i in zip(ids, failed)]
 
 
-def failed_tasks(path, state, rank, error):
+def failed_tasks(path: str | os.PathLike[str], state: np.ndarray, rank: np.ndarray, error: np.ndarray) -> list[dict[str, Any]]:
     """One dict per failed compression: task_id, row, its parameters (those
     not NaN, and bending), the rank that ran it, the host (from the message's
     '(rank R on HOST)' tail, None without one) and the error."""
@@ -216,7 +225,7 @@ def _trial_states(path):
     return a["state"], a["error"]
 
 
-def read_provenance(path):
+def read_provenance(path: str | os.PathLike[str]) -> dict[str, Any]:
     """What made a store: its campaign file's text, fingerprint, code and library
     versions, host and creation time (the attributes written when it was created)."""
     keys = ("name", "config_text", "fingerprint", "code_version", "versions", "host", "created")

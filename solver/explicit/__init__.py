@@ -18,7 +18,7 @@ far field, not the contact band; with 0.075 µm it is within 0.07 % of the
 limit (and of the fast solver's), and the observed order varies (0.6-3.4)
 because the far-field and contact-band errors are now of similar size.
 
-Time stepping (`solver.surface_forces.flow`): v = μ f / A (force density), μ = 1
+Time stepping (`solver.explicit.surface_forces.flow`): v = μ f / A (force density), μ = 1
 µm²/(s·mN/m) (only μ t matters for the equilibrium), volume held by a Lagrange
 multiplier (the pressure p), time step below both explicit limits,
 
@@ -36,8 +36,9 @@ plate's normal reactions on the nodes it holds (exact for the discrete energy).
 """
 
 import numpy as np
+import numpy.typing as npt
 
-from solver import surface_forces as sf
+from solver.explicit import surface_forces as sf
 from common.errors import SolverError
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
@@ -78,7 +79,7 @@ def _graded(a, b, size):
     return np.interp(np.linspace(0.0, dens[-1], n + 1), dens, S)
 
 
-def mesh(shell: Shell):
+def mesh(shell: Shell) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64], float]:
     """Reference nodes (r0, z0), node kinds and the sizes used: returns
     r0, z0, kind, ds_min."""
     V, h0, h1 = shell.volume_um3, shell.h0_um, shell.h1_um
@@ -128,7 +129,7 @@ def solve(shell: Shell) -> Solution:
     return relax(shell)[0]
 
 
-def relax(shell: Shell):
+def relax(shell: Shell) -> tuple[Solution, float, tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]]:
     """`solve`, also returning the final pressure p (mN/m/µm, the volume's
     Lagrange multiplier) and the reference nodes (r0, z0) in µm."""
     r0, z0, kind, ds_min = mesh(shell)

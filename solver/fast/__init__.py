@@ -1,8 +1,8 @@
 """The fast solver: the compressed equilibrium of the shell, computed directly.
 
 Formulation (SPEC section 2 symbols). The reference state is the droplet at h0,
-labelled by material coordinates (`solver.fast_mesh`); the discrete
-Lagrangian of the compressed shell (`solver.fast_energy`)
+labelled by material coordinates (`solver.fast.mesh`); the discrete
+Lagrangian of the compressed shell (`solver.fast.lagrangian`)
 
     L(u; h) = E_tension + E_stretch + E_bend - p (V(u) - V0)
 
@@ -13,7 +13,7 @@ positions and p at fixed l; the reduced energy E*(l) (that equilibrium's
 energy) is very flat in l, and its unconstrained minimum has the free
 surface poking through the plate, so l is found by an outer safeguarded
 Newton search for the admissible local minimum of E*(l) (`_contact`,
-compiled whole in `solver.fast_contact`). The
+compiled whole in `solver.fast.contact`). The
 start is the reference state, followed along h0 → h1 in 1, 2, 4 or 8 steps
 (the contact predicted from the droplet on the way), or, for a tension-only
 shell, the droplet at h1 (its exact answer).
@@ -39,14 +39,16 @@ the solution (virtual work), in nN (energies in mN/m·µm², lengths in µm).
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 
-from solver import fast_contact, fast_newton
+from solver.fast import contact, newton
 from common.errors import SolverError
-from solver.fast_contact import LOG_PSI_MIN
-from solver.fast_energy import Lagrangian, NewtonMatrix
-from solver.fast_mesh import reference
+from solver.fast.contact import LOG_PSI_MIN
+from solver.fast.lagrangian import Lagrangian, NewtonMatrix
+from solver.fast.mesh import reference
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
+from solver.model import Shell
 from solver.solution import Solution
 
 STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
@@ -57,12 +59,12 @@ def _admissible(lag, u, zp):
     """Nodes in order along the plate, off the axis, no element of zero
     length, and no fold: neighbouring elements turn by less than π/2."""
     r, z = lag.nodes(u, zp)[:2]
-    return bool(np.all(np.isfinite(u))) and fast_newton.shape_ok(r, z, lag.kc)
+    return bool(np.all(np.isfinite(u))) and newton.shape_ok(r, z, lag.kc)
 
 
 def _gap(lag, u, zp):
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
-    return fast_contact.gap(np.asarray(u, dtype=float), float(zp), lag.N, lag.kc)
+    return contact.gap(np.asarray(u, dtype=float), float(zp), lag.N, lag.kc)
 
 
 def _slack(lag, u, zp):
@@ -79,29 +81,29 @@ def _slack(lag, u, zp):
 def _newton(lag, u, zp, tol=1e-6, maxit=None):
     """Newton's method on ∇L = 0 for the node positions and p at fixed l;
     steps are halved while they leave the admissible shapes or multiply the
-    residual (compiled, one call: `solver.fast_newton.newton`). Returns the
+    residual (compiled, one call: `solver.fast.newton.newton`). Returns the
     solution, its Newton matrix and the iterations."""
     maxit = NEWTON_MAXIT if maxit is None else maxit
-    status, u, g, band, lp, it = fast_newton.newton(
+    status, u, g, band, lp, it = newton.newton(
         np.asarray(u, dtype=float), float(zp), lag.ref.positions(u[-2]), lag.terms, lag.band_order,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit))
-    if status != fast_newton.CONVERGED:
+    if status != newton.CONVERGED:
         _newton_failed(status, g, it, maxit)
     return u, g, NewtonMatrix(band, lp[0], lp[1]), it
 
 
 def _newton_failed(status, g, it, maxit):
-    """SolverError saying why Newton's method stopped (`fast_newton.newton`'s status)."""
-    if status == fast_newton.SINGULAR:
+    """SolverError saying why Newton's method stopped (`newton.newton`'s status)."""
+    if status == newton.SINGULAR:
         raise SolverError(f"singular Newton matrix at iteration {it}")
-    if status == fast_newton.REJECTED:
+    if status == newton.REJECTED:
         raise SolverError(f"Newton step rejected at iteration {it} (left the admissible "
                           "shapes or made the residual explode)")
     raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
                       f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
 
 
-def contact_at_least(u):
+def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
     """Whether the unknowns u have the least contact label, l = log ψ_min."""
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
@@ -109,17 +111,18 @@ def contact_at_least(u):
 def _contact(lag, u, zp, tol=1e-6, maxit=40):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
-    `solver.fast_contact.contact`, whose docstring has the search). Returns
+    `solver.fast.contact.contact`, whose docstring has the search). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
-    status, u, g, iterations, last, lo, hi = fast_contact.contact(
-        np.asarray(u, dtype=float), float(zp), *lag.ref.arrays(), lag.terms, lag.band_order, lag.keep,
+    labels, shape = lag.ref.arrays()
+    status, u, g, iterations, last, lo, hi = contact.contact(
+        np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT)
-    if status == fast_contact.FOUND:
+    if status == contact.FOUND:
         return u, iterations
-    if status == fast_contact.TANGENT_SINGULAR:
+    if status == contact.TANGENT_SINGULAR:
         raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {last})")
-    if status == fast_contact.NO_CONTACT:
+    if status == contact.NO_CONTACT:
         raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
                           f"{maxit} steps)")
     _newton_failed(status, g, last, NEWTON_MAXIT)
@@ -172,14 +175,14 @@ def _follow(lag, shell, steps):
 
 @lru_cache(maxsize=256)
 def _mesh(volume, h0, resolution, layer):
-    """The reference mesh (`solver.fast_mesh.reference`) with its volume
+    """The reference mesh (`solver.fast.mesh.reference`) with its volume
     (= V by the mesh's scale) and area, kept per (V, h0, resolution, layer)."""
     ref = reference(volume, h0, resolution, layer)
     r0, z0 = ref.positions(np.log(1e-12))[:2]
     return ref, enclosed_volume(r0, z0), surface_area(r0, z0)
 
 
-def problem(shell):
+def problem(shell: Shell) -> Lagrangian:
     """The shell's Lagrangian on its reference mesh (cached per (V, h0, layer))."""
     B = shell.bending_stiffness
     layer = np.sqrt(B / shell.tension_mN_per_m) if B > 0 else 0.2
@@ -190,7 +193,7 @@ def problem(shell):
     return lag
 
 
-def equilibrium(shell):
+def equilibrium(shell: Shell) -> tuple[Lagrangian, npt.NDArray[np.float64], int]:
     """The solved problem, its unknowns and the Newton iterations, trying
     the starts in turn until one reaches an admissible equilibrium."""
     lag = problem(shell)
@@ -211,7 +214,7 @@ def equilibrium(shell):
                       f"steps): {failure}")
 
 
-def energy(shell):
+def energy(shell: Shell) -> float:
     """E* = min E at fixed volume and gap h1 (mN/m·µm², = 1e-15 J): the energy
     whose derivative -dE*/dh1 is the plate force (virtual work)."""
     lag, u, _ = equilibrium(shell)
@@ -220,7 +223,7 @@ def energy(shell):
     return value + u[-1] * (lag.volume(u, zp) - lag.V0)
 
 
-def solve(shell):
+def solve(shell: Shell) -> Solution:
     """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
     lag, u, iterations = equilibrium(shell)
     zp = 0.5 * shell.h1_um
@@ -236,7 +239,7 @@ def solve(shell):
                     message=f"contact label psi_c = {psic:.5g}, pressure {p:.6g} mN/m/um")
 
 
-def warm_up(shell):
+def warm_up(shell: Shell) -> None:
     """Load every compiled function a compression calls from numba's on-disk
     cache (0.1-0.2 s a process, the first time), by solving `shell` once
     (2-3 ms more) and throwing the result away: what a campaign's ranks do

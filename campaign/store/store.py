@@ -1,19 +1,19 @@
 """The campaign store: rank 0's view of one HDF5 file and its journal.
 
-The file holds one row per task (`campaign.schema`); its attributes keep
+The file holds one row per task (`campaign.store.schema`); its attributes keep
 the campaign file's text, its fingerprint, the code and library versions,
-host and ranks (`campaign.provenance`). Monte-Carlo trials live in the group
+host and ranks (`campaign.store.provenance`). Monte-Carlo trials live in the group
 `trials`; its attribute `trials_fingerprint` identifies them: a store made
 without trials gains them when the campaign file gets a [montecarlo]
 section (its compressions kept); one with other trials is refused.
 
 Kill safety: finished tasks are kept in memory (`record`) and, once per
 batch (`flush`) or every 64 KiB of entries, appended to `STORE.journal` as
-one record (`campaign.journal`), which a killed process cannot lose (the
+one record (`campaign.store.journal`), which a killed process cannot lose (the
 operating system holds it). Rows follow at most once per ROWS_S on the
 rank0 path (at every flush on the mpio path): the journal is fsync'd, and
 only then are the rows of every entry since the last row write written
-(`campaign.rows`) and the file flushed, after which its attribute
+(`campaign.store.rows`) and the file flushed, after which its attribute
 `journal_bytes` says how much of the journal the rows hold. So the rows
 never hold what the durable journal does not; a crash of the machine itself
 can lose at most the last ROWS_S of finished tasks, which the rerun redoes;
@@ -25,17 +25,19 @@ remaining tasks and ends with the same rows as an uninterrupted run. A lock
 file refuses a second run on the same store.
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
-(`campaign.store_files`). A full disk never reaches HDF5 while it grows the
+(`campaign.store.files`). A full disk never reaches HDF5 while it grows the
 file (HDF5 then crashes): new files are built in memory and written by
 Python, growth waits for `ensure_room`, rows are written in place
 (`outputs.writing`); a failed journal write is a WriteError naming the
 journal, and `abort` closes without writing more.
 
-On the mpio path (`campaign.mpio_writer`) rank 0's rows are its own tasks';
+On the mpio path (`campaign.store.mpio_writer`) rank 0's rows are its own tasks';
 the workers write theirs once told the journal holds them; `journal_bytes`
 is set when the run closes. What analysis and `campaign status` read is in
-`campaign.reader`.
+`campaign.store.reader`.
 """
+
+from __future__ import annotations
 
 import contextlib
 import fcntl
@@ -44,13 +46,21 @@ import os
 import time
 
 import numpy as np
+import numpy.typing as npt
 
-from campaign import journal, provenance, schema
-from campaign.rows import put, write_entries
-from campaign.schema import PENDING, RUNNING
-from campaign.store_files import check_store_path, open_read, set_aside
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING
+
+from campaign.store import journal, provenance, schema
+from campaign.store.rows import put, write_entries
+from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
+from campaign.store.files import check_store_path, open_read, set_aside
+from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
 from common.errors import InputError
+
+if TYPE_CHECKING:
+    import h5py
 
 ROWS_S = 1.0    # s: on the rank0 path the journal is fsync'd and rows written at most this often (an
                 # HDF5 write per column costs ~0.3 ms, an fsync ~1 ms: per batch of a few tasks that was
@@ -63,7 +73,8 @@ class Store:
     `on_record(store, entry)`, if given, is called after each `record`
     (the fault injection of `campaign.faults` uses it)."""
 
-    def __init__(self, path, campaign, new=False, ranks=1, parallel=False, on_record=None):
+    def __init__(self, path: str | os.PathLike[str], campaign: StoredCampaign, new: bool = False, ranks: int = 1,
+                 parallel: bool = False, on_record: Callable[[Store, Entry], None] | None = None):
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.parallel, self.on_record = parallel, on_record
         check_store_path(self.path)               # before anything is created beside it
@@ -175,37 +186,36 @@ class Store:
         runs.append(provenance.run_record(ranks, "mpio" if self.parallel else "rank0"))
         self.file.attrs.update(runs=json.dumps(runs), journal_bytes=self.journal.tell())
 
-    def attach(self, parallel_file):
+    def attach(self, parallel_file: h5py.File) -> None:
         """mpio path: swap the file rank 0 prepared alone for the one all ranks opened."""
         self.file.close()
         self.file = parallel_file
 
     # -- what the scheduler reads -----------------------------------------
-    def state(self):
+    def state(self) -> npt.NDArray[np.int8]:
         return self.file["state"][:]
 
-    def trial_state(self):
+    def trial_state(self) -> np.ndarray:
         """Per trial task (study): the states of its N trials, shape (tasks, N)."""
         return self.file["trials/state"][:].reshape(-1, self.cells) if self.cells else np.zeros((0, 0))
 
-    def trial_attempts(self):
+    def trial_attempts(self) -> npt.NDArray[np.int32]:
         """Per trial task: its attempts so far."""
         return self.file["trials/attempts"][::self.cells] if self.cells else np.zeros(0, np.int32)
 
-    def compressions(self):
+    def compressions(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int8], list[str]]:
         """(force_nN, state, error) of every compression, for the trials."""
         return self.file["force_nN"][:], self.file["state"][:], list(self.file["error"].asstr()[:])
 
-    def attempts(self):
+    def attempts(self) -> npt.NDArray[np.int32]:
         return self.file["attempts"][:]
 
     # -- writing -----------------------------------------------------------
-    def mark_running(self, rows):
-        """Shown as running from the next flush on (the journal never holds `running`).
-        A row is a compression's index, or ("task", j) for trial task j."""
-        self.running.update(r if isinstance(r, tuple) else int(r) for r in rows)
+    def mark_running(self, tasks: Iterable[TaskKey]) -> None:
+        """Shown as running from the next flush on (the journal never holds `running`)."""
+        self.running.update(tasks)
 
-    def record(self, entry):
+    def record(self, entry: Entry) -> None:
         """Keep a finished task's entry for the next `flush`; once the entries
         kept reach `journal.RECORD_BYTES` they are appended to the journal as
         one record (not fsync'd, no rows written: that waits for the flush)."""
@@ -213,7 +223,7 @@ class Store:
         self.unjournalled_bytes += journal.approx_bytes(entry)
         if not self.parallel or entry["rank"] == 0:
             self.unwritten.append(entry)
-        self.running.discard(entry["row"] if "row" in entry else ("task", entry["task"]))
+        self.running.discard(entry_key(entry))
         if self.unjournalled_bytes >= journal.RECORD_BYTES:
             self._append_record()
         if self.on_record is not None:
@@ -225,7 +235,7 @@ class Store:
                 journal.append(self.journal, self.unjournalled)
             self.unjournalled, self.unjournalled_bytes, self.unsynced = [], 0, True
 
-    def flush(self, rows=None):
+    def flush(self, rows: bool = False) -> None:
         """The entries kept since the last record appended to the journal as
         one record (written through to the operating system: a killed process
         loses none of it); then, when due, the journal fsync'd and only then
@@ -254,15 +264,15 @@ class Store:
 
     def _show_running(self):
         new = self.running - self.shown_running
-        rows = sorted(r for r in new if not isinstance(r, tuple))
-        trials = sorted(i for r in new if isinstance(r, tuple)
-                        for i in range(r[1] * self.cells, r[1] * self.cells + self.cells))
+        rows = sorted(i for kind, i in new if kind == COMPRESSION)
+        trials = sorted(r for kind, j in new if kind == TRIAL
+                        for r in trial_rows(j, self.cells))
         for name, marks in (("state", rows), ("trials/state", trials)):
             if marks:
                 put(self.file[name], np.array(marks), np.full(len(marks), RUNNING, np.int8), self.parallel)
         self.shown_running = set(self.running)
 
-    def close(self):
+    def close(self) -> None:
         """Write what is left and close; on the mpio path every rank closes the
         file together, then rank 0 notes that the rows hold the whole journal."""
         self.flush(rows=True)
@@ -274,7 +284,7 @@ class Store:
         self.journal.close()
         self._unlock()
 
-    def abort(self):
+    def abort(self) -> None:
         """After a failed write: close without writing anything more. The rows
         hold what the journal held at the last flush, the journal what was
         fsync'd (a record a full disk cut is trimmed on the next open), so the

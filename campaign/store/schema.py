@@ -11,16 +11,29 @@ The group `trials` holds the Monte-Carlo trials (`campaign.trials`): one
 row per trial (cell), study j's N cells at rows j N .. j N + N - 1, with
 the per-trial columns TRIAL_PER_CELL and (trial, height) arrays
 TRIAL_PER_HEIGHT; their union, in that order, is TRIAL_COLUMNS, the long
-table `campaign.reader.read_trials` returns. The schema imports no physics,
+table `campaign.store.reader.read_trials` returns. The schema imports no physics,
 so the readers (and `cortex campaign status`) load neither numba nor the solver.
 """
+
+from __future__ import annotations
 
 import hashlib
 import json
 import math
 import operator
 
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
+
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    import h5py
+
+    from campaign.grid import Grid
+    from campaign.trials import Study
+    from solver.model import Shell
 
 FORMAT = "cortex-campaign-store"    # the file's `format` attribute: what says a file is ours
 PARAMS = ("volume_um3", "h0_um", "dh_um", "bulk_mN_per_m", "shear_mN_per_m",
@@ -51,17 +64,39 @@ TRIAL_PER_HEIGHT = ("h0_true_um", "h0_used_um", "h1_used_um", "h_tilde", "modulu
 TRIAL_COLUMNS = TRIAL_PER_CELL + TRIAL_PER_HEIGHT
 
 
+class StoredCampaign(Protocol):
+    """What the store reads of a campaign (`campaign.config.Campaign`): its
+    grid and trial tasks to lay out, its text and fingerprints to keep."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def text(self) -> str: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def shells(self) -> Grid: ...
+    @property
+    def studies(self) -> tuple[Study, ...]: ...
+    @property
+    def trial_cells(self) -> int: ...
+    @property
+    def fingerprint(self) -> str: ...
+    @property
+    def trials_fingerprint(self) -> str: ...
+
+
 _SORTED_JSON = json.JSONEncoder(sort_keys=True)    # json.dumps(..., sort_keys=True) without making one per call
 
 
-def task_id(shell, method):
+def task_id(shell: Shell, method: str) -> str:
     """A task's id: a hash of its parameters (the text of json.dumps(...,
     sort_keys=True)), stable across runs."""
     key = _SORTED_JSON.encode({**shell.to_dict(), "method": method})
     return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
-def task_ids(grid, method):
+def task_ids(grid: Grid, method: str) -> list[str]:
     """`task_id` of every shell of `grid` (a `campaign.grid.Grid`), the same
     ids: each JSON text made from a template of the sorted keys with the
     values' texts (`Grid.texts`; json prints a float as its repr) instead of
@@ -78,7 +113,7 @@ def _json_value(value):
     return repr(value) if type(value) is float and math.isfinite(value) else json.dumps(value)
 
 
-def results_table(results, keys):
+def results_table(results: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> npt.NDArray[np.float64]:
     """The values of `keys` in each of the dicts `results` as a float64 array
     (len(results), len(keys)), NaN where a dict lacks a key: what the journal
     and the rows take a batch's result columns from (one C-level pass when
@@ -91,19 +126,25 @@ def results_table(results, keys):
     return np.array(table, np.float64).reshape(len(results), len(keys))
 
 
-def error_dtype():
+def trial_rows(task: int, cells: int, tasks: int = 1) -> range:
+    """The rows of trial tasks `task` .. `task + tasks - 1`: study j's N = `cells`
+    cells are rows j N .. j N + N - 1."""
+    return range(task * cells, (task + tasks) * cells)
+
+
+def error_dtype() -> np.dtype:
     """Error messages: fixed-length UTF-8 of ERROR_BYTES."""
     import h5py
     return h5py.string_dtype("utf-8", ERROR_BYTES)
 
 
-def fixed_strings(values):
+def fixed_strings(values: Sequence[str]) -> np.ndarray:
     """Short ASCII names (task ids, bending variants) as a fixed-length byte
     array: read back a hundred times faster than variable-length strings."""
     return np.array([v.encode("ascii") for v in values], f"S{max([len(v) for v in values] + [1])}")
 
 
-def clip(text):
+def clip(text: str) -> bytes:
     """`text` as at most ERROR_BYTES bytes of UTF-8, cut between characters."""
     return text.encode()[:ERROR_BYTES].decode(errors="ignore").encode()
 
@@ -115,7 +156,7 @@ def _bookkeeping(g, n):
     g.create_dataset("error", data=np.zeros(n, error_dtype()), dtype=error_dtype())
 
 
-def fill(f, campaign, attrs):
+def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> None:
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
@@ -133,7 +174,7 @@ def fill(f, campaign, attrs):
     f.attrs.update(attrs, format=FORMAT)
 
 
-def fill_trials(g, campaign):
+def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:
     """One row per trial: study j's cells are rows j N .. j N + N - 1."""
     import h5py
     studies, N = campaign.studies, campaign.trial_cells

@@ -1,13 +1,13 @@
 """The fast solver's Newton iteration at fixed contact label, compiled.
 
-Unknowns u = (x, l, p) as in `solver.fast_energy` (x the node positions, l =
+Unknowns u = (x, l, p) as in `solver.fast.lagrangian` (x the node positions, l =
 log ψ_c, p the pressure). At fixed l, Newton's method on ∇L = 0 for (x, p)
 solves at each iteration the saddle-point system
 
     [A b; b^T 0] [dx; dp] = -[g_x; g_p],   A = ∂²L/∂x², b = ∂²L/∂x∂p,
 
 by block elimination: A (banded in node order, half-bandwidth BAND) is
-LU-factorised once (`solver.banded`), A [X_f, X_b] = [f, b], then
+LU-factorised once (`solver.fast.banded`), A [X_f, X_b] = [f, b], then
 dp = (b·X_f - f_p) / (b·X_b) and dx = X_f - X_b dp. The step u + t (dx, dp)
 is halved (t = 1, 1/2, ...) while it leaves the admissible shapes (nodes off
 the axis and in order along the plate, no element of zero length, no fold:
@@ -15,7 +15,7 @@ neighbouring elements turn by less than π/2) or makes the residual force
 |g_x| grow a hundredfold; below t = 1e-3 the step is rejected. Converged when
 max |g_x| < tol · force_scale and |g_p| = |V - V0| < 1e-9 V0.
 
-The whole iteration (kernel evaluation `solver.fast_kernel.evaluate`, solve,
+The whole iteration (kernel evaluation `solver.fast.kernel.evaluate`, solve,
 admissibility, step halving) is one compiled call, so a solve crosses from
 Python into compiled code a few times instead of a few hundred. Its cached
 machine code includes the kernel and the LU; `solver.jit` keeps the cache
@@ -24,16 +24,17 @@ iteration afresh.
 """
 
 import numpy as np
+import numpy.typing as npt
 
-from solver import banded
-from solver.fast_kernel import evaluate
+from solver.fast import banded
+from solver.fast.kernel import Terms, evaluate
 from solver.jit import njit
 
 CONVERGED, SINGULAR, REJECTED, NOT_CONVERGED = 0, 1, 2, 3   # `newton`'s status
 
 
 @njit(cache=True)
-def nodes(u, zp, N, kc):
+def nodes(u: npt.NDArray[np.float64], zp: float, N: int, kc: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """(r, z) of every node from the unknowns: the pole at r = 0, nodes up
     to k_c on the plate z = z_p, the equator on z = 0 (`Lagrangian.nodes`)."""
     r, z = np.empty(N + 1), np.empty(N + 1)
@@ -46,7 +47,7 @@ def nodes(u, zp, N, kc):
 
 
 @njit(cache=True)
-def shape_ok(r, z, kc):
+def shape_ok(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], kc: int) -> bool:
     """The admissible shapes: r > 0 off the pole, increasing along the plate
     (nodes up to kc), every element of nonzero length, dr_e dr_e+1 + dz_e dz_e+1 > 0
     between neighbours (no fold)."""
@@ -60,7 +61,7 @@ def shape_ok(r, z, kc):
 
 
 @njit(cache=True)
-def block_solve(band, pcol, order, bw, rhs):
+def block_solve(band: npt.NDArray[np.float64], pcol: npt.NDArray[np.float64], order: npt.NDArray[np.int64], bw: int, rhs: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], int]:
     """The saddle-point system's solution (module docstring) for the columns
     of rhs ((n - 1) × m, in the order of the unknowns without l), with A in
     LAPACK band storage in node `order` (half-bandwidth bw) and b = pcol.
@@ -93,7 +94,8 @@ def block_solve(band, pcol, order, bw, rhs):
 
 
 @njit(cache=True)
-def system(u, zp, ref, terms, N, V0):
+def system(u: npt.NDArray[np.float64], zp: float, ref: tuple[npt.NDArray[np.float64], ...], terms: Terms, N: int,
+           V0: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """∇L (size n) and the Newton matrix (band, lp) of `evaluate` at u."""
     n = u.size
     r, z = nodes(u, zp, N, terms.kc)
@@ -122,7 +124,8 @@ def _step(u, dx, t):
 
 
 @njit(cache=True)
-def newton(u, zp, ref, terms, order, N, V0, force_scale, tol, maxit):
+def newton(u: npt.NDArray[np.float64], zp: float, ref: tuple[npt.NDArray[np.float64], ...], terms: Terms, order: npt.NDArray[np.int64], N: int, V0: float,
+           force_scale: float, tol: float, maxit: int) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], int]:
     """Newton's method at fixed l from u (module docstring), ref the
     reference positions at that l. Returns (status, u, g, band, lp,
     iterations): status CONVERGED, or SINGULAR, REJECTED, NOT_CONVERGED

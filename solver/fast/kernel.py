@@ -1,6 +1,6 @@
 """The compiled evaluation of the fast solver's discrete Lagrangian.
 
-The formulas are those of `solver.fast_energy` (its docstring gives L; symbols
+The formulas are those of `solver.fast.lagrangian` (its docstring gives L; symbols
 as in SPEC section 2), evaluated by numba-compiled loops over elements and
 nodes instead of numpy arrays of (elements × 6 × 6) temporaries. Per element
 e = (k, k+1), in the local unknowns (r_k, z_k, r_k+1, z_k+1, l, p):
@@ -25,6 +25,7 @@ evaluation of the same formulas: results agree with one to round-off.
 from collections import namedtuple
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.jit import njit
 
@@ -341,7 +342,8 @@ def _scatter(grad, band, lp, idx, row, m, slot, bw, g, h, want_h, sl):
 
 
 @njit(cache=True, error_model="numpy")
-def evaluate(x, ref, t, n, want_h):
+def evaluate(x: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float], ref: tuple[npt.NDArray[np.float64], ...], t: Terms, n: int,
+             want_h: bool) -> tuple[float, npt.NDArray[np.float64], tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]]:
     """L - p V0 at x = (r, z, p) of all nodes, with ref = (r0, z0, dr0/dl,
     dz0/dl, d²r0/dl², d²z0/dl²) and the terms t, for n unknowns (the last two
     l and p); its gradient over the n + 2 global indices (+ z_p, + a fixed
