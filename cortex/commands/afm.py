@@ -217,15 +217,16 @@ def _forward(args: argparse.Namespace) -> Any:
     return sy.law_forward(Calibration.load(args.calibration)[args.bending])
 
 
-def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[Any, Any]) -> Any:
+def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | None, float | None]) -> Any:
     from analysis.afm.synth import rheology as sr
     from common.errors import InputError
-    if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
+    bulk, shear = exponents
+    if bulk is None or shear is None or not all(0 <= b <= 0.6 for b in (bulk, shear)):
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
     if args.solver not in ("fast", "emulator"):
         raise InputError("viscoelastic cells need --solver fast or emulator")
     complex_forward = sr.emulator_complex if args.solver == "emulator" else sr.solver_complex
-    return sr.ViscoelasticForward(*exponents, complex_forward(args.bending), seed=args.seed)
+    return sr.ViscoelasticForward(bulk, shear, complex_forward(args.bending), seed=args.seed)
 
 
 def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] | None, str | None]:
