@@ -44,6 +44,7 @@ from campaign import faults
 from campaign.mpio_writer import Writer, open_parallel, write_path
 from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
+from campaign import isolation
 from campaign.isolation import Isolated, memory_share_mb
 from campaign.trial_inputs import TrialInputs
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
@@ -67,10 +68,13 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
-    tasks = Isolated(campaign, comm.Get_rank(), campaign.memory_limit_mb or memory_share_mb(), campaign.retries)
+    serving = comm.Get_rank() == 0 and comm.Get_size() > 1     # its task process: once the store is open
+    tasks = None if serving else _isolated(campaign, comm.Get_rank())
     store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
-        tasks.close()
+        if tasks is not None:
+            tasks.close()
+        isolation.discard_early()
         if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
             raise error
         return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
@@ -86,9 +90,10 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     if parallel_file:
         store.attach(parallel_file)
     workers = comm.Get_size() - 1
-    if workers and not master_may_compute(workers):
-        tasks.close()                  # rank 0 only serves: its task process is not needed
-        tasks = None
+    if workers and master_may_compute(workers):
+        tasks = _isolated(campaign, 0)      # it warms up while rank 0 serves (rank 0 computes once it is warm)
+    elif workers:
+        isolation.discard_early()           # rank 0 only serves: its task process is not needed
     if progress:
         print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
@@ -108,10 +113,15 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     return status
 
 
+def _isolated(campaign, rank):
+    """Rank `rank`'s task process (`campaign.isolation.Isolated`), told to warm up."""
+    return Isolated(campaign, rank, campaign.memory_limit_mb or memory_share_mb(), campaign.retries)
+
+
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store while every rank's task
-    process warms up (`campaign.isolation`)."""
+    and error on every rank: rank 0 opens the store while the workers' task
+    processes warm up (`campaign.isolation`; rank 0's, behind its serving)."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:
@@ -179,10 +189,10 @@ def _master(comm, store, campaign, retry_failed, progress, tasks=None):
     master.refill()
     while master.active():
         master.serve()
-        if master.handing_out() and master.policy.master_computes() and (not master.policy.workers
-                                                                          or tasks.ready()):
+        computes = master.handing_out() and master.policy.master_computes()
+        if computes and (not master.policy.workers or tasks.ready(IDLE_S)):
             master.compute()
-        else:
+        elif not computes:
             time.sleep(IDLE_S)
         if time.time() - master.last_flush > FLUSH_S:
             master.flush()
