@@ -40,11 +40,10 @@ from collections import deque
 from campaign.policy import Policy, master_may_compute
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
-from campaign import faults
 from campaign.mpio_writer import Writer, open_parallel, write_path
 from campaign.schema import DONE, FAILED, PENDING
 from campaign.store import Store
-from campaign import isolation
+from campaign import isolation, task_hooks
 from campaign.isolation import Isolated, memory_share_mb
 from campaign.trial_inputs import TrialInputs
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
@@ -127,7 +126,7 @@ def _open_store(comm, campaign, store_path, new, writes):
         try:
             path = write_path(writes, comm.Get_size())
             store = Store(store_path, campaign, new=new, ranks=comm.Get_size(), parallel=path == "mpio",
-                          on_record=faults.record_hook())
+                          on_record=task_hooks.record_hook())
         except Exception as err:
             error = err
     error, path = comm.bcast((error, path), root=0)
