@@ -129,6 +129,8 @@ def _open_store(comm, campaign, store_path, new, writes):
                           on_record=task_hooks.record_hook())
         except Exception as err:
             error = err
+    arrived = comm.Ibarrier()        # the workers wait here napping: MPI's blocking bcast would spin,
+    _polled(lambda: arrived.Test() or None)   # taking a core from the task processes' warm-ups
     error, path = comm.bcast((error, path), root=0)
     return store, path, error
 
@@ -170,13 +172,18 @@ def _next_message(comm, status):
     NAP_S[1]: a message waits at most NAP_S[1] longer than with a blocking
     receive, and a worker only waits when rank 0 has nothing queued for it."""
     from mpi4py import MPI
+    return _polled(lambda: comm.improbe(source=0, tag=MPI.ANY_TAG, status=status)).recv()
+
+
+def _polled(probe):
+    """What `probe()` returns once it is not None, polled as `_next_message` says."""
     polls, nap = 0, NAP_S[0]
-    while (message := comm.improbe(source=0, tag=MPI.ANY_TAG, status=status)) is None:
+    while (got := probe()) is None:
         polls += 1
         if polls > SPIN_POLLS:
             time.sleep(nap)
             nap = min(2.0 * nap, NAP_S[1])
-    return message.recv()
+    return got
 
 
 def _master(comm, store, campaign, retry_failed, progress, tasks=None):
