@@ -191,6 +191,8 @@ class Isolated:
         self.memory_limit_mb = memory_limit_mb
         self.limit_s = campaign.timeout_s + GRACE_S
         self.warm = False
+        self.pending: list[Item] | None = None    # the batch `submit` handed out, until `collect`
+        self.sent = False
         self._start(_early.pop("spawned", None) or _spawn())
 
     def _start(self, spawned):
@@ -214,15 +216,48 @@ class Isolated:
         """`run_pickled`, unpickled: (entries, seconds computing)."""
         return pickle.loads(self.run_pickled(batch))
 
-    def run_pickled(self, batch: list[Item]) -> bytes:
+    def submit(self, batch: list[Item]) -> None:
+        """Hand `batch` to the task process without waiting for it (`collect`
+        takes the answer): the rank does its own work meanwhile."""
+        self.pending, self.sent = list(batch), self._send(batch)
+
+    def _send(self, todo):
+        """Whether `todo` reached the task process (if not, it died: `_attempt` says how)."""
+        try:
+            if not self.warm:
+                self._take_ready()
+            self.conn.send(todo)
+            return True
+        except (EOFError, OSError):
+            return False
+
+    def busy(self) -> bool:
+        """Whether a batch handed out by `submit` is still to `collect`."""
+        return self.pending is not None
+
+    def answered(self, wait_s: float) -> bool:
+        """Whether `collect` would not wait (the answer is there, the process has
+        ended, or its task is past the limit), waiting at most `wait_s` for it."""
+        if self.conn.poll(wait_s):
+            return True
+        return time.monotonic() - self.slot.read()[1] > self.limit_s
+
+    def collect(self) -> tuple[list[dict[str, Any]], float]:
+        """`run` of the batch `submit` handed out: (entries, seconds computing)."""
+        batch, self.pending = self.pending or [], None
+        return pickle.loads(self.run_pickled(batch, self.sent))
+
+    def run_pickled(self, batch: list[Item], sent: bool = False) -> bytes:
         """Every task of `batch` (a list of (task, payload, attempts)) computed,
         as pickled bytes of (entries, seconds computing: the task process's
         own count, or the wall time of a batch that lost its process); a task
-        that crashed or did not answer is a failed entry (after its retries)."""
+        that crashed or did not answer is a failed entry (after its retries).
+        `sent`: the batch is with the task process already (`submit`)."""
         started, todo, outside = time.perf_counter(), list(batch), 0
         entries: list[dict[str, Any]] = []
         while todo:
-            raw, lost = self._attempt(todo)
+            raw, lost = self._attempt(todo, sent)
+            sent = False
             if lost is None:
                 if not entries:
                     return raw            # as the task process sent it: the common case
@@ -243,13 +278,13 @@ class Isolated:
                 todo = todo[:place] + todo[place + 1:]
         return pickle.dumps((entries, time.perf_counter() - started))
 
-    def _attempt(self, todo):
+    def _attempt(self, todo, sent=False):
         """(pickled (entries, seconds computing), None) if the task process computed all of `todo`, else
-        (None, (place of the task lost, why, when it started)) with the process started again."""
+        (None, (place of the task lost, why, when it started)) with the process started again.
+        `sent`: `todo` is with the task process already."""
         try:
-            if not self.warm:
-                self._take_ready()
-            self.conn.send(todo)
+            if not sent and not self._send(todo):
+                raise EOFError
             while not self.conn.poll(self._wait_s()):
                 place, started = self.slot.read()
                 if time.monotonic() - started > self.limit_s:
@@ -280,7 +315,14 @@ class Isolated:
         return place, reason, when
 
     def close(self) -> None:
-        """The task process told to stop (its pipe closed) and reaped."""
+        """The task process told to stop (its pipe closed) and reaped; one still
+        warming up (a run that ended before rank 0 needed it) is killed: it
+        holds nothing, and would answer only once warm."""
+        try:
+            if not self.ready():
+                self.proc.kill()
+        except (EOFError, OSError):       # it has ended already
+            pass
         self.conn.close()
         try:
             self.proc.wait(timeout=5.0)

@@ -51,6 +51,7 @@ from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAI
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 FLUSH_S = 2.0           # s: rank 0's own results are flushed at least this often
+ANSWER_S = 0.002        # s: rank 0's longest wait for its task process's answer before it serves again
 IDLE_S = 0.0002         # s: rank 0's nap while it waits for results and computes nothing (a batch of
                         # 512 no-op tasks is ~2.6 ms of work: naps of 1 ms left the worker waiting for its next)
 SPIN_POLLS = 100        # a waiting worker's polls before it naps between them ...
@@ -189,15 +190,20 @@ def _polled(probe):
 def _master(comm, store, campaign, retry_failed, progress, tasks=None):
     """Rank 0's loop: serve the workers' results, compute tasks itself (in its
     task process, `tasks`) when the policy says so and that process has warmed
-    up (a worker is not kept waiting meanwhile), until nothing is left (or a
-    signal stopped the hand-outs)."""
+    up, until nothing is left (or a signal stopped the hand-outs). Its task
+    process computes one batch while rank 0 serves and records the last: rank
+    0 waits for the answer at most ANSWER_S at a time (woken by it at once),
+    so a worker is not kept waiting meanwhile."""
     master = _Master(comm, store, campaign, retry_failed, progress, tasks)
     master.refill()
     while master.active():
         master.serve()
         computes = master.handing_out() and master.policy.master_computes()
-        if computes and (not master.policy.workers or tasks.ready(IDLE_S)):
-            master.compute()
+        if tasks is not None and tasks.busy():
+            if tasks.answered(ANSWER_S):
+                master.collect(computes)
+        elif computes and (not master.policy.workers or tasks.ready(IDLE_S)):
+            master.submit()
         elif not computes:
             time.sleep(IDLE_S)
         if time.time() - master.last_flush > FLUSH_S:
@@ -241,7 +247,7 @@ class _Master:
         return bool(self.policy.todo) and not _stop["flag"]
 
     def active(self):
-        return self.handing_out() or self.link.busy()
+        return self.handing_out() or self.link.busy() or (self.tasks is not None and self.tasks.busy())
 
     def prepared(self, tasks):
         """(task, payload, attempt) of each task, shown running from the next flush on."""
@@ -292,11 +298,19 @@ class _Master:
             self.refill()
             self.policy.served(messages, time.perf_counter() - started)
 
-    def compute(self):
-        """Rank 0 computes the next tasks itself, as many as the policy says
-        (one message to its task process)."""
+    def submit(self):
+        """Rank 0's task process handed the next tasks, as many as the policy
+        says (one message), if any are queued."""
         batch = self.prepared(self.policy.take(self.policy.master_batch()))
-        entries, busy_s = self.tasks.run(batch)
+        if batch:
+            self.tasks.submit(batch)
+
+    def collect(self, more):
+        """Rank 0's task process's answer recorded; first, if `more`, the next
+        batch handed to it (it computes while rank 0 records)."""
+        entries, busy_s = self.tasks.collect()
+        if more:
+            self.submit()
         self.policy.timed(len(entries), busy_s)
         self.record(entries)
         self.refill()                 # a finished compression may have made trials ready
