@@ -20,35 +20,19 @@ The issue's bound: paper wall ratio at most 1.10, the no-op rate unchanged.
 """
 
 import argparse
+import importlib.util
 import json
 import os
 import pathlib
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(1, str(ROOT / "tests"))
-import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
-
-os.environ.update(faults.environment())
-NOOP = """
-[campaign]
-name = "noop"
-[grid]
-h0_um = [{h0}]
-bulk_mN_per_m = 25.0
-shear_mN_per_m = [{shear}]
-tension_mN_per_m = [{tension}]
-[test]
-noop = true
-"""
-
-
-def _grid(lo, hi, n):
-    return ", ".join(f"{lo + (hi - lo) * i / (n - 1):.6f}" for i in range(n))
+_spec = importlib.util.spec_from_file_location("bench_campaign", ROOT / "bench" / "campaign.py")
+engine = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(engine)     # its no-op grid, and the test suite's faults installed as it installs them
 
 
 def _timed(checkout, config, store):
@@ -96,11 +80,11 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         noop = tmp / "noop.toml"
-        noop.write_text(NOOP.format(h0=_grid(10.0, 15.0, 25), shear=_grid(5.0, 25.0, 20),
-                                    tension=_grid(0.5, 3.0, 20)))
+        noop.write_text(engine.NOOP.format(h0=engine._grid(10.0, 15.0, 25), shear=engine._grid(5.0, 25.0, 20),
+                                           tension=engine._grid(0.5, 3.0, 20)))
         paper = _paired(args.base.resolve(), ROOT / "campaigns" / "paper.toml", tmp / "paper.h5", args.pairs)
         idle = _paired(args.base.resolve(), noop, tmp / "noop.h5", args.pairs)
-    idle["tasks_per_s_median"] = [round(10_000 / s, 1) for s in idle["wall_s_median"]]
+    idle["tasks_per_s_median"] = [round(engine.N_NOOP / s, 1) for s in idle["wall_s_median"]]
     print(json.dumps({"pairs": args.pairs, "paper": paper, "noop_10000": idle}))
 
 
