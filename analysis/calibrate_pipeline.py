@@ -67,9 +67,9 @@ class Fitted:
 
 
 def read_store(path):
-    """(results, trials) DataFrames of a campaign store, via `campaign.reader`."""
+    """(results, trials) DataFrames of a campaign store, via `campaign.store.reader`."""
     try:
-        from campaign import reader
+        from campaign.store import reader
     except ModuleNotFoundError as err:
         raise InputError(f"cannot read {path}: the campaign package is not installed ({err.name})") from None
     try:

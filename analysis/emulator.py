@@ -192,7 +192,7 @@ class Emulator:
 
 
 def from_results(results, progress=None, resolution=1.0):
-    """Build the emulator from a store's rows (`campaign.reader.read_results`) of an
+    """Build the emulator from a store's rows (`campaign.store.reader.read_results`) of an
     emulator campaign: a full grid over (V, h̃, K̃_S, γ̃_a) per bending variant with one
     Δh and t_c. A task that is not finished is refused (InputError, one line); a task
     that failed (the fast solver's Newton search can stall on one particular mesh) is

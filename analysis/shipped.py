@@ -37,7 +37,7 @@ def shipped_path():
 
 
 def _store_provenance(path):
-    from campaign.reader import read_provenance
+    from campaign.store.reader import read_provenance
     p = read_provenance(path)
     return {"store": Path(path).name, "campaign_text": p.get("config_text", ""),
             "fingerprint": p.get("fingerprint", ""), "code_version": p.get("code_version", ""),

@@ -3,10 +3,10 @@ benchmarks of the analysis (no solver needed).
 
 `reference_law(bending)` is a made-up but plausible law (λ, cubic C and D:
 K rises towards K_B as the cell flattens, faster for small ν).
-`results_table` builds the rows `campaign.reader.read_results` returns for a
+`results_table` builds the rows `campaign.store.reader.read_results` returns for a
 grid, with K(h̃) = K_B (1 + α(K̃_S, γ̃_a) exp(h̃/λ)) and the force consistent
 with it through the droplet geometry (SPEC 3): F = (γ_a + K ε_A) 2 H A_c(h1).
-`trials_table` builds the rows of `campaign.reader.read_trials`: cells of true
+`trials_table` builds the rows of `campaign.store.reader.read_trials`: cells of true
 ν whose true forces are re-analysed with a volume and heights drawn around
 the true ones (SPEC 5).
 """

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from analysis.figures import _save, plt
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from common.errors import InputError
 
 TOLERANCE = 0.01      # the 1 % of "the elastic calibration is valid"

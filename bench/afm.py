@@ -11,10 +11,10 @@ from pathlib import Path
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 from analysis.afm.analyze import analyze
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law  # noqa: E402
-import analysis.afm.synth as synth  # noqa: E402
+import analysis.afm.synth.cells as synth  # noqa: E402
 
 
 def main():

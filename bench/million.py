@@ -10,7 +10,7 @@ is the whole command's wall time. Then `status_wall_s` is the wall time of
 `cortex campaign status STORE --json` (a process of its own, start-up
 included; `status_cpu_s` its user + system time, which a loaded machine
 does not inflate), `open_wall_s` that of opening the store and reading its
-result table (`campaign.reader.read_results`, in a fresh process, its
+result table (`campaign.store.reader.read_results`, in a fresh process, its
 start-up and the imports of pandas and the reader excluded; `open_cpu_s` its
 CPU time), each the best of --repeat runs; `store_mb` and `journal_mb` the
 sizes on disk. From two sizes,
@@ -48,7 +48,7 @@ noop = true
 OPEN = """
 import sys, time
 import pandas
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 started, cpu = time.perf_counter(), time.process_time()
 rows = read_results(sys.argv[1])
 print(time.perf_counter() - started, time.process_time() - cpu, len(rows))

@@ -22,7 +22,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from analysis.afm.synth import solver_forward  # noqa: E402
+from analysis.afm.synth.cells import solver_forward  # noqa: E402
 from solver.elasticity import poisson_of_ratio  # noqa: E402
 from solver.geometry import cell_radius  # noqa: E402
 

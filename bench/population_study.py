@@ -10,7 +10,7 @@ Prints one JSON object.
 the published design, the fast solver as the forward model, errors on unless
 --no-errors), `cortex afm analyze`'s inversion (emulator, standard bending;
 with --no-errors the intervals also assume no volume or height error) and its
-population.json (`analysis.afm.population_answer.answer`). Each experiment is
+population.json (`analysis.afm.population.answer.answer`). Each experiment is
 appended to the cache (one JSON line: truth, the answer, every cell's estimate,
 its SD and its true ln K̃_S) and the summary covers every cached experiment of
 that kind: how often the 95 % intervals of the population mean μ_f and SD σ_f
@@ -52,8 +52,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from analysis.afm import random_effects, trend  # noqa: E402
-from analysis.afm.population_answer import answer  # noqa: E402
+from analysis.afm.population import random_effects, trend  # noqa: E402
+from analysis.afm.population.answer import answer  # noqa: E402
 from solver.elasticity import poisson_of_ratio  # noqa: E402
 
 FREQS = (0.02, 0.1, 1.0, 10.0)
@@ -63,7 +63,7 @@ ALPHA = 0.05
 
 
 def run_full(seed, errors):
-    from analysis.afm import synth
+    from analysis.afm.synth import cells as synth
     from analysis.afm.analyze import analyze
     from analysis.invert_table import Errors
     from analysis.shipped import load
@@ -219,7 +219,7 @@ def _simulated_answer(rows):
 
 
 def coverage_sim(rng, pool, template, n_exp):
-    from analysis.afm.synth import subset_sizes
+    from analysis.afm.synth.cells import subset_sizes
     recs = []
     for _ in range(n_exp):
         rows, base = [], 0

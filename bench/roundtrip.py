@@ -1,6 +1,6 @@
 """The measured-cell round trip (issue 13, "what it must show"): synthetic
 experiments of 85 cells with the fast solver as the forward model
-(`analysis.afm.synth`), analysed with the shipped calibration by both methods.
+(`analysis.afm.synth.cells`), analysed with the shipped calibration by both methods.
 Prints one JSON object.
 
 Per seed and errors off/on, per method: the medians of ν per frequency
@@ -29,7 +29,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.afm.analyze import analyze  # noqa: E402
-from analysis.afm.synth import generate, solver_forward  # noqa: E402
+from analysis.afm.synth.cells import generate, solver_forward  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 
 

@@ -42,7 +42,7 @@ import time
 # run as a script, this file would shadow the packages: put the repository first
 sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 
-from campaign.reader import summary  # noqa: E402
+from campaign.store.reader import summary  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(1, str(ROOT / "tests"))

@@ -21,10 +21,10 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__)
 
 import numpy as np  # noqa: E402
 
-from analysis.afm.h5format import write_experiment  # noqa: E402
-from analysis.afm.jpk_import import to_cell, wedge_height_um  # noqa: E402
-from analysis.afm.ramp_fit import fit_ramp  # noqa: E402
-from analysis.afm.tension_synth import droplet_recording  # noqa: E402
+from analysis.afm.formats.h5 import write_experiment  # noqa: E402
+from analysis.afm.formats.instruments import to_cell, wedge_height_um  # noqa: E402
+from analysis.afm.tension.ramp import fit_ramp  # noqa: E402
+from analysis.afm.tension.synth import droplet_recording  # noqa: E402
 from solver.geometry import cell_radius  # noqa: E402
 
 N = 100

@@ -11,13 +11,24 @@ Public API (imported on first use):
   Monte-Carlo trials as pandas DataFrames; `summary(store)`: counts, failures,
   throughput (what `cortex campaign status --json` prints);
   `read_provenance(store)`: what made it.
+
+The store is a subpackage with a face of its own (`campaign.store`); what a
+task is (a compression or a trial task, its key, number and entry) lives in
+`campaign.task_key`.
 """
 
+from typing import TYPE_CHECKING
+
 from common.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:
+    from campaign.config import Campaign, load as load_config
+    from campaign.scheduler import run
+    from campaign.store.reader import read_provenance, read_results, read_trials, summary
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "load_config": "campaign.config:load", "Campaign": "campaign.config",
     "run": "campaign.scheduler",
-    "read_results": "campaign.reader", "read_trials": "campaign.reader", "summary": "campaign.reader",
-    "read_provenance": "campaign.reader",
+    "read_results": "campaign.store.reader", "read_trials": "campaign.store.reader",
+    "summary": "campaign.store.reader", "read_provenance": "campaign.store.reader",
 })

@@ -49,12 +49,14 @@ fingerprinting and naming them (as a store is made, from the grid's axes:
 import hashlib
 import itertools
 import math
+import os
 import tomllib
 from dataclasses import dataclass
 from functools import cached_property
 
 from campaign import task_hooks
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
+from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
 from solver.elasticity import poisson_ratio, shear_modulus
@@ -99,6 +101,11 @@ class Campaign:
         h.update(("]" + self.method + repr(self.resolution)).encode())
         return h.hexdigest()
 
+    @cached_property
+    def numbers(self) -> TaskNumbers:
+        """Its tasks' numbers (`campaign.task_key`): the compressions, then the trial tasks."""
+        return TaskNumbers(len(self.shells), len(self.studies))
+
     @property
     def trials_fingerprint(self):
         """What identifies its Monte-Carlo trials ('' without any)."""
@@ -118,7 +125,7 @@ def _numbers(path, key, value):
     return [float(v) for v in values]
 
 
-def load(path):
+def load(path: str | os.PathLike[str]) -> Campaign:
     """Read and validate a campaign file; InputError with one line if it is wrong."""
     raw, data = _read_toml(path)
     grid = _grid_section(path, data)
@@ -157,7 +164,8 @@ def _read_toml(path):
             raise InputError(f"{path}: unknown section [{section}] (known: {', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{path}: {section} must be a table [{section}]")
-        unknown = set(value) - SECTIONS[section] if SECTIONS[section] is not None else ()
+        allowed = SECTIONS[section]
+        unknown = set(value) - allowed if allowed is not None else set()
         if unknown:
             raise InputError(f"{path}: unknown key {sorted(unknown)[0]!r} in [{section}]")
     return raw, data
@@ -293,7 +301,7 @@ def _studies(path, mc, axes, shells, limit=MAX_TASKS):
     bulk = axes["bulk_mN_per_m"][0]
     if bulk <= 0:
         raise InputError(f"{path}: [montecarlo] needs [grid] bulk_mN_per_m > 0 (ν is undefined)")
-    shears = {}
+    shears: dict[float, float] = {}
     for nu in nus:
         _mc_number(path, "nu", nu, -1.0, 1.0)
         hit = grid_shear(nu, bulk, axes["shear_mN_per_m"])

@@ -33,7 +33,7 @@ the shells).
 import itertools
 import math
 import operator
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from common.errors import InputError
 from solver.geometry import cell_radius
@@ -134,7 +134,7 @@ class Grid(Sequence):
         ~7 ms, against ~40 ms through the shells."""
         derived = [k for k in keys if k in self.ratios]
         cols = self.columns() if derived else {}
-        rows = itertools.product(*[[encode(v) for v in axis] for axis in self.axes])
+        rows: Iterator[tuple] = itertools.product(*[[encode(v) for v in axis] for axis in self.axes])
         if derived:
             rows = map(operator.add, rows, zip(*[map(encode, cols[k].tolist()) for k in derived]))
         first = self[0].to_dict()                  # the fields every point shares (a varying one's is never read)

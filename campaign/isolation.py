@@ -254,7 +254,7 @@ class Isolated:
         that crashed or did not answer is a failed entry (after its retries).
         `sent`: the batch is with the task process already (`submit`)."""
         started, todo, outside = time.perf_counter(), list(batch), 0
-        entries: list[dict[str, Any]] = []
+        entries: list = []
         while todo:
             raw, lost = self._attempt(todo, sent)
             sent = False

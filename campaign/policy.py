@@ -7,7 +7,7 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   others (grid order within each group); a Monte-Carlo trial task joins the
   queue once every compression it uses has finished (`finished`), behind the
   compressions still queued, so the short tasks come last and even out the
-  ranks' ends. Tasks are numbered: compressions 0..n-1, trial task j is n + j.
+  ranks' ends. A task is its number (`campaign.task_key.TaskNumbers`).
 - **Batch size** (tasks per message). With `W` workers, `R` ranks
   computing, `M` tasks queued, `T̄` the running mean task time and `c̄` rank
   0's running mean cost of serving one result message (receiving it,
@@ -43,6 +43,9 @@ Times are in seconds.
 
 import math
 from collections import deque
+from collections.abc import Iterable, Mapping
+
+from campaign.task_key import TRIAL, TaskKey, TaskNumbers
 
 AHEAD = 4                 # tasks a worker holds at least: outlasts one of rank 0's own tasks
 BATCH_S = 0.2             # s: the work in one batch, unless rank 0's load needs more ...
@@ -60,7 +63,7 @@ def _mean(old, new):
     return new if old is None else (1 - SMOOTHING) * old + SMOOTHING * new
 
 
-def master_may_compute(workers):
+def master_may_compute(workers: int) -> bool:
     """Whether rank 0, serving `workers` workers, ever computes tasks itself."""
     return workers <= MASTER_WORKERS_MAX
 
@@ -69,94 +72,98 @@ class Policy:
     """The queue of tasks to hand out and the rules above.
 
     `rows`: compressions to do (grid indices, any order); `waits`: per trial
-    task to do (its number j), the compressions it uses (grid indices; those
-    not in `rows` are done already); `n`: compressions in the grid; `workers`:
-    ranks other than 0."""
+    task to do (its study's place j), the compressions it uses (grid indices;
+    those not in `rows` are done already); `n`: compressions in the grid;
+    `workers`: ranks other than 0. The queue, `waiting` and `dependents` hold
+    task numbers."""
 
-    def __init__(self, rows, waits, n, workers):
-        self.n, self.workers = n, workers
-        self.task_s, self.cost_s = None, None
-        pending = set(rows)
-        self.waiting, self.dependents = {}, {}
+    def __init__(self, rows: Iterable[int], waits: Mapping[int, Iterable[int]], n: int, workers: int):
+        numbers, self.workers = TaskNumbers(n), workers
+        self.task_s: float | None = None
+        self.cost_s: float | None = None
+        pending = set(numbers.of_compressions(rows))
+        self.waiting: dict[int, int] = {}            # trial task -> compressions it still waits for
+        self.dependents: dict[int, list[int]] = {}   # compression -> trial tasks waiting for it
         for j, deps in waits.items():
-            deps = sorted(set(deps) & pending)
-            self.waiting[j] = len(deps)
-            for r in deps:
-                self.dependents.setdefault(r, []).append(j)
+            trial = numbers.number(TaskKey(TRIAL, j))
+            used = sorted(set(numbers.of_compressions(deps)) & pending)
+            self.waiting[trial] = len(used)
+            for r in used:
+                self.dependents.setdefault(r, []).append(trial)
         first = sorted(r for r in pending if r in self.dependents)
         self.todo = deque(first + sorted(pending - set(first)))
         self.todo.extend(self._ready())
 
-    def _ready(self):
-        """Trial tasks with nothing left to wait for (task numbers), no longer waiting."""
-        ready = [j for j, w in self.waiting.items() if w == 0]
-        for j in ready:
-            del self.waiting[j]
-        return [self.n + j for j in sorted(ready)]
+    def _ready(self) -> list[int]:
+        """Trial tasks with nothing left to wait for, no longer waiting."""
+        ready = sorted(t for t, w in self.waiting.items() if w == 0)
+        for t in ready:
+            del self.waiting[t]
+        return ready
 
-    def finished(self, task):
-        """Task `task` has finished (done or failed): the trial tasks it made ready join the queue."""
-        if task < self.n:
-            ready = []
-            for j in self.dependents.pop(task, []):
-                self.waiting[j] -= 1
-                if self.waiting[j] == 0:          # only these can have become ready
-                    ready.append(j)
-            for j in sorted(ready):
-                del self.waiting[j]
-                self.todo.append(self.n + j)
+    def finished(self, task: int) -> None:
+        """Task `task` has finished (done or failed): the trial tasks it made ready
+        join the queue (only compressions have trial tasks waiting for them)."""
+        ready = []
+        for t in self.dependents.pop(task, []):
+            self.waiting[t] -= 1
+            if self.waiting[t] == 0:          # only these can have become ready
+                ready.append(t)
+        for t in sorted(ready):
+            del self.waiting[t]
+            self.todo.append(t)
 
-    def timed(self, tasks, seconds):
+    def timed(self, tasks: int, seconds: float) -> None:
         """`tasks` tasks took `seconds` of computing."""
         if tasks > 0:
             self.task_s = _mean(self.task_s, seconds / tasks)
 
-    def served(self, messages, seconds):
+    def served(self, messages: int, seconds: float) -> None:
         """Rank 0 took `seconds` to serve `messages` result messages."""
         if messages > 0:
             self.cost_s = _mean(self.cost_s, seconds / messages)
 
-    def _nominal_batch(self):
+    def _nominal_batch(self) -> int:
         """b without the guided term (module docstring)."""
-        T = max(self.task_s, 1e-9)
+        T = max(self.task_s or 0.0, 1e-9)         # timed before it is asked for
         by_time = math.floor(BATCH_S / T)
         by_load = math.ceil(self.workers * (self.cost_s or 0.0) / (MASTER_LOAD_MAX * T))
         return max(1, min(max(by_time, by_load), math.floor(BATCH_S_MAX / T), BATCH_MAX))
 
-    def load(self):
+    def load(self) -> float:
         """ρ: the share of rank 0's time serving takes at the nominal batch size."""
         if self.task_s is None or not self.cost_s:
             return 0.0
         return self.workers * self.cost_s / (self._nominal_batch() * max(self.task_s, 1e-9))
 
-    def master_computes(self):
+    def master_computes(self) -> bool:
         """Whether rank 0 computes tasks itself now (module docstring)."""
         if self.workers == 0:
             return True
         return master_may_compute(self.workers) and self.load() <= MASTER_LOAD_MAX
 
-    def master_batch(self):
+    def master_batch(self) -> int:
         """Tasks rank 0 computes at once (module docstring); b with no workers to serve."""
         if self.workers == 0 or self.task_s is None:
             return self.batch_size()
         return max(1, min(math.floor(MASTER_BATCH_S / max(self.task_s, 1e-9)), self.batch_size()))
 
-    def computing(self):
+    def computing(self) -> int:
         """Ranks computing tasks: the workers, and rank 0 when it does."""
         return self.workers + (1 if self.master_computes() else 0)
 
-    def batch_size(self):
+    def batch_size(self) -> int:
         """b of the module docstring."""
         if self.task_s is None:
             return 1
         guided = len(self.todo) // (GUIDE * max(self.computing(), 1))
         return max(1, min(guided, self._nominal_batch()))
 
-    def ahead(self):
+    def ahead(self) -> int:
         """Tasks a worker is kept ahead."""
         return max(AHEAD, 2 * self.batch_size())
 
-    def batches_for(self, in_flight):
+    def batches_for(self, in_flight: int) -> list[list[int]]:
         """The batches (lists of task numbers) to send a worker that holds `in_flight` tasks."""
         out = []
         while self.todo and in_flight < self.ahead():
@@ -165,10 +172,10 @@ class Policy:
             out.append(batch)
         return out
 
-    def take(self, count):
+    def take(self, count: int) -> list[int]:
         """The next `count` tasks (fewer if fewer are queued), no longer queued."""
         return [self.todo.popleft() for _ in range(min(count, len(self.todo)))]
 
-    def left(self):
+    def left(self) -> int:
         """Tasks not yet handed out: queued, or trial tasks still waiting."""
         return len(self.todo) + len(self.waiting)

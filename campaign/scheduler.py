@@ -24,7 +24,7 @@ and rank 0's flag is the one read): no new tasks are handed out, the batches
 in flight finish and are written (a batch holds a worker for at most about
 `policy.BATCH_S`), and the run stops saying how to resume (exit status 3).
 
-On the mpio write path (`campaign.mpio_writer`) a worker also keeps its entries and
+On the mpio write path (`campaign.store.mpio_writer`) a worker also keeps its entries and
 writes their rows when rank 0, after each fsync of the journal, tells it how
 many of its entries the journal holds (TAG_WRITE; the final count comes with
 TAG_STOP, before every rank closes the file together).
@@ -36,18 +36,21 @@ import pickle
 import sys
 import time
 from collections import deque
+from typing import TYPE_CHECKING
 
 from campaign.policy import Policy, master_may_compute
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
-from campaign.mpio_writer import Writer, open_parallel, write_path
-from campaign.schema import DONE, FAILED, PENDING
-from campaign.store import Store
 from campaign import isolation, task_hooks
+from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 from campaign.isolation import Isolated, memory_share_mb
+from campaign.task_key import COMPRESSION, is_compression
 from campaign.trial_inputs import TrialInputs
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
                            is_write_failure)
+
+if TYPE_CHECKING:
+    from campaign.config import Campaign
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 FLUSH_S = 2.0           # s: rank 0's own results are flushed at least this often
@@ -58,9 +61,10 @@ SPIN_POLLS = 100        # a waiting worker's polls before it naps between them .
 NAP_S = (2e-5, 0.001)   # s: ... its first and its longest nap (each nap twice the last)
 
 
-def run(campaign, store_path, new=False, retry_failed=False, progress=True, writes="auto"):
+def run(campaign: "Campaign", store_path: str, new: bool = False, retry_failed: bool = False, progress: bool = True,
+        writes: str = "auto") -> int:
     """Run or resume `campaign` into `store_path` with the write path `writes`
-    (auto, mpio or rank0; `campaign.mpio_writer.write_path`); returns the exit status:
+    (auto, mpio or rank0; `campaign.store.mpio_writer.write_path`); returns the exit status:
     0 all done, 1 some tasks failed, 3 stopped by a signal (rerun to resume).
     Bad input and a failed write (disk full) are raised on rank 0 (the command
     line says why, status 2 or 5); the other ranks return that status quietly.
@@ -82,6 +86,7 @@ def run(campaign, store_path, new=False, retry_failed=False, progress=True, writ
     gc.freeze()      # what the imports made, out of the collector's sight: the collections the result
     #                  entries trigger would walk it each time (unpickling an entry 2.7 us instead of 1.6)
     if comm.Get_rank() != 0:
+        assert tasks is not None           # a worker's task process: started above
         try:
             _worker(comm, tasks, parallel_file and Writer(parallel_file))
         finally:
@@ -141,7 +146,7 @@ def _worker(comm, tasks, writer=None):
     `tasks`), send its entries back as one message."""
     from mpi4py import MPI
     status = MPI.Status()
-    sent = []               # results in flight: received only when rank 0 gets to them
+    sent: list = []         # results in flight: received only when rank 0 gets to them
     while True:
         message = _next_message(comm, status)
         tag = status.Get_tag()
@@ -232,15 +237,15 @@ class _Master:
 
     def __init__(self, comm, store, campaign, retry_failed, progress, tasks):
         import numpy as np
-        self.store, self.campaign, self.n, self.tasks = store, campaign, len(campaign.shells), tasks
+        self.store, self.campaign, self.numbers, self.tasks = store, campaign, campaign.numbers, tasks
         states = store.state()
         rows = np.flatnonzero((states == PENDING) | ((states == FAILED) if retry_failed else False)).tolist()
         self.inputs = TrialInputs(store, campaign, retry_failed)
-        self.policy = Policy(rows, self.inputs.waits(), self.n, comm.Get_size() - 1)
+        self.policy = Policy(rows, self.inputs.waits(), self.numbers.compressions, comm.Get_size() - 1)
         self.attempts = store.attempts()
         self.link = _Link(comm, store)
         done0 = int(np.sum(states == DONE)) + self.inputs.done0
-        self.bar = Progress(self.n + len(campaign.studies), done0, enabled=progress)
+        self.bar = Progress(self.numbers.count, done0, enabled=progress)
         self.failed, self.last_flush = 0, time.time()
 
     def handing_out(self):
@@ -251,13 +256,16 @@ class _Master:
 
     def prepared(self, tasks):
         """(task, payload, attempt) of each task, shown running from the next flush on."""
-        n = self.n
-        self.store.mark_running([t if t < n else ("task", t - n) for t in tasks])
+        keys = self.numbers.keys(tasks)
+        self.store.mark_running(keys)
         out = []
-        for t in tasks:
-            count, i = (self.attempts, t) if t < n else (self.inputs.attempts, t - n)
+        for t, (kind, i) in zip(tasks, keys):
+            if kind == COMPRESSION:
+                count, payload = self.attempts, None
+            else:
+                count, payload = self.inputs.attempts, self.inputs.payload(i)
             count[i] += 1
-            out.append((t, None if t < n else self.inputs.payload(t - n), int(count[i])))
+            out.append((t, payload, int(count[i])))
         return out
 
     def refill(self):
@@ -274,13 +282,12 @@ class _Master:
             for e in entries:
                 self.store.record(e)
         for e in entries:
-            if "row" in e:
+            if is_compression(e):
                 self.inputs.compression_finished(e["row"], e["state"], e["results"], e["error"])
                 self.failed += e["state"] == "failed"
-                self.policy.finished(e["row"])
             else:
                 self.failed += e["state"] == "failed" or "failed" in e["cells"].get("state", ())
-                self.policy.finished(self.n + e["task"])
+            self.policy.finished(self.numbers.of_entry(e))
         self.bar.update(len(entries))
 
     def serve(self):
@@ -327,7 +334,7 @@ class _Link:
     def __init__(self, comm, store):
         from mpi4py import MPI
         self.comm, self.store, self.status, self.any = comm, store, MPI.Status(), MPI.ANY_SOURCE
-        self.batches = {w: deque() for w in range(1, comm.Get_size())}   # sizes of the batches in flight
+        self.batches: dict[int, deque[int]] = {w: deque() for w in range(1, comm.Get_size())}   # sizes of the batches in flight
         self.received = dict.fromkeys(self.batches, 0)   # entries journalled, per worker
         self.synced = dict(self.received)                # entries the fsync'd journal holds, per worker
         self.sending = []                                # batches sent, not yet known received

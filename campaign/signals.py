@@ -14,7 +14,7 @@ def _on_signal(signum, frame):
     stop["flag"] = True
 
 
-def install():
+def install() -> None:
     """The flag's handler for SIGTERM and SIGINT in this process."""
     for signum in (signal.SIGTERM, signal.SIGINT):
         signal.signal(signum, _on_signal)

@@ -53,7 +53,7 @@ def _module() -> ModuleType | None:
     return importlib.import_module(name) if name else None
 
 
-def parse(path: str, table: dict[str, Any], n_rows: int) -> TaskHooks:
+def parse(path: str | os.PathLike[str], table: dict[str, Any], n_rows: int) -> TaskHooks:
     """The `[test]` table of campaign file `path` read by the hooks' module;
     InputError (one line) without one."""
     module = _module()
@@ -64,7 +64,7 @@ def parse(path: str, table: dict[str, Any], n_rows: int) -> TaskHooks:
     return hooks
 
 
-def record_hook() -> Callable[[Any, dict[str, Any]], None] | None:
+def record_hook() -> Callable[[Any, Any], None] | None:
     """The store's `on_record` from the hooks' module, or None without one."""
     module = _module()
     return None if module is None else module.record_hook()

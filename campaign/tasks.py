@@ -6,10 +6,10 @@ A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
 non-finite result is failed with its message; nothing escapes, so one bad
 task never stops the others. (A task that kills its process, or is stuck
-where SIGALRM cannot end it, is failed by `campaign.isolation`.) Tasks are numbered:
-the compressions 0..n-1 (grid order), then trial task j is n + j. A
-campaign's `[test]` section (the test suite's only) changes what a task does
-through its hooks (`campaign.task_hooks.TaskHooks`, the campaign's `test`).
+where SIGALRM cannot end it, is failed by `campaign.isolation`.) A task comes
+as its number (`campaign.task_key.TaskNumbers`). A campaign's `[test]`
+section (the test suite's only) changes what a task does through its hooks
+(`campaign.task_hooks.TaskHooks`, the campaign's `test`).
 """
 
 import functools
@@ -21,6 +21,7 @@ import traceback
 from typing import TYPE_CHECKING, Any
 
 from campaign.task_hooks import TaskHooks
+from campaign.task_key import COMPRESSION, CompressionEntry, TrialEntry, compression_entry, trial_entry
 from solver.compression import compress
 from solver.model import Shell
 
@@ -143,28 +144,26 @@ def warm_up(campaign: "Campaign") -> None:
     try:
         if campaign.test is not None and campaign.test.warm_up(shell):
             return
-        import importlib
-        from solver.compression import METHODS
+        from solver.compression import warm_up as warm_up_solver
         from solver.geometry import droplet
-        solver = importlib.import_module(METHODS[campaign.method])
         droplet(shell.volume_um3, shell.h1_um)
-        if hasattr(solver, "warm_up"):     # a solver's own (the fast one's: its first compression)
-            solver.warm_up(shell)
+        warm_up_solver(shell, campaign.method)     # a solver's own (the fast one's: its first compression)
     except Exception:  # noqa: BLE001  (the task reports it, with its message)
         pass
 
 
 def execute(campaign: "Campaign", task: int, payload: Any) -> Outcome:
-    """Task `task` (a compression row, or n + j for trial task j): (state, results, error, started);
-    `payload` is a trial task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
-    n, test = len(campaign.shells), campaign.test
-    if task < n:
-        return compute(campaign.shells[task], campaign.method, campaign.timeout_s, task, test)
+    """Task number `task`: (state, results, error, started); `payload` is a trial
+    task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
+    (kind, i), test = campaign.numbers.key(task), campaign.test
+    if kind == COMPRESSION:
+        return compute(campaign.shells[i], campaign.method, campaign.timeout_s, i, test)
     forces, errors = payload
-    return compute_study(campaign.studies[task - n], forces, errors, campaign.timeout_s, test)
+    return compute_study(campaign.studies[i], forces, errors, campaign.timeout_s, test)
 
 
-def entry(campaign: "Campaign", task: int, attempts: int, rank: int, outcome: Outcome) -> dict[str, Any]:
+def entry(campaign: "Campaign", task: int, attempts: int, rank: int,
+          outcome: Outcome) -> CompressionEntry | TrialEntry:
     """Task `task`'s journal entry from its `outcome` = (state, results, error,
     started) as `execute` returns it: a compression's `row` and `results`, or a
     trial task's `task` and per-cell `cells`. A failed task's message ends
@@ -172,10 +171,9 @@ def entry(campaign: "Campaign", task: int, attempts: int, rank: int, outcome: Ou
     state, results, error, started = outcome
     if state == "failed":
         error = f"{error} (rank {rank} on {_host()})"
-    n = len(campaign.shells)
-    key = {"row": int(task), "results": results} if task < n else {"task": int(task - n), "cells": results}
-    return {**key, "state": state, "error": error, "attempts": int(attempts), "rank": int(rank),
-            "started": started}
+    kind, i = campaign.numbers.key(int(task))
+    make = compression_entry if kind == COMPRESSION else trial_entry
+    return make(i, results, state, error, int(attempts), int(rank), started)
 
 
 @functools.cache
@@ -184,6 +182,7 @@ def _host():
     return socket.gethostname()
 
 
-def run_task(campaign: "Campaign", task: int, payload: Any, attempts: int, rank: int) -> dict[str, Any]:
+def run_task(campaign: "Campaign", task: int, payload: Any, attempts: int,
+             rank: int) -> CompressionEntry | TrialEntry:
     """Compute task `task` (attempt `attempts`) on `rank`: its journal entry."""
     return entry(campaign, task, attempts, rank, execute(campaign, task, payload))

@@ -119,8 +119,8 @@ def draws(study):
         index.append(int(rng.integers(n_tensions)))
         eps_v.append(rng.standard_normal())
         eps_h.append(rng.standard_normal(1 if per_cell else m))
-    eps_h = np.array(eps_h).reshape(len(index), -1)
-    return np.array(index), np.array(eps_v), np.broadcast_to(eps_h, (len(index), m)).copy()
+    eps = np.array(eps_h).reshape(len(index), -1)
+    return np.array(index), np.array(eps_v), np.broadcast_to(eps, (len(index), m)).copy()
 
 
 def run_study(study, forces, errors):

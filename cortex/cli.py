@@ -1,9 +1,9 @@
-"""The `cortex` command: one argparse tree, filled in by each package's `cli`.
+"""The `cortex` command: one argparse tree, filled in by the command modules.
 
-Each package's `cli.register(subparsers)` adds its sub-commands and sets
-`handler="module:function"` on them; the handler module is imported only when
-the command runs, so `cortex --help` and `cortex geometry` stay fast and never
-load MPI or HDF5.
+Each module of `cortex.commands` has a `register(commands)` that adds its
+sub-commands and sets `handler=function` on them (`REGISTRARS`); a handler
+imports the work (numpy, HDF5, MPI) only when its command runs, so
+`cortex --help` and `cortex geometry` stay fast and never load MPI or HDF5.
 
 Errors from bad input (`common.errors.InputError`, missing or unreadable files)
 become one line on stderr and exit status 2; a solver that finds no
@@ -17,28 +17,36 @@ Conventions of every command (docs/cli.md): results on stdout, as one JSON
 object or list (JSON lines for `geometry` and `afm import`) with `--json`;
 `--out DIR` is always a folder; the same option names for the same things
 (`--solver`, `--bending`, `--method`, `--calibration`), their choices taken
-from the name lists' homes.
+from `common.names`.
 """
 
+from __future__ import annotations
+
 import argparse
-import importlib
 import os
 import signal
 import sys
+from collections.abc import Callable, Sequence
+from types import FrameType
+from typing import Any, NoReturn, cast
 
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
+from cortex.commands import afm, analysis, campaign, doctor, shell
+from cortex.options import Commands
 
-REGISTRARS = ("solver.cli", "campaign.cli", "analysis.cli", "analysis.afm.cli", "cortex.doctor")
+REGISTRARS: tuple[Callable[[Commands], None], ...] = (
+    shell.register, campaign.register, analysis.register, afm.register, doctor.register)
 
 
 class _Version(argparse.Action):
     """--version, the package metadata read only when asked for."""
 
-    def __init__(self, option_strings, dest, **kwargs):
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
         super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
 
-    def __call__(self, parser, namespace, values, option_string=None):
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> NoReturn:
         import cortex
         print(f"cortex {cortex.__version__}")
         parser.exit(0)
@@ -47,32 +55,25 @@ class _Version(argparse.Action):
 class Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line (and exit status 2)."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
 
 
-def build_parser():
-    parser = Parser(prog="cortex", description=__doc__.splitlines()[0].rstrip(":") + ".")
-    parser.description = (
+def build_parser() -> Parser:
+    """The whole command tree: every command module's `register`, every --help ending with the exit statuses."""
+    parser = Parser(prog="cortex", description=(
         "Simulate compressed cortical shells, run campaigns of them under MPI, "
         "calibrate the laws that link the effective area modulus to the Poisson "
-        "ratio, and invert AFM recordings. Units: um, mN/m, nN, s."
-    )
+        "ratio, and invert AFM recordings. Units: um, mN/m, nN, s."))
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in REGISTRARS:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:  # a package not built yet
-            if err.name not in (name, name.partition(".")[0]):
-                raise
-            continue
-        module.register(sub)
+    for register in REGISTRARS:         # (their parsers are `Parser`s: they use no more than argparse's API)
+        register(cast(Commands, sub))
     _add_exit_statuses(parser)
     return parser
 
 
-def _add_exit_statuses(parser):
+def _add_exit_statuses(parser: argparse.ArgumentParser) -> None:
     """Every command's --help ends with the one exit-status table (common.errors)."""
     parser.epilog = "\n".join(filter(None, (parser.epilog, EXIT_STATUS_HELP)))
     for action in parser._actions:
@@ -81,12 +82,7 @@ def _add_exit_statuses(parser):
                 _add_exit_statuses(child)
 
 
-def _handler(spec):
-    module, _, func = spec.partition(":")
-    return getattr(importlib.import_module(module), func)
-
-
-def _silence_stdout():
+def _silence_stdout() -> None:
     """Point stdout at /dev/null, so that the interpreter's last flush at exit
     does not meet the closed pipe again (and print a traceback)."""
     try:
@@ -98,11 +94,11 @@ def _silence_stdout():
     os.close(null)
 
 
-def _interrupt(signum, frame):
+def _interrupt(signum: int, frame: FrameType | None) -> NoReturn:
     raise KeyboardInterrupt
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Run `cortex ARGV`; returns the exit status (also of a usage error, --help or --version)."""
     parser = build_parser()
     try:
@@ -112,7 +108,7 @@ def main(argv=None):
     where = " ".join(a for a in (args.command, getattr(args, "subcommand", None)) if a)
     previous = signal.signal(signal.SIGTERM, _interrupt)   # SIGTERM stops like Ctrl-C: status 3
     try:
-        status = _handler(args.handler)(args)
+        status = args.handler(args)
         sys.stdout.flush()          # here, so that a closed pipe is met inside this try
     except BrokenPipeError:         # the reader of stdout stopped early: nothing more to say
         _silence_stdout()

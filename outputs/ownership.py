@@ -17,8 +17,11 @@ A refusal is `InputError` (one line, exit status 2), raised before anything
 is written.
 """
 
+import contextlib
 import os
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from outputs.writing import named_failures
 from common.errors import InputError
@@ -27,7 +30,7 @@ MANIFEST = ".cortex-outputs"
 HEADER = "# files written here by cortex; a rerun replaces only these\n"
 
 
-def check_file(path, is_ours, what):
+def check_file(path: str | os.PathLike[str], is_ours: Callable[[Path], bool], what: str) -> Path:
     """Refuse `path` unless it is missing or `is_ours(path)` says it is ours.
     `what` names the option in the message (e.g. "--store")."""
     path = Path(path)
@@ -41,7 +44,7 @@ def check_file(path, is_ours, what):
     return path
 
 
-def json_document(path):
+def json_document(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The object a JSON file holds; {} if it is missing, not JSON or not an object."""
     import json
     try:
@@ -51,7 +54,7 @@ def json_document(path):
     return doc if isinstance(doc, dict) else {}
 
 
-def hdf5_format(path):
+def hdf5_format(path: str | os.PathLike[str]) -> str:
     """The `format` attribute of an HDF5 file, '' if it has none or is not readable HDF5."""
     import h5py
     try:
@@ -65,7 +68,7 @@ def hdf5_format(path):
 class OutputDir:
     """An output folder that holds only what the project wrote (its manifest)."""
 
-    def __init__(self, path, what="--out"):
+    def __init__(self, path: str | os.PathLike[str], what: str = "--out"):
         self.path, self.what = Path(path), what
         self.manifest = self.path / MANIFEST
         if os.path.lexists(self.path) and not self.path.is_dir():
@@ -83,7 +86,7 @@ class OutputDir:
         return {line.strip() for line in self.manifest.read_text(errors="replace").splitlines()
                 if line.strip() and not line.startswith("#")}
 
-    def check(self, names):
+    def check(self, names: Iterable[str]) -> None:
         """Refuse now if any of `names` exists here and the project did not write it."""
         for name in names:
             target = self.path / name
@@ -91,7 +94,7 @@ class OutputDir:
                 raise InputError(f"{self.what} {self.path}: {name} is there and cortex did not write it "
                                  f"(not in {MANIFEST}); it is left as it is (choose another folder)")
 
-    def claim(self, name):
+    def claim(self, name: str) -> Path:
         """The path of file `name`, to be written now: checked, and listed in the
         manifest before it is written (so a kill mid-write leaves it ours)."""
         self.check([name])
@@ -104,7 +107,7 @@ class OutputDir:
         return self.path / name
 
 
-    def writing(self, name):
+    def writing(self, name: str) -> contextlib.AbstractContextManager[Path]:
         """`with out.writing(name) as path:` claim `name`, write it in the block;
         a full disk there becomes a WriteError naming it."""
         return named_failures(self.claim(name))

@@ -8,14 +8,23 @@ Public API (imported on first use):
 - `Shell(...)`: one compression's parameters (SPEC 2); `BENDING_VARIANTS`
   (name -> factor on B).
 - `compress(shell, method)` -> `Compression` (force, K, stretches); `METHODS`,
-  the solver names (`--solver` on the command line, `[solver] method` in a
-  campaign file).
+  the solvers by name (`--solver` on the command line, `[solver] method` in a
+  campaign file): `solver/fast/` and `solver/explicit/`.
 - `effective_modulus(V, h0, h1, gamma_a, F)`: SPEC 3.
 - `InputError`, `SolverError`, `WriteError` and the `EXIT_*` statuses live in
   `common.errors`.
 """
 
+from typing import TYPE_CHECKING
+
 from common.lazy_exports import lazy_exports
+
+if TYPE_CHECKING:     # what editors and the type checker see; at run time each is imported on first use
+    from common.errors import InputError, SolverError, WriteError
+    from solver.compression import METHODS, Compression, compress
+    from solver.geometry import Droplet, cell_radius, droplet, profile, sphere_height
+    from solver.model import BENDING_VARIANTS, Shell
+    from solver.modulus import effective_modulus
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "droplet": "solver.geometry", "Droplet": "solver.geometry", "cell_radius": "solver.geometry",

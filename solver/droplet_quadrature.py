@@ -21,13 +21,17 @@ moved k by more than 1e-9 k. Every operation is the one numpy did before
 these were compiled, in the same order: the same bits.
 """
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from solver.jit import njit
 
 
 @njit(cache=True, error_model="numpy")
-def half_integrals(k, psi_end, gl_x, gl_w, intervals, growth):
+def half_integrals(k: float, psi_end: float, gl_x: npt.NDArray[np.float64], gl_w: npt.NDArray[np.float64], intervals: int,
+                   growth: float) -> tuple[float, float, float]:
     """(z, V, A) of one shape, up to ψ_end (module docstring)."""
     H = 1.0 / (1.0 - k * k)
     beta = 2.0 * H * k
@@ -54,7 +58,8 @@ def half_integrals(k, psi_end, gl_x, gl_w, intervals, growth):
 
 
 @njit(cache=True, error_model="numpy")
-def integrate(k, psi_end, gl_x, gl_w, intervals, growth):
+def integrate(k: npt.NDArray[np.float64], psi_end: npt.NDArray[np.float64], gl_x: npt.NDArray[np.float64], gl_w: npt.NDArray[np.float64], intervals: int,
+              growth: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """`half_integrals` of every (k, ψ_end): arrays z, V, A."""
     z, vol, area = np.empty(k.size), np.empty(k.size), np.empty(k.size)
     for i in range(k.size):
@@ -63,7 +68,7 @@ def integrate(k, psi_end, gl_x, gl_w, intervals, growth):
 
 
 @njit(cache=True, error_model="numpy")
-def height_ratio(z, vol):
+def height_ratio(z: float | npt.NDArray[np.float64], vol: float | npt.NDArray[np.float64]) -> Any:    # z's kind: a number or an array
     """h̃ = 2z / (2 cbrt(3 · 2V / 4π)) of half integrals (z, V) to the equator
     (numbers or arrays)."""
     return (2.0 * z) / (2.0 * np.cbrt(3.0 * (2.0 * vol) / (4.0 * np.pi)))
@@ -84,7 +89,8 @@ def _start(u, xs, ys):
 
 
 @njit(cache=True, error_model="numpy")
-def solve(h_tilde, xs, ys, k_max, gl_x, gl_w, intervals, growth):
+def solve(h_tilde: npt.NDArray[np.float64], xs: npt.NDArray[np.float64], ys: npt.NDArray[np.float64], k_max: float, gl_x: npt.NDArray[np.float64], gl_w: npt.NDArray[np.float64], intervals: int,
+          growth: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """k and the half integrals (z, V, A) to the equator of every h̃."""
     n = h_tilde.size
     k, z, vol, area = np.empty(n), np.empty(n), np.empty(n), np.empty(n)

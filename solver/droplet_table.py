@@ -21,6 +21,7 @@ Units: µm, µm³, 1/µm.
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
 from solver.geometry import cell_radius, droplet
@@ -54,24 +55,24 @@ def _unit(depth, which):
     return out.reshape(depth.shape)
 
 
-def unit_force_per_tension(depth) -> np.ndarray:
+def unit_force_per_tension(depth: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """ĝ of the unit cell (R_cell = 1) at deformations δ̂ (array); 0 where δ̂ ≤ 0."""
     return _unit(depth, 0)
 
 
-def unit_shape(depth) -> tuple[np.ndarray, np.ndarray]:
+def unit_shape(depth: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """(ĝ, Ĥ) of the unit cell (R_cell = 1) at deformations δ̂ (array): ĝ = 0 and
     Ĥ = 1 where δ̂ ≤ 0."""
     return _unit(depth, 0), _unit(depth, 1)
 
 
-def force_per_tension_um(volume, height) -> np.ndarray:
+def force_per_tension_um(volume: npt.ArrayLike, height: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """g = F_a/γ_a = 2 H A_c (µm; × mN/m gives nN) for volumes V (µm³) and gaps h (µm), broadcast."""
     radius = cell_radius(volume)
     return radius * unit_force_per_tension((2.0 * radius - np.asarray(height, float)) / radius)
 
 
-def mean_curvature_per_um(volume, height) -> np.ndarray:
+def mean_curvature_per_um(volume: npt.ArrayLike, height: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """H (1/µm) for volumes V (µm³) and gaps h (µm), broadcast; 1/R_cell where h ≥ 2 R_cell."""
     radius = cell_radius(volume)
     return _unit((2.0 * radius - np.asarray(height, float)) / radius, 1) / radius

@@ -20,12 +20,13 @@ too; lengths in µm, areas in µm², volumes in µm³.
 """
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.jit import njit
 
 
 @njit(cache=True)
-def half_volume(r, z):
+def half_volume(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64]) -> float:
     """Σ_j V_j: the volume between the meridian and the mid-plane (µm³)."""
     v = 0.0
     for j in range(r.size - 1):
@@ -34,7 +35,7 @@ def half_volume(r, z):
 
 
 @njit(cache=True)
-def half_area(r, z):
+def half_area(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64]) -> float:
     """Σ_j a_j: the area swept by the upper half meridian (µm²)."""
     a = 0.0
     for j in range(r.size - 1):
@@ -42,17 +43,17 @@ def half_area(r, z):
     return a
 
 
-def enclosed_volume(r, z):
+def enclosed_volume(r: npt.ArrayLike, z: npt.ArrayLike) -> float:
     """V = 2 Σ_j V_j of the closed, mirrored surface (µm³)."""
     return 2.0 * half_volume(np.asarray(r, float), np.asarray(z, float))
 
 
-def surface_area(r, z):
+def surface_area(r: npt.ArrayLike, z: npt.ArrayLike) -> float:
     """A = 2 Σ_j a_j of the closed, mirrored surface (µm²)."""
     return 2.0 * half_area(np.asarray(r, float), np.asarray(z, float))
 
 
-def nodal_stretches(r, z, r0, z0):
+def nodal_stretches(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], r0: npt.NDArray[np.float64], z0: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """(λ1, λ2) at the nodes of the current meridian (r, z) against the
     reference (r0, z0) (module docstring)."""
     lam_e = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0))

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 
 from common.errors import InputError
 
@@ -65,12 +66,12 @@ def _quadrature():
     return droplet_quadrature
 
 
-def cell_radius(volume):
+def cell_radius(volume: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """R_cell = (3V / 4π)^(1/3), µm."""
     return np.cbrt(3.0 * np.asarray(volume, float) / (4.0 * np.pi))
 
 
-def sphere_height(volume):
+def sphere_height(volume: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """The free sphere's diameter 2 R_cell, the largest possible gap, µm."""
     return 2.0 * cell_radius(volume)
 
@@ -158,12 +159,12 @@ class Droplet:
                  "mean_curvature_per_um", "surface_area_um2", "contact_area_um2",
                  "force_per_tension_um")
 
-    def row(self, i=()):
+    def row(self, i: int | tuple[int, ...] = ()) -> dict[str, float]:
         """One shape as a dict of floats with the interface's JSON keys."""
         return {key: float(np.asarray(getattr(self, key))[i]) for key in self.JSON_KEYS}
 
 
-def droplet(volume, height):
+def droplet(volume: npt.ArrayLike, height: npt.ArrayLike) -> Droplet:
     """Solve the droplet shape for volume V (µm³) and plate gap h (µm).
 
     Raises InputError for V ≤ 0, h ≤ 0, h above the free sphere's diameter
@@ -171,7 +172,7 @@ def droplet(volume, height):
     would be a thin pancake, far outside the model's range). One (V, h) is
     solved once per process and kept (`_droplet_one`)."""
     if np.ndim(volume) == 0 and np.ndim(height) == 0:
-        return _droplet_one(float(volume), float(height))
+        return _droplet_one(float(volume), float(height))  # type: ignore[arg-type]  # 0-d: numbers
     return _droplet(volume, height)
 
 
@@ -210,7 +211,7 @@ def _droplet(volume, height):
                    cell_radius_um=R_cell, h_tilde=h_tilde)
 
 
-def volume_from_image(height, equator_radius):
+def volume_from_image(height: float, equator_radius: float) -> float:
     """The volume V (µm³) of the droplet of gap h and equatorial radius R_eq (µm),
     as an image of a confined cell measures them.
 
@@ -237,7 +238,7 @@ def volume_from_image(height, equator_radius):
     return 2.0 * float(_half_integrals(k)[1]) * r**3
 
 
-def meridian(volume, height, psi):
+def meridian(volume: float, height: float, psi: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The upper free surface at tangent angles ψ (0 at the contact line, π/2 at
     the equator) of the shape for one (V, h): returns (r, z, s) in µm with z
     measured from the mid-plane (h/2 at the plate, 0 at the equator) and s the
@@ -261,7 +262,7 @@ def meridian(volume, height, psi):
     return r, z, s
 
 
-def profile(volume, height, n=201):
+def profile(volume: float, height: float, n: int = 201) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The whole free surface r(z) from the lower plate (z = 0) to the upper
     plate (z = h), n points (odd n puts one at the equator), µm."""
     half = (n + 1) // 2

@@ -3,7 +3,7 @@
 The domain (upper half, z ≥ 0, by mirror symmetry) is bounded by the axis
 r = 0, the mid-plane z = 0 and the shell's meridian: a polyline from the pole
 (0, z_p) on the axis to the equator (R, 0) on the mid-plane, given node by node
-(`solver.fast_energy` order). Every polyline node is a mesh vertex and every
+(`solver.fast.lagrangian` order). Every polyline node is a mesh vertex and every
 polyline segment a mesh edge, so the mesh's boundary *is* the shell polygon:
 a field that is linear on each segment (the shell's own interpolation) has
 exactly the polygon's volume flux.
@@ -22,7 +22,10 @@ joined by Delaunay triangulation (the domain is convex, so the triangulation
 of the points covers exactly it; the edges along the polyline are checked).
 """
 
+from collections.abc import Callable
+
 import numpy as np
+import numpy.typing as npt
 from matplotlib.path import Path
 from scipy.spatial import Delaunay
 
@@ -38,7 +41,7 @@ def _spacing(r, z):
     return np.concatenate([[ds[0]], 0.5 * (ds[1:] + ds[:-1]), [ds[-1]]])
 
 
-def size_function(r, z, h_max):
+def size_function(r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], h_max: float) -> Callable[[npt.ArrayLike], npt.NDArray[np.float64]]:
     """h(x) of the module docstring for points x (..., 2)."""
     b, s = np.column_stack([r, z]), _spacing(r, z)
 
@@ -102,7 +105,7 @@ def _around(points, radius, s):
     return np.unique(index, axis=0)
 
 
-def mesh_points(r, z, h_max=0.5):
+def mesh_points(r: npt.ArrayLike, z: npt.ArrayLike, h_max: float = 0.5) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
     """Vertices (n, 2) and triangles (m, 3) of the interior of the outline (r, z);
     the first len(r) vertices are the outline's nodes, in order."""
     r, z = np.asarray(r, float), np.asarray(z, float)

@@ -8,10 +8,12 @@ Units: µm, mN/m; B internally in mN/m·µm² (= 1e-15 J = 1000 pN·µm).
 """
 
 import math
+from collections.abc import Iterable
 from dataclasses import MISSING, dataclass, fields
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.elasticity import bending_stiffness, poisson_ratio
 from common.errors import InputError
@@ -79,15 +81,15 @@ class Shell:
             raise InputError("thickness and resolution must be > 0")
         if (self.viscosity_Pa_s is None) != (self.frequency_hz is None):
             raise InputError("viscosity and frequency go together (a viscous cell needs both)")
-        if self.viscosity_Pa_s is not None:
+        if self.viscosity_Pa_s is not None and self.frequency_hz is not None:
             check_viscous_inputs(self.viscosity_Pa_s, self.frequency_hz)
 
     @property
-    def h1_um(self):
+    def h1_um(self) -> float:
         return self.h0_um - self.dh_um
 
     @property
-    def bending_stiffness(self):
+    def bending_stiffness(self) -> float:
         """B in mN/m·µm²: t_c² (K_B + K_S)/24 times the variant's factor."""
         if self.bending_pN_um is not None:
             return self.bending_pN_um / PN_UM_PER_MN_PER_M_UM2
@@ -95,14 +97,14 @@ class Shell:
         return BENDING_VARIANTS[self.bending] * base
 
     @property
-    def poisson_ratio(self):
+    def poisson_ratio(self) -> float:
         """ν = (K_B - K_S)/(K_B + K_S); NaN for a tension-only cell."""
         if self.bulk_mN_per_m + self.shear_mN_per_m > 0:
             return poisson_ratio(self.bulk_mN_per_m, self.shear_mN_per_m)
         return float("nan")
 
     @classmethod
-    def unchecked(cls, *parts):
+    def unchecked(cls, *parts: dict[str, object] | Iterable[tuple[str, object]]) -> "Shell":
         """A shell of the fields in `parts` (dicts or (name, value) pairs, the
         later winning), its other fields at their defaults, made without the
         checks of `__init__`: for values checked another way (`campaign.grid`
@@ -114,7 +116,7 @@ class Shell:
             fields_.update(part)
         return shell
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, object]:
         """The fields as a dict (the viscous two left out when not given). The
         fields are plain numbers and a name, so no deep copy (`dataclasses.asdict`,
         ten times slower) is needed: a campaign calls this for every task."""
@@ -136,7 +138,7 @@ def _sphere_height(volume_um3):
     return float(sphere_height(volume_um3))
 
 
-def check_viscous_inputs(viscosity_Pa_s, frequency_hz):
+def check_viscous_inputs(viscosity_Pa_s: float, frequency_hz: float) -> None:
     """η ≥ 0 and f > 0, finite, or InputError."""
     for name, value, zero in (("viscosity", viscosity_Pa_s, True), ("frequency", frequency_hz, False)):
         if not np.isfinite(value) or value < 0 or (value == 0 and not zero):

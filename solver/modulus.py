@@ -11,11 +11,13 @@ Vectorised: every argument may be an array (broadcast).
 """
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.geometry import droplet
 
 
-def effective_modulus(volume, h0, h1, tension, force):
+def effective_modulus(volume: npt.ArrayLike, h0: npt.ArrayLike, h1: npt.ArrayLike, tension: npt.ArrayLike,
+                      force: npt.ArrayLike) -> dict[str, npt.NDArray[np.float64]]:
     """K and its ingredients for forces F_tot (nN) measured at gap h1 after a
     compression from h0 (µm), cell volume V (µm³), active tension γ_a (mN/m).
 

@@ -34,6 +34,7 @@ f in Hz, moduli in Pa (a 3D modulus: the layer's, not the shell's 2D one).
 """
 
 import numpy as np
+import numpy.typing as npt
 
 from common.errors import InputError
 
@@ -48,13 +49,14 @@ def _positive(name, value, allow_zero=False):
     return value
 
 
-def permeability_m2(pore_diameter_um):
+def permeability_m2(pore_diameter_um: float) -> float:
     """k_perm = d_pore²/32 (m²), Hagen-Poiseuille flow through pores of diameter d_pore (µm)."""
     d = _positive("pore diameter", pore_diameter_um) * UM
     return d * d / 32.0
 
 
-def dissipative_modulus_Pa(pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz):
+def dissipative_modulus_Pa(pore_diameter_um: float, viscosity_Pa_s: float, thickness_um: float,
+                           frequency_hz: float) -> float:
     """The large-λ term ω η t_c² / (12 k_perm) (Pa), ω = 2π f."""
     eta = _positive("viscosity", viscosity_Pa_s, allow_zero=True)
     t = _positive("thickness", thickness_um) * UM
@@ -62,7 +64,8 @@ def dissipative_modulus_Pa(pore_diameter_um, viscosity_Pa_s, thickness_um, frequ
     return omega * eta * t * t / (12.0 * permeability_m2(pore_diameter_um))
 
 
-def diffusion_ratio(modulus_Pa, pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz):
+def diffusion_ratio(modulus_Pa: float, pore_diameter_um: float, viscosity_Pa_s: float, thickness_um: float,
+                    frequency_hz: float) -> float:
     """λ = (2/t_c) sqrt(K k_perm / (ω η)): the diffusion length sqrt(D/ω) over t_c/2
     (inf for η = 0)."""
     term = dissipative_modulus_Pa(pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz)
@@ -70,7 +73,8 @@ def diffusion_ratio(modulus_Pa, pore_diameter_um, viscosity_Pa_s, thickness_um, 
     return float(np.sqrt(K / (3.0 * term))) if term > 0 else float("inf")   # |x|² = 3 term/K
 
 
-def effective_modulus_exact(modulus_Pa, pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz):
+def effective_modulus_exact(modulus_Pa: float, pore_diameter_um: float, viscosity_Pa_s: float,
+                            thickness_um: float, frequency_hz: float) -> complex:
     """K_eff = K x coth x (complex, Pa), x² = iωη t_c²/(4 K k_perm) = 3i (ωηt_c²/12k_perm)/K."""
     K = _positive("scaffold modulus", modulus_Pa)
     term = dissipative_modulus_Pa(pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz)
@@ -80,7 +84,8 @@ def effective_modulus_exact(modulus_Pa, pore_diameter_um, viscosity_Pa_s, thickn
     return complex(K * x / np.tanh(x))
 
 
-def effective_modulus_limit(modulus_Pa, pore_diameter_um, viscosity_Pa_s, thickness_um, frequency_hz):
+def effective_modulus_limit(modulus_Pa: float, pore_diameter_um: float, viscosity_Pa_s: float,
+                            thickness_um: float, frequency_hz: float) -> complex:
     """K_eff = K + iωη t_c²/(12 k_perm) (complex, Pa), the large-λ limit."""
     K = _positive("scaffold modulus", modulus_Pa, allow_zero=True)
     return complex(K, dissipative_modulus_Pa(pore_diameter_um, viscosity_Pa_s, thickness_um,

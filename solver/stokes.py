@@ -25,10 +25,14 @@ dissipation rate is D = a(u, u) = ∫ 2η e:e dV. Units: µm, s, Pa·s, so u is 
 µm/s, p and σ in Pa, forces in Pa·µm² = 1e-3 nN, D in Pa·µm³/s = 1e-18 W.
 """
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 from scipy.sparse import bmat
 from scipy.sparse.linalg import splu
-from skfem import Basis, BilinearForm, ElementTriP1, ElementTriP2, ElementVector, MeshTri
+from skfem import Basis, BilinearForm, DiscreteField, ElementTriP1, ElementTriP2, ElementVector, MeshTri
 
 from solver.meridian_mesh import mesh_points
 
@@ -36,7 +40,7 @@ AXIS_TOL = 1e-9   # µm: a facet with both ends this close to r = 0 (or z = 0) i
 
 
 @BilinearForm
-def viscous_form(u, v, w):
+def viscous_form(u: DiscreteField, v: DiscreteField, w: Any) -> DiscreteField:
     """2η e(u):e(v) 2π r (η = 1; scaled by the caller)."""
     r = w.x[0]
     gu, gv = u.grad, v.grad
@@ -46,7 +50,7 @@ def viscous_form(u, v, w):
 
 
 @BilinearForm
-def divergence_form(u, q, w):
+def divergence_form(u: DiscreteField, q: DiscreteField, w: Any) -> DiscreteField:
     """q ∇·u 2π r."""
     r = w.x[0]
     return q * (u.grad[0, 0] + u[0] / r + u.grad[1, 1]) * 2.0 * np.pi * r
@@ -59,7 +63,7 @@ class Interior:
     first `n_outline` vertices are the shell's nodes (the rest of the
     boundary is the axis and the mid-plane)."""
 
-    def __init__(self, vertices, triangles, n_outline):
+    def __init__(self, vertices: npt.NDArray[np.float64], triangles: npt.NDArray[np.int64], n_outline: int) -> None:
         self.mesh = MeshTri(np.ascontiguousarray(vertices.T), np.ascontiguousarray(triangles.T))
         self.n_outline = n_outline
         self.ub = Basis(self.mesh, ElementVector(ElementTriP2()), intorder=5)
@@ -69,7 +73,7 @@ class Interior:
         self._classify()
 
     @classmethod
-    def from_outline(cls, r, z, h_max=0.5):
+    def from_outline(cls, r: npt.NDArray[np.float64], z: npt.NDArray[np.float64], h_max: float = 0.5) -> "Interior":
         """Mesh the interior of the outline (pole (0, z_p) ... equator (R, 0))."""
         vertices, triangles = mesh_points(r, z, h_max)
         return cls(vertices, triangles, len(r))
@@ -102,7 +106,8 @@ class Interior:
             self._lu = splu(bmat([[A, -B.T], [-B, None]], format="csc"), permc_spec="MMD_ATA")
         return self._lu
 
-    def solve(self, boundary_velocity, viscosity_Pa_s=1.0):
+    def solve(self, boundary_velocity: Callable[[npt.NDArray[np.float64]], npt.ArrayLike],
+              viscosity_Pa_s: float = 1.0) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Velocity (all dofs) and pressure for u = boundary_velocity(x) on the
         prescribed unknowns: a function of points (2, n) giving velocities
         (2, n), µm/s (on the axis and the mid-plane only its u_r = 0, u_z = 0
@@ -119,7 +124,7 @@ class Interior:
         u[self.free] = free
         return u, np.concatenate([[0.0], p]) * viscosity
 
-    def extend(self, fixed_values):
+    def extend(self, fixed_values: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Free velocities and pressures (but the first, held at 0; per unit η) for
         the given values on the fixed dofs; columns of a 2D array are solved together."""
         w = np.asarray(fixed_values)
@@ -127,7 +132,7 @@ class Interior:
         x = self._factor().solve(rhs)
         return x[: len(self.free)], x[len(self.free):]
 
-    def drag(self, fixed_values):
+    def drag(self, fixed_values: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """The reaction R = A_bf u_f + A_bb u_b - B_bᵀ p on the fixed dofs (per unit
         η: Pa·µm² per Pa·s·µm/s) for the given values there: the Dirichlet-to-
         Neumann map, symmetric, with u_bᵀ R = ∫ 2 e:e dV (the dissipation per η)."""
@@ -136,6 +141,6 @@ class Interior:
         Af, Ab, Bb = self.A[self.fixed][:, self.free], self.A[self.fixed][:, self.fixed], self.B[1:][:, self.fixed]
         return Af @ free + Ab @ w - Bb.T @ p
 
-    def dissipation(self, u, viscosity_Pa_s):
+    def dissipation(self, u: npt.NDArray[np.float64], viscosity_Pa_s: float) -> float:
         """D = ∫ 2η e:e dV over the half domain (Pa·µm³/s)."""
         return float(viscosity_Pa_s * u @ (self.A @ u))

@@ -47,11 +47,12 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 
 from common.errors import InputError
-from solver.fast_energy import Lagrangian
+from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
-from solver.viscous import full_hessian, hold_label, linearise, prepare, respond
+from solver.viscous import Linearised, full_hessian, hold_label, linearise, prepare, respond
 
 MODULI = ("bulk", "shear", "bending")     # the parts of H weighted by K_B, K_S and B
 RELAX_UM = 1e-3       # the relaxed state at h_m: compressed this far from a droplet at h_m + RELAX_UM
@@ -69,7 +70,7 @@ def relaxed(shell: Shell) -> Shell:
 class Parts:
     """The linearised shell and its Hessian's parts per unit K_B, K_S and B."""
 
-    lin: object
+    lin: Linearised
     parts: dict                 # MODULI -> (n+1, n+1) array
     moduli: dict                # MODULI -> the real value (mN/m, mN/m, mN/m·µm²)
 
@@ -87,7 +88,7 @@ def _unit_step(lag, shell, name):
     return other
 
 
-def hessian_parts(shell: Shell, lin=None) -> Parts:
+def hessian_parts(shell: Shell, lin: Linearised | None = None) -> Parts:
     """The linearisation of `shell` at h_m (`solver.viscous.linearise`, or `lin`
     given) and the parts ∂H/∂K_B, ∂H/∂K_S, ∂H/∂B of its Hessian at that state."""
     lin = lin if lin is not None else linearise(relaxed(shell))
@@ -128,7 +129,7 @@ def extra_hessian(parts: Parts, bulk_loss_angle_rad: float, shear_loss_angle_rad
     return sum((star[k] - parts.moduli[k]) * parts.parts[k] for k in MODULI)
 
 
-def check_loss_angles(*angles):
+def check_loss_angles(*angles: float) -> None:
     for a in angles:
         if not (np.isfinite(a) and 0.0 <= a < np.pi / 2):
             raise InputError(f"a loss angle must be a finite number in [0, pi/2) rad (got {a:g})")

@@ -7,7 +7,7 @@ h_m = h0 - Δh/2 (the shell compressed from its stress-free droplet at h0;
 unknown responds at ω; inertia is dropped (Reynolds number ~1e-7).
 
 Shell (generalised coordinates q = (u, z_p), u = node positions, contact
-label l, pressure p; `solver.fast_energy`): the linearised balance of the
+label l, pressure p; `solver.fast.lagrangian`): the linearised balance of the
 elastic forces and the fluid's
 
     H_uu δu + H_u,zp δz_p + G_uᵀ R(iω G δq) = 0,
@@ -41,14 +41,17 @@ equals the mean dissipation (1/2) ∫ 2η ê:ê* dV.
 import time
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.sparse import coo_matrix, csc_matrix
 
 from common.errors import SolverError
 from solver.fast import contact_at_least, equilibrium
+from solver.fast.lagrangian import Lagrangian
 from solver.geometry import droplet
-from solver.model import check_viscous_inputs
+from solver.model import Shell, check_viscous_inputs
 from solver.stokes import Interior
 
 NN_PER_PA_UM2 = 1e-3    # 1 Pa·µm² = 1e-3 nN
@@ -61,15 +64,15 @@ H_MAX = 0.5             # µm, largest element of the fluid mesh
 class Linearised:
     """The shell's equilibrium at h_m and its linearisation."""
 
-    lag: object
+    lag: Lagrangian
     u: np.ndarray
     zp: float
     H: np.ndarray        # (n+1, n+1) Hessian in q = (u, z_p)
     force_nN: float      # F_0 at h_m
     h_mean_um: float
-    G: object = None     # q -> fluid boundary displacements (`prepare`)
-    D: np.ndarray = None  # Gᵀ R_1 G: the fluid condensed onto q, per unit η (Pa·µm²/µm)
-    shell: object = None
+    G: Any = None        # q -> fluid boundary displacements (`prepare`)
+    D: Any = None        # Gᵀ R_1 G: the fluid condensed onto q, per unit η (Pa·µm²/µm), an array once set
+    shell: Any = None    # the `Shell`, once `prepare` or `solver.viscoelastic` set it
     held: bool = False   # whether the contact label l is held (a gauge, or at its bound)
 
 
@@ -81,7 +84,7 @@ def _zp_derivative(lag, u, zp, part):
     return (-f[0] + 8 * f[1] - 8 * f[2] + f[3]) / (12 * STEP_ZP)
 
 
-def linearise(shell):
+def linearise(shell: Shell) -> Linearised:
     """The equilibrium at h_m = h0 - Δh/2 (from the stress-free droplet at h0) and
     the Hessian of L in q = (u, z_p). The contact label l moves with the
     response where it is stationary (dE*/dl = 0); it is held where it is a
@@ -102,7 +105,7 @@ def linearise(shell):
     return lin
 
 
-def full_hessian(lag, u, zp, H=None):
+def full_hessian(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float, H: npt.NDArray[np.float64] | None = None) -> npt.NDArray[np.float64]:
     """The Hessian of L in q = (u, z_p) at (u, z_p): `H` (the Hessian in u, evaluated
     here if not given) bordered by the column in z_p (`_zp_derivative`)."""
     n = lag.size
@@ -113,7 +116,7 @@ def full_hessian(lag, u, zp, H=None):
     return full
 
 
-def hold_label(H, diagonal):
+def hold_label(H: npt.NDArray[np.float64], diagonal: float) -> None:
     """Hold the contact label l (unknown n - 2 of q) in the Hessian H of q: its row
     and column zero, `diagonal` on the diagonal (1 for the Hessian, 0 for a part of it)."""
     k = H.shape[0] - 3
@@ -190,7 +193,7 @@ class Response:
     h_mean_um: float
     wall_s: float
 
-    def to_dict(self, elastic_modulus):
+    def to_dict(self, elastic_modulus: float) -> dict[str, float]:
         K = self.complex_modulus
         return {"modulus_mN_per_m": abs(K), "storage_modulus_mN_per_m": K.real,
                 "loss_modulus_mN_per_m": K.imag, "loss_angle_rad": float(np.angle(K)),
@@ -206,7 +209,8 @@ def _droplet_slopes(shell, h):
     return g[1], (g[2] - g[0]) / (2 * STEP_H), A[1], (A[2] - A[0]) / (2 * STEP_H)
 
 
-def shell_response(lin, viscosity_Pa_s, frequency_hz, extra=None):
+def shell_response(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
+                   extra: npt.NDArray[np.complex128] | None = None) -> tuple[npt.NDArray[np.complex128], complex]:
     """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`
     (`extra`: a matrix added to the shell's Hessian, e.g. `solver.viscoelastic`'s
     complex moduli; the fluid term is skipped where η = 0)."""
@@ -221,7 +225,8 @@ def shell_response(lin, viscosity_Pa_s, frequency_hz, extra=None):
     return dq, -0.5 * (S[n] @ dq)
 
 
-def respond(lin, viscosity_Pa_s, frequency_hz, extra=None):
+def respond(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
+            extra: npt.NDArray[np.complex128] | None = None) -> Response:
     """Solve the coupled linear system at (η, f) for δh = -1 µm: a Response.
     With the fluid condensed onto the shell (`prepare`: D = Gᵀ R_1 G, R_1 the
     fluid's reaction per unit η and displacement), the shell's equations
@@ -245,7 +250,7 @@ def respond(lin, viscosity_Pa_s, frequency_hz, extra=None):
                     h_mean_um=lin.h_mean_um, wall_s=time.perf_counter() - start)
 
 
-def flow(lin, fluid, response, frequency_hz):
+def flow(lin: Linearised, fluid: Interior, response: Response, frequency_hz: float) -> npt.NDArray[np.complex128]:
     """The fluid's velocity amplitude (all P2 unknowns, µm/s per µm of δh) of a Response."""
     w = np.zeros(fluid.ub.N, complex)
     w[fluid.fixed] = lin.G @ response.displacement
@@ -254,7 +259,7 @@ def flow(lin, fluid, response, frequency_hz):
     return 2j * np.pi * frequency_hz * w
 
 
-def prepare(shell, h_max=H_MAX):
+def prepare(shell: Shell, h_max: float = H_MAX) -> tuple[Linearised, Interior]:
     """The linearised shell at h_m with its fluid mesh and boundary map."""
     lin = linearise(shell)
     r, z = lin.lag.nodes(lin.u, lin.zp)[:2]
@@ -267,7 +272,7 @@ def prepare(shell, h_max=H_MAX):
     return lin, fluid
 
 
-def complex_modulus(shell, viscosity_Pa_s, frequency_hz, h_max=H_MAX):
+def complex_modulus(shell: Shell, viscosity_Pa_s: float, frequency_hz: float, h_max: float = H_MAX) -> Response:
     """K*(ω) of `shell` (a `solver.model.Shell`) oscillated around h0 - Δh/2."""
     check_viscous_inputs(viscosity_Pa_s, frequency_hz)
     return respond(prepare(shell, h_max)[0], viscosity_Pa_s, frequency_hz)
@@ -280,13 +285,14 @@ def _prepared(shell, h_max):
     return prepare(shell, h_max)[0]
 
 
-def viscous_keys(shell, h_max=H_MAX):
+def viscous_keys(shell: Shell, h_max: float = H_MAX) -> dict[str, float]:
     """K*(ω) of a shell with `viscosity_Pa_s` and `frequency_hz` set, around h_m:
     `modulus_mN_per_m` = |K*|, `storage_modulus_mN_per_m`, `loss_modulus_mN_per_m`,
     `loss_angle_rad`, `elastic_modulus_mN_per_m` (K*(ω) without viscosity, the
     same linearisation), the energy balance and the wall time."""
     start = time.perf_counter()
     eta, f = shell.viscosity_Pa_s, shell.frequency_hz
+    assert eta is not None and f is not None, "viscous_keys needs a shell with a viscosity and a frequency"
     check_viscous_inputs(eta, f)
     lin = _prepared(replace(shell, viscosity_Pa_s=None, frequency_hz=None), h_max)
     out = {"viscosity_Pa_s": float(eta), "frequency_hz": float(f)}

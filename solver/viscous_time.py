@@ -16,11 +16,12 @@ damping), integrated by the second-order backward difference formula
 """
 
 import numpy as np
+import numpy.typing as npt
 from scipy.linalg import lu_factor, lu_solve
 
 from common.errors import InputError
 from solver.model import check_viscous_inputs
-from solver.viscous import NN_PER_PA_UM2, shell_response
+from solver.viscous import NN_PER_PA_UM2, Linearised, shell_response
 
 
 def _damping(lin, viscosity_Pa_s):
@@ -36,7 +37,7 @@ def _damping(lin, viscosity_Pa_s):
     return (V * ev) @ V.T
 
 
-def integrate(lin, viscosity_Pa_s, t, dh):
+def integrate(lin: Linearised, viscosity_Pa_s: float, t: npt.NDArray[np.float64], dh: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """δF(t) (nN) for the gap change δh(t) (µm) sampled at the equally spaced
     times t (s), starting from rest at h_m (δh(t[0]) should be 0)."""
     check_viscous_inputs(viscosity_Pa_s, 1.0)
@@ -62,7 +63,7 @@ def integrate(lin, viscosity_Pa_s, t, dh):
     return -0.5 * (q @ H[n, :n] + H[n, n] * zp + rate @ C[n, :n] + C[n, n] * zrate)
 
 
-def half_cosine(t, depth_um, frequency_hz):
+def half_cosine(t: npt.NDArray[np.float64], depth_um: float, frequency_hz: float) -> npt.NDArray[np.float64]:
     """SPEC 2's plate motion as a change of gap: δh(t) = -(Δ/2)(1 - cos(2π f t))
     until full compression (f t = 1/2), then held at -Δ (SPEC 2's cos(f t),
     with f read as the oscillation frequency in Hz)."""
@@ -70,7 +71,7 @@ def half_cosine(t, depth_um, frequency_hz):
     return -0.5 * depth_um * (1.0 - np.cos(phase))
 
 
-def periodic_response(lin, viscosity_Pa_s, t, dh):
+def periodic_response(lin: Linearised, viscosity_Pa_s: float, t: npt.NDArray[np.float64], dh: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """The frequency-domain answer for a periodic gap history: δF(t) (nN) =
     Σ_k T(ω_k) ĥ_k e^{iω_k t}, with ĥ the discrete Fourier transform of δh over
     the window t (equally spaced, one period) and T(ω) = δF/δh from

@@ -63,7 +63,7 @@ def poll_until(condition, timeout_s, what, proc=None, every_s=POLL_S):
 def journal_counts(store):
     """(compression entries, trial-task entries) in the journal of `store`
     as it is on disk now (0, 0 before it exists)."""
-    from campaign import journal
-    entries = journal.read(f"{store}.journal")
-    trials = sum(1 for e in entries if "task" in e)
-    return len(entries) - trials, trials
+    from campaign.store import journal
+    from campaign.task_key import split
+    compressions, trials = split(journal.read(f"{store}.journal"))
+    return len(compressions), len(trials)

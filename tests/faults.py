@@ -52,7 +52,8 @@ from pathlib import Path
 from typing import Any
 
 from campaign import task_hooks
-from campaign.schema import RESULTS
+from campaign.store.schema import RESULTS
+from campaign.task_key import COMPRESSION, entry_key
 from common.errors import InputError
 
 FAULTS = ("raise", "hang", "nan", "segv", "spin", "memory", "noop", "fake_law")
@@ -238,11 +239,11 @@ def record_hook() -> Callable[[Any, dict[str, Any]], None] | None:
 
 def kill_mid_write(store: Any, entry: dict[str, Any]) -> None:
     """SIGKILL rank 0 right after `entry`'s rows are written, if KILL_ENV names it."""
-    kill = os.environ.get(KILL_ENV)
-    if kill is None or kill != (str(entry["row"]) if "row" in entry else f"task{entry['task']}"):
+    kill, (kind, i) = os.environ.get(KILL_ENV), entry_key(entry)
+    if kill is None or kill != (str(i) if kind == COMPRESSION else f"task{i}"):
         return
     store.flush(rows=True)                 # written, then killed: the replay must not redo it
-    if "row" in entry:
-        from campaign.schema import DONE
-        store.file["state"][entry["row"]] = DONE
+    if kind == COMPRESSION:
+        from campaign.store.schema import DONE
+        store.file["state"][i] = DONE
     os.kill(os.getpid(), signal.SIGKILL)

@@ -6,7 +6,7 @@ modulation with its frequency and amplitude); its samples are written as
 JPK would record them: vDeflection as big-endian int32 counts with an
 encoder (V) and conversions distance (sensitivity, m/V) and force (k, N/m),
 measuredHeight as int32 counts of an encoder in m, z = h - F/k + Z (the
-inverse of `jpk_import`'s h = z + F/k - Z). The duration of a segment is its
+inverse of `formats.instruments`'s h = z + F/k - Z). The duration of a segment is its
 sample count times its sampling interval, so the reader's mid-sample times
 differ from the cell's by half an interval, a shift that no fit depends on.
 

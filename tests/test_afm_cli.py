@@ -6,9 +6,9 @@ import h5py
 import numpy as np
 import pytest
 
-from analysis.afm.csvformat import write_csv_cell
-from analysis.afm.h5format import write_experiment
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.formats.csvcell import write_csv_cell
+from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
 from cortex.cli import main

@@ -5,10 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.afm.csvformat import read_csv_cell, write_csv_cell
-from analysis.afm.h5format import read_experiment, write_experiment
-from analysis.afm.jpk import read_jpk
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.formats.csvcell import read_csv_cell, write_csv_cell
+from analysis.afm.formats.h5 import read_experiment, write_experiment
+from analysis.afm.formats.jpk.text import read_jpk
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.synthetic import reference_law
 
 JPK = Path(__file__).resolve().parents[1].parent / "shared/data/jpk/force-save-2020.10.29-12.06.06.196.txt"

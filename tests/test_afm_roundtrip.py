@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from analysis.afm.analyze import analyze
-from analysis.afm.population import summary
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.population.summary import summary
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
 

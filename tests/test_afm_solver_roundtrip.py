@@ -1,6 +1,6 @@
 """Round trip with the real solver: a calibration built here from the paper
 grid's 180 fast-solver compressions (standard bending, `cortex campaign run`,
-read back with `campaign.reader.read_results`, calibrated with
+read back with `campaign.store.reader.read_results`, calibrated with
 `analysis.calibration`), and a synthetic experiment whose forward model is
 the same fast solver at each cell's own V, K_B(f), K_S and γ_a. Measurement
 errors off: the recovered median ν per frequency must be within 0.05 of the
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from analysis.afm.analyze import analyze
-from analysis.afm.population import summary
-from analysis.afm.synth import generate, solver_forward
+from analysis.afm.population.summary import summary
+from analysis.afm.synth.cells import generate, solver_forward
 from analysis.calibration import calibrate
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from conftest import BIN, ROOT
 
 GRID = """

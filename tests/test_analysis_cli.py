@@ -116,15 +116,16 @@ def test_missing_store_and_bad_out(tmp_path, capsys):
 
 def test_reader_failure_becomes_one_line(tmp_path, monkeypatch, capsys):
     """What h5py raises on a damaged file (OSError) becomes one clear line."""
-    fake = types.ModuleType("campaign.reader")
+    fake = types.ModuleType("campaign.store.reader")
 
     def broken(path):
         raise OSError("Unable to synchronously open file (file signature not found)")
     fake.read_results = fake.read_trials = broken
-    pkg = types.ModuleType("campaign")
-    pkg.reader = fake
+    pkg, store = types.ModuleType("campaign"), types.ModuleType("campaign.store")
+    pkg.store, store.reader = store, fake
     monkeypatch.setitem(sys.modules, "campaign", pkg)
-    monkeypatch.setitem(sys.modules, "campaign.reader", fake)
+    monkeypatch.setitem(sys.modules, "campaign.store", store)
+    monkeypatch.setitem(sys.modules, "campaign.store.reader", fake)
     path = tmp_path / "corrupt.h5"
     path.write_bytes(b"\x00garbage" * 100)
     assert main(["analysis", "calibrate", str(path), "--out", str(tmp_path / "o")]) == 2
@@ -134,7 +135,7 @@ def test_reader_failure_becomes_one_line(tmp_path, monkeypatch, capsys):
 
 
 def test_corrupt_file_with_the_real_reader(tmp_path, capsys):
-    pytest.importorskip("campaign.reader", reason="the campaign store reader is not in this checkout yet")
+    pytest.importorskip("campaign.store.reader", reason="the campaign store reader is not in this checkout yet")
     path = tmp_path / "corrupt.h5"
     path.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 64 + b"garbage" * 50)
     assert main(["analysis", "calibrate", str(path), "--out", str(tmp_path / "o")]) == 2

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis.afm.bruker import read_curve, read_nanoscope
-from analysis.afm.bruker_text import read_columns, read_nanoscope_text
-from analysis.afm.jpk_import import import_cells, read_file, read_recordings
+from analysis.afm.formats.bruker.nanoscope import read_curve, read_nanoscope
+from analysis.afm.formats.bruker.text import read_columns, read_nanoscope_text
+from analysis.afm.formats.instruments import import_cells, read_file, read_recordings
 from conftest import ROOT
 from cortex.cli import main
 from common.errors import EXIT_BAD_INPUT, EXIT_SOME_FAILED, InputError
@@ -227,7 +227,7 @@ def test_import_and_analyze_take_bruker_files(tmp_path, capsys):
     out = tmp_path / "imp"
     assert main(["afm", "import", str(BINARY), str(EXPORT), "--volume", "4000", "--dish-height-um", "-5",
                  "--out", str(out)]) == 0
-    from analysis.afm.h5format import read_experiment
+    from analysis.afm.formats.h5 import read_experiment
     cells = {c.cell_id: c for c in read_experiment(out / "experiment.h5")}
     assert set(cells) == {"MDA-MB231_Dish2_Cell1.000", "MDA-MB231_Dish2_Cell1.000-NanoScope-Analysis"}
     assert [s.kind for s in cells["MDA-MB231_Dish2_Cell1.000"].segments] == ["approach", "retract"]

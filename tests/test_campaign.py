@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from campaign.reader import read_results, summary
+from campaign.store.reader import read_results, summary
 from conftest import BIN, ROOT, cortex, journal_counts, poll_until
 
 TINY = """

@@ -23,7 +23,7 @@ import pytest
 
 from campaign import config
 from campaign.isolation import GRACE_S
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from conftest import ROOT, cortex
 
 DEMO = (ROOT / "campaigns" / "demo.toml").read_text().split("# SPEC 5")[0]   # its compressions

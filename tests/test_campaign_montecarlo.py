@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 
 from campaign import config
-from campaign.reader import read_results, read_trials
-from campaign.schema import TRIAL_COLUMNS
+from campaign.store.reader import read_results, read_trials
+from campaign.store.schema import TRIAL_COLUMNS
 from campaign.trials import Study, draws, grid_shear, run_study
 from conftest import BIN, ROOT, cortex, journal_counts, poll_until
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from campaign.reader import read_results, read_trials, summary
+from campaign.store.reader import read_results, read_trials, summary
 from conftest import BIN, poll_until
 
 CONFIG = Path(__file__).parent / "data" / "signals.toml"

@@ -1,4 +1,4 @@
-"""The store's two write paths (campaign.store, campaign.mpio_writer): parallel HDF5 (mpio, every
+"""The store's two write paths (campaign.store, campaign.store.mpio_writer): parallel HDF5 (mpio, every
 rank writes its own rows) and rank 0 writing every row give the same rows,
 bit for bit, for the demo campaign (real solves and Monte-Carlo trials) under
 1, 2 and 3 ranks, and the mpio path survives SIGKILL as the rank-0 path does.

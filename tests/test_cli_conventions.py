@@ -162,3 +162,21 @@ def test_help_and_the_packages_load_no_numpy():
         assert package.__all__, name
         for public in package.__all__:
             assert getattr(package, public) is not None, (name, public)
+
+
+def test_every_command_runs_a_function_of_its_own_command_module():
+    """A command's handler is a function reference (no "module:function" string), of the command
+    module that registers it; no command module imports another as a library."""
+    import ast
+    import inspect
+    for words, parser in COMMANDS:
+        handler = parser.get_default("handler")
+        assert inspect.isfunction(handler), (words, handler)
+        assert handler.__module__.startswith("cortex.commands."), (words, handler.__module__)
+    for path in sorted((ROOT / "cortex" / "commands").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                raise AssertionError(f"{path.name}:{node.lineno}: a relative import")
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not [n for n in names if n.startswith("cortex.commands")], f"{path.name}:{node.lineno}"

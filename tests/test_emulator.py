@@ -10,13 +10,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.afm.synth import solver_forward
+from analysis.afm.synth.cells import solver_forward
 from analysis.emulator import AXES
 from analysis.emulator_fit import invert_curves_emulator
 from analysis.invert_table import Errors, invert_rows
 from analysis.shipped import load, shipped_path
 from campaign.config import load as load_campaign
-from campaign.reader import read_results
+from campaign.store.reader import read_results
 from conftest import BIN, ROOT
 from common.errors import InputError
 from solver.geometry import cell_radius, droplet

@@ -23,7 +23,7 @@ def _signalled(args):
 @pytest.mark.parametrize("command", [["afm", "synth", "--cells", "1", "--out", "x"],
                                      ["analysis", "calibrate", "s.h5", "--out", "o"]])
 def test_sigterm_during_a_command_gives_status_3(command, monkeypatch, capsys):
-    module = "analysis.afm.cli" if command[0] == "afm" else "analysis.cli"
+    module = "cortex.commands.afm" if command[0] == "afm" else "cortex.commands.analysis"
     monkeypatch.setattr(f"{module}.{command[1]}", _signalled)
     before = signal.getsignal(signal.SIGTERM)
     assert main(command) == errors.EXIT_SIGNAL
@@ -35,7 +35,7 @@ def test_sigterm_during_a_command_gives_status_3(command, monkeypatch, capsys):
 def test_a_write_failure_anywhere_gives_status_5_naming_the_file(monkeypatch, capsys, tmp_path):
     def full(args):
         raise OSError(28, "No space left on device", str(tmp_path / "x.csv"))
-    monkeypatch.setattr("analysis.cli.calibrate", full)
+    monkeypatch.setattr("cortex.commands.analysis.calibrate", full)
     assert main(["analysis", "calibrate", "s.h5", "--out", "o"]) == errors.EXIT_WRITE_FAILED
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(tmp_path / "x.csv") in err[0] and "free space" in err[0]

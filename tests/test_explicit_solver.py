@@ -1,4 +1,4 @@
-"""The explicit reference scheme (solver.explicit, solver.surface_forces):
+"""The explicit reference scheme (solver.explicit, solver.explicit.surface_forces):
 its forces are the energy's gradient and the (corrected) SPEC force densities,
 and its compressions reproduce the droplet force, hold the volume and satisfy
 the force balance across the equator."""
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from solver import explicit
-from solver import surface_forces as sf
+from solver.explicit import surface_forces as sf
 from common.errors import SolverError
 from solver.geometry import droplet
 from solver.model import Shell

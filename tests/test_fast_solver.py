@@ -98,15 +98,15 @@ def test_the_compile_cache_follows_every_compiled_source(tmp_path):
     and with no other."""
     from solver import jit
     package = tmp_path / "solver"
-    package.mkdir()
+    (package / "fast").mkdir(parents=True)
     here = os.path.dirname(jit.__file__)
-    for name in ("fast_kernel.py", "fast_newton.py", "cli.py"):
+    for name in ("fast/kernel.py", "fast/newton.py", "model.py"):
         (package / name).write_bytes(open(os.path.join(here, name), "rb").read())
     before = jit.cache_dir("base", package)
-    with open(package / "cli.py", "a") as f:
+    with open(package / "model.py", "a") as f:
         f.write("# an edit to a module that compiles nothing\n")
     assert jit.cache_dir("base", package) == before
-    with open(package / "fast_kernel.py", "a") as f:
+    with open(package / "fast/kernel.py", "a") as f:
         f.write("# an edit to the kernel alone\n")
     after = jit.cache_dir("base", package)
     assert after != before and os.path.dirname(after) == "base"

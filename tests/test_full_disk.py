@@ -16,9 +16,9 @@ import pytest
 
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
-from campaign import journal
-from campaign.journal import read as read_journal
-from campaign.reader import read_results, read_trials
+from campaign.store import journal
+from campaign.store.journal import read as read_journal
+from campaign.store.reader import read_results, read_trials
 from outputs.ownership import MANIFEST
 from conftest import ROOT, cortex
 from outputs.writing import ROOM_MARGIN_BYTES

@@ -1,4 +1,4 @@
-"""The journal codec (campaign.journal): entries come back bit for bit, a
+"""The journal codec (campaign.store.journal): entries come back bit for bit, a
 record cut anywhere is ignored and trimmed, what is not a journal is not
 ours; and the engine's version comes from package metadata, not from the
 command-line package."""
@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from campaign import journal
-from campaign.schema import RESULTS
+from campaign.store import journal
+from campaign.store.schema import RESULTS
 from conftest import ROOT
 
 
@@ -102,7 +102,7 @@ def test_what_is_not_a_journal(tmp_path):
 
 
 def test_the_engine_does_not_import_the_command_line_package():
-    code = ("import sys, campaign.store, campaign.reader, campaign.scheduler, campaign.provenance as p; "
+    code = ("import sys, campaign.store, campaign.store.reader, campaign.scheduler, campaign.store.provenance as p; "
             "assert 'cortex' not in sys.modules, 'cortex imported'; "
             "from importlib.metadata import version; assert p.code_version() == version('cortex-poisson')")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
@@ -112,7 +112,7 @@ def test_the_engine_does_not_import_the_command_line_package():
 def test_results_table_fills_missing_keys_with_nan():
     """One pass when every dict has every key, NaN where one lacks a key: the
     journal's and the rows' result columns."""
-    from campaign.schema import results_table
+    from campaign.store.schema import results_table
     full = results_table([{"a": 1.0, "b": 2}, {"a": 3.0, "b": 4}], ["a", "b"])
     assert full.dtype == np.float64 and full.tolist() == [[1.0, 2.0], [3.0, 4.0]]
     gaps = results_table([{"a": 1.0}, {"b": 2.0}], ["a", "b"])
@@ -124,7 +124,7 @@ def test_results_table_fills_missing_keys_with_nan():
 @pytest.mark.parametrize("rows", [[3, 4, 5, 9], list(range(0, 60, 2))])   # few runs; more than RUNS_MAX
 def test_put_by_runs_or_scattered_writes_the_same(tmp_path, rows):
     import h5py
-    from campaign.rows import RUNS_MAX, put, runs
+    from campaign.store.rows import RUNS_MAX, put, runs
     rows = np.array(rows)
     values = np.arange(len(rows), dtype=float) + 0.5
     with h5py.File(tmp_path / "f.h5", "w") as f:

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.h5format import read_experiment
-from analysis.afm.jpk_import import import_cells
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.formats.h5 import read_experiment
+from analysis.afm.formats.instruments import import_cells
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
 from cortex.cli import main
@@ -95,7 +95,7 @@ def test_native_round_trip(exp, tmp_path, capsys):
 
 def test_modulation_archives_analyse_like_the_native_experiment(exp, tmp_path):
     d, cells, folder, vol, cal = exp
-    from analysis.afm.h5format import write_experiment
+    from analysis.afm.formats.h5 import write_experiment
     native = write_experiment(tmp_path / "native.h5", cells)
     assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a")]) == 0
     assert main(["afm", "analyze", str(folder), "--volumes", str(vol), "--dish-height-um", "3",
@@ -235,7 +235,7 @@ def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_pat
 
 def test_jpk_options_refused_for_the_native_format(exp, tmp_path, capsys):
     _, cells, _, _, cal = exp
-    from analysis.afm.h5format import write_experiment
+    from analysis.afm.formats.h5 import write_experiment
     native = write_experiment(tmp_path / "n.h5", cells)
     capsys.readouterr()
     assert main(["afm", "analyze", str(native), "--volume", "4000", "--calibration", str(cal),
@@ -261,7 +261,7 @@ def _text_export(path, modulation):
 
 
 def test_text_export_modulation_segment(tmp_path, capsys):
-    from analysis.afm.jpk import read_jpk_recording
+    from analysis.afm.formats.jpk.text import read_jpk_recording
     rec = read_jpk_recording(_text_export(tmp_path / "m.txt", True))
     assert [s.kind for s in rec.segments] == ["approach", "modulation"]
     mod = rec.segments[1]

@@ -9,9 +9,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from analysis.afm.jpk import read_jpk_recording
-from analysis.afm.jpk_archive import read_archive
-from analysis.afm.jpk_import import wedge_height_um
+from analysis.afm.formats.jpk.text import read_jpk_recording
+from analysis.afm.formats.jpk.archive import read_archive
+from analysis.afm.formats.instruments import wedge_height_um
 from conftest import ROOT
 from cortex.cli import main
 

@@ -11,8 +11,8 @@ import h5py
 import numpy as np
 import pytest
 
-from analysis.afm.h5format import write_experiment
-from analysis.afm.synth import generate, law_forward
+from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law
 from conftest import BIN, ROOT
@@ -225,7 +225,7 @@ def test_afm_synth_refuses_a_folder(afm, tmp_path, capsys):
 
 def test_a_store_is_never_set_aside_onto_an_existing_file(tmp_path):
     """--new keeps the old store as STORE.bak-<time>; a file already of that name is kept too."""
-    from campaign.store_files import set_aside
+    from campaign.store.files import set_aside
     store = tmp_path / "s.h5"
     assert run_campaign(tmp_path, store).returncode == 0
     taken = make_text(tmp_path / "s.h5.bak-20260101-000000")

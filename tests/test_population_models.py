@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.afm import random_effects, trend
-from analysis.afm.paired import paired_tests
-from analysis.afm.population_answer import answer
+from analysis.afm.population import random_effects, trend
+from analysis.afm.population.paired import paired_tests
+from analysis.afm.population.answer import answer
 from solver.elasticity import poisson_of_ratio
 
 
@@ -87,7 +87,7 @@ def test_pseudo_true_slope_is_the_line_when_the_means_are_on_one():
 
 
 def test_pseudo_true_slope_is_what_the_fit_reaches_on_a_large_sample():
-    from analysis.afm.synth import POPULATIONS, subset_sizes
+    from analysis.afm.synth.cells import POPULATIONS, subset_sizes
     rng = np.random.default_rng(0)
     cell, f, y = [], [], []
     for freqs, n in subset_sizes(85):
@@ -144,7 +144,7 @@ def test_population_json_has_the_interface_keys():
 def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(tmp_path):
     import json
 
-    from analysis.afm.synth import subset_sizes
+    from analysis.afm.synth.cells import subset_sizes
     from analysis.calibration import Calibration
     from analysis.synthetic import reference_law
     from cortex.cli import main

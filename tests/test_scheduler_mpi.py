@@ -80,7 +80,7 @@ def test_tasks_spread_over_ranks_each_done_once(tmp_path_factory, stop_flag):
     from mpi4py import MPI
     import faults
     from campaign import scheduler
-    from campaign.reader import read_results, read_trials
+    from campaign.store.reader import read_results, read_trials
     size = MPI.COMM_WORLD.Get_size()
     campaign, store = shared_campaign(tmp_path_factory, "spread", GRID + MONTECARLO +
                                       "[test]\nfake_law = true\ncompression_sleep_s = 0.02\n")
@@ -101,7 +101,7 @@ def test_a_failing_task_leaves_the_others_done(tmp_path_factory, stop_flag):
     """Rows 2 and 7 raise, row 11 returns NaN, row 20 hangs past a 2 s timeout:
     those four fail with their messages, the other 56 are done (status 1)."""
     from campaign import scheduler
-    from campaign.reader import read_results
+    from campaign.store.reader import read_results
     text = GRID.replace("timeout_s = 60.0", "timeout_s = 2.0") + \
         "[test]\nfake_law = true\nraise_task = [2, 7]\nnan_task = 11\nhang_task = 20\n"
     campaign, store = shared_campaign(tmp_path_factory, "faults", text)
@@ -123,7 +123,7 @@ def test_sigterm_stops_cleanly_and_the_rerun_completes(tmp_path_factory, stop_fl
     with tasks left and none shown running; the rerun does only the rest."""
     from mpi4py import MPI
     from campaign import scheduler
-    from campaign.reader import read_results
+    from campaign.store.reader import read_results
     rank = MPI.COMM_WORLD.Get_rank()
     campaign, store = shared_campaign(tmp_path_factory, "signal", GRID +
                                       "[test]\nfake_law = true\ncompression_sleep_s = 0.1\n")

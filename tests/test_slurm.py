@@ -136,20 +136,20 @@ def logs(cwd):
 
 
 def states(store):
-    from campaign.reader import read_results
+    from campaign.store.reader import read_results
 
     return read_results(store)
 
 
 def trial_attempts(store):
     """Attempts of every Monte-Carlo trial cell (journal included)."""
-    from campaign.reader import read_trials
+    from campaign.store.reader import read_trials
 
     return read_trials(store).groupby("trial_id")["attempts"].first().to_numpy()
 
 
 def trials(store):
-    from campaign.reader import summary
+    from campaign.store.reader import summary
 
     return summary(store)["trials"]
 

@@ -14,7 +14,8 @@ import random
 import numpy as np
 import pytest
 
-from campaign import config, schema
+from campaign import config
+from campaign.store import schema
 from conftest import ROOT
 from common.errors import InputError
 

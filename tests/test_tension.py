@@ -4,11 +4,11 @@ tension-only droplets made with the project's exact geometry plus noise."""
 import numpy as np
 import pytest
 
-from analysis.afm.jpk_import import wedge_height_um
-from analysis.afm.ramp_fit import fit_ramp, force_per_tension_um
-from analysis.afm.tension import ErrorModel, pause_tension, pressure_Pa, ramp_interval
-from analysis.afm.tension_pipeline import Options, Trace, analyse
-from analysis.afm.tension_synth import droplet_force_nN, droplet_recording
+from analysis.afm.formats.instruments import wedge_height_um
+from analysis.afm.tension.ramp import fit_ramp, force_per_tension_um
+from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.pipeline import Options, Trace, analyse
+from analysis.afm.tension.synth import droplet_force_nN, droplet_recording
 from solver.droplet_table import mean_curvature_per_um, unit_shape
 from common.errors import InputError
 from solver.geometry import cell_radius, droplet

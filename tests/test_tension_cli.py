@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from analysis.afm.csvformat import write_csv_cell
-from analysis.afm.jpk_import import to_cell
-from analysis.afm.tension_synth import droplet_recording
+from analysis.afm.formats.csvcell import write_csv_cell
+from analysis.afm.formats.instruments import to_cell
+from analysis.afm.tension.synth import droplet_recording
 from conftest import ROOT
 from cortex.cli import main
 from jpk_writer import write_force
@@ -117,7 +117,7 @@ def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
 
 
 def test_figure_names_are_files_and_never_shared():
-    from analysis.afm.tension_pipeline import file_names
+    from analysis.afm.tension.pipeline import file_names
     assert list(file_names(["a b", "a_b", "c/d"]).values()) == ["tension_a_b.png", "tension_a_b-2.png",
                                                                  "tension_c_d.png"]
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from campaign.config import load
-from campaign.reader import read_results
-from campaign.schema import task_id
+from campaign.store.reader import read_results
+from campaign.store.schema import task_id
 from solver import viscous
 from solver.model import Shell
 from tests.conftest import BIN, ROOT

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.afm.jpk_import import read_volumes
+from analysis.afm.formats.instruments import read_volumes
 from cortex.cli import main
 from common.errors import EXIT_BAD_INPUT, InputError
 from solver.geometry import droplet, volume_from_image

@@ -12,12 +12,12 @@
 
 DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
-random-effects fit, the paired tests, the trend; `analysis.afm.population_answer`),
+random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
 report.md, which also lists the recordings not analysed.
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
-NanoScope files and folders of them (`jpk_import.import_cells`, with the volume and dish options
+NanoScope files and folders of them (`formats.instruments.import_cells`, with the volume and dish options
 of `cortex afm import`).
 
 With the emulator (the default method) every cell and frequency has a 95 %
@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from analysis.afm.analyze import analyze
-from analysis.afm.figures import FIGURES
-from analysis.afm.population import summary
+from analysis.afm.population.figures import FIGURES
+from analysis.afm.population.summary import summary
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
@@ -79,14 +79,14 @@ class Fitted:
     tables: dict = field(default_factory=dict)
     sums: dict = field(default_factory=dict)
     segments: object = None
-    population: dict | None = None          # population.json (`analysis.afm.population_answer`)
+    population: dict | None = None          # population.json (`analysis.afm.population.answer`)
     rheology: object = None      # the viscoelastic reading's table and summary, when on
 
 
 def load(paths, jpk_options=None):
     """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
     Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
-    from analysis.afm.jpk_import import import_cells, is_instrument_file
+    from analysis.afm.formats.instruments import import_cells, is_instrument_file
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if all(is_instrument_file(p) for p in paths):
         return import_cells(paths, **(jpk_options or {}))[1]
@@ -99,10 +99,10 @@ def load(paths, jpk_options=None):
     path = Path(paths[0])
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
-        from analysis.afm.h5format import read_experiment
+        from analysis.afm.formats.h5 import read_experiment
         return read_experiment(path)
     if suffix == ".csv":
-        from analysis.afm.csvformat import read_csv_cell
+        from analysis.afm.formats.csvcell import read_csv_cell
         return [read_csv_cell(path)]
     raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
                      "a JPK or Bruker file or a folder of them)")
@@ -160,7 +160,7 @@ def fit(rec, settings):
         fitted.sums[variant] = _with_medians(summary(tab), tab, settings.method)
         if variant == settings.bending:
             fitted.segments = segs
-    from analysis.afm.population_answer import answer
+    from analysis.afm.population.answer import answer
     fitted.population = answer(fitted.tables[settings.bending])
     if settings.phase:
         _viscoelastic(rec, settings, fitted)
@@ -201,7 +201,7 @@ def _csv(table):
 def write(out, rec, fitted, settings):
     """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
     from analysis.afm.analyze_report import markdown, markdown_skipped
-    from analysis.afm.figures import figures, nu_intervals      # matplotlib: only now
+    from analysis.afm.population.figures import figures, nu_intervals      # matplotlib: only now
     bending = settings.bending
     for variant in rec.variants:        # the selected one first (the manifest's order)
         _write(out, f"cells_{variant}.csv", _csv(fitted.tables[variant]))
@@ -214,7 +214,7 @@ def write(out, rec, fitted, settings):
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if settings.method == "emulator":
         figs.append(nu_intervals(fitted.tables[bending], out))
-    from analysis.afm.population_figures import population_figures
+    from analysis.afm.population.answer_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs,
                     fitted.population) + markdown_skipped(None, rec.skipped)
@@ -232,7 +232,7 @@ def run(data, calibration_path, out, settings=Settings()):
     from analysis.afm.analyze_report import markdown_skipped
     rec = read(data, calibration_path, settings)
     out = OutputDir(out)                              # refused now if not ours
-    from analysis.afm.population_figures import POPULATION_FIGURES
+    from analysis.afm.population.answer_figures import POPULATION_FIGURES
     out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
                "population.json", *POPULATION_FIGURES] + (["rheology.csv"] if settings.phase else [])
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])

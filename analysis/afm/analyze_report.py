@@ -1,7 +1,7 @@
 """report.md of `cortex afm analyze` (`analysis.afm.analyze_pipeline`), as text.
 
 Sections: the method and variant, the population answer (the trend's sentence
-first, the deconvolved populations, the paired tests: `analysis.afm.population_report`),
+first, the deconvolved populations, the paired tests: `analysis.afm.population.report`),
 the emulator's median ν per frequency with
 its bootstrap 95 % interval (emulator only), the population table of every
 variant (median and IQR of ν, the lognormal fit of K̃_S), the Mann-Whitney
@@ -66,7 +66,7 @@ def markdown(name, bending, tables, sums, figs, population=None):
              f"Method: `{method}`. Calibration variant: `{bending}`. "
              f"{tab['cell_id'].nunique()} cells.", ""]
     if population is not None:
-        from analysis.afm.population_report import markdown_population
+        from analysis.afm.population.report import markdown_population
         lines += markdown_population(population, sums[bending]["mann_whitney_p"])
     if method == "emulator":
         lines += _emulator_medians(bending, sums[bending])

@@ -16,6 +16,7 @@ the analysis lists it with that reason).
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from common.errors import InputError
 
@@ -35,23 +36,23 @@ class Segment:
 class Cell:
     cell_id: str
     volume_um3: float
-    time_s: np.ndarray
-    force_nN: np.ndarray
-    height_um: np.ndarray
-    segments: list = field(default_factory=list)
+    time_s: npt.NDArray[np.float64]
+    force_nN: npt.NDArray[np.float64]
+    height_um: npt.NDArray[np.float64]
+    segments: list[Segment] = field(default_factory=list)
     volume_source: str = "imaging"
     spring_constant_N_per_m: float = float("nan")
     date: str = ""
 
     @property
-    def frequencies_hz(self):
+    def frequencies_hz(self) -> list[float]:
         return sorted({s.frequency_hz for s in self.segments if s.kind == "oscillation"})
 
-    def oscillations(self, frequency_hz=None):
+    def oscillations(self, frequency_hz: float | None = None) -> list[Segment]:
         return [s for s in self.segments if s.kind == "oscillation"
                 and (frequency_hz is None or s.frequency_hz == frequency_hz)]
 
-    def validate(self, where=""):
+    def validate(self, where: str = "") -> "Cell":
         """Raise InputError (one line) if the cell cannot be analysed."""
         at = f"{where}cell '{self.cell_id}'"
         v = self.volume_um3

@@ -23,6 +23,7 @@ turnover reading predicts, and two-sided).
 
 import warnings
 import zlib
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -62,7 +63,7 @@ def reference_lags(cells):
     phase of the force relative to the compression -h(t) (`analysis.afm.timeseries.fit_sinusoid`),
     the median per frequency (a hard dish answers in phase, so this is the instrument's lag)."""
     from analysis.afm.timeseries import fit_sinusoid
-    phases = {}
+    phases: dict[float, list[float]] = {}
     for cell in cells:
         for s in cell.oscillations():
             t = cell.time_s[s.start:s.stop] - cell.time_s[s.start]
@@ -195,7 +196,7 @@ def power_laws(table, theta, th_m):
 def paired_test(rheology):
     """The population of exponents and the Wilcoxon signed-rank test of β_S against β_B."""
     b, s = rheology["bulk_exponent"].to_numpy(float), rheology["shear_exponent"].to_numpy(float)
-    out = {"test": "Wilcoxon signed-rank, shear_exponent - bulk_exponent over the cells", "n_cells": int(b.size)}
+    out: dict[str, Any] = {"test": "Wilcoxon signed-rank, shear_exponent - bulk_exponent over the cells", "n_cells": int(b.size)}
     for name, x in (("bulk_exponent", b), ("shear_exponent", s)):
         q = np.percentile(x, [25, 50, 75]) if x.size else [np.nan] * 3
         out[name] = {"median": float(q[1]), "q25": float(q[0]), "q75": float(q[2])}

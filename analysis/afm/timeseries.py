@@ -14,15 +14,19 @@ For samples (t, h(t), F(t)) of one cell of volume V:
    mean tension is <γ_eff> (the fit's mean over the segment, c·t̄ + d).
 """
 
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
+from analysis.afm.cell import Cell
 from solver.geometry import cell_radius, droplet
 
 TABLE_POINTS = 96   # heights per cell at which the droplet is solved; cubic spline between
 
 
-def shape_of(volume, heights):
+def shape_of(volume: float, heights: npt.NDArray[np.float64]) -> tuple[np.ndarray, np.ndarray]:
     """(2 H A_c, A) at `heights` for one volume: the droplet solved on a grid of
     TABLE_POINTS heights over their range and interpolated by cubic splines
     (the exact solve per sample is far too slow for 10⁶ samples)."""
@@ -36,7 +40,7 @@ def shape_of(volume, heights):
             CubicSpline(grid, d.surface_area_um2)(heights))
 
 
-def fit_sinusoid(t, x, f):
+def fit_sinusoid(t: npt.NDArray[np.float64], x: npt.ArrayLike, f: float) -> dict[str, np.ndarray]:
     """Least squares of x = a cos(ωt) + b sin(ωt) + c t + d; rows of `x` are
     fitted at once. Returns amplitude, phase φ = atan2(a, b), mean over t, R²."""
     w = 2.0 * np.pi * f
@@ -51,7 +55,7 @@ def fit_sinusoid(t, x, f):
             "r2": 1.0 - ss_res / np.where(ss_tot > 0, ss_tot, np.nan)}
 
 
-def segment_moduli(cell):
+def segment_moduli(cell: Cell) -> list[dict[str, Any]]:
     """One row per oscillation segment of `cell`: frequency_hz, mean_height_um,
     h_tilde, modulus_mN_per_m (|K|), loss_angle_rad, tension_mN_per_m (<γ_eff>),
     area_strain_amplitude, gamma_amplitude_mN_per_m, fit_r2_gamma, t_mid_s."""

@@ -1,0 +1,139 @@
+"""What `cortex afm tension --out DIR` writes: tension.csv (the rows, columns in
+`COLUMNS`, units in their names), one figure per recording
+(`tension_<cell_id>.png`: each approach ramp's force above its baseline against
+the deformation x0 - x, the samples of the fit window marked, the fitted model
+and the comparison model; each pause's force over time with the mean of its last
+half) and report.md (the table in short, the window rule, what was not analysed)."""
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.afm.tension.pause import ErrorModel
+
+if TYPE_CHECKING:
+    from outputs.ownership import OutputDir
+
+TABLE, REPORT = "tension.csv", "report.md"
+COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
+           "tension_hi95_mN_per_m", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
+           "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
+           "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
+           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
+
+
+@dataclass
+class Analysed:
+    """The rows of one recording and what its figure shows: per part (kind, x or t,
+    F, fit, comparison fit) and the cell's radius."""
+
+    rows: list
+    plots: list = field(default_factory=list)
+    radius_um: float = float("nan")
+
+
+def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
+    """{cell_id: its figure's file name}: tension_<cell_id>.png with characters outside
+    [A-Za-z0-9._-] as '_', and -2, -3, ... after a name already taken."""
+    names: dict[str, str] = {}
+    taken: set[str] = set()
+    for cell_id in cell_ids:
+        stem, n = f"tension_{re.sub(r'[^A-Za-z0-9._-]', '_', cell_id)}", 1
+        while (name := stem + (f"-{n}" if n > 1 else "") + ".png") in taken:
+            n += 1
+        names[cell_id] = name
+        taken.add(name)
+    return names
+
+
+def _ramp_axes(ax, plot, radius):
+    _, index, x, f, fit, cmp = plot
+    depth = fit.contact_um - x
+    ax.plot(depth, f - fit.baseline_nN, ".", ms=2, color="0.7", label="data")
+    ax.plot(depth[fit.window], f[fit.window] - fit.baseline_nN, ".", ms=2, color="tab:blue", label="fit window")
+    d = np.linspace(-fit.depth_um, fit.depth_um, 300)
+    ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_nN, color="tab:red",
+            label=f"{fit.model}: T = {fit.tension_mN_per_m:.3g} mN/m, R² = {fit.r2:.4f}")
+    if cmp is not None:
+        ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_nN, "--", color="tab:green",
+                label=f"{cmp.model}: T = {cmp.tension_mN_per_m:.3g} mN/m, R² = {cmp.r2:.4f}")
+    for edge in (-fit.depth_um, fit.depth_um):
+        ax.axvline(edge, color="0.4", lw=0.8, ls=":")
+    ax.set_xlim(-1.5 * fit.depth_um, 1.2 * max(fit.depth_um, np.max(depth)) if depth.size else 1.0)
+    ax.set_xlabel("deformation x0 - x (um)")
+    ax.set_ylabel("force above baseline (nN)")
+    ax.set_title(f"approach (segment {index})")
+    ax.legend(fontsize=7, loc="upper left")
+
+
+def _pause_axes(ax, plot):
+    _, index, t, f, force, _ = plot
+    ax.plot(t, f, ".", ms=2, color="tab:blue")
+    ax.axhline(force, color="tab:red", label=f"last half: {force:.3g} nN")
+    ax.axvspan(t[len(t) // 2], t[-1], color="tab:red", alpha=0.08)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("force above baseline (nN)")
+    ax.set_title(f"pause (segment {index})")
+    ax.legend(fontsize=7, loc="upper left")
+
+
+def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
+    """One recording's figure: a panel per analysed part."""
+    from matplotlib.figure import Figure      # no pyplot: no figure manager to make and close
+    n = len(analysed.plots)
+    fig = Figure(figsize=(4.6 * n, 3.6))
+    axes = fig.subplots(1, n, squeeze=False)
+    for ax, plot in zip(axes[0], analysed.plots):
+        _ramp_axes(ax, plot, analysed.radius_um) if plot[0] == "approach" else _pause_axes(ax, plot)
+    fig.suptitle(cell_id, fontsize=9)
+    fig.subplots_adjust(left=0.14 / n ** 0.8, right=0.98, bottom=0.15, top=0.84, wspace=0.3)
+    fig.savefig(path, dpi=80)
+
+
+def _num(row, key, spec):
+    """row[key] formatted, '—' where it is missing or NaN."""
+    value = row.get(key, float("nan"))
+    return "—" if value != value else format(value, spec)
+
+
+def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: ErrorModel,
+             figures: list[Path]) -> str:
+    """report.md: the parts analysed, the rule of the window, what was left out."""
+    lines = ["# Cortical tension", "",
+             f"Ramp model: **{model}** (the other model for comparison). Volume errors: relative SD "
+             f"{errors.volume_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
+             "Fit window: deformations up to the deepest one reached (at most R), and as much baseline above "
+             "the contact; see docs/tension.md.", "",
+             "| cell | part | T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | h̃ | contact (um) | R² | "
+             "comparison T (mN/m) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['cell_id']} | {r['part']} {r['segment']} | {_num(r, 'tension_mN_per_m', '.4g')} | "
+                     f"[{_num(r, 'tension_lo95_mN_per_m', '.3g')}, {_num(r, 'tension_hi95_mN_per_m', '.3g')}] | "
+                     f"{_num(r, 'pressure_Pa', '.4g')} | {_num(r, 'height_um', '.4g')} | {_num(r, 'h_tilde', '.3f')} | "
+                     f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
+                     f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
+    lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]
+    if skipped:
+        lines += ["## Not analysed", ""] + [f"- {k}: {v}" for k, v in skipped.items()] + [""]
+    return "\n".join(lines)
+
+
+def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analysed], skipped: dict[str, str],
+          model: str, errors: ErrorModel) -> tuple[Path, Path]:
+    """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
+    with folder.writing(TABLE) as table:
+        pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)
+    figures, names = [], file_names(done)
+    for cell_id, analysed in done.items():
+        with folder.writing(names[cell_id]) as path:
+            figure(path, cell_id, analysed)
+        figures.append(path)
+    text = markdown(rows, skipped, model, errors, figures)
+    with folder.writing(REPORT) as report:
+        report.write_text(text)
+    return table, report

@@ -1,0 +1,57 @@
+"""Synthetic force curves of a tension-only droplet (known truth for `cortex afm
+tension`): an approach ramp onto the free cell down to a chosen depth, a pause
+there, a retract.
+
+The cell: volume V (µm³, R = R_cell), tension T (mN/m); the dish at Z = 0, so the
+gap is the wedge height x. The ramp runs x from 2R + `above_um` down to
+2R - δ_max at constant speed (n samples); the force on the plate is
+F = F_b + T · 2 H A_c from the exact droplet (`solver.geometry.droplet`, not
+the interpolated table the analysis uses) plus white noise of SD `noise_nN`; the
+recorded height channel is z = x - F/k (k the spring constant) plus white noise
+of SD `height_noise_um`. The pause holds x at the bottom (constant height) for
+`pause_n` samples, the retract mirrors the ramp. Times in s at 1 kHz.
+"""
+
+import numpy as np
+import numpy.typing as npt
+
+from analysis.afm.formats.recording import RecordedSegment, Recording, segment_times
+from solver.geometry import cell_radius, droplet
+
+RATE_HZ = 1000.0
+
+
+def droplet_force_nN(volume_um3: float, tension_mN_per_m: float, gap_um: npt.ArrayLike) -> np.ndarray:
+    """T · 2 H A_c (nN) at gaps h (µm) of the exact droplet; 0 where h ≥ 2R."""
+    gap = np.asarray(gap_um, float)
+    top = 2.0 * cell_radius(volume_um3)
+    g = np.zeros_like(gap)
+    touch = gap < top
+    if np.any(touch):
+        g[touch] = droplet(np.full(int(touch.sum()), float(volume_um3)), gap[touch]).force_per_tension_um
+    return tension_mN_per_m * g
+
+
+def _segment(kind, x, t0, volume, tension, rng, *, k, baseline_nN, noise_nN, height_noise_um):
+    force = baseline_nN + droplet_force_nN(volume, tension, x) + noise_nN * rng.standard_normal(x.size)
+    z = x - 1e-3 * force / k + height_noise_um * rng.standard_normal(x.size)
+    duration = x.size / RATE_HZ
+    return RecordedSegment(kind, duration, segment_times(t0, duration, x.size), force, z)
+
+
+def droplet_recording(volume_um3: float, tension_mN_per_m: float, depth_um: float, *, cell_id: str = "synthetic",
+                      n: int = 1000, pause_n: int = 500, above_um: float = 2.0, spring_N_per_m: float = 0.1,
+                      baseline_nN: float = 0.0, noise_nN: float = 0.02, height_noise_um: float = 0.0,
+                      seed: int = 0) -> Recording:
+    """A `Recording` of approach (n samples), constant-height pause and retract on
+    a tension-only droplet, compressed by `depth_um` from its free sphere."""
+    rng = np.random.default_rng(seed)
+    top = 2.0 * float(cell_radius(volume_um3))
+    ramp = np.linspace(top + above_um, top - depth_um, n)
+    opts = dict(k=spring_N_per_m, baseline_nN=baseline_nN, noise_nN=noise_nN, height_noise_um=height_noise_um)
+    segs, t0 = [], 0.0
+    for kind, x in (("approach", ramp), ("pause", np.full(pause_n, ramp[-1])), ("retract", ramp[::-1])):
+        segs.append(_segment(kind, x, t0, volume_um3, tension_mN_per_m, rng, **opts))
+        t0 += segs[-1].duration_s
+    return Recording(cell_id=cell_id, spring_constant_N_per_m=spring_N_per_m, segments=segs,
+                     source=f"synthetic droplet V={volume_um3:g} um^3, T={tension_mN_per_m:g} mN/m")

@@ -1,0 +1,66 @@
+"""A store's files: which are ours, opening one to read, setting one aside.
+
+Only a file that is ours is ever opened for writing, set aside or rebuilt
+(the rule of `outputs.ownership`): an HDF5 file with our `format` attribute,
+or one a kill left unreadable with our journal and lock beside it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from typing import TYPE_CHECKING
+
+from campaign.store import journal
+from campaign.store.schema import FORMAT
+from outputs.ownership import check_file, hdf5_format
+from common.errors import InputError
+
+if TYPE_CHECKING:
+    import h5py
+
+
+def open_read(path: str | os.PathLike[str]) -> h5py.File:
+    """The store opened read-only, without HDF5's file locking (a campaign may
+    be writing it); InputError if it is missing or not HDF5."""
+    import h5py
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such store")
+    try:
+        try:
+            return h5py.File(path, "r", locking=False)
+        except TypeError:
+            return h5py.File(path, "r")
+    except OSError as err:
+        raise InputError(f"{path}: not a readable HDF5 store ({err})") from None
+
+
+def is_our_store(path: str | os.PathLike[str]) -> bool:
+    """Whether `path` is a campaign store (see the module's docstring)."""
+    path = str(path)
+    if hdf5_format(path) == FORMAT:
+        return True
+    try:
+        open_read(path).close()
+        return False                                  # readable HDF5 without our format: not ours
+    except InputError:
+        return os.path.isfile(path + ".lock") and os.path.isfile(path + ".journal") \
+            and journal.is_ours(path + ".journal")
+
+
+def check_store_path(path: str) -> None:
+    """Refuse (InputError) a --store that is a folder or a file that is not ours,
+    or whose journal is not ours; they are left as they are."""
+    check_file(path, is_our_store, "--store")
+    check_file(path + ".journal", journal.is_ours, "--store's journal")
+
+
+def set_aside(path: str, name: str) -> str:
+    """Rename our file `path` to `name`, or `name-2`, `name-3`, ... if that is
+    taken (never onto someone else's file); returns the name used."""
+    target, k = name, 1
+    while os.path.lexists(target):
+        k += 1
+        target = f"{name}-{k}"
+    shutil.move(path, target)
+    return target

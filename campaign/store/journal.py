@@ -1,0 +1,201 @@
+"""The journal codec: finished tasks' entries, one binary record per flush.
+
+A record holds every entry of one flush (`encode`):
+
+    MAGIC | header length, data length (two little-endian u64) | header | data | CRC-32 of header and data
+
+The header is JSON: per array of the data its name, dtype and shape, the
+messages of failed tasks by position, and per trial task its scalars. The
+data are the arrays' raw bytes: a compression's columns (row, state,
+attempts, rank, started, converged and each of RESULTS present), and per
+trial task its cells' states and float64 arrays (CELL_KEYS, HEIGHT_KEYS), so
+values come back bit for bit. Entries are those of `campaign.task_key`
+(`CompressionEntry`, `TrialEntry`), as `campaign.tasks.entry` makes them.
+
+The store (`campaign.store.Store`) appends a record at each flush, and
+whenever the entries it keeps reach RECORD_BYTES (without an fsync: that,
+and the rows, wait for the flush): the journal then grows steadily (a full
+disk stops a run part way, not at its end) and rank 0 holds a bounded
+number of entries not yet journalled.
+
+A record is complete when all its bytes and its CRC are there: a kill or a
+full disk can only cut the last one, which `trim_cut` removes before a run
+appends (no row holds it: rows follow the journal's fsync).
+"""
+
+import json
+import os
+import struct
+import zlib
+from collections.abc import Sequence
+from typing import Any, BinaryIO
+
+import numpy as np
+
+from campaign.store.schema import RESULTS, STATES, results_table
+from campaign.task_key import Entry, compression_entry, is_compression, split, trial_entry
+
+MAGIC = b"\x00cxj"
+_SIZES = struct.Struct("<QQ")
+_CRC = struct.Struct("<I")
+_HEAD = len(MAGIC) + _SIZES.size
+RECORD_BYTES = 64 * 1024    # a record holds at most about this much
+_COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32,
+                "started": np.float64, "converged": np.int8}
+
+
+def approx_bytes(entry: Entry) -> int:
+    """About how many bytes `entry` takes in a record."""
+    if is_compression(entry):
+        return 64 + 8 * len(entry["results"] or ())
+    cells = entry["cells"]
+    return 64 + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else 64
+
+
+def encode(entries: Sequence[Entry]) -> bytes:
+    """One record (bytes) holding `entries`."""
+    arrays: dict[str, np.ndarray] = {}
+    header: dict[str, Any] = {"errors": {}, "tasks": []}
+    compressions, trials = split(entries)
+    if compressions:
+        _compression_arrays(compressions, arrays, header["errors"])
+    for k, e in enumerate(trials):
+        header["tasks"].append(_trial_arrays(k, e, arrays))
+    data = [np.ascontiguousarray(a) for a in arrays.values()]
+    header["arrays"] = [[name, a.dtype.str, list(a.shape)] for name, a in zip(arrays, data)]
+    head = json.dumps(header, separators=(",", ":")).encode()
+    body = head + b"".join(a.tobytes() for a in data)
+    return MAGIC + _SIZES.pack(len(head), len(body) - len(head)) + body + _CRC.pack(zlib.crc32(body))
+
+
+def _compression_arrays(rows, arrays, errors):
+    results = [e.get("results") or {} for e in rows]
+    columns = {"row": [e["row"] for e in rows], "state": [STATES.index(e["state"]) for e in rows],
+               "attempts": [e["attempts"] for e in rows], "rank": [e["rank"] for e in rows],
+               "started": [e.get("started", np.nan) for e in rows],
+               "converged": [bool(r.get("converged", False)) for r in results]}
+    for key, dtype in _COMPRESSION.items():
+        arrays[f"c.{key}"] = np.array(columns[key], dtype)
+    present = [key for key in RESULTS if any(key in r for r in results)]
+    for key, column in zip(present, results_table(results, present).T):
+        arrays[f"r.{key}"] = column
+    errors.update({str(i): e["error"] for i, e in enumerate(rows) if e.get("error")})
+
+
+def _trial_arrays(k, e, arrays):
+    """Trial task `e`'s arrays under `t{k}.`; returns its header part."""
+    cells = e.get("cells") or {}
+    for key, value in cells.items():
+        if key == "state":
+            arrays[f"t{k}.state"] = np.array([STATES.index(s) for s in value], np.int8)
+        elif key != "error":
+            arrays[f"t{k}.{key}"] = np.asarray(value, np.float64)
+    cell_errors = {str(i): m for i, m in enumerate(cells.get("error", ())) if m}
+    return {"task": int(e["task"]), "state": e["state"], "error": e.get("error", ""),
+            "attempts": int(e["attempts"]), "rank": int(e["rank"]), "started": e.get("started"),
+            "cells": sorted(cells), "cell_errors": cell_errors}
+
+
+def decode(header: dict[str, Any], data: bytes) -> list[Entry]:
+    """The entries of one record (its JSON header and data bytes), in the
+    order: compressions, then trial tasks."""
+    arrays, offset = {}, 0
+    for name, dtype, shape in header["arrays"]:
+        a = np.frombuffer(data, dtype, int(np.prod(shape)), offset).reshape(shape)
+        arrays[name], offset = a, offset + a.nbytes
+    return _compression_entries(arrays, header["errors"]) + [_trial_entry(k, t, arrays)
+                                                             for k, t in enumerate(header["tasks"])]
+
+
+def _compression_entries(arrays, errors):
+    if "c.row" not in arrays:
+        return []
+    c = {key: arrays[f"c.{key}"].tolist() for key in _COMPRESSION}
+    r = {key: arrays[f"r.{key}"].tolist() for key in RESULTS if f"r.{key}" in arrays}
+    out = []
+    for i in range(len(c["row"])):
+        results = {key: values[i] for key, values in r.items()}
+        results["converged"] = bool(c["converged"][i])
+        out.append(compression_entry(c["row"][i], results, STATES[c["state"][i]], errors.get(str(i), ""),
+                                     c["attempts"][i], c["rank"][i], c["started"][i]))
+    return out
+
+
+def _trial_entry(k, t, arrays):
+    """Trial task `t` (the k-th of its record) as the entry it was."""
+    cells = {}
+    for key in t["cells"]:
+        if key == "state":
+            cells[key] = [STATES[s] for s in arrays[f"t{k}.state"].tolist()]
+        elif key == "error":
+            n = len(arrays[f"t{k}.state"]) if f"t{k}.state" in arrays else 0
+            cells[key] = [t["cell_errors"].get(str(i), "") for i in range(n)]
+        else:
+            cells[key] = arrays[f"t{k}.{key}"].copy()
+    return trial_entry(t["task"], cells, t["state"], t["error"], t["attempts"], t["rank"], t["started"])
+
+
+def _frames(fh):
+    """(end offset, entries) of each complete record from the file's position
+    on, up to the first one cut short."""
+    while True:
+        lead = fh.read(_HEAD)
+        if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
+            return
+        n_head, n_data = _SIZES.unpack(lead[len(MAGIC):])
+        body, crc = fh.read(n_head + n_data), fh.read(_CRC.size)
+        if len(body) < n_head + n_data or len(crc) < _CRC.size or _CRC.unpack(crc)[0] != zlib.crc32(body):
+            return
+        yield fh.tell(), decode(json.loads(body[:n_head]), body[n_head:])
+
+
+def read(path: str | os.PathLike[str], start: int = 0) -> list[Entry]:
+    """Entries of a journal from byte `start` on (a store's `journal_bytes`:
+    everything before is in its rows); a record cut by a kill is ignored."""
+    entries = []
+    if os.path.exists(path):
+        with open(path, "rb") as fh:
+            fh.seek(int(start))
+            for _, batch in _frames(fh):
+                entries.extend(batch)
+    return entries
+
+
+def complete_bytes(path: str | os.PathLike[str]) -> int:
+    """How many leading bytes of the journal are complete records."""
+    end = 0
+    with open(path, "rb") as fh:
+        for end, _ in _frames(fh):
+            pass
+    return end
+
+
+def trim_cut(path: str | os.PathLike[str]) -> None:
+    """Cut the journal after its last complete record: a kill or a full disk
+    may have left the last one unfinished; it was never fsync'd whole, so no
+    row holds it, and records appended after it must stay readable."""
+    if os.path.exists(path) and os.path.getsize(path) > 0:
+        end = complete_bytes(path)
+        if end < os.path.getsize(path):
+            with open(path, "rb+") as fh:
+                fh.truncate(end)
+
+
+def append(fh: BinaryIO, entries: Sequence[Entry]) -> None:
+    """Write one record of `entries` to the open journal `fh` (binary, append),
+    as far as the operating system (a kill cannot lose it; `sync` makes it durable)."""
+    fh.write(encode(entries))
+    fh.flush()
+
+
+def sync(fh: BinaryIO) -> None:
+    """Make everything appended to `fh` durable (fsync)."""
+    fh.flush()
+    os.fsync(fh.fileno())
+
+
+def is_ours(path: str | os.PathLike[str]) -> bool:
+    """A journal: empty, or beginning with one of our records."""
+    with open(path, "rb") as fh:
+        lead = fh.read(len(MAGIC))
+    return not lead or lead == MAGIC

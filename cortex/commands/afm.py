@@ -1,0 +1,354 @@
+"""`cortex afm synth`, `cortex afm import`, `cortex afm analyze` and `cortex afm tension` (argparse
+only; the work is imported when the command runs).
+
+Conventions shared with every command: `--out` is a folder (synth and import
+write DIR/experiment.h5, synth also DIR/truth.json, under the folder's
+manifest rules of `outputs.ownership.OutputDir`); `--json` prints the results
+on stdout; `--solver` names the forward model as in `cortex compress`
+(`common.names.SOLVERS`, plus `law` and `emulator`); `--bending` is one of
+`common.names.BENDINGS`."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from common.names import RAMP_MODELS, SOLVERS
+from cortex.options import OUT_HELP, Commands, add_bending, add_inversion_options, inversion_settings
+from cortex.results import plain, say_result
+
+if TYPE_CHECKING:
+    from outputs.ownership import OutputDir
+
+EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
+TRUTH = "truth.json"
+
+
+def _jpk_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
+    """The volume, dish-reference and spring-constant options of instrument recordings
+    (docs/jpk.md, docs/bruker.md); `free_radius` adds --radius-um to the volumes,
+    `dish_default` says what stands for Z without a dish option."""
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("--volumes", metavar="TABLE.csv",
+                   help="cell volumes: CSV with columns cell_id and volume_um3, or equator_radius_um with "
+                        "imaged_height_um (the confined droplet's), or diameter_um (the free cell's); "
+                        "[volume_source]")
+    v.add_argument("--volume", type=float, metavar="UM3", help="one volume (um^3) for every cell")
+    if free_radius:
+        v.add_argument("--radius-um", type=float, metavar="R", help="one free-cell radius (um) for every cell")
+    d = p.add_mutually_exclusive_group()
+    d.add_argument("--dish-height-um", type=float, metavar="Z",
+                   help=f"height channel value (um) at which the cantilever touches the bare dish (default "
+                        f"{dish_default}): cell height h = z + F/k - Z")
+    d.add_argument("--dish-curve", metavar="FILE",
+                   help="a force curve on the bare dish: Z = z + F/k at its largest approach force")
+    p.add_argument("--spring-constant", type=float, metavar="N_PER_M",
+                   help="cantilever spring constant k (N/m) of NanoScope Analysis text exports, which hold none "
+                        "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
+
+
+def jpk_options(args: argparse.Namespace) -> dict[str, Any]:
+    """`import_cells` keyword arguments from the parsed options."""
+    from common.errors import InputError
+    if args.volume is not None and not args.volume > 0:
+        raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
+    if args.spring_constant is not None and not args.spring_constant > 0:
+        raise InputError(f"--spring-constant must be a positive number of N/m (got {args.spring_constant})")
+    return {"volume_um3": args.volume, "volumes_csv": args.volumes, "dish_um": args.dish_height_um,
+            "dish_curve": args.dish_curve, "spring_constant_N_per_m": args.spring_constant}
+
+
+def register(sub: Commands) -> None:
+    p = sub.add_parser("afm", help="measured cells: synthetic recordings, per-cell inversion, statistics, "
+                       "cortical tension",
+                       description="AFM recordings of confined cells (SPEC 6).")
+    s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    _add_synth(s)
+    _add_import(s)
+    _add_analyze(s)
+    _add_tension(s)
+
+
+def _add_synth(s: Commands) -> None:
+    g = s.add_parser("synth", help="write a synthetic experiment: DIR/experiment.h5 and DIR/truth.json",
+                     description="Simulate AFM recordings of --cells cells of known Poisson ratio (SPEC 6) "
+                                 "into DIR/experiment.h5 and their true values into DIR/truth.json.")
+    g.add_argument("--cells", type=int, default=85, help="number of cells (default 85, the published size)")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    g.add_argument("--no-errors", action="store_true", help="no measurement errors (round trip)")
+    g.add_argument("--solver", choices=(*SOLVERS, "law", "emulator"),
+                   default="fast", metavar="SOLVER",
+                   help="forward model, %(choices)s: a solver as in `cortex compress` (default fast) or law, a "
+                        "calibration law (needs --calibration), or emulator (viscoelastic cells only: the shipped "
+                        "emulator and complex table)")
+    g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
+    g.add_argument("--bulk-exponent", type=float, metavar="BETA_B",
+                   help="viscoelastic cells: population median of beta_B, |K_B*| ~ f^beta_B and delta_B = "
+                        "beta_B pi/2 (per-cell SD 0.03; with --shear-exponent; docs/viscoelastic.md)")
+    g.add_argument("--shear-exponent", type=float, metavar="BETA_S",
+                   help="viscoelastic cells: population median of beta_S (with --bulk-exponent)")
+    add_bending(g, "bending variant of the forward model")
+    g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
+    g.set_defaults(handler=synth)
+
+
+def _add_import(s: Commands) -> None:
+    m = s.add_parser("import", help="JPK and Bruker NanoScope recordings into DIR/experiment.h5",
+                     description="Read JPK text exports (.txt, .txt.gz), .jpk-force, .jpk-force-map and .jpk-qi-data "
+                                 "(-series) files (each map or QI pixel its own recording), Bruker NanoScope force "
+                                 "curves (.000, .001, ...) and their NanoScope Analysis text exports into the "
+                                 "native experiment format, DIR/experiment.h5. Every cell needs a volume. The "
+                                 "first file that cannot be read stops the import (status 2, nothing written). "
+                                 "See docs/jpk.md, docs/bruker.md.")
+    m.add_argument("files", nargs="+", metavar="FILES", help="JPK or Bruker files, or folders of them")
+    m.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    _jpk_options(m)
+    m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
+                   "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
+    m.set_defaults(handler=import_)
+
+
+def _add_analyze(s: Commands) -> None:
+    a = s.add_parser("analyze", help="invert every cell, population statistics, DIR/report.md",
+                     description="Invert every cell and frequency (default: on the emulator of the shipped "
+                                 "calibration, with 95 % intervals), population statistics, the population answer "
+                                 "(DIR/population.json: the frequency trend, the populations with the "
+                                 "measurement error taken out, paired tests), figures and DIR/report.md. Recordings without a modulation segment are listed in the "
+                                 "report (exit status 1).")
+    a.add_argument("data", nargs="+", metavar="DATA",
+                   help="experiment (.h5, or the folder `afm synth`/`afm import` wrote it to), "
+                        "single-cell CSV, or JPK or Bruker files and folders of them")
+    a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    add_inversion_options(a)
+    _jpk_options(a)
+    a.add_argument("--no-phase", action="store_true",
+                   help="skip the viscoelastic reading of the loss angles (on by default: DIR/rheology.csv, "
+                        "loss-angle columns in cells.csv, the paired test in summary.json)")
+    ph = a.add_mutually_exclusive_group()
+    ph.add_argument("--phase-reference", metavar="FILE",
+                    help="a recording on the bare dish (.h5 or .csv): the instrument's phase lag per frequency, "
+                         "added back to every loss angle")
+    ph.add_argument("--phase-lag-rad", metavar="F=RAD,...",
+                    help="the instrument's phase lag per frequency, e.g. 1=0.02,10=0.2")
+    a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
+                   "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
+    a.set_defaults(handler=analyze)
+
+
+def _add_tension(s: Commands) -> None:
+    t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
+                     description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
+                                 "ramp onto the free cell fitted by the exact droplet model and by the "
+                                 "small-deformation formula (contact point, T, R², the automatic fit window), "
+                                 "each pause from its force and the droplet shape at its height, with 95 % "
+                                 "intervals. Recordings that cannot be analysed are listed (exit status 1). "
+                                 "See docs/tension.md.")
+    t.add_argument("files", nargs="+", metavar="FILES",
+                   help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
+                        "experiments (.h5) or single-cell CSV files")
+    _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
+    t.add_argument("--model", choices=RAMP_MODELS, default="droplet", metavar="MODEL",
+                   help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
+    t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
+                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
+    t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
+                   help="SD of a pause's height in the intervals, um (default %(default)s)")
+    t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
+                   "report.md")
+    t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "
+                   "not_analysed {file or cell: reason}, table, report")
+    t.set_defaults(handler=tension)
+
+
+def synth(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.afm.synth import cells as sy
+    from analysis.afm.formats.h5 import write_experiment
+    from outputs.writing import write_atomically
+    from common.errors import InputError
+    if args.cells < 1:
+        raise InputError(f"--cells must be >= 1 (got {args.cells})")
+    out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
+    cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
+    with out.writing(EXPERIMENT) as experiment:
+        write_experiment(experiment, cells)
+    text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
+    with out.writing(TRUTH) as truth_path:
+        write_atomically(truth_path, text.encode())
+    say_result(args, {"experiment": str(experiment), "truth": str(truth_path), "n_cells": len(cells)},
+          f"wrote {experiment} ({len(cells)} cells) and {truth_path}")
+    return 0
+
+
+def new_experiment_folder(path: str, names: list[str]) -> OutputDir:
+    """The --out folder (`OutputDir`) that will hold a new DIR/experiment.h5:
+    refused before any work if a file of `names` there is not ours, or if the
+    folder already holds an experiment (measurements are never replaced, even ours)."""
+    import os
+
+    from outputs.ownership import OutputDir
+    from common.errors import InputError
+    out = OutputDir(path)
+    out.check(names)
+    if os.path.lexists(out.path / EXPERIMENT):
+        raise InputError(f"--out {out.path}: holds {EXPERIMENT} already; an experiment is never replaced "
+                         "(it is left as it is; choose another folder)")
+    return out
+
+
+def _forward(args: argparse.Namespace) -> Any:
+    """The forward model that `--solver`, `--bending` and `--calibration` name."""
+    from analysis.afm.synth import cells as sy
+    from common.errors import InputError
+    given = (args.bulk_exponent, args.shear_exponent)
+    if given != (None, None):
+        return _viscoelastic_forward(args, given)
+    if args.solver == "emulator":
+        raise InputError("--solver emulator makes viscoelastic cells only: give --bulk-exponent and --shear-exponent")
+    if args.solver != "law":
+        return sy.solver_forward(args.bending, method=args.solver)
+    if not args.calibration:
+        raise InputError("--solver law needs --calibration CAL.json")
+    from analysis.calibration import Calibration
+    return sy.law_forward(Calibration.load(args.calibration)[args.bending])
+
+
+def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[Any, Any]) -> Any:
+    from analysis.afm.synth import rheology as sr
+    from common.errors import InputError
+    if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
+        raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
+    if args.solver not in ("fast", "emulator"):
+        raise InputError("viscoelastic cells need --solver fast or emulator")
+    complex_forward = sr.emulator_complex if args.solver == "emulator" else sr.solver_complex
+    return sr.ViscoelasticForward(*exponents, complex_forward(args.bending), seed=args.seed)
+
+
+def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] | None, str | None]:
+    """(phase on, lags {Hz: rad} or None, where they came from) of `afm analyze`."""
+    from analysis.afm import rheology
+    if args.no_phase:
+        return False, None, None
+    if args.phase_lag_rad:
+        return True, rheology.parse_lags(args.phase_lag_rad), f"--phase-lag-rad {args.phase_lag_rad}"
+    if args.phase_reference:
+        from analysis.afm.analyze_pipeline import load
+        lags = rheology.reference_lags(load(args.phase_reference))
+        return True, lags, f"measured on the bare dish ({args.phase_reference})"
+    return True, None, None
+
+
+def import_(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.afm.formats.h5 import write_experiment
+    from analysis.afm.formats.instruments import import_cells
+    out = new_experiment_folder(args.out, [EXPERIMENT])
+    recs, cells = import_cells(args.files, **jpk_options(args))
+    with out.writing(EXPERIMENT) as path:
+        write_experiment(path, cells)
+    for r in recs:
+        print(json.dumps(r.summary()) if args.json else _summary_line(r))
+    if not args.json:
+        print(f"wrote {path} ({len(cells)} cells)")
+    return 0
+
+
+def _summary_line(rec: Any) -> str:
+    """cell, spring constant and segments by kind (count, samples, total duration, frequencies)."""
+    parts = []
+    for kind in ("approach", "pause", "modulation", "retract"):
+        segs = [s for s in rec.segments if s.kind == kind]
+        if not segs:
+            continue
+        text = f"{len(segs)} {kind} ({sum(s.n_samples for s in segs)} samples, {sum(s.duration_s for s in segs):g} s"
+        if kind == "modulation":
+            text += ", at " + ", ".join(f"{f:g}" for f in sorted({s.frequency_hz for s in segs})) + " Hz"
+        parts.append(text + ")")
+    return f"{rec.cell_id}: k {rec.spring_constant_N_per_m:.4g} N/m; " + "; ".join(parts)
+
+
+TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours (may be replaced)
+
+
+def _is_our_truth(path: Any) -> bool:
+    from outputs.ownership import json_document
+    return json_document(path).get("format") == TRUTH_FORMAT
+
+
+def experiment_in(paths: Sequence[str]) -> Sequence[str]:
+    """DATA as given, except that a single folder holding DIR/experiment.h5 (what
+    `afm synth` and `afm import` write) stands for that file."""
+    from pathlib import Path
+    if len(paths) == 1 and Path(paths[0]).is_dir() and (Path(paths[0]) / EXPERIMENT).is_file():
+        return [str(Path(paths[0]) / EXPERIMENT)]
+    return paths
+
+
+def analyze(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.afm.analyze_pipeline import Settings, run
+    from common.errors import EXIT_DONE, EXIT_SOME_FAILED
+    _, _, _, errors = inversion_settings(args)          # also settles the default --method
+    data, options = experiment_in(args.data), jpk_options(args)
+    phase, lags, lag_source = phase_settings(args)
+    settings = Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=options,
+                        phase=phase, lags=lags, lag_source=lag_source)
+    result = run(data, args.calibration, args.out, settings)
+    if args.json:
+        print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
+                                **(result["summary"] or {})})))
+    else:
+        for cell, reason in result["skipped"].items():
+            print(f"not analysed: {cell}: {reason}")
+        print(f"report: {result['report']}")
+    return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
+
+
+def tension(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.afm.tension.pause import ErrorModel
+    from analysis.afm.tension.pipeline import Options, run
+    from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
+    for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
+        if not value >= 0:
+            raise InputError(f"{name} must be >= 0 (got {value})")
+    options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
+                      dish_um=args.dish_height_um, dish_curve=args.dish_curve,
+                      spring_constant_N_per_m=args.spring_constant,
+                      errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
+    result = run(args.files, options, args.out)
+    if args.json:
+        finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731
+        print(json.dumps(plain({"rows": [{k: finite(plain(v)) for k, v in r.items()} for r in result["rows"]],
+                                "not_analysed": result["skipped"], "table": _str(result["table"]),
+                                "report": _str(result["report"])})))
+    else:
+        for r in result["rows"]:
+            print(_tension_line(r))
+        for what, reason in result["skipped"].items():
+            print(f"not analysed: {what}: {reason}")
+        if result["report"]:
+            print(f"report: {result['report']}")
+    return EXIT_SOME_FAILED if result["skipped"] else EXIT_DONE
+
+
+def _str(path: object) -> str | None:
+    return None if path is None else str(path)
+
+
+def _tension_line(r: dict[str, Any]) -> str:
+    """One analysed part in a line: tension, interval, pressure, height, and the ramp's contact and comparison."""
+    text = (f"{r['cell_id']}: {r['part']} {r['segment']}: T {r['tension_mN_per_m']:.4g} mN/m "
+            f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
+            f"h {r['height_um']:.4g} um")
+    if r["part"] == "approach":
+        text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
+                 f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
+    return text

@@ -1,0 +1,142 @@
+"""`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
+viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR` and
+`cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
+imported when the command runs). Every one takes `--json` (its results as one
+JSON object or list on stdout) and writes into its `--out` folder under the
+manifest rules of `outputs.ownership.OutputDir`."""
+
+from __future__ import annotations
+
+import argparse
+
+from cortex.options import OUT_HELP, Commands, add_inversion_options, inversion_settings
+from cortex.results import plain, say_result
+
+CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
+
+
+def register(sub: Commands) -> None:
+    p = sub.add_parser("analysis", help="calibration laws and Monte-Carlo study of a finished campaign",
+                       description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
+                                   "check, Monte-Carlo error study (SPEC 5), figures and a report.")
+    s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_invert):
+        add(s)
+
+
+def _add_calibrate(s: Commands) -> None:
+    c = s.add_parser("calibrate", help="fit the calibration laws, check them, write DIR/report.md",
+                     description="Fit K(h~) = K_B (1 + alpha exp(h~/lambda)) per bending variant, "
+                                 "alpha = C ln(K_S/K_B) + D with cubic C, D in gamma_a/K_B; check the "
+                                 "reconstruction of nu; summarise the Monte-Carlo trials. Writes "
+                                 "DIR/calibration.json, CSV tables, figures and DIR/report.md.")
+    c.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
+    c.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    c.add_argument("--partial", action="store_true",
+                   help="analyse an unfinished store with what is done, saying what was left out")
+    c.add_argument("--json", action="store_true", help="one JSON object: report, lambda per bending variant, "
+                   "left_out, wall_s")
+    c.set_defaults(handler=calibrate)
+
+
+def _add_viscosity(s: Commands) -> None:
+    v = s.add_parser("viscosity", help="|K*|/K and loss angle of a viscous-interior campaign",
+                     description="Tabulate and plot the viscous-interior study (SPEC 7) of a campaign "
+                                 "with viscosity_Pa_s and frequency_hz grid axes: |K*|/K and the loss "
+                                 "angle against eta, one line per frequency, and the largest viscosity "
+                                 "per frequency at which the elastic calibration holds to 1 %. Writes "
+                                 "DIR/viscosity.csv, DIR/viscosity.png/.pdf and DIR/viscosity.md.")
+    v.add_argument("store", metavar="STORE", help="campaign store (HDF5)")
+    v.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    v.add_argument("--json", action="store_true", help="one JSON object: report and the rows of viscosity.csv")
+    v.set_defaults(handler=viscosity)
+
+
+def _add_build_calibration(s: Commands) -> None:
+    b = s.add_parser("build-calibration", help="the calibration file: emulator tables + paper law + provenance",
+                     description="Build DIR/calibration.json (format version 2) from a finished emulator "
+                                 "campaign store (campaigns/emulator.toml) and, optionally, the paper "
+                                 "campaign's store (its law, for --method law). `make calibration` "
+                                 "rebuilds the one shipped in the package this way.")
+    b.add_argument("--emulator-store", required=True, metavar="STORE.h5")
+    b.add_argument("--law-store", metavar="STORE.h5", help="store of campaigns/paper.toml (optional)")
+    b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP + "; a folder holding only a "
+                   "calibration.json cortex wrote (like analysis/data) is accepted")
+    b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
+    b.set_defaults(handler=build_calibration)
+
+
+def _add_invert(s: Commands) -> None:
+    i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
+                     description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
+                                 "tension_mN_per_m (optional frequency_hz, volume_um3; one row per cell "
+                                 "and height) into nu per cell and frequency. Writes DIR/cells.csv; with "
+                                 "--json also a JSON list on stdout.")
+    i.add_argument("table", metavar="TABLE.csv")
+    i.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    add_inversion_options(i)
+    i.add_argument("--json", action="store_true", help="print the per-cell results as a JSON list")
+    i.set_defaults(handler=invert)
+
+
+def calibrate(args: argparse.Namespace) -> int:
+    from analysis.calibrate_pipeline import run
+    result = run(args.store, args.out, partial=args.partial)
+    laws = result["calibration"].laws
+    say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},
+                      "left_out": list(result["left_out"]), "wall_s": result["wall_s"]},
+               f"report: {result['report']}")
+    return 0
+
+
+def viscosity(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from analysis.viscosity import run
+    report = run(args.store, args.out)
+    rows = pd.read_csv(report.with_name("viscosity.csv")).to_dict("records") if args.json else []
+    say_result(args, {"report": str(report), "rows": rows}, f"report: {report}")
+    return 0
+
+
+def build_calibration(args: argparse.Namespace) -> int:
+    from analysis import shipped
+    from outputs.ownership import OutputDir
+    out = OutputDir(args.out)
+    out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
+    doc = shipped.build(args.emulator_store, args.law_store, progress=_say)
+    with out.writing(CALIBRATION_FILE) as path:
+        shipped.write(doc, path)
+    say_result(args, {"calibration": str(path), "emulator_variants": list(doc["emulator"]),
+                      "law_variants": list(doc["variants"])},
+               f"wrote {path} (emulator: {', '.join(doc['emulator'])}; law: {', '.join(doc['variants']) or 'none'})")
+    return 0
+
+
+def invert(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.invert_table import invert_rows
+    from analysis.table_input import read_table
+    from outputs.ownership import OutputDir
+    rows = read_table(args.table)
+    cal, emu, _, errors = inversion_settings(args)
+    out = OutputDir(args.out)
+    out.check(["cells.csv"])                        # refused before any work if not ours
+    table = invert_rows(rows, args.method, cal, emu, args.bending, errors)
+    with out.writing("cells.csv") as path:
+        table.to_csv(path, index=False)
+    if args.json:
+        keys = ["cell_id", "frequency_hz", "nu", "nu_lo95", "nu_hi95", "ks_tilde", "bulk_mN_per_m", "r2",
+                "method", "excluded_reason"]
+        records = [{k: plain(r[k]) for k in keys} for _, r in table.iterrows()]
+        print(json.dumps(records))
+    else:
+        print(f"wrote {path} ({len(table)} curves, {int(table['excluded_reason'].isna().sum())} included)")
+    return 0
+
+
+def _say(message: str) -> None:
+    import sys
+    print(message, file=sys.stderr)
+

@@ -1,0 +1,95 @@
+"""`cortex campaign run|status`. Both take `--json`: the store's summary (the
+object `cortex campaign status --json` prints) on stdout; progress and
+messages go to stderr."""
+
+from __future__ import annotations
+
+import argparse
+
+from cortex.options import Commands
+
+
+def register(sub: Commands) -> None:
+    p = sub.add_parser("campaign", help="run, resume and inspect simulation campaigns (MPI)",
+                       description="Run a campaign of shell compressions and Monte-Carlo error trials "
+                                   "across MPI ranks into one HDF5 store (mpiexec -n N cortex campaign "
+                                   "run ...), resume it, and look at its progress.")
+    cs = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
+    r = cs.add_parser("run", help="run or resume a campaign",
+                      description="Run or resume the campaign of CONFIG into STORE. Rerunning the same "
+                                  "command resumes: done tasks are skipped, interrupted ones redone.")
+    r.add_argument("config", metavar="CONFIG.toml", help="campaign file")
+    r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
+                   "a folder, or an existing file that is not a campaign store, is refused")
+    r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
+    r.add_argument("--retry-failed", action="store_true", help="run failed tasks again (a rerun otherwise leaves "
+                   "them failed: also those that crashed their process or did not answer)")
+    r.add_argument("--quiet", action="store_true", help="no progress output")
+    r.add_argument("--json", action="store_true", help="at the end, the store's summary as one JSON object "
+                   "(as `cortex campaign status --json`)")
+    r.add_argument("--write-path", choices=("auto", "mpio", "rank0"), default="auto",
+                   help="how rows reach the store: mpio (every rank writes its own rows by parallel "
+                        "HDF5; needs h5py built with MPI), rank0 (rank 0 writes all), auto (mpio where "
+                        "h5py has MPI and there are 2 or more ranks; the default). Both give the same rows; "
+                        "the one used is printed and kept in the store's `runs` attribute")
+    r.set_defaults(handler=run)
+    s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
+                      description="Summarise a store (also while its campaign is running).")
+    s.add_argument("store", metavar="STORE.h5")
+    s.add_argument("--json", action="store_true", help="one JSON object: tasks, done, failed, running, pending, "
+                   "tasks_per_s, eta_s, failures ([task_id, error]), failed_tasks (each with its parameters, rank, "
+                   "host and error) (and trials)")
+    s.set_defaults(handler=status)
+
+
+def run(args: argparse.Namespace) -> int:
+    from campaign import signals
+    signals.install()               # first: a signal from here on stops cleanly (exit 3)
+    import gc
+    import os
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS: one rank a core,
+    # and a rank's own BLAS threads would only spin on its neighbour's
+    from campaign import config, scheduler
+    from common.errors import InputError
+    campaign = config.load(args.config)
+    from campaign import isolation
+    isolation.start_early(campaign)   # the task process, forked before MPI loads; it warms up meanwhile
+    store = args.store or campaign.store
+    if not store:
+        raise InputError(f"{args.config}: no store given (--store, or [campaign] store)")
+    parent = os.path.dirname(os.path.abspath(store))
+    os.makedirs(parent, exist_ok=True)
+    status = scheduler.run(campaign, store, new=args.new, retry_failed=args.retry_failed,
+                           progress=not args.quiet, writes=args.write_path)
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.Get_rank() == 0 and args.json:
+        import json
+        from campaign.store.reader import summary
+        print(json.dumps({"store": store, "exit_status": status, **summary(store)}))
+    elif MPI.COMM_WORLD.Get_rank() == 0 and status in (0, 1):
+        print(f"campaign: store {store}; look at it with `cortex campaign status {store}`")
+    gc.freeze()      # all closed: the interpreter's last collections then skip numba's compiled functions
+    return status    # (walking them costs ~0.1 s a process)
+
+
+def status(args: argparse.Namespace) -> int:
+    import json
+    from campaign.store.reader import summary
+    info = summary(args.store)
+    if args.json:
+        print(json.dumps(info))
+        return 0
+    print(f"{args.store}: {info['tasks']} tasks: " + ", ".join(
+        f"{info[s]} {s}" for s in ("done", "failed", "running", "pending")))
+    if info["tasks_per_s"]:
+        eta = f", ETA {info['eta_s']:.0f} s" if info["eta_s"] else ""
+        print(f"throughput {info['tasks_per_s']:.2f} task/s{eta}")
+    for task in info["failed_tasks"]:
+        print(f"failed {task['task_id']} (rank {task['rank']}): {task['error']}")
+    if "trials" in info:
+        t = info["trials"]
+        print(f"Monte-Carlo: {t['trials']} trials: " + ", ".join(
+            f"{t[s]} {s}" for s in ("done", "failed", "running", "pending")))
+        for err in t["failures"]:
+            print(f"failed trials: {err}")
+    return 0

@@ -1,0 +1,143 @@
+"""The fast solver's contact search, compiled: the admissible local minimum of E*(l).
+
+E*(l) is the equilibrium energy at fixed contact label l = log ψ_c (the
+Newton iteration of `solver.fast.newton`), G(l) = dE*/dl = g_l (g_x = 0 at
+equilibrium) and, by the Schur complement,
+
+    dx/dl = -H_xx⁻¹ h_xl,   k = dG/dl = H_ll + h_xl · dx/dl.
+
+Safeguarded Newton on G = 0 with steps at most TRUST_L inside a bracket
+[lo, hi]: a root lies above any l with G < 0 or whose equilibrium crosses
+the plate (gap = max z_free - z_p > 0), below any l with G > 0. E* is very
+flat in l (the contact is set by bending and stretching near the contact
+line only), hence the bracket. At l = log ψ_min with G > 0 the contact
+cannot shrink further: that bound is the answer. Where the bracket closes
+(to TOL_L) between a label whose free surface crosses the plate and one with
+G > 0, the admissible minimum is the label at which the free surface
+touches the plate (the secant of the gap through the last two labels above
+it), and that is the answer. Each new label starts from the last
+equilibrium moved along its tangent dx/dl (kept only if that leaves the
+admissible shapes).
+
+The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
+returns a status, which `solver.fast` turns into its errors.
+"""
+
+import numpy as np
+import numpy.typing as npt
+
+from solver.fast.kernel import Terms
+from solver.fast.mesh import label_positions
+from solver.fast.newton import CONVERGED, block_solve, newton, nodes, shape_ok
+from solver.jit import njit
+
+LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
+LOG_PSI_MAX = np.log(1.0)    # at most a radian of the free surface on the plate
+TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
+TOL_L = 1e-3                 # bracket width at which the touching label is accepted
+
+# `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
+FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
+
+
+@njit(cache=True)
+def gap(u: npt.NDArray[np.float64], zp: float, N: int, kc: int) -> float:
+    """How far the free surface rises above the plate (µm; > 0: it crosses)."""
+    z = nodes(u, zp, N, kc)[1]
+    return np.max(z[kc + 1:]) - zp * (1.0 + 1e-9)
+
+
+@njit(cache=True)
+def _tangent(g, band, lp, order, keep, bw):
+    """(G, k, dx/dl, info) at an equilibrium of fixed l (module docstring)."""
+    n = g.size
+    rhs = np.empty((n - 1, 1))
+    for i in range(n - 1):
+        rhs[i, 0] = lp[0][keep[i]]
+    sol, info = block_solve(band, lp[1], order, bw, rhs)
+    tangent = np.empty(n - 1)
+    k = 0.0
+    for i in range(n - 1):
+        tangent[i] = -sol[i, 0]
+        k += rhs[i, 0] * tangent[i]
+    return g[n - 2], lp[0][n - 2] + k, tangent, info
+
+
+@njit(cache=True)
+def _moved(u, zp, N, kc, keep, tangent, target):
+    """A copy of u at the label `target`, its other unknowns moved along
+    `tangent` (None-like: empty, not moved) unless that leaves the admissible shapes."""
+    u, l = u.copy(), u[-2]
+    if tangent.size:
+        for i in range(keep.size):
+            u[keep[i]] += tangent[i] * (target - l)
+        r, z = nodes(u, zp, N, kc)
+        if not (np.all(np.isfinite(u)) and shape_ok(r, z, kc)):
+            for i in range(keep.size):
+                u[keep[i]] -= tangent[i] * (target - l)
+    u[-2] = target
+    return u
+
+
+@njit(cache=True)
+def _step(G, k):
+    """The Newton step on G = 0, at most TRUST_L either way."""
+    step = -G / k if k > 0 else -np.sign(G) * TRUST_L
+    if step < -TRUST_L:
+        return -TRUST_L
+    if step > TRUST_L:
+        return TRUST_L
+    return step
+
+
+@njit(cache=True)
+def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]], shape: npt.NDArray[np.float64], terms: Terms,
+            order: npt.NDArray[np.int64], keep: npt.NDArray[np.int64], N: int, V0: float, force_scale: float, tol: float, maxit: int,
+            newton_maxit: int) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
+    """The contact search from u at z_p (module docstring): at most `maxit`
+    labels, Newton's method at each for at most `newton_maxit` steps; labels
+    and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`).
+    Returns (status, u, g, iterations, last, lo, hi): FOUND with the
+    solution; Newton's status with its last state and `last` its iteration;
+    TANGENT_SINGULAR with `last` the zero pivot; NO_CONTACT with the bracket
+    [lo, hi]."""
+    lo, hi, iterations, kc = LOG_PSI_MIN, LOG_PSI_MAX, 0, terms.kc
+    touching, t0_l, t0_gap, t0_u, t1_l, t1_gap = 0, 0.0, 0.0, u, 0.0, 0.0
+    tangent, G = np.empty(0), 0.0
+    for _ in range(maxit):
+        ref = label_positions(u[-2], labels, shape)
+        status, u, g, band, lp, it = newton(u, zp, ref, terms, order, N, V0, force_scale, 1e-6, newton_maxit)
+        if status != CONVERGED:
+            return status, u, g, iterations, it, lo, hi
+        iterations += it
+        l, above = u[-2], gap(u, zp, N, kc)
+        if above > 0:
+            lo, step = l, TRUST_L
+        else:
+            G, k, tangent, info = _tangent(g, band, lp, order, keep, terms.band)
+            if info != 0:
+                return TANGENT_SINGULAR, u, g, iterations, info, lo, hi
+            if abs(G) < tol * force_scale or (G > 0 and u[-2] <= LOG_PSI_MIN + 1e-12):
+                return FOUND, u, g, iterations, 0, lo, hi
+            if G > 0:
+                hi = l
+                t1_l, t1_gap = t0_l, t0_gap
+                t0_l, t0_gap, t0_u = l, above, u
+                touching = min(touching + 1, 2)
+            else:
+                lo = l
+            step = _step(G, k)
+        target = l + step
+        if touching == 2 and above <= 0 and G > 0:
+            # less contact would lift the free surface through the plate: the
+            # minimum over the admissible labels is where it touches
+            touch = t0_l - t0_gap * (t0_l - t1_l) / (t0_gap - t1_gap) if t0_gap != t1_gap else lo
+            if abs(touch - t0_l) < TOL_L:
+                return FOUND, t0_u, g, iterations, 0, lo, hi
+            target = max(target, touch + 0.3 * TOL_L)
+        if hi - lo < TOL_L and touching:
+            return FOUND, t0_u, g, iterations, 0, lo, hi
+        if not lo < target < hi:
+            target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
+        u = _moved(u, zp, N, kc, keep, tangent if above <= 0 else np.empty(0), max(target, LOG_PSI_MIN))
+    return NO_CONTACT, u, np.empty(0), iterations, maxit, lo, hi
