@@ -17,12 +17,18 @@ law is also checked end to end against the simulated α and K.
 `D`, the `alpha` table with its `K_S/K_B` and `gamma_a/K_B` axes, goodness).
 """
 
+from __future__ import annotations
+
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
 from analysis import laws
@@ -41,34 +47,34 @@ class Law:
 
     bending: str
     lam: float                       # λ, the characteristic height (units of h̃)
-    C: list                          # C(γ̃_a) coefficients, lowest order first
-    D: list                          # D(γ̃_a) coefficients, lowest order first
-    ks_tilde: list = field(default_factory=list)       # α table axis K_S/K_B
-    gamma_tilde: list = field(default_factory=list)    # α table axis γ_a/K_B
-    alpha: list = field(default_factory=list)          # α[i_gamma][i_ks] (NaN: missing)
-    goodness: dict = field(default_factory=dict)
-    info: dict = field(default_factory=dict)
+    C: list[float]                   # C(γ̃_a) coefficients, lowest order first
+    D: list[float]                   # D(γ̃_a) coefficients, lowest order first
+    ks_tilde: list[float] = field(default_factory=list)       # α table axis K_S/K_B
+    gamma_tilde: list[float] = field(default_factory=list)    # α table axis γ_a/K_B
+    alpha: list[list[float]] = field(default_factory=list)    # α[i_gamma][i_ks] (NaN: missing)
+    goodness: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
-    def C_of(self, gamma_tilde):
+    def C_of(self, gamma_tilde: npt.ArrayLike) -> Any:
         return np.polynomial.polynomial.polyval(np.asarray(gamma_tilde, float), self.C)
 
-    def D_of(self, gamma_tilde):
+    def D_of(self, gamma_tilde: npt.ArrayLike) -> Any:
         return np.polynomial.polynomial.polyval(np.asarray(gamma_tilde, float), self.D)
 
-    def alpha_of(self, ks_tilde, gamma_tilde):
+    def alpha_of(self, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike) -> Any:
         """α(K̃_S, γ̃_a) = C(γ̃_a) ln K̃_S + D(γ̃_a)."""
         return self.C_of(gamma_tilde) * np.log(np.asarray(ks_tilde, float)) + self.D_of(gamma_tilde)
 
-    def invert(self, alpha, gamma_tilde):
+    def invert(self, alpha: npt.ArrayLike, gamma_tilde: npt.ArrayLike) -> Any:
         """K̃_S = exp((α - D(γ̃_a)) / C(γ̃_a)) (arrays broadcast)."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return np.exp((np.asarray(alpha, float) - self.D_of(gamma_tilde)) / self.C_of(gamma_tilde))
 
-    def poisson(self, alpha, gamma_tilde):
+    def poisson(self, alpha: npt.ArrayLike, gamma_tilde: npt.ArrayLike) -> Any:
         """ν from α and γ̃_a."""
         return poisson(self.invert(alpha, gamma_tilde))
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
         return {"lambda": self.lam, "C": list(self.C), "D": list(self.D),
                 "alpha": {"K_S/K_B": list(self.ks_tilde), "gamma_a/K_B": list(self.gamma_tilde),
                           "values": self.alpha},
@@ -79,28 +85,28 @@ class Law:
 class Calibration:
     """Calibration laws by bending variant (`standard`, `double`, `none`)."""
 
-    laws: dict
+    laws: dict[str, Law]
 
-    def __getitem__(self, bending):
+    def __getitem__(self, bending: str) -> Law:
         if bending not in self.laws:
             raise InputError(f"the calibration has no '{bending}' bending variant "
                              f"(it has: {', '.join(self.laws) or 'none'})")
         return self.laws[bending]
 
-    def law(self, bending="standard"):
+    def law(self, bending: str = "standard") -> Law:
         return self[bending]
 
-    def invert(self, alpha, gamma_tilde, bending="standard"):
+    def invert(self, alpha: npt.ArrayLike, gamma_tilde: npt.ArrayLike, bending: str = "standard") -> Any:
         """K̃_S from α and γ̃_a with the given variant's law."""
         return self[bending].invert(alpha, gamma_tilde)
 
     poisson = staticmethod(poisson)
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
         return {"format": FORMAT, "version": 1,
                 "variants": {name: law.to_json() for name, law in self.laws.items()}}
 
-    def save(self, path):
+    def save(self, path: str | PathLike[str]) -> Path:
         """Write `path` (JSON, NaN written as null); atomic replace."""
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp")
@@ -109,12 +115,12 @@ class Calibration:
         return path
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path: str | PathLike[str]) -> Calibration:
         """Read a calibration.json; a malformed file raises InputError (one line)."""
         return cls.from_document(path, read_document(path))
 
     @classmethod
-    def from_document(cls, path, doc):
+    def from_document(cls, path: str | PathLike[str], doc: dict[str, Any]) -> Calibration:
         """The laws of a calibration document (`read_document`) read from `path`."""
         variants = doc.get("variants")
         if not isinstance(variants, dict) or not variants:
@@ -122,7 +128,7 @@ class Calibration:
         return cls({name: _law_from_json(path, name, v) for name, v in variants.items()})
 
 
-def read_document(path):
+def read_document(path: str | PathLike[str]) -> dict[str, Any]:
     """The JSON object of a calibration file (our `format` key checked);
     InputError (one line) for a folder, a file that is not text or not JSON,
     or another format."""
@@ -289,7 +295,8 @@ def _goodness(fits, loglaw, polys, law_fit):
     }
 
 
-def calibrate_variant(results, bending="standard"):
+def calibrate_variant(results: pd.DataFrame,
+                      bending: str = "standard") -> tuple[Law, pd.DataFrame, pd.DataFrame]:
     """Steps 1-4 for one bending variant. `results`: rows with the columns of
     `NEEDED` (one per simulation). Returns (Law, per-curve fits DataFrame,
     per-γ̃_a log-law DataFrame)."""
@@ -309,7 +316,8 @@ def calibrate_variant(results, bending="standard"):
     return law, fits.drop(columns=["_h", "_k"]), loglaw
 
 
-def calibrate(results, progress=None):
+def calibrate(results: pd.DataFrame, progress: Callable[[str], None] | None = None
+              ) -> tuple[Calibration, pd.DataFrame, pd.DataFrame]:
     """All bending variants in `results` (rows with the columns of `NEEDED`).
 
     Returns (Calibration, fits DataFrame, log-law DataFrame)."""

@@ -28,9 +28,15 @@ against solver runs).
 `inside` says whether a point lies in it (outside, the spline extrapolates).
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
+import pandas as pd
 from scipy.interpolate import BSpline, NdBSpline, make_interp_spline
 
 from common.errors import InputError
@@ -42,7 +48,7 @@ OFFSET = 0.05                              # s in y = ln(K/K_B - 1 + s)
 REFILL_FACTOR = 1.1                        # a failed grid point is solved again on this finer mesh
 
 
-def _tensor_spline(coords, values, degrees):
+def _tensor_spline(coords: list[Any], values: npt.ArrayLike, degrees: tuple[int, ...]) -> NdBSpline:
     """Interpolating tensor-product B-spline of `values` on the grid `coords`."""
     c, knots, ks = np.asarray(values, float), [], []
     for axis, x in enumerate(coords):
@@ -62,13 +68,13 @@ class Table:
     """One bending variant's grid of K/K_B (shape: len of each axis in AXES order)."""
 
     bending: str
-    axes: dict                      # name -> sorted values (AXES)
-    ratio: np.ndarray               # K/K_B on the grid
+    axes: dict[str, list[float]]    # name -> sorted values (AXES)
+    ratio: npt.NDArray[np.float64]  # K/K_B on the grid
     dh_um: float = 0.5
     thickness_um: float = 0.2
-    info: dict = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.ratio = np.asarray(self.ratio, float)
         shape = tuple(len(self.axes[a]) for a in AXES)
         if self.ratio.shape != shape:
@@ -88,25 +94,27 @@ class Table:
             cols = [np.log(a) if log else a for a, log in zip(arrays, LOG_AXES)]
         return np.stack(cols, axis=-1), arrays[0].shape
 
-    def log_excess(self, h_tilde, ks_tilde, gamma_tilde, volume_um3, nu=(0, 0, 0, 0)):
+    def log_excess(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                   volume_um3: npt.ArrayLike,
+                   nu: tuple[int, int, int, int] = (0, 0, 0, 0)) -> Any:
         """y = ln(K/K_B - 1 + s) (or its partial derivative `nu` in the spline's coordinates)."""
         x, shape = self._points(h_tilde, ks_tilde, gamma_tilde, volume_um3)
         return self._spline(x.reshape(-1, 4), nu=nu).reshape(shape)
 
-    def at_volume(self, volume_um3):
+    def at_volume(self, volume_um3: float) -> VolumeSlice:
         """The spline at one volume: a 3-D `NdBSpline` in (h̃, ln K̃_S, ln γ̃_a) (the V
         axis's basis contracted out; a third of the work per evaluation)."""
         s = self._spline
         basis = BSpline.design_matrix([np.log(volume_um3)], s.t[0], s.k[0], extrapolate=True).toarray()[0]
         return VolumeSlice(NdBSpline(s.t[1:], np.tensordot(basis, s.c, axes=(0, 0)), s.k[1:]))
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
         return {"axes": {a: [float(v) for v in self.axes[a]] for a in AXES},
                 "k_over_kb": self.ratio.tolist(), "dh_um": self.dh_um, "thickness_um": self.thickness_um,
                 **self.info}
 
     @classmethod
-    def from_json(cls, bending, doc, where="emulator"):
+    def from_json(cls, bending: str, doc: dict[str, Any], where: str = "emulator") -> Table:
         try:
             axes = {a: [float(v) for v in doc["axes"][a]] for a in AXES}
             ratio = np.asarray(doc["k_over_kb"], float)
@@ -123,7 +131,8 @@ class VolumeSlice:
 
     spline: NdBSpline
 
-    def grad_log(self, h_tilde, ks_tilde, gamma_tilde, values_only=False):
+    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                 values_only: bool = False) -> Any:
         """ln(K/K_B) and (unless `values_only`) its derivatives by ln K̃_S and ln γ̃_a."""
         h, ks, g = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde)))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -141,24 +150,30 @@ class VolumeSlice:
 class Emulator:
     """Tables by bending variant; K/K_B anywhere by interpolation."""
 
-    tables: dict
+    tables: dict[str, Table]
 
-    def __getitem__(self, bending):
+    def __getitem__(self, bending: str) -> Table:
         if bending not in self.tables:
             raise InputError(f"the emulator has no '{bending}' bending variant "
                              f"(it has: {', '.join(self.tables) or 'none'})")
         return self.tables[bending]
 
-    def ratio(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def ratio(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+              volume_um3: npt.ArrayLike,
+              bending: str = "standard") -> Any:
         """K/K_B = 1 - s + exp(y) at the given points (arrays broadcast)."""
         return 1.0 - OFFSET + np.exp(self[bending].log_excess(h_tilde, ks_tilde, gamma_tilde, volume_um3))
 
-    def modulus(self, h_tilde, bulk, ks_tilde, tension, volume_um3=4300.0, bending="standard"):
+    def modulus(self, h_tilde: npt.ArrayLike, bulk: npt.ArrayLike, ks_tilde: npt.ArrayLike, tension: npt.ArrayLike,
+                volume_um3: npt.ArrayLike,
+                bending: str = "standard") -> Any:
         """K = K_B f(h̃, K̃_S, γ_a/K_B; V) in mN/m (K_B and γ_a in mN/m)."""
         bulk = np.asarray(bulk, float)
         return bulk * self.ratio(h_tilde, ks_tilde, np.asarray(tension, float) / bulk, volume_um3, bending)
 
-    def grad_log(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                 volume_um3: npt.ArrayLike,
+                 bending: str = "standard") -> tuple[Any, Any, Any]:
         """(ln(K/K_B), ∂ ln(K/K_B)/∂ ln K̃_S, ∂ ln(K/K_B)/∂ ln γ̃_a) at the points."""
         t = self[bending]
         args = (h_tilde, ks_tilde, gamma_tilde, volume_um3)
@@ -168,30 +183,33 @@ class Emulator:
         return (np.log(ratio), share * t.log_excess(*args, nu=(0, 0, 1, 0)),
                 share * t.log_excess(*args, nu=(0, 0, 0, 1)))
 
-    def domain(self, bending="standard"):
+    def domain(self, bending: str = "standard") -> dict[str, tuple[float, float]]:
         """{axis: (low, high)} of the tabulated grid."""
         return {a: (min(v), max(v)) for a, v in self[bending].axes.items()}
 
-    def inside(self, h_tilde, ks_tilde, gamma_tilde, volume_um3=4300.0, bending="standard"):
+    def inside(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+               volume_um3: npt.ArrayLike,
+               bending: str = "standard") -> Any:
         """True where every coordinate lies within the tabulated grid."""
         box = self.domain(bending)
-        ok = True
+        ok: Any = True
         for a, x in zip(AXES, (volume_um3, h_tilde, ks_tilde, gamma_tilde)):
             lo, hi = box[a]
             ok = ok & (np.asarray(x) >= lo * (1 - 1e-9)) & (np.asarray(x) <= hi * (1 + 1e-9))
         return ok
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
         return {name: t.to_json() for name, t in self.tables.items()}
 
     @classmethod
-    def from_json(cls, doc, where="emulator"):
+    def from_json(cls, doc: dict[str, Any], where: str = "emulator") -> Emulator:
         if not isinstance(doc, dict) or not doc:
             raise InputError(f"{where}: 'emulator' must be a non-empty object of bending variants")
         return cls({name: Table.from_json(name, v, where) for name, v in doc.items()})
 
 
-def from_results(results, progress=None, resolution=1.0):
+def from_results(results: pd.DataFrame, progress: Callable[[str], None] | None = None,
+                 resolution: float = 1.0) -> Emulator:
     """Build the emulator from a store's rows (`campaign.store.reader.read_results`) of an
     emulator campaign: a full grid over (V, h̃, K̃_S, γ̃_a) per bending variant with one
     Δh and t_c. A task that is not finished is refused (InputError, one line); a task

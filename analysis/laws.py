@@ -20,16 +20,21 @@ absolute residual, in the units of the fitted quantity):
   C(γ̃_a), D(γ̃_a) as cubics, coefficients lowest order first.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import least_squares
 
 
-def modulus_law(h_tilde, bulk, alpha, c):
+def modulus_law(h_tilde: npt.ArrayLike, bulk: Any, alpha: Any, c: Any) -> Any:
     """K(h̃) = K_B (1 + α exp(h̃/c)), in the units of K_B (mN/m)."""
     return bulk * (1.0 + alpha * np.exp(np.asarray(h_tilde, float) / c))
 
 
-def goodness(y, y_fit):
+def goodness(y: npt.ArrayLike, y_fit: npt.ArrayLike) -> tuple[float, float]:
     """(R², largest |y - y_fit|) with R² = 1 - SS_res / SS_tot (SS_tot about the mean).
 
     R² is 1 for a perfect fit, NaN when y is constant (SS_tot = 0)."""
@@ -40,7 +45,7 @@ def goodness(y, y_fit):
     return float(r2), float(np.max(np.abs(res))) if res.size else float("nan")
 
 
-def fit_alpha_c(h_tilde, modulus, bulk):
+def fit_alpha_c(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, bulk: float) -> dict[str, float]:
     """Step 1: α and c of K(h̃) = K_B (1 + α exp(h̃/c)) with K_B known.
 
     Returns a dict: alpha, c, alpha_sd, c_sd (1-σ from the fit's covariance;
@@ -82,7 +87,7 @@ def fit_alpha_c(h_tilde, modulus, bulk):
             "r2": r2, "max_residual_mN_per_m": worst}
 
 
-def fit_alpha(h_tilde, modulus, bulk, lam):
+def fit_alpha(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, bulk: float, lam: float) -> dict[str, float]:
     """Step 2: α of K(h̃) = K_B (1 + α exp(h̃/λ)) with K_B and λ known (linear).
 
     Returns a dict: alpha, r2, max_residual_mN_per_m."""
@@ -94,7 +99,8 @@ def fit_alpha(h_tilde, modulus, bulk, lam):
     return {"alpha": alpha, "r2": r2, "max_residual_mN_per_m": worst}
 
 
-def fit_bulk_alpha(h_tilde, modulus, lam, mask=None):
+def fit_bulk_alpha(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, lam: float,
+                   mask: npt.ArrayLike | None = None) -> Any:
     """A measured cell: K_B and α free, λ fixed, for one curve or many at once.
 
     `h_tilde`, `modulus`: arrays of shape (n,) or (curves, n); `mask` (same
@@ -127,7 +133,7 @@ def fit_bulk_alpha(h_tilde, modulus, lam, mask=None):
     return bulk, alpha, r2
 
 
-def fit_log_law(ks_tilde, alpha):
+def fit_log_law(ks_tilde: npt.ArrayLike, alpha: npt.ArrayLike) -> dict[str, float]:
     """Step 3: α = C ln K̃_S + D. Returns a dict: C, D, r2, max_residual (of α)."""
     x = np.log(np.asarray(ks_tilde, float))
     alpha = np.asarray(alpha, float)
@@ -136,7 +142,7 @@ def fit_log_law(ks_tilde, alpha):
     return {"C": float(slope), "D": float(intercept), "r2": r2, "max_residual": worst}
 
 
-def fit_polynomial(x, y, degree=3):
+def fit_polynomial(x: npt.ArrayLike, y: npt.ArrayLike, degree: int = 3) -> dict[str, Any]:
     """Step 4: y(x) as a polynomial of the given degree (lowered to len(x) - 1
     if there are too few points). Returns a dict: coefficients (lowest order
     first), degree, r2, max_residual."""

@@ -13,15 +13,20 @@ Layout (a superset of `calibration.json`, so `Calibration.load` reads it too):
                 `built`: the date and code version of this file
 
 `build` makes the document from two finished stores (`make calibration`);
-`load` reads one (None: the shipped default, `SHIPPED`), returning a
-`Calibration` (or None) and an `Emulator` (or None, for a law-only file).
+`read` reads one (None: the shipped default, `SHIPPED_NAME`) once into a
+`CalibrationFile`: a `Calibration` (or None), an `Emulator` (or None, for a
+law-only file), the provenance and where it came from; `load` gives the same
+as a tuple.
 """
 
 import json
 import time
+from dataclasses import dataclass
 from importlib import resources
 from importlib.metadata import version
+from os import PathLike
 from pathlib import Path
+from typing import Any, Callable
 
 from analysis.calibration import FORMAT, Calibration, _nan_to_none, read_document
 from analysis.emulator import Emulator, from_results
@@ -31,7 +36,21 @@ VERSION = 2
 SHIPPED_NAME = "calibration.json"
 
 
-def shipped_path():
+SHIPPED_WHERE = "the shipped calibration"      # how messages name the default file
+
+
+@dataclass(frozen=True)
+class CalibrationFile:
+    """A calibration file as read: its laws and its emulator (either may be None, not both),
+    its provenance, and how messages name it (the path given, or `SHIPPED_WHERE`)."""
+
+    calibration: Calibration | None
+    emulator: Emulator | None
+    provenance: dict[str, Any]
+    where: str
+
+
+def shipped_path() -> Path:
     """The default calibration file inside the installed package."""
     return Path(str(resources.files("analysis") / "data" / SHIPPED_NAME))
 
@@ -44,14 +63,15 @@ def _store_provenance(path):
             "run_date": p.get("created", ""), "versions": p.get("versions", "")}
 
 
-def build(emulator_store, law_store=None, progress=None):
+def build(emulator_store: str | PathLike[str], law_store: str | PathLike[str] | None = None,
+          progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """The calibration document from an emulator campaign's store and (optionally)
     the paper campaign's store (its law fitted by `analysis.calibration.calibrate`)."""
     from analysis.calibration import calibrate
-    from analysis.calibrate_pipeline import read_store
+    from analysis.calibrate.pipeline import read_store
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
-    doc = {"format": FORMAT, "version": VERSION, "variants": {},
+    doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "variants": {},
            "emulator": emulator.to_json(),
            "provenance": {"emulator": _store_provenance(emulator_store),
                           "built": {"date": time.strftime("%Y-%m-%d"), "code_version": version("cortex-poisson")}}}
@@ -66,7 +86,7 @@ def build(emulator_store, law_store=None, progress=None):
     return _nan_to_none(doc)
 
 
-def write(doc, path):
+def write(doc: dict[str, Any], path: str | PathLike[str]) -> Path:
     """Write the document (atomic replace, `outputs.writing`: a full disk is a
     WriteError naming `path`; the caller has checked that `path` is ours)."""
     from outputs.writing import write_atomically
@@ -74,13 +94,20 @@ def write(doc, path):
     return Path(write_atomically(path, text.encode()))
 
 
-def load(path=None):
-    """(Calibration or None, Emulator or None, provenance dict) of a calibration file;
-    `path` None reads the shipped default. Malformed: InputError (one line)."""
+def read(path: str | PathLike[str] | None = None) -> CalibrationFile:
+    """The calibration file at `path` (None: the shipped default), read and parsed once.
+    Malformed: InputError (one line)."""
+    where = str(path) if path is not None else SHIPPED_WHERE
     path = Path(path) if path is not None else shipped_path()
     doc = read_document(path)
     cal = Calibration.from_document(path, doc) if doc.get("variants") else None
     emu = Emulator.from_json(doc["emulator"], str(path)) if doc.get("emulator") else None
     if cal is None and emu is None:
         raise InputError(f"{path}: holds neither a calibration law ('variants') nor an emulator")
-    return cal, emu, doc.get("provenance", {})
+    return CalibrationFile(cal, emu, doc.get("provenance", {}), where)
+
+
+def load(path: str | PathLike[str] | None = None) -> tuple[Calibration | None, Emulator | None, dict[str, Any]]:
+    """(Calibration or None, Emulator or None, provenance dict) of a calibration file (`read`)."""
+    file = read(path)
+    return file.calibration, file.emulator, file.provenance

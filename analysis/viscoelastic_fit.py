@@ -13,22 +13,31 @@ equally weighted; damped Gauss-Newton on the 4 × 4 normal equations, vectorised
 over curves, from the magnitude-only fit's (ln K_B, ln K̃_S) and δ_B = δ_S = the
 median measured phase. Then ν* = (K_B* - K_S*)/(K_B* + K_S*) (complex).
 
-Intervals (95 %): the parametric bootstrap of `analysis.intervals` carried to complex
+Intervals (95 %): the parametric bootstrap of `analysis.invert.intervals` carried to complex
 moduli. Per draw m a truth the cell could have had (volume V(1 + σ_V ε_m), one height
 offset σ_h η_m, the tension that keeps the resting force), the true K*_j,m that
 would make the analysis see the measured K*_j times e^{e_j,m} (e complex, each part
 N(0, s²), s² = SS/(2n - 4) the fit's residual variance; the map from a true K to the
-seen one is affine with real coefficients, `analysis.intervals.truth_moduli`), and
+seen one is affine with real coefficients, `analysis.invert.intervals.truth_moduli`), and
 the refit θ_m. The draws (ε_m, η_m) are given per curve by the caller, so that a cell's
 frequencies share them (`analysis.afm.rheology` fits power laws across frequencies
 draw by draw). Intervals are percentiles of θ_m.
 """
 
-import numpy as np
+from __future__ import annotations
 
-from analysis import intervals
-from analysis.emulator_fit import Curves, filled_heights, ks_bounds
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from analysis.invert import intervals
+from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
 from solver.geometry import cell_radius
+
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
+    from analysis.viscoelastic_table import ComplexTable
 
 STEPS = 8             # Gauss-Newton steps of the fit
 DRAW_STEPS = 4        # ... of each bootstrap refit, from θ*
@@ -36,21 +45,22 @@ MAX_STEP = np.array([0.5, 0.5, 0.2, 0.2])
 ANGLE_BOUNDS = (-0.3, 1.3)      # rad: δ kept within (the table is fitted over 0-1 rad)
 
 
-def _model(table, slice_, theta, h, tension):
-    """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ."""
+def _model(table, slice_, theta, h, tension, volume_um3):
+    """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ (tables at one volume)."""
     bulk = np.exp(theta[:, 0])[:, None]
     ks = np.exp(theta[:, 1])[:, None]
     g = tension[:, None] / bulk
     lr, f_ks, f_g = slice_.grad_log(h, ks, g)
-    lc, c_ks, c_g, c_b, c_s = table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4],
+    lc, c_ks, c_g, c_b, c_s = table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4], volume_um3,
                                                   derivatives=True)
     value = theta[:, :1] + lr + lc
     jac = np.stack([1.0 - f_g - c_g, f_ks + c_ks, c_b, c_s], axis=-1)
     return value, jac
 
 
-def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
-    """Refit θ per row of `curves` (an `analysis.emulator_fit.Curves`, K unused) to the measured
+def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+                 lnk: npt.NDArray[np.complex128], steps: int = STEPS) -> tuple[Any, Any]:
+    """Refit θ per row of `curves` (an `analysis.invert.emulator_fit.Curves`, K unused) to the measured
     ln K* `lnk` (rows, m), starting from `theta` (rows, 4); rows of one volume share an
     emulator slice. Returns θ (rows, 4) and the residual sum of squares (rows,)."""
     h, _, use, tension, volume = curves
@@ -61,7 +71,7 @@ def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
         sl, tsl = emulator[bending].at_volume(v), table.at_volume(v)
         xr, hr, ur, tr, kr = x[rows], filled_heights(h[rows], use[rows]), use[rows], tension[rows], lnk[rows]
         for it in range(steps + 1):
-            value, jac = _model(tsl, sl, xr, hr, tr)
+            value, jac = _model(tsl, sl, xr, hr, tr, v)
             r = np.where(ur, np.nan_to_num(kr - value), 0.0)
             if it == steps:
                 break
@@ -76,7 +86,8 @@ def gauss_newton(table, emulator, bending, theta, curves, lnk, steps=STEPS):
     return x, ss
 
 
-def fit(table, emulator, bending, curves, lnk, start):
+def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, lnk: npt.NDArray[np.complex128],
+        start: npt.NDArray[np.float64]) -> tuple[Any, Any]:
     """θ* per curve from `start` (rows, 2: the magnitude-only (ln K_B, ln K̃_S)); NaN where
     `start` is not finite. Returns θ* (rows, 4) and the residual variance s² per component."""
     ok = np.isfinite(start).all(axis=1) & (curves.use.sum(axis=1) >= 3)
@@ -93,8 +104,11 @@ def fit(table, emulator, bending, curves, lnk, start):
     return theta, s2
 
 
-def draws(table, emulator, bending, theta, s2, curves, lnk, normals, *, volume_sd=intervals.VOLUME_SD,
-          height_sd_um=intervals.HEIGHT_SD_UM, dh_um=intervals.DH_UM, seed=0):
+def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64],
+          s2: npt.NDArray[np.float64],
+          curves: Curves, lnk: npt.NDArray[np.complex128], normals: npt.NDArray[np.float64], *,
+          volume_sd: float = intervals.VOLUME_SD, height_sd_um: float = intervals.HEIGHT_SD_UM,
+          dh_um: float = intervals.DH_UM, seed: int = 0) -> npt.NDArray[np.float64]:
     """θ_m (rows, M, 4) of the bootstrap; `normals` (rows, M, 2): each row's (ε_m, η_m)."""
     h, _, use, tension, volume = curves
     rows, M = normals.shape[:2]
@@ -129,7 +143,7 @@ def draws(table, emulator, bending, theta, s2, curves, lnk, normals, *, volume_s
     return out
 
 
-def complex_poisson(theta):
+def complex_poisson(theta: npt.NDArray[np.float64]) -> Any:
     """ν* = (K_B* - K_S*)/(K_B* + K_S*) per row of θ = (ln K_B, ln K̃_S, δ_B, δ_S)."""
     kb = np.exp(1j * theta[:, 2])
     ks = np.exp(theta[:, 1] + 1j * theta[:, 3])

@@ -26,12 +26,17 @@ Only the `standard` bending variant is tabulated (the factor C changes with B by
 less than with the angles: B/(K_B R²) ~ 1e-5).
 """
 
+from __future__ import annotations
+
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import BSpline, NdBSpline
 
 from analysis.emulator import tensor_spline
@@ -58,7 +63,8 @@ def _monomials(db, ds):
     return m, i * pow_(db, i - 1) * pow_(ds, j), j * pow_(db, i) * pow_(ds, j - 1)
 
 
-def node_coefficients(volume_um3, h_tilde, ks_tilde, gamma_tilde, bending="standard"):
+def node_coefficients(volume_um3: float, h_tilde: float, ks_tilde: float, gamma_tilde: float,
+                      bending: str = "standard") -> npt.NDArray[np.complex128]:
     """Complex coefficients (len(TERMS),) of ln C at one grid node: linearise the solver once,
     solve every (δ_B, δ_S) of ANGLES², least squares in the monomials."""
     from solver.geometry import cell_radius
@@ -75,7 +81,8 @@ def node_coefficients(volume_um3, h_tilde, ks_tilde, gamma_tilde, bending="stand
     return coef
 
 
-def build(volumes=VOLUMES_UM3, progress=None):
+def build(volumes: tuple[float, ...] = VOLUMES_UM3,
+          progress: Callable[[tuple[int, ...]], None] | None = None) -> dict[str, Any]:
     """The table's coefficients on the grid: a dict ready for json (`ComplexTable.from_json`)."""
     shape = (len(volumes), len(H_TILDE), len(KS_TILDE), len(GAMMA_TILDE))
     coef = np.zeros(shape + (len(TERMS),), complex)
@@ -93,10 +100,10 @@ def build(volumes=VOLUMES_UM3, progress=None):
 class ComplexTable:
     """ln C(h̃, K̃_S, γ̃_a, δ_B, δ_S) and its derivatives, from the tabulated coefficients."""
 
-    spline: object
+    spline: NdBSpline
     has_volume: bool = True
 
-    def at_volume(self, volume_um3):
+    def at_volume(self, volume_um3: float) -> ComplexTable:
         """The table at one volume (the V axis's basis contracted out: a third of the work
         per evaluation), whose `log_factor` ignores its volume argument."""
         s = self.spline
@@ -104,7 +111,7 @@ class ComplexTable:
         return ComplexTable(NdBSpline(s.t[1:], np.tensordot(basis, s.c, axes=(0, 0)), s.k[1:]), has_volume=False)
 
     @classmethod
-    def from_json(cls, doc, where="viscoelastic table"):
+    def from_json(cls, doc: dict[str, Any], where: str = "viscoelastic table") -> ComplexTable:
         try:
             axes = [np.asarray(doc[k], float) for k in ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")]
             coef = np.asarray(doc["ln_c_real"], float) + 1j * np.asarray(doc["ln_c_imag"], float)
@@ -116,7 +123,9 @@ class ComplexTable:
         coords = [np.log(axes[0]), axes[1], np.log(axes[2]), np.log(axes[3])]
         return cls(tensor_spline(coords, values, (2, 3, 3, 3)))
 
-    def log_factor(self, h_tilde, ks_tilde, gamma_tilde, db, ds, volume_um3=4300.0, derivatives=False):
+    def log_factor(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                   db: npt.ArrayLike, ds: npt.ArrayLike, volume_um3: npt.ArrayLike,
+                   derivatives: bool = False) -> Any:
         """ln C at the points (arrays broadcast); with `derivatives` also its derivatives by
         ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape)."""
         h, ks, g, db, ds, v = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde,
@@ -148,16 +157,16 @@ def shipped() -> ComplexTable:
     return ComplexTable.from_json(json.loads(DATA.read_text()), where=str(DATA))
 
 
-def main():
+def main() -> None:
     """Rebuild the shipped table (about 15 min on one core)."""
     import sys
     done = [0]
 
-    def progress(idx):
+    def progress(idx: tuple[int, ...]) -> None:
         done[0] += 1
         if done[0] % 40 == 0:
             print(f"{done[0]} nodes", file=sys.stderr)
-    DATA.write_text(json.dumps(build(progress)) + "\n")
+    DATA.write_text(json.dumps(build(progress=progress)) + "\n")
 
 
 if __name__ == "__main__":

@@ -11,20 +11,28 @@ frequency, one line style per h0) and DIR/viscosity.md (the table and the
 validity limit per frequency).
 """
 
+from __future__ import annotations
+
+from os import PathLike
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import pandas as pd
 
-from analysis.figures import _save, plt
+from analysis.calibrate.figures import _save, plt
 from campaign.store.reader import read_results
 from common.errors import InputError
+
+if TYPE_CHECKING:
+    from outputs.ownership import OutputDir
 
 TOLERANCE = 0.01      # the 1 % of "the elastic calibration is valid"
 STYLES = ("-", "--", ":", "-.")
 FLOOR = 1e-9          # |K*|/K - 1 below this is round-off (the elastic K is solved to ~1e-10)
 
 
-def table(store):
+def table(store: str | PathLike[str]) -> pd.DataFrame:
     """The done viscous tasks: h0, h̃, η, f, |K*|, K, |K*|/K, loss angle."""
     frame = read_results(store)
     frame = frame[(frame["state"] == "done") & frame["viscosity_Pa_s"].notna()]
@@ -37,7 +45,7 @@ def table(store):
     return out.sort_values(["frequency_hz", "h0_um", "viscosity_Pa_s"]).reset_index(drop=True)
 
 
-def validity(tab, tolerance=TOLERANCE):
+def validity(tab: pd.DataFrame, tolerance: float = TOLERANCE) -> list[dict[str, float]]:
     """Per frequency: the largest η of the grid with |K*|/K - 1 < tolerance at every
     height (and every smaller η), NaN if even the smallest fails; and ω η there."""
     rows = []
@@ -52,7 +60,7 @@ def validity(tab, tolerance=TOLERANCE):
     return rows
 
 
-def figure(tab, out):
+def figure(tab: pd.DataFrame, out: OutputDir) -> list[Path]:
     """|K*|/K and the loss angle against η, one colour per frequency, one style per h0."""
     fig, (a, b) = plt.subplots(1, 2, figsize=(9.0, 3.6), constrained_layout=True)
     heights = sorted(tab["h0_um"].unique())
@@ -93,20 +101,20 @@ def _markdown(tab, limits):
     return "\n".join(lines) + "\n"
 
 
-def run(store, out):
+def run(store: str | PathLike[str], out: str | PathLike[str]) -> Path:
     """Write DIR/viscosity.csv, .png, .pdf and .md; returns the report's path.
     DIR holds only what cortex wrote there (`outputs.ownership.OutputDir`)."""
     from outputs.ownership import OutputDir
     store = Path(store)
     if not store.is_file():
         raise InputError(f"{store}: no such campaign store")
-    out = OutputDir(out)
-    out.check(["viscosity.csv", "viscosity.png", "viscosity.pdf", "viscosity.md"])
+    folder = OutputDir(out)
+    folder.check(["viscosity.csv", "viscosity.png", "viscosity.pdf", "viscosity.md"])
     tab = table(store)
     limits = validity(tab)
-    with out.writing("viscosity.csv") as path:
+    with folder.writing("viscosity.csv") as path:
         tab.to_csv(path, index=False)
-    figure(tab, out)
-    with out.writing("viscosity.md") as path:
+    figure(tab, folder)
+    with folder.writing("viscosity.md") as path:
         path.write_text(_markdown(tab, limits))
     return path

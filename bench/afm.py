@@ -10,7 +10,7 @@ from pathlib import Path
 
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-from analysis.afm.analyze import analyze
+from analysis.afm.analyze_pipeline import analyze
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law  # noqa: E402

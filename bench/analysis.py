@@ -26,7 +26,7 @@ from pathlib import Path
 # `analysis` is the package, not this script.
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-import analysis.calibrate_pipeline as report  # noqa: E402
+import analysis.calibrate.pipeline as report  # noqa: E402
 from analysis.synthetic import reference_law, results_table, trials_table  # noqa: E402
 
 
@@ -41,7 +41,7 @@ def emulator_inversion(repeat=3):
     import numpy as np
     import pandas as pd
 
-    from analysis.invert_table import invert_rows
+    from analysis.invert.method import invert_rows
     from analysis.shipped import load
     cal, emu, _ = load()
     rng = np.random.default_rng(0)

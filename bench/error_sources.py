@@ -7,7 +7,7 @@ cell); force noise (0.2 nN); drift (±0.001 nN/s); blebbing (8 % of cells,
 with the others off; the tension filter should exclude them); all. Per seed,
 configuration and method: recovered minus true median ν per frequency (true
 median over the included cells), the included count, (emulator) how often
-the 95 % interval (`analysis.intervals`) holds the true ν, and what the
+the 95 % interval (`analysis.invert.intervals`) holds the true ν, and what the
 filters' exclusions alone do
 (`exclusion_shift`: the true median over the included cells minus the true
 median over all non-blebbing cells); then the mean over the seeds.
@@ -34,7 +34,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.afm.synth import cells as synth  # noqa: E402
-from analysis.afm.analyze import analyze  # noqa: E402
+from analysis.afm.analyze_pipeline import analyze  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 
 ALL = dict(synth.ERRORS)

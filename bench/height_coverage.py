@@ -5,7 +5,7 @@ Synthetic experiments (`cortex afm synth`'s cells, 85 per seed) with only the
 recorded-height offset on (SD 0.5 µm, one per cell) and the shipped emulator
 as the forward model (so the interval's own model is exactly the truth's),
 analysed by the emulator method. All in l = ln K̃_S: l* the fit, l_true the
-truth, [lo, hi] the interval `analysis.intervals` reports (the percentiles of
+truth, [lo, hi] the interval `analysis.invert.intervals` reports (the percentiles of
 the refits of the drawn truths). Reported per draw count: its coverage,
 how often the truth falls below / above it, and, split by the sign of the
 cell's offset δ (recorded minus true height, read off the recording's first
@@ -25,8 +25,8 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.afm.synth import cells as synth  # noqa: E402
-from analysis.afm.analyze import analyze  # noqa: E402
-from analysis.invert_table import Errors  # noqa: E402
+from analysis.afm.analyze_pipeline import analyze  # noqa: E402
+from analysis.invert.intervals import Errors  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 
 

@@ -13,8 +13,9 @@ from pathlib import Path
 
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-from analysis.invert_table import Errors, invert_rows  # noqa: E402
-from analysis.calibrate_pipeline import read_store  # noqa: E402
+from analysis.invert.intervals import Errors  # noqa: E402
+from analysis.invert.method import invert_rows  # noqa: E402
+from analysis.calibrate.pipeline import read_store  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 
 

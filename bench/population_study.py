@@ -64,8 +64,8 @@ ALPHA = 0.05
 
 def run_full(seed, errors):
     from analysis.afm.synth import cells as synth
-    from analysis.afm.analyze import analyze
-    from analysis.invert_table import Errors
+    from analysis.afm.analyze_pipeline import analyze
+    from analysis.invert.intervals import Errors
     from analysis.shipped import load
     cal, emu, _ = load(None)
     t0 = time.perf_counter()

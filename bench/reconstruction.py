@@ -15,8 +15,9 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 
 import numpy as np  # noqa: E402
 
-from analysis.invert_table import Errors, invert_rows  # noqa: E402
-from analysis.calibrate_pipeline import read_store  # noqa: E402
+from analysis.invert.intervals import Errors  # noqa: E402
+from analysis.invert.method import invert_rows  # noqa: E402
+from analysis.calibrate.pipeline import read_store  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 from solver.elasticity import poisson_ratio  # noqa: E402
 

@@ -28,7 +28,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 
 import numpy as np  # noqa: E402
 
-from analysis.afm.analyze import analyze  # noqa: E402
+from analysis.afm.analyze_pipeline import analyze  # noqa: E402
 from analysis.afm.synth.cells import generate, solver_forward  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 

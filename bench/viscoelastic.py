@@ -27,10 +27,10 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.afm.synth import cells as sy  # noqa: E402
-from analysis.afm.analyze import analyze  # noqa: E402
+from analysis.afm.analyze_pipeline import analyze  # noqa: E402
 from analysis.afm.rheology import analyze as rheology  # noqa: E402
 from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex  # noqa: E402
-from analysis.invert_table import Errors  # noqa: E402
+from analysis.invert.intervals import Errors  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 from analysis.viscoelastic_table import shipped  # noqa: E402
 from solver.geometry import cell_radius  # noqa: E402

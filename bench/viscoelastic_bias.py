@@ -4,7 +4,7 @@
 A cell (V = 4300 µm³, K_B = 25 mN/m, γ_a = 1.5 mN/m, six heights h̃ 0.5-0.75) of true
 magnitudes K̃_S = |K_S*|/|K_B*| (ν = (1 - K̃_S)/(1 + K̃_S)) and loss angles (δ_B, δ_S):
 its |K*(h̃)| from the complex forward model (emulator × `analysis.viscoelastic_table`),
-inverted by the magnitude-only emulator fit (`analysis.emulator_fit`) as today's
+inverted by the magnitude-only emulator fit (`analysis.invert.emulator_fit`) as today's
 analysis does: ν_mag - ν per (ν, δ_B, δ_S), and Re ν* of the complex Poisson ratio.
 
     python bench/viscoelastic_bias.py
@@ -18,7 +18,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 
 import numpy as np  # noqa: E402
 
-from analysis.emulator_fit import invert_curves_emulator  # noqa: E402
+from analysis.invert.emulator_fit import invert_curves_emulator  # noqa: E402
 from analysis.shipped import load  # noqa: E402
 from analysis.viscoelastic_table import shipped  # noqa: E402
 from solver.elasticity import shear_ratio  # noqa: E402
@@ -34,7 +34,7 @@ def main():
     for nu in NUS:
         ks = float(shear_ratio(nu))
         for db, ds in ANGLES:
-            K = emu.modulus(h, 25.0, ks, 1.5) * np.exp(table.log_factor(h, ks, 1.5 / 25.0, db, ds))
+            K = emu.modulus(h, 25.0, ks, 1.5, 4300.0) * np.exp(table.log_factor(h, ks, 1.5 / 25.0, db, ds, 4300.0))
             fit = invert_curves_emulator(h[None], np.abs(K)[None], 1.5, 4300.0, emu).iloc[0]
             star = (np.exp(1j * db) - ks * np.exp(1j * ds)) / (np.exp(1j * db) + ks * np.exp(1j * ds))
             rows.append({"nu": nu, "bulk_loss_angle_rad": db, "shear_loss_angle_rad": ds,

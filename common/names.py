@@ -1,6 +1,6 @@
 """The names a user may choose from, in one home each, without numpy: the
 command line offers them as argparse choices, and the modules that act on
-them (`solver.model`, `solver.compression`, `analysis.invert_table`,
+them (`solver.model`, `solver.compression`, `analysis.invert.table`,
 `analysis.afm.tension.ramp`) build their tables over them."""
 
 BENDINGS = ("standard", "double", "none")             # bending variants of the shell (SPEC 2)

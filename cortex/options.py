@@ -5,15 +5,14 @@ Their choices are the name lists of `common.names` (no numpy: `cortex --help` st
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
-from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from common.names import BENDINGS, INVERSION_METHODS
 
 if TYPE_CHECKING:
-    from analysis.calibration import Calibration
-    from analysis.emulator import Emulator
-    from analysis.invert_table import Errors
+    from analysis.invert.intervals import Errors
+    from analysis.shipped import CalibrationFile
 
 Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"   # what add_subparsers returns
 
@@ -45,13 +44,13 @@ def add_inversion_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the interval draws (default 0)")
 
 
-def inversion_settings(args: argparse.Namespace) -> tuple[Calibration | None, Emulator | None, dict[str, Any], Errors]:
-    """(Calibration or None, Emulator or None, provenance, Errors) from the shared options."""
-    from analysis.invert_table import Errors
-    from analysis.shipped import load
-    cal, emu, prov = load(args.calibration)
+def inversion_settings(args: argparse.Namespace) -> tuple[CalibrationFile, Errors]:
+    """(the `CalibrationFile`, read once, and the `Errors`) from the shared options."""
+    from analysis.invert.intervals import Errors
+    from analysis.shipped import read
+    file = read(args.calibration)
     if args.method is None:
-        args.method = "emulator" if emu is not None else "law"
+        args.method = "emulator" if file.emulator is not None else "law"
     errors = Errors(volume_rel_sd=args.volume_sd, height_sd_um=args.height_sd, draws=args.draws,
                     seed=args.seed).check()
-    return cal, emu, prov, errors
+    return file, errors

@@ -132,3 +132,15 @@ def test_bad_calibration_and_variant(setup, tmp_path, capsys):
                  "--bending", "triple"]) == 2
     assert main(["afm", "synth", "--cells", "0", "--out", str(tmp_path / "z")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 3
+
+
+def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
+    """The calibration file is read and parsed once per `afm analyze` and handed down."""
+    import analysis.shipped
+    _, cal, good, _ = setup
+    reads = []
+    real = analysis.shipped.read_document
+    monkeypatch.setattr(analysis.shipped, "read_document", lambda path: reads.append(path) or real(path))
+    assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
+                 "--out", str(tmp_path / "out")]) == 0
+    assert [str(p) for p in reads] == [str(cal)]

@@ -8,7 +8,7 @@ forward model and a solver-built calibration is
 import numpy as np
 import pytest
 
-from analysis.afm.analyze import analyze
+from analysis.afm.analyze_pipeline import analyze
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration

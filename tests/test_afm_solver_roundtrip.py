@@ -12,7 +12,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from analysis.afm.analyze import analyze
+from analysis.afm.analyze_pipeline import analyze
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, solver_forward
 from analysis.calibration import calibrate

@@ -9,7 +9,7 @@ import types
 import numpy as np
 import pytest
 
-import analysis.calibrate_pipeline as report
+import analysis.calibrate.pipeline as report
 from analysis.calibration import Calibration
 from analysis.synthetic import reference_law, results_table, trials_table
 from cortex.cli import main

@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis import montecarlo, reconstruction
+from analysis.calibrate import montecarlo, reconstruction
 from analysis.calibration import Calibration, calibrate
 from analysis.synthetic import reference_law, results_table, trials_table
 

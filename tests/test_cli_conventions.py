@@ -12,7 +12,7 @@ import h5py
 import pytest
 
 from analysis.calibration import Calibration
-from analysis.invert_table import METHODS as INVERSION_METHODS
+from analysis.invert.table import METHODS as INVERSION_METHODS
 from analysis.synthetic import reference_law
 from conftest import CORTEX, ROOT, cortex
 from cortex.cli import build_parser, main

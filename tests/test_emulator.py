@@ -12,8 +12,9 @@ import pytest
 
 from analysis.afm.synth.cells import solver_forward
 from analysis.emulator import AXES
-from analysis.emulator_fit import invert_curves_emulator
-from analysis.invert_table import Errors, invert_rows
+from analysis.invert.emulator_fit import invert_curves_emulator
+from analysis.invert.intervals import Errors
+from analysis.invert.method import invert_rows
 from analysis.shipped import load, shipped_path
 from campaign.config import load as load_campaign
 from campaign.store.reader import read_results

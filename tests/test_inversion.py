@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from analysis.calibration import Calibration, poisson, shear_ratio
-from analysis.inversion import invert_cell, invert_curves
+from analysis.invert.inversion import invert_cell, invert_curves
 from analysis.laws import modulus_law
 from analysis.synthetic import reference_law
 
@@ -121,3 +121,24 @@ def test_batched_equals_single_and_reasons_in_order():
     assert out["excluded_reason"].tolist()[:2] == [None, None]
     assert out.loc[2, "excluded_reason"].startswith("only 3 height(s)")
     assert poisson(out.loc[0, "ks_tilde"]) == pytest.approx(0.1, abs=1e-10)
+
+
+def test_one_implementation_per_method_and_the_part_each_needs():
+    """`choose` builds the inversion a calibration file's parts serve, and refuses a file
+    without the part the method needs with its one line."""
+    from analysis.invert.method import INVERSIONS, EmulatorInversion, LawInversion, choose
+    from analysis.shipped import load
+    from common.errors import InputError
+    from common.names import INVERSION_METHODS
+    cal, emu, _ = load()
+    assert tuple(INVERSIONS) == INVERSION_METHODS
+    assert isinstance(choose("law", cal, None), LawInversion)
+    assert isinstance(choose("emulator", None, emu), EmulatorInversion)
+    assert choose("law", cal, emu).variants() == list(cal.laws)
+    assert choose("emulator", cal, emu).variants() == list(emu.tables)
+    with pytest.raises(InputError, match="no emulator tables"):
+        choose("emulator", cal, None)
+    with pytest.raises(InputError, match="no paper law"):
+        choose("law", None, emu)
+    with pytest.raises(InputError, match="method must be one of"):
+        choose("spline", cal, emu)

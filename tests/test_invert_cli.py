@@ -113,3 +113,15 @@ def test_help_of_every_new_command_renders():
         run = cortex(*args)
         assert run.returncode == 0 and "exit status" in run.stdout, (args, run.stderr)
     assert "95 % intervals" in cortex("afm", "analyze", "--help").stdout
+
+
+def test_a_table_without_volumes_gets_the_one_default_where_it_is_read(tmp_path):
+    """The table reader is where a cell's volume is checked and, when the table has none,
+    set to the documented 4300 µm³; below it the volume is required."""
+    from analysis.invert.table_input import read_table
+    path = tmp_path / "t.csv"
+    path.write_text("cell_id,h_tilde,modulus_mN_per_m,tension_mN_per_m\na,0.6,30,1\na,0.7,40,1\n")
+    assert read_table(path)["volume_um3"].tolist() == [4300.0, 4300.0]
+    cal, emu, _ = load()
+    with pytest.raises(TypeError):
+        emu.ratio(0.6, 0.5, 0.04)          # no default volume below the reader

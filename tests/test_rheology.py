@@ -6,11 +6,11 @@ import pandas as pd
 import pytest
 
 from analysis.afm import rheology
-from analysis.afm.analyze import analyze
+from analysis.afm.analyze_pipeline import analyze
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.synth.cells import generate
 from analysis.afm.synth.rheology import ViscoelasticForward, solver_complex
-from analysis.invert_table import Errors
+from analysis.invert.intervals import Errors
 from analysis.shipped import load
 from conftest import cortex
 from common.errors import InputError

@@ -1,32 +1,44 @@
 """Per cell and frequency: moduli from the oscillations, the tension filter,
-the shared inversion (`analysis.inversion.invert_cell`).
+the inversion (`analysis.invert.method`: each method's `analyze_cells` lands here).
 
 γ_a = mean over the segments at that frequency of <γ_eff>. Tension filter
 (published): the segment means over the whole recording (all frequencies)
 stay within 10 % of their median, max |<γ_eff>_i - median| / median ≤ 0.10;
 a cell failing it (e.g. blebbing) is excluded with that reason. The K(h̃)
-filters and the fit are those of `analysis.inversion`.
+filters and the fit are those of `analysis.invert.inversion`.
 
 `outside_calibration` flags a result whose K̃_S or γ̃_a lies outside the
 calibration grid (the law's α-table axes): there ν rests on the log law's
 extrapolation (no flag, None, for a law without a table).
 
-`method="emulator"` inverts all cells at once on the emulator with 95 %
-intervals (`analysis.invert_table`); the same filters, `outside_calibration`
-then says the fit left the emulator's grid.
+`analyze_each` inverts by the law, cell by cell (`analyze_cell`);
+`analyze_together` inverts all cells at once by an inversion with 95 % intervals
+(the emulator's, `analysis.invert.table.invert_with`); the same filters,
+`outside_calibration` then says the fit left the emulator's grid.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.afm.timeseries import segment_moduli
-from analysis.inversion import invert_cell
+from analysis.invert.inversion import invert_cell
+from analysis.invert.table import CurveInversion, invert_with
 from common.errors import InputError
+
+if TYPE_CHECKING:
+    from analysis.afm.cell import Cell
+    from analysis.calibration import Calibration
+    from analysis.invert.intervals import Errors
 
 TENSION_TOLERANCE = 0.10
 
 
-def analyze_cell(cell, calibration, bending="standard"):
+def analyze_cell(cell: Cell, calibration: Calibration,
+                 bending: str = "standard") -> tuple[list[dict[str, Any]], pd.DataFrame]:
     """Returns (per-frequency rows, per-segment rows) for one cell (InputError without oscillations:
     `analysis.afm.analyze_pipeline.read` sets such recordings aside)."""
     if not cell.oscillations():
@@ -59,10 +71,9 @@ def _outside(law, ks, gamma):
                 or not min(law.gamma_tilde) <= gamma <= max(law.gamma_tilde))
 
 
-def analyze(cells, calibration, bending="standard", method="law", emulator=None, errors=None):
-    """All cells: (per cell-and-frequency DataFrame, per-segment DataFrame)."""
-    if method == "emulator":
-        return _analyze_emulator(cells, emulator, bending, errors)
+def analyze_each(cells: list[Cell], calibration: Calibration,
+                 bending: str = "standard") -> tuple[pd.DataFrame, pd.DataFrame]:
+    """All cells by the law, one at a time: (per cell-and-frequency DataFrame, per-segment DataFrame)."""
     rows, segs = [], []
     for c in cells:
         r, s = analyze_cell(c, calibration, bending)
@@ -71,8 +82,10 @@ def analyze(cells, calibration, bending="standard", method="law", emulator=None,
     return pd.DataFrame(rows), pd.concat(segs, ignore_index=True)
 
 
-def _analyze_emulator(cells, emulator, bending, errors):
-    from analysis.invert_table import invert_rows
+def analyze_together(cells: list[Cell], inversion: CurveInversion, bending: str = "standard",
+                     errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """All cells at once by `inversion` (with intervals): (per cell-and-frequency DataFrame,
+    per-segment DataFrame)."""
     segs, dev = [], {}
     for c in cells:
         s = pd.DataFrame(segment_moduli(c))
@@ -82,7 +95,7 @@ def _analyze_emulator(cells, emulator, bending, errors):
         dev[c.cell_id] = float(np.max(np.abs(s["tension_mN_per_m"] - med)) / med) if med > 0 else np.inf
         segs.append(s)
     segs = pd.concat(segs, ignore_index=True)
-    table = invert_rows(segs, "emulator", None, emulator, bending, errors)
+    table = invert_with(inversion, segs, bending, errors)
     table["tension_deviation"] = table["cell_id"].map(dev)
     grouped = segs.groupby(["cell_id", "frequency_hz"])
     idx = pd.MultiIndex.from_frame(table[["cell_id", "frequency_hz"]])

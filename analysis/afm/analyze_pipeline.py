@@ -1,7 +1,8 @@
 """`cortex afm analyze DATA --out DIR`: read -> fit -> write.
 
-    read(data, calibration_path, settings)   the recordings (`load`) and the
-                                             calibration that serves the method;
+    read(data, calibration, settings)        the recordings (`load`) and the
+                                             inversion (`analysis.invert.method`) the
+                                             calibration file (read once) serves;
                                              recordings without any oscillation
                                              segment are set aside (`skipped`);
     fit(recordings, settings)                every cell analysed with every bending
@@ -14,7 +15,8 @@ DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
 random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
-report.md, which also lists the recordings not analysed.
+report.md, which also lists the recordings not analysed. `analyze(cells, ...)`
+is the inversion of cells alone, the method named.
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
 NanoScope files and folders of them (`formats.instruments.import_cells`, with the volume and dish options
@@ -30,15 +32,27 @@ variant's cells table also gets the viscoelastic columns per cell and frequency,
 DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instrument
 phase and the paired test), report.md a section (`analysis.afm.rheology`)."""
 
+from __future__ import annotations
+
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Sequence
 
-from analysis.afm.analyze import analyze
+import pandas as pd
+
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.population.summary import summary
+from analysis.invert.method import INVERSIONS, Inversion, choose
 from outputs.ownership import OutputDir
 from common.errors import InputError
+
+if TYPE_CHECKING:
+    from analysis.afm.cell import Cell
+    from analysis.calibration import Calibration
+    from analysis.emulator import Emulator
+    from analysis.invert.intervals import Errors
+    from analysis.shipped import CalibrationFile
 
 
 NO_OSCILLATION = "no modulation (oscillation) segment"
@@ -51,39 +65,40 @@ class Settings:
 
     bending: str = "standard"
     method: str = "law"
-    errors: object = None
-    jpk_options: dict | None = None
+    errors: Errors | None = None
+    jpk_options: dict[str, Any] | None = None
     phase: bool = False          # the viscoelastic reading (`analysis.afm.rheology`)
-    lags: dict | None = None     # instrument phase lag (rad) per frequency (Hz)
+    lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
 
 
 @dataclass
 class Recordings:
     """What `read` found: the cells to analyse, the skipped ones {id: reason},
-    the data's name, the calibration and emulator, and the variants to run
-    (the selected one first)."""
+    the data's name, the inversion, the calibration file's emulator (None for a
+    law-only file), and the variants to run (the selected one first)."""
 
     name: str
-    cells: list
-    skipped: dict
-    calibration: object
-    emulator: object
-    variants: list
+    cells: list[Cell]
+    skipped: dict[str, str]
+    inversion: Inversion
+    emulator: Emulator | None
+    variants: list[str]
 
 
 @dataclass
 class Fitted:
     """Per variant: the cells table and the summary; the segments table."""
 
-    tables: dict = field(default_factory=dict)
-    sums: dict = field(default_factory=dict)
-    segments: object = None
-    population: dict | None = None          # population.json (`analysis.afm.population.answer`)
-    rheology: object = None      # the viscoelastic reading's table and summary, when on
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)
+    sums: dict[str, dict[str, Any]] = field(default_factory=dict)
+    segments: pd.DataFrame | None = None
+    population: dict[str, Any] | None = None          # population.json (`analysis.afm.population.answer`)
+    rheology: pd.DataFrame | None = None      # the viscoelastic reading's table, when on
 
 
-def load(paths, jpk_options=None):
+def load(paths: str | Path | Sequence[str | Path],
+         jpk_options: dict[str, Any] | None = None) -> list[Cell]:
     """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
     Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
     from analysis.afm.formats.instruments import import_cells, is_instrument_file
@@ -108,56 +123,47 @@ def load(paths, jpk_options=None):
                      "a JPK or Bruker file or a folder of them)")
 
 
-def _calibration(path, method, bending):
-    """(Calibration or None, Emulator or None, bending variants) for `method`;
-    InputError if the file cannot serve it. `path` None: the shipped one."""
-    from analysis.shipped import load as load_calibration
-    cal, emu, _ = load_calibration(path)
-    where = path or "the shipped calibration"
-    if method == "emulator" and emu is None:
-        raise InputError(f"{where}: holds no emulator tables; use --method law")
-    if method == "law" and cal is None:
-        raise InputError(f"{where}: holds no paper law; use --method emulator")
-    variants = list(emu.tables) if method == "emulator" else list(cal.laws)
+def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
+    """The `method` inversion of the calibration file; InputError if the file cannot serve it."""
+    kind = INVERSIONS[method]
+    inversion = kind.of(file.calibration, file.emulator)
+    if inversion is None:
+        raise InputError(f"{file.where}: holds no {kind.needs}; use --method {kind.instead}")
+    variants = inversion.variants()
     if bending not in variants:
-        raise InputError(f"{where}: no bending variant '{bending}' (has {', '.join(variants)})")
-    return cal, emu, variants
+        raise InputError(f"{file.where}: no bending variant '{bending}' (has {', '.join(variants)})")
+    return inversion
 
 
-def read(data, calibration_path, settings):
-    """`Recordings` of `data` (a path or a list of paths); `calibration_path`
-    None: the shipped calibration. InputError for bad input."""
+def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
+         settings: Settings) -> Recordings:
+    """`Recordings` of `data` (a path or a list of paths) with the inversion the
+    calibration file (`analysis.shipped.read`) serves. InputError for bad input."""
     cells = load(data, settings.jpk_options)
-    cal, emu, variants = _calibration(calibration_path, settings.method, settings.bending)
+    inversion = _inversion(calibration, settings.method, settings.bending)
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
     name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
-    variants = [settings.bending] + [v for v in variants if v != settings.bending]
+    variants = [settings.bending] + [v for v in inversion.variants() if v != settings.bending]
     return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
-                      calibration=cal, emulator=emu, variants=variants)
+                      inversion=inversion, emulator=calibration.emulator, variants=variants)
 
 
-def _with_medians(summ, table, method):
-    """The summary with each frequency's bootstrap 95 % interval of the median ν (emulator)."""
-    if method != "emulator":
-        return summ
-    from analysis.invert_table import median_table
-    meds = {r["frequency_hz"]: r for r in median_table(table)}
-    for r in summ["frequencies"]:
-        m = meds.get(r["frequency_hz"], {})
-        r["median_nu_lo95"], r["median_nu_hi95"] = m.get("median_nu_lo95"), m.get("median_nu_hi95")
-        r["n_nu_beyond_isotropic"] = int(((table["frequency_hz"] == r["frequency_hz"])
-                                          & table["excluded_reason"].isna() & table["nu_beyond_isotropic"]).sum())
-    return summ
+def analyze(cells: list[Cell], calibration: Calibration | None, bending: str = "standard", method: str = "law",
+            emulator: Emulator | None = None, errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """All cells by the method named (`analysis.invert.method.choose`): (per cell-and-frequency
+    DataFrame, per-segment DataFrame)."""
+    from analysis.afm import analyze as cell_analyses
+    return choose(method, calibration, emulator).analyze_cells(cells, bending, errors, cell_analyses)
 
 
-def fit(rec, settings):
+def fit(rec: Recordings, settings: Settings) -> Fitted:
     """Every cell of `rec` with every variant: a `Fitted`."""
+    from analysis.afm import analyze as cell_analyses
     fitted = Fitted()
     for variant in rec.variants:
-        tab, segs = analyze(rec.cells, rec.calibration, variant, method=settings.method,
-                            emulator=rec.emulator, errors=settings.errors)
+        tab, segs = rec.inversion.analyze_cells(rec.cells, variant, settings.errors, cell_analyses)
         fitted.tables[variant] = tab
-        fitted.sums[variant] = _with_medians(summary(tab), tab, settings.method)
+        fitted.sums[variant] = rec.inversion.summarise(summary(tab), tab)
         if variant == settings.bending:
             fitted.segments = segs
     from analysis.afm.population.answer import answer
@@ -172,9 +178,9 @@ def _viscoelastic(rec, settings, fitted):
     cells table gains the per-frequency columns; `fitted.rheology` = (table, summary)."""
     from analysis.afm.rheology import analyze as rheology
     emulator = rec.emulator
-    if emulator is None:
-        from analysis.shipped import load as load_calibration
-        emulator = load_calibration(None)[1]
+    if emulator is None:                    # a law-only calibration file: the shipped emulator
+        from analysis.shipped import read as read_calibration
+        emulator = read_calibration(None).emulator
     b = settings.bending
     table, rheo, summ = rheology(fitted.tables[b], fitted.segments, emulator, b, settings.errors, settings.lags,
                                  settings.lag_source)
@@ -198,11 +204,12 @@ def _csv(table):
     return lambda p: table.to_csv(p, index=False)
 
 
-def write(out, rec, fitted, settings):
+def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -> Path:
     """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
     from analysis.afm.analyze_report import markdown, markdown_skipped
     from analysis.afm.population.figures import figures, nu_intervals      # matplotlib: only now
     bending = settings.bending
+    assert fitted.population is not None, "fit() gives the population answer"
     for variant in rec.variants:        # the selected one first (the manifest's order)
         _write(out, f"cells_{variant}.csv", _csv(fitted.tables[variant]))
         _write(out, f"summary_{variant}.json", _json(fitted.sums[variant]))
@@ -212,11 +219,10 @@ def write(out, rec, fitted, settings):
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
-    if settings.method == "emulator":
-        figs.append(nu_intervals(fitted.tables[bending], out))
+    figs += rec.inversion.figures(fitted.tables[bending], out, nu_intervals)
     from analysis.afm.population.answer_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
-    text = markdown(rec.name, bending, fitted.tables, fitted.sums, figs,
+    text = markdown(rec.name, bending, rec.inversion, fitted.tables, fitted.sums, figs,
                     fitted.population) + markdown_skipped(None, rec.skipped)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
@@ -225,21 +231,23 @@ def write(out, rec, fitted, settings):
     return _write(out, "report.md", lambda p: p.write_text(text))
 
 
-def run(data, calibration_path, out, settings=Settings()):
+def run(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
+        out: str | Path, settings: Settings = Settings()) -> dict[str, Any]:
     """Analyse `data` (a path or a list of paths) into DIR `out` (read -> fit ->
-    write); the result has the report's path, the summary, the table and the
-    skipped recordings. `calibration_path` None: the shipped calibration."""
+    write) with the calibration file `calibration` (`analysis.shipped.read`, read
+    once); the result has the report's path, the summary, the table and the
+    skipped recordings."""
     from analysis.afm.analyze_report import markdown_skipped
-    rec = read(data, calibration_path, settings)
-    out = OutputDir(out)                              # refused now if not ours
+    rec = read(data, calibration, settings)
+    folder = OutputDir(out)                           # refused now if not ours
     from analysis.afm.population.answer_figures import POPULATION_FIGURES
-    out.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
+    folder.check(["segments.csv", "cells.csv", "summary.json", "report.md", "nu_intervals.png", *FIGURES,
                "population.json", *POPULATION_FIGURES] + (["rheology.csv"] if settings.phase else [])
               + [f"{kind}_{v}.{ext}" for v in rec.variants for kind, ext in (("cells", "csv"), ("summary", "json"))])
     if not rec.cells:
-        report = _write(out, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
+        report = _write(folder, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
         return {"report": report, "summary": None, "table": None, "skipped": rec.skipped}
     fitted = fit(rec, settings)
-    report = write(out, rec, fitted, settings)
+    report = write(folder, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
             "table": fitted.tables[settings.bending], "skipped": rec.skipped, "population": fitted.population}

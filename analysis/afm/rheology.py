@@ -29,9 +29,9 @@ import numpy as np
 import pandas as pd
 from scipy.stats import wilcoxon
 
-from analysis import intervals
-from analysis.emulator_fit import Curves
-from analysis.inversion import to_curves, used_heights
+from analysis.invert import intervals
+from analysis.invert.emulator_fit import Curves
+from analysis.invert.inversion import to_curves, used_heights
 from analysis.viscoelastic_fit import complex_poisson, draws, fit
 from common.errors import InputError
 
@@ -127,7 +127,7 @@ def per_frequency(table, segments, emulator, bending, table_c, errors=None, lags
 
 
 def intervals_errors():
-    from analysis.invert_table import Errors
+    from analysis.invert.intervals import Errors
     return Errors()
 
 

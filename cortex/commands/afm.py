@@ -14,7 +14,7 @@ import argparse
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from analysis.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from common.names import RAMP_MODELS, SOLVERS
 from cortex.options import OUT_HELP, Commands, add_bending, add_inversion_options, inversion_settings
 from cortex.results import plain, say_result
@@ -217,15 +217,16 @@ def _forward(args: argparse.Namespace) -> Any:
     return sy.law_forward(Calibration.load(args.calibration)[args.bending])
 
 
-def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[Any, Any]) -> Any:
+def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | None, float | None]) -> Any:
     from analysis.afm.synth import rheology as sr
     from common.errors import InputError
-    if None in exponents or not all(0 <= b <= 0.6 for b in exponents):
+    bulk, shear = exponents
+    if bulk is None or shear is None or not all(0 <= b <= 0.6 for b in (bulk, shear)):
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
     if args.solver not in ("fast", "emulator"):
         raise InputError("viscoelastic cells need --solver fast or emulator")
     complex_forward = sr.emulator_complex if args.solver == "emulator" else sr.solver_complex
-    return sr.ViscoelasticForward(*exponents, complex_forward(args.bending), seed=args.seed)
+    return sr.ViscoelasticForward(bulk, shear, complex_forward(args.bending), seed=args.seed)
 
 
 def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] | None, str | None]:
@@ -294,12 +295,12 @@ def analyze(args: argparse.Namespace) -> int:
 
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    _, _, _, errors = inversion_settings(args)          # also settles the default --method
+    file, errors = inversion_settings(args)          # also settles the default --method
     data, options = experiment_in(args.data), jpk_options(args)
     phase, lags, lag_source = phase_settings(args)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=options,
                         phase=phase, lags=lags, lag_source=lag_source)
-    result = run(data, args.calibration, args.out, settings)
+    result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
                                 **(result["summary"] or {})})))

@@ -80,7 +80,7 @@ def _add_invert(s: Commands) -> None:
 
 
 def calibrate(args: argparse.Namespace) -> int:
-    from analysis.calibrate_pipeline import run
+    from analysis.calibrate.pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     laws = result["calibration"].laws
     say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},
@@ -116,14 +116,14 @@ def build_calibration(args: argparse.Namespace) -> int:
 def invert(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.invert_table import invert_rows
-    from analysis.table_input import read_table
+    from analysis.invert.method import invert_rows
+    from analysis.invert.table_input import read_table
     from outputs.ownership import OutputDir
     rows = read_table(args.table)
-    cal, emu, _, errors = inversion_settings(args)
+    file, errors = inversion_settings(args)
     out = OutputDir(args.out)
     out.check(["cells.csv"])                        # refused before any work if not ours
-    table = invert_rows(rows, args.method, cal, emu, args.bending, errors)
+    table = invert_rows(rows, args.method, file.calibration, file.emulator, args.bending, errors)
     with out.writing("cells.csv") as path:
         table.to_csv(path, index=False)
     if args.json:

@@ -55,6 +55,7 @@ def emulator_complex(bending: str = "standard") -> ComplexForward:
     from analysis.viscoelastic_table import shipped
     from solver.geometry import cell_radius
     emulator, table = load(None)[1], shipped()
+    assert emulator is not None, "the shipped calibration holds the emulator"
 
     def forward(volume: float, heights: npt.NDArray[np.float64], bulk: float, shear: float, tension: float,
                 db: float, ds: float) -> np.ndarray:

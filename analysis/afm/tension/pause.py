@@ -9,7 +9,7 @@ H and A_c of the droplet shape at (V, h) (`solver.droplet_table`). Units: γ in
 mN/m, H in 1/µm, so 2 γ H is in mN/m/µm = 10³ Pa: ΔP (Pa) = 2000 γ H.
 
 95 % intervals: the percentile interval of DRAWS draws of the truth the cell
-could have had, as for the oscillation analysis (`analysis.intervals`): a
+could have had, as for the oscillation analysis (`analysis.invert.intervals`): a
 volume V_m = V (1 + σ_V ε_m) (σ_V = 7.5 %) and a height h_m = h + σ_h η_m
 (σ_h = 0.5 µm, an uneven wedge or dish reference), ε, η ~ N(0, 1), giving
 γ_m = F / (2 H A_c)(V_m, h_m) and ΔP_m = 2 γ_m H(V_m, h_m). Where the height
@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from analysis.afm.tension.ramp import RampFit, refit
-from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from common.errors import InputError
 from solver.geometry import cell_radius

@@ -2,7 +2,7 @@
 ratio recovered from every simulated K(h̃) curve against the true one.
 
 Each (K_B, K_S, γ_a) curve of a bending variant is inverted exactly as a
-measured cell (`analysis.inversion.invert_curves`: heights 0.5 ≤ h̃ ≤ 0.75,
+measured cell (`analysis.invert.inversion.invert_curves`: heights 0.5 ≤ h̃ ≤ 0.75,
 K_B and α fitted with λ fixed, the filters) with γ_a KNOWN (the simulation's
 active tension), so the error measures the calibration law plus the
 free-K_B fit on the measured-cell height window, not tension estimation.
@@ -10,16 +10,21 @@ Beside it, `nu_law` inverts the step-2 α (K_B known, all heights): the error
 of the log law and the cubics alone.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
-from analysis.inversion import invert_curves, to_curves
+from analysis.invert.inversion import invert_curves, to_curves
+from analysis.calibration import Calibration
 from solver.elasticity import poisson_of_ratio
 
 KEYS = ["bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"]
 
 
-def reconstruct(results, calibration, fits=None):
+def reconstruct(results: pd.DataFrame, calibration: Calibration, fits: pd.DataFrame | None = None) -> pd.DataFrame:
     """One row per simulated curve: its parameters, `nu_true`, the inverted
     `nu` with the fit and `excluded_reason`, `nu_error` = nu - nu_true, and
     (if the calibration's per-curve `fits` are given) `nu_law`, `nu_law_error`."""
@@ -42,7 +47,7 @@ def reconstruct(results, calibration, fits=None):
     return out
 
 
-def summarise(recon):
+def summarise(recon: pd.DataFrame) -> list[dict[str, Any]]:
     """Per bending variant: curves, excluded, the largest |ν error| of the
     included curves (and of `nu_law`), as a list of dicts."""
     rows = []

@@ -1,7 +1,7 @@
 """Inversion by the emulator (SPEC 9): per cell, K_B and K̃_S from the measured
 K(h̃), γ_a measured.
 
-Model of cell i at its used heights j (`analysis.inversion.used_heights`):
+Model of cell i at its used heights j (`analysis.invert.inversion.used_heights`):
 
     K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.emulator`)
 
@@ -17,38 +17,51 @@ point K_B = Σ K f / Σ f² (f at γ_a/K_B, three sweeps); the best of them.
 Bounds: K̃_S within the emulator's grid widened by KS_MARGIN on both sides;
 a fit at a bound is excluded (the answer lies beyond the tabulated ν).
 Then ν = (1 - K̃_S)/(1 + K̃_S), R² = 1 - SS_res/SS_tot over the used heights,
-and the published filters (`analysis.inversion.exclusions`). `outside_emulator`
+and the published filters (`analysis.invert.inversion.exclusions`). `outside_emulator`
 flags a fit whose K̃_S, γ̃_a, heights or volume leave the tabulated grid (the
 spline extrapolates there); `nu_beyond_isotropic` flags ν > 0.5, the limit of
 an isotropic 3-D material (reported as it is).
 """
 
-from collections import namedtuple
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
 
-from analysis.inversion import exclusions, used_heights
+from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
+
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25
 NU_ISOTROPIC_MAX = 0.5
 
 
-# Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
-# γ_a (mN/m) and V (µm³) per cell.
-Curves = namedtuple("Curves", "h k use tension volume")
+class Curves(NamedTuple):
+    """Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
+    γ_a (mN/m) and V (µm³) per cell."""
+
+    h: Any
+    k: Any
+    use: Any
+    tension: Any
+    volume: Any
 
 
-def ks_bounds(emulator, bending):
+def ks_bounds(emulator: Emulator, bending: str) -> tuple[float, float]:
+    """The fit's bounds of ln K̃_S: the emulator's grid widened by KS_MARGIN."""
     lo, hi = emulator.domain(bending)["ks_tilde"]
     return np.log(lo / KS_MARGIN), np.log(hi * KS_MARGIN)
 
 
-def filled_heights(h, use):
+def filled_heights(h: npt.ArrayLike, use: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """h̃ with unused entries replaced by a harmless value (they are masked out)."""
     return np.where(use, h, 0.6)
 
@@ -75,7 +88,9 @@ def _start(emulator, bending, curves):
     return best
 
 
-def model(emulator, bending, theta, h, tension, volume):
+def model(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], h: npt.ArrayLike,
+          tension: npt.NDArray[np.float64],
+          volume: npt.NDArray[np.float64]) -> tuple[Any, Any, Any]:
     """K (mN/m) and its derivatives by (ln K_B, ln K̃_S), for θ of shape (cells, 2)."""
     bulk, ks = np.exp(theta[:, 0])[:, None], np.exp(theta[:, 1])[:, None]
     lr, d_ks, d_g = emulator.grad_log(h, ks, tension[:, None] / bulk, volume[:, None], bending)
@@ -83,7 +98,7 @@ def model(emulator, bending, theta, h, tension, volume):
     return K, K * (1.0 - d_g), K * d_ks
 
 
-def fit(emulator, bending, curves):
+def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.float64]:
     """θ = (ln K_B, ln K̃_S) per cell (rows of `Curves`), least squares over all
     cells at once. Cells without usable heights get NaN."""
     h, k, use, tension, volume = curves
@@ -118,17 +133,19 @@ def fit(emulator, bending, curves):
     return theta
 
 
-def invert_curves_emulator(h_tilde, modulus, tension, volume, emulator, bending="standard"):
+def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike,
+                           volume: npt.ArrayLike, emulator: Emulator,
+                           bending: str = "standard") -> pd.DataFrame:
     """Invert many cells (rows of NaN-padded (cells, heights) arrays; `tension` γ_a
     and `volume` V per cell). Returns a DataFrame with the columns of
-    `analysis.inversion.invert_curves` (α is NaN: the emulator has none) plus
+    `analysis.invert.inversion.invert_curves` (α is NaN: the emulator has none) plus
     `outside_emulator`, `nu_beyond_isotropic`, `rms_mN_per_m`."""
     h = np.atleast_2d(np.asarray(h_tilde, float))
     k = np.atleast_2d(np.asarray(modulus, float))
     tension = np.broadcast_to(np.asarray(tension, float), h.shape[:1]).copy()
     volume = np.broadcast_to(np.asarray(volume, float), h.shape[:1]).copy()
     use, n, top = used_heights(h, k)
-    use &= (tension > 0)[:, None] & (volume > 0)[:, None]
+    use &= (tension > 0)[:, None]
     curves = Curves(h, k, use, tension, volume)
     theta = fit(emulator, bending, curves)
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])

@@ -1,4 +1,4 @@
-"""report.md of `cortex analysis calibrate` (`analysis.calibrate_pipeline`), as text.
+"""report.md of `cortex analysis calibrate` (`analysis.calibrate.pipeline`), as text.
 
 One function per section: the header (what was used and left out), the
 calibration laws (SPEC 4) with the goodness of every fitting stage and the α
@@ -8,15 +8,20 @@ study (SPEC 5), then the figures. Tables are Markdown; numbers go through
 `_fmt` (4 significant digits unless told, '-' for missing or non-finite).
 """
 
+from __future__ import annotations
+
 import time
 from importlib.metadata import version
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pandas as pd
 
-from analysis.figures import ORDER
+from analysis.calibrate.figures import ORDER
 
 
-def solver_checks(done):
+def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
     """Per variant: the largest volume error and the droplet-vs-shell area-increase deviation."""
     rows = []
     for bending, g in done.groupby("bending", sort=False):
@@ -162,8 +167,8 @@ def _montecarlo(mc_records):
                      f"{_fmt(r['pooled_median'], 3)} / {_fmt(r['pooled_iqr'], 3)}"] for r in mc_records]), ""]
 
 
-def render(inputs, result, checks, figs):
-    """report.md as text: `inputs` and `result` of `analysis.calibrate_pipeline`
+def render(inputs: Any, result: Any, checks: list[dict[str, Any]], figs: list[Path]) -> str:
+    """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration
     variants = [v for v in ORDER if v in cal.laws] + [v for v in cal.laws if v not in ORDER]

@@ -18,12 +18,17 @@ short text; ν and the fit are reported even for excluded cells where they
 could be computed.
 """
 
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import pandas as pd
 
-from analysis.calibration import Calibration
+from analysis.calibration import Calibration, Law
 from analysis.laws import fit_bulk_alpha
 from solver.elasticity import poisson_of_ratio
 
@@ -49,25 +54,27 @@ class CellInversion:
     excluded_reason: str | None
 
     @property
-    def excluded(self):
+    def excluded(self) -> bool:
         return self.excluded_reason is not None
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def _law(calibration, bending):
+def _law(calibration: Calibration | Law, bending: str) -> Law:
     return calibration[bending] if isinstance(calibration, Calibration) else calibration
 
 
-def used_heights(h, k):
+def used_heights(h: npt.NDArray[np.float64], k: npt.NDArray[np.float64]) -> tuple[Any, Any, Any]:
     """Mask of the heights an inversion uses (finite, H_TILDE_MIN ≤ h̃ ≤ H_TILDE_MAX),
     their count and the highest of them (-inf where none), per row."""
     use = np.isfinite(h) & np.isfinite(k) & (h >= H_TILDE_MIN) & (h <= H_TILDE_MAX)
     return use, use.sum(axis=1), np.where(use, h, -np.inf).max(axis=1)
 
 
-def exclusions(n, top, *, bulk, tension, nu, r2, extra=()):
+def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[Any], tension: npt.NDArray[Any],
+               nu: npt.NDArray[Any], r2: npt.NDArray[Any],
+               extra: Iterable[tuple[Any, Callable[[int], str]]] = ()) -> npt.NDArray[np.object_]:
     """The published filters (module docstring) as one reason per cell (None: passes),
     the first that applies; `extra`: (mask, reason(i)) checks of the method,
     applied before the R² filter."""
@@ -89,7 +96,9 @@ def exclusions(n, top, *, bulk, tension, nu, r2, extra=()):
     return reasons
 
 
-def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
+def invert_curves(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: npt.ArrayLike,
+                  calibration: Calibration | Law,
+                  bending: str = "standard") -> pd.DataFrame:
     """Invert many cells: `h_tilde`, `modulus` (mN/m) of shape (cells, heights),
     NaN where a cell has no value; `tension` γ_a (mN/m) of shape (cells,).
     `calibration`: a `Calibration` (then `bending` picks the variant) or one
@@ -114,7 +123,8 @@ def invert_curves(h_tilde, modulus, tension, calibration, bending="standard"):
                          "excluded_reason": pd.Series(reasons, dtype=object)})
 
 
-def invert_cell(h_tilde, modulus, tension, calibration, bending="standard"):
+def invert_cell(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tension: float, calibration: Calibration | Law,
+                bending: str = "standard") -> CellInversion:
     """Invert one cell: moduli K (mN/m) at heights h̃, active tension γ_a (mN/m).
 
     Returns a `CellInversion` (ν, K̃_S, K_B, α, R², ..., excluded_reason)."""
@@ -130,7 +140,8 @@ def invert_cell(h_tilde, modulus, tension, calibration, bending="standard"):
                          excluded_reason=None if pd.isna(row.excluded_reason) else str(row.excluded_reason))
 
 
-def to_curves(frame, by, columns=("h_tilde", "modulus_mN_per_m")):
+def to_curves(frame: pd.DataFrame, by: Sequence[str], columns: Sequence[str] = ("h_tilde", "modulus_mN_per_m")
+              ) -> tuple[pd.DataFrame, dict[str, npt.NDArray[np.float64]]]:
     """Long rows (one per height) to curves: returns (keys, arrays) where `keys`
     is a DataFrame with one row per distinct `by` (sorted) and `arrays[col]`
     has shape (len(keys), most heights), rows sorted by h̃, NaN-padded."""

@@ -3,7 +3,7 @@
 The cell's volume, from imaging, has a relative SD σ_V = 7.5 %; the height of
 the gap, from the cantilever's wedge and the dish reference, an SD σ_h =
 0.5 µm; intervals are at the 95 % level. The oscillation analysis
-(`analysis.intervals`) and the tension analysis (`analysis.afm.tension.pause`) draw
+(`analysis.invert.intervals`) and the tension analysis (`analysis.afm.tension.pause`) draw
 from the same model; this module imports nothing, so a command that needs
 only these numbers loads nothing more.
 """

@@ -4,9 +4,12 @@ CSV with a header; columns `cell_id, h_tilde, modulus_mN_per_m, tension_mN_per_m
 (required) and `frequency_hz`, `volume_um3` (optional), one row per cell (and
 frequency) and height. Every value must be a finite number (cell_id: any
 text), h̃ in (0, 1), the modulus finite, tension and volume > 0. Anything else
-is an InputError naming the file, the line and the column.
+is an InputError naming the file, the line and the column. This is where a
+table's cell volumes are checked, and where a table without `volume_um3` gets
+its one default, `DEFAULT_VOLUME_UM3` (4300 µm³, docs/emulator.md).
 """
 
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +20,12 @@ from common.errors import InputError
 REQUIRED = ("cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m")
 OPTIONAL = ("frequency_hz", "volume_um3")
 POSITIVE = ("tension_mN_per_m", "volume_um3", "frequency_hz")
+DEFAULT_VOLUME_UM3 = 4300.0         # a cell's volume where the table gives none
 
 
-def read_table(path):
-    """The rows of `path` as a DataFrame (InputError, one line, if malformed)."""
+def read_table(path: str | PathLike[str]) -> pd.DataFrame:
+    """The rows of `path` as a DataFrame with a `volume_um3` column (InputError, one line,
+    if malformed)."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a table")
@@ -55,4 +60,5 @@ def read_table(path):
                 else "a finite number"
             raise InputError(f"{path}: line {i + 2}: {col} must be {want} (got {frame[col].iloc[i]!r})")
         frame[col] = values.astype(float)
-    return frame[[c for c in REQUIRED + OPTIONAL if c in frame.columns]]
+    frame = frame[[c for c in REQUIRED + OPTIONAL if c in frame.columns]]
+    return frame if "volume_um3" in frame else frame.assign(volume_um3=DEFAULT_VOLUME_UM3)

@@ -8,7 +8,7 @@ The three stages are one function each, and the data passes through them once:
     fit(inputs, say)            calibration (SPEC 4), reconstruction check, Monte-Carlo
                                 study (SPEC 5), all in memory;
     write(out, inputs, result)  the tables, the figures and report.md
-                                (`analysis.calibrate_report`) into DIR.
+                                (`analysis.calibrate.report`) into DIR.
 
 Nothing is written before the input is checked and fitted. DIR gets:
 
@@ -25,11 +25,16 @@ Nothing is written before the input is checked and fitted. DIR gets:
                               replaces only them; someone else's folder is refused
 """
 
+from __future__ import annotations
+
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -48,7 +53,7 @@ class Inputs:
     store: Path
     done: pd.DataFrame
     trials: pd.DataFrame | None
-    left_out: list = field(default_factory=list)
+    left_out: list[str] = field(default_factory=list)
     failed: pd.DataFrame | None = None
 
 
@@ -56,17 +61,17 @@ class Inputs:
 class Fitted:
     """What `fit` computed; the Monte-Carlo parts are None without trials."""
 
-    calibration: object
+    calibration: cal_mod.Calibration
     fits: pd.DataFrame
     loglaw: pd.DataFrame
     recon: pd.DataFrame
-    recon_summary: list
-    mc_records: list | None = None
+    recon_summary: list[dict[str, Any]]
+    mc_records: list[dict[str, Any]] | None = None
     studies: pd.DataFrame | None = None
     cells: pd.DataFrame | None = None
 
 
-def read_store(path):
+def read_store(path: str | PathLike[str]) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """(results, trials) DataFrames of a campaign store, via `campaign.store.reader`."""
     try:
         from campaign.store import reader
@@ -98,7 +103,7 @@ def _missing(frame, unit, id_column):
     return int(counts.sum()), int(len(states)), f"{int(counts.sum())} of {len(states)} {unit} not done ({text})"
 
 
-def read(store, partial=False):
+def read(store: Path, partial: bool = False) -> Inputs:
     """The store's usable compressions and trials as `Inputs`; InputError for
     a missing, unreadable or (unless `partial`) unfinished store."""
     results, trials = read_store(store)      # no output before the input is checked
@@ -124,12 +129,12 @@ def read(store, partial=False):
                   failed=results[results["state"] == "failed"])
 
 
-def fit(inputs, say, marks):
+def fit(inputs: Inputs, say: Callable[[str], None], marks: list[tuple[str, float]]) -> Fitted:
     """Calibration, reconstruction check and Monte-Carlo study of `inputs` as
     `Fitted` (bad data is refused here, before any output); adds to
     inputs.left_out what could not be used and to `marks` the stage times."""
-    from analysis import montecarlo as mc_mod
-    from analysis import reconstruction as rec_mod
+    from analysis.calibrate import montecarlo as mc_mod
+    from analysis.calibrate import reconstruction as rec_mod
 
     done, trials, left_out = inputs.done, inputs.trials, inputs.left_out
     calibration, fits, loglaw = cal_mod.calibrate(done)
@@ -168,7 +173,7 @@ def _tables(result):
 
 def _figures(done, result, out):
     """The figures' paths (PNG; a PDF beside each)."""
-    from analysis import figures
+    from analysis.calibrate import figures
     cal = result.calibration
     figs = [figures.modulus_curves(done, cal, result.fits, out)[0],
             figures.alpha_law(cal, result.fits, out)[0],
@@ -180,10 +185,10 @@ def _figures(done, result, out):
     return figs
 
 
-def write(out, inputs, result, say):
+def write(out: OutputDir, inputs: Inputs, result: Fitted, say: Callable[[str], None]) -> Path:
     """Write every output of the module docstring into the `OutputDir` out;
     returns the report's path."""
-    from analysis.calibrate_report import render, solver_checks
+    from analysis.calibrate.report import render, solver_checks
 
     say(f"writing {out.path}/")
     tables = _tables(result)
@@ -204,19 +209,20 @@ def write(out, inputs, result, say):
     return path
 
 
-def run(store, out, partial=False, progress=None):
+def run(store: str | PathLike[str], out: str | PathLike[str], partial: bool = False,
+        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """The whole analysis (read -> fit -> write); returns a dict of the headline numbers."""
     start = time.perf_counter()
     say = progress or _progress(start)
-    store, out = Path(store), Path(out)
+    store = Path(store)
     if not store.exists():
         raise InputError(f"{store}: no such store")
-    out = OutputDir(out)              # refused now if not ours (a file, someone else's folder)
+    folder = OutputDir(Path(out))     # refused now if not ours (a file, someone else's folder)
     marks = [("start", time.perf_counter())]
     inputs = read(store, partial)
     marks.append(("read_s", time.perf_counter()))
     result = fit(inputs, say, marks)
-    path = write(out, inputs, result, say)
+    path = write(folder, inputs, result, say)
     marks.append(("figures_report_s", time.perf_counter()))
     timings = {name: round(t - t0, 3) for (_, t0), (name, t) in zip(marks, marks[1:])}
     left_out = inputs.left_out

@@ -3,7 +3,7 @@ height errors put into the recovered Poisson ratios?
 
 Each trial is one simulated cell of true ν whose K(h̃) curve was computed
 with an erroneous volume and erroneous heights. It is inverted exactly as a
-measured cell (`analysis.inversion.invert_curves`) with its bending variant's
+measured cell (`analysis.invert.inversion.invert_curves`) with its bending variant's
 calibration and γ_a = the mean over its heights of `tension_seen` (the active
 tension an experimenter would infer at rest with the erroneous geometry).
 Excluded cells (the filters of SPEC 6) are left out of the statistics and
@@ -21,16 +21,21 @@ recovered ν of its included cells. Over the repetitions:
 - `pooled_median`, `pooled_iqr`: over all included cells of all studies.
 """
 
+from __future__ import annotations
+
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
-from analysis.inversion import invert_curves, to_curves
+from analysis.calibration import Calibration
+from analysis.invert.inversion import invert_curves, to_curves
 
 KEYS = ["bending", "nu_true", "height_error_mode", "study", "cell", "trial_id"]
 GROUP = ["bending", "nu_true", "height_error_mode"]
 
 
-def invert_trials(trials, calibration):
+def invert_trials(trials: pd.DataFrame, calibration: Calibration) -> pd.DataFrame:
     """One row per trial: its keys, γ_a used, and the inversion's fields."""
     done = trials[trials["state"] == "done"] if "state" in trials else trials
     keys, arr = to_curves(done, KEYS, ("h_tilde", "modulus_mN_per_m", "tension_seen_mN_per_m"))
@@ -52,7 +57,7 @@ def _iqr(x):
     return q75 - q25
 
 
-def per_study(cells):
+def per_study(cells: pd.DataFrame) -> pd.DataFrame:
     """Median, IQR and counts of recovered ν per study."""
     cells = cells.assign(included=cells["excluded_reason"].isna())
     rows = []
@@ -64,7 +69,7 @@ def per_study(cells):
     return pd.DataFrame(rows)
 
 
-def summarise(cells):
+def summarise(cells: pd.DataFrame) -> tuple[list[dict[str, Any]], pd.DataFrame]:
     """The `montecarlo.json` records (see the module docstring), one per
     (bending, true ν, height-error mode), and the per-study table."""
     studies = per_study(cells)
@@ -88,7 +93,8 @@ def summarise(cells):
     return out, studies
 
 
-def montecarlo(trials, calibration):
+def montecarlo(trials: pd.DataFrame, calibration: Calibration
+               ) -> tuple[list[dict[str, Any]], pd.DataFrame, pd.DataFrame]:
     """Invert every trial and summarise: (records, per-study DataFrame, per-cell DataFrame)."""
     cells = invert_trials(trials, calibration)
     records, studies = summarise(cells)

@@ -32,24 +32,57 @@ so ĝ and Â are tabulated once (`solver.geometry.droplet` at R_cell = 1 on a fi
 h̃ grid, cubic splines) and every draw costs array arithmetic only.
 
 Per frequency: the median ν of the included cells with a percentile bootstrap
-95 % interval (`scipy.stats.bootstrap`, cells resampled).
+95 % interval (`scipy.stats.bootstrap`, cells resampled; `median_table`).
+
+`Errors` is what an interval includes: the measurement errors (defaults: the
+published ones) and the draws.
 """
 
+from __future__ import annotations
+
+from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+import pandas as pd
 from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
-from analysis.emulator_fit import Curves, filled_heights, ks_bounds
-from analysis.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
+from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
+from common.errors import InputError
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
+
+if TYPE_CHECKING:
+    from analysis.emulator import Emulator
 
 DRAWS = 100
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
+
+
+@dataclass
+class Errors:
+    """The measurement errors an interval includes (defaults: the published ones)."""
+
+    volume_rel_sd: float = VOLUME_SD
+    height_sd_um: float = HEIGHT_SD_UM
+    draws: int = DRAWS
+    seed: int = 0
+
+    def check(self) -> Errors:
+        """Itself, or InputError (one line) for an impossible error or draw count."""
+        if not (0 <= self.volume_rel_sd < 0.5):
+            raise InputError(f"--volume-sd must be in [0, 0.5) (got {self.volume_rel_sd:g})")
+        if not (0 <= self.height_sd_um < 5):
+            raise InputError(f"--height-sd must be in [0, 5) um (got {self.height_sd_um:g})")
+        if not (10 <= self.draws <= 100_000):
+            raise InputError(f"--draws must be in 10..100000 (got {self.draws})")
+        return self
 
 
 @lru_cache(maxsize=1)
@@ -110,11 +143,12 @@ droplet_shape = _shape
 truth_moduli = _truth_moduli
 
 
-def cell_intervals(emulator, bending, theta, curves, rms, *, draws=DRAWS,
-                   volume_sd=VOLUME_SD, height_sd_um=HEIGHT_SD_UM, dh_um=DH_UM, seed=0,
-                   steps=GN_STEPS):
+def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+                   rms: npt.NDArray[np.float64], *, draws: int = DRAWS,
+                   volume_sd: float = VOLUME_SD, height_sd_um: float = HEIGHT_SD_UM, dh_um: float = DH_UM,
+                   seed: int = 0, steps: int = GN_STEPS) -> tuple[Any, Any, Any, Any]:
     """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (rows of `curves`, an
-    `analysis.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
+    `analysis.invert.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
     NaN where θ is not finite)."""
     h, k, use, tension, volume = curves
     n_cells, m = h.shape
@@ -170,10 +204,10 @@ def _gauss_newton(table, x, curves, *, steps, bounds):
     return x
 
 
-def median_interval(nu, resamples=2000, seed=0):
-    """(median, lo, hi): the median of `nu` (finite values) and its percentile
+def median_interval(values: npt.ArrayLike, resamples: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """(median, lo, hi): the median of ν (`values`, finite ones) and its percentile
     bootstrap 95 % interval; NaN ends with fewer than 2 values."""
-    nu = np.asarray(nu, float)
+    nu = np.asarray(values, float)
     nu = nu[np.isfinite(nu)]
     if nu.size == 0:
         return float("nan"), float("nan"), float("nan")
@@ -182,3 +216,16 @@ def median_interval(nu, resamples=2000, seed=0):
     res = bootstrap((nu,), np.median, confidence_level=LEVEL, n_resamples=resamples, method="percentile",
                     random_state=np.random.default_rng(seed), vectorized=True)
     return float(np.median(nu)), float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def median_table(table: pd.DataFrame) -> list[dict[str, Any]]:
+    """Per frequency: included cells, median ν and its bootstrap 95 % interval."""
+    rows = []
+    ok = table[table["excluded_reason"].isna()]
+    for f, g in table.groupby(table["frequency_hz"].fillna(-1.0), sort=True):
+        nu = ok.loc[ok.index.isin(g.index), "nu"].to_numpy(float)
+        med, lo, hi = median_interval(nu)
+        rows.append({"frequency_hz": float(f) if f >= 0 else None, "n_cells": int(nu.size),
+                     "n_excluded": int(len(g) - nu.size), "median_nu": med, "median_nu_lo95": lo,
+                     "median_nu_hi95": hi})
+    return rows

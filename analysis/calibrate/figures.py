@@ -12,11 +12,21 @@ each), units on every axis.
   mode), and the per-study medians over all repetitions.
 """
 
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+if TYPE_CHECKING:
+    from analysis.calibration import Calibration
+    from outputs.ownership import OutputDir
 
 ORDER = ("standard", "double", "none")
 H_LABEL = "h~ = h / (2 R_cell)  [dimensionless]"
@@ -53,7 +63,7 @@ def _middle(values):
     return values[(len(values) - 1) // 2]
 
 
-def modulus_curves(results, calibration, fits, out):
+def modulus_curves(results: pd.DataFrame, calibration: Calibration, fits: pd.DataFrame, out: OutputDir) -> list[Path]:
     variants = _variants(results["bending"])
     fig, axes = _panels(len(variants))
     for ax, bending in zip(axes, variants):
@@ -79,7 +89,7 @@ def modulus_curves(results, calibration, fits, out):
     return _save(fig, out, "modulus_vs_height")
 
 
-def alpha_law(calibration, fits, out):
+def alpha_law(calibration: Calibration, fits: pd.DataFrame, out: OutputDir) -> list[Path]:
     variants = _variants(fits["bending"])
     fig, axes = _panels(len(variants))
     for ax, bending in zip(axes, variants):
@@ -99,7 +109,7 @@ def alpha_law(calibration, fits, out):
     return _save(fig, out, "alpha_vs_shear")
 
 
-def reconstruction(recon, out):
+def reconstruction(recon: pd.DataFrame, out: OutputDir) -> list[Path]:
     variants = _variants(recon["bending"])
     fig, axes = _panels(len(variants), height=3.8)
     for ax, bending in zip(axes, variants):
@@ -119,7 +129,7 @@ def reconstruction(recon, out):
     return _save(fig, out, "reconstruction")
 
 
-def equator_shear(results, out):
+def equator_shear(results: pd.DataFrame, out: OutputDir) -> list[Path]:
     variants = _variants(results["bending"])
     fig, axes = _panels(len(variants))
     for ax, bending in zip(axes, variants):
@@ -137,7 +147,7 @@ def equator_shear(results, out):
     return _save(fig, out, "equator_shear_ratio")
 
 
-def montecarlo_boxes(cells, studies, out):
+def montecarlo_boxes(cells: pd.DataFrame, studies: pd.DataFrame, out: OutputDir) -> list[Path]:
     variants = _variants(cells["bending"])
     fig, axes = plt.subplots(2, len(variants), figsize=(6.0 * len(variants), 7.0), squeeze=False,
                              constrained_layout=True)
