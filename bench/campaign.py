@@ -29,6 +29,7 @@ The machine is shared: timings noisy.
 
 import argparse
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -36,6 +37,10 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(1, str(ROOT / "tests"))
+import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
+
+os.environ.update(faults.environment())
 MPIO = ROOT / ".venv-mpio" / "bin"
 BIN = pathlib.Path(sys.executable).parent
 N_NOOP = 10_000

@@ -28,6 +28,10 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(1, str(ROOT / "tests"))
+import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
+
+os.environ.update(faults.environment())
 BIN = pathlib.Path(sys.executable).parent
 NOOP = """
 [campaign]

@@ -32,6 +32,7 @@ is not what the model is about and drowned the difference of two runs
 
 import argparse
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -44,6 +45,10 @@ sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 from campaign.store.reader import summary  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(1, str(ROOT / "tests"))
+import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
+
+os.environ.update(faults.environment())
 BIN = pathlib.Path(sys.executable).parent
 CAMPAIGN = """
 [campaign]

@@ -13,6 +13,7 @@ second of its median time.
 
 import argparse
 import json
+import os
 import pathlib
 import sys
 import time
@@ -23,10 +24,14 @@ sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 import numpy as np
 
 from campaign import config
-from campaign.faults import fake_law as _fake_law
 from campaign.trials import run_study
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(1, str(ROOT / "tests"))
+import faults  # noqa: E402  (the test suite's [test] section: the made-up law; installed for every process started)
+
+os.environ.update(faults.environment())
+_fake_law = faults.fake_law
 
 
 def main():

@@ -25,17 +25,10 @@
                 values a model cell draws from, default all of the grid's),
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
-    [test]      for tests only (`campaign.faults`): raise_task, hang_task,
-                nan_task, segv_task, spin_task, memory_task (grid indices whose
-                task raises, sleeps past its timeout, returns NaN instead of
-                being solved, crashes its process, spins in compiled code, or
-                asks for 1 TB); noop = true
-                (every task returns zeros at once: throughput benchmark);
-                fake_law = true (every compression returns at once the force
-                of a made-up smooth law K(h̃): tests of trials and analysis);
-                compression_sleep_s, trial_sleep_s (every compression / trial
-                task first sleeps that many seconds of wall time, using no
-                CPU, so a test can interrupt a run that is surely still going)
+    [test]      for the test suite only: read by the module the environment
+                variable CORTEX_TASK_HOOKS names (`campaign.task_hooks`; the
+                suite's `tests/faults.py`: injected faults, no-op tasks, a
+                made-up law, sleeps); refused (exit status 2) without it
 
 The grid is the Cartesian product of the lists (`campaign.grid.Grid`, whose
 shells are made when asked for). Every compression is checked with
@@ -61,7 +54,7 @@ import tomllib
 from dataclasses import dataclass
 from functools import cached_property
 
-from campaign import faults
+from campaign import task_hooks
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
 from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
@@ -77,7 +70,7 @@ SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) |
             "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
-            "test": faults.KEYS}
+            "test": None}       # its keys: the hooks' module's to check (`campaign.task_hooks`)
 MC_DEFAULTS = {"cells": 55, "studies": 100, "volume_error_rel_sd": 0.075, "height_error_sd_um": 0.5,
                "height_error_mode": list(MODES), "seed": 0}
 
@@ -91,7 +84,7 @@ class Campaign:
     timeout_s: float
     shells: Grid           # every compression, in grid order (made when asked for)
     text: str              # the file's text, kept in the store
-    test: faults.Knobs = faults.Knobs()   # the [test] section (tests only)
+    test: task_hooks.TaskHooks | None = None   # the [test] section (the test suite's only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
     trial_cells: int = 0   # N, cells per study
     memory_limit_mb: float | None = None   # per task process; None: the node's share (`campaign.isolation`)
@@ -144,7 +137,7 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     limit = _max_tasks(path, meta)
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
-    test = faults.parse(path, data.get("test", {}), len(shells))
+    test = task_hooks.parse(path, data["test"], len(shells)) if "test" in data else None
     mc = data.get("montecarlo")
     _check_montecarlo_grid(path, mc, grid, ratios)
     studies = _studies(path, {**MC_DEFAULTS, **mc}, axes, shells, limit) if mc is not None else ()
@@ -171,7 +164,8 @@ def _read_toml(path):
             raise InputError(f"{path}: unknown section [{section}] (known: {', '.join(SECTIONS)})")
         if not isinstance(value, dict):
             raise InputError(f"{path}: {section} must be a table [{section}]")
-        unknown = set(value) - SECTIONS[section]
+        allowed = SECTIONS[section]
+        unknown = set(value) - allowed if allowed is not None else set()
         if unknown:
             raise InputError(f"{path}: unknown key {sorted(unknown)[0]!r} in [{section}]")
     return raw, data

@@ -24,27 +24,40 @@ with the rest of its batch.
 How it is started: `cortex campaign run` forks it once the campaign file is
 read and before MPI is loaded (`start_early`): it costs no start-up, and its
 warm-up (numba's loads from the on-disk cache) runs while the rank loads MPI
-and opens the store. Forking after MPI_Init is unsafe (MPICH's state, memory
+and opens the store. Rank 0 of a run with workers is the exception: its task
+process waits, importing nothing, until rank 0 has opened the store and
+starts it (`campaign.scheduler`), then warms up while rank 0 serves; so the
+store and the workers' warm-ups have the cores first, as without task
+processes (three warm-ups at once on two cores delayed the workers' first
+tasks). Forking after MPI_Init is unsafe (MPICH's state, memory
 registered with the network), so a restart after a crash, or a scheduler
 called where MPI is loaded already, starts a fresh interpreter by exec
 instead (`python -m campaign.task_process`: about a second of imports and
 loads, paid only then).
 """
 
+import gc
 import math
 import os
 import pickle
+import select
 import signal
 import socket
 import subprocess
 import sys
 import time
 from multiprocessing.connection import Connection
+from typing import TYPE_CHECKING, Any
 
 from campaign.task_process import READY, Slot
 
+if TYPE_CHECKING:
+    from campaign.config import Campaign
+
+Item = tuple[int, Any, int]    # a task of a batch: (task, payload, attempts)
+
 GRACE_S = 2.0           # s: past timeout_s, the grace before a task that does not answer is killed
-_early: dict = {}       # the task process `start_early` started, taken by the first `Isolated`
+_early: dict[str, Any] = {}   # the task process `start_early` started, taken by the first `Isolated`
 
 
 def memory_share_mb() -> float:
@@ -74,19 +87,21 @@ def _spawn():
     return proc, Connection(ours.detach()), slot, False
 
 
-def _fork(campaign):
+def _fork(campaign, eager=True):
     """(process, connection, slot, True): a task process forked from this
-    one, which holds `campaign` already (only before MPI is loaded)."""
+    one, which holds `campaign` already (only before MPI is loaded); `eager`:
+    it imports the solver at once, else when its rank starts it (`Isolated`)."""
     from campaign import task_process
     ours, theirs = socket.socketpair()
     slot, parent = Slot.create(), os.getpid()
-    pid = os.fork()
+    gc.freeze()       # what both processes hold, out of the collector's sight: a collection in either
+    pid = os.fork()   # would write to every object's header, copying the pages they share
     if pid == 0:                      # the task process
         status = 1
         try:
             os.setsid()
             ours.close()
-            task_process.run(Connection(theirs.detach()), slot, parent, campaign)
+            task_process.run(Connection(theirs.detach()), slot, parent, campaign, eager)
             status = 0
         except BaseException:         # a bug here, said as an exec'd process would say it
             import traceback
@@ -111,14 +126,15 @@ class _Forked:
         return self.returncode
 
     def wait(self, timeout=None):
-        deadline = None if timeout is None else time.monotonic() + timeout
-        while self.returncode is None:
-            if deadline is None:
-                self.returncode = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
-            elif self.poll() is None:
-                if time.monotonic() > deadline:
+        if self.returncode is None and timeout is not None:
+            fd = os.pidfd_open(self.pid)      # readable once the process has ended
+            try:
+                if not select.select([fd], [], [], timeout)[0]:
                     raise subprocess.TimeoutExpired(f"task process {self.pid}", timeout)
-                time.sleep(0.01)
+            finally:
+                os.close(fd)
+        if self.returncode is None:
+            self.returncode = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
         return self.returncode
 
     def kill(self):
@@ -126,15 +142,37 @@ class _Forked:
             os.kill(self.pid, signal.SIGKILL)
 
 
-def start_early(campaign):
+def start_early(campaign: "Campaign") -> None:
     """Start this process's task process now, for the first `Isolated` of
     `campaign` to take: forked (no start-up to pay: it has what this process
     imported) if MPI is not loaded yet, else started by exec."""
     if not _early:
-        _early["spawned"] = _spawn() if "mpi4py.MPI" in sys.modules else _fork(campaign)
+        _early["spawned"] = _spawn() if "mpi4py.MPI" in sys.modules else _fork(campaign, not _serving_rank())
 
 
-def signal_name(returncode):
+def discard_early() -> None:
+    """The task process `start_early` started, if no `Isolated` took it: told to stop and reaped."""
+    spawned = _early.pop("spawned", None)
+    if spawned is not None:
+        proc, conn, slot, _ = spawned
+        conn.close()
+        proc.wait()
+        slot.close()
+
+
+def _serving_rank():
+    """Whether this process is rank 0 of a run with other ranks, as the MPI
+    launcher's environment says (MPICH's PMI_*, Open MPI's OMPI_COMM_WORLD_*).
+    Its task process then waits to warm up until the rank has opened the
+    store (`campaign.scheduler`), so the two cores go to the store and the
+    workers' warm-ups first, as they would without task processes."""
+    for rank, size in (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")):
+        if os.environ.get(rank) == "0":
+            return os.environ.get(size, "1") != "1"
+    return False
+
+
+def signal_name(returncode: int | None) -> str:
     """'SIGSEGV' for a process killed by signal 11 (returncode -11); 'status N' for an exit."""
     if returncode is not None and returncode < 0:
         try:
@@ -148,11 +186,13 @@ class Isolated:
     """Rank `rank`'s tasks of `campaign` computed in a watched task process
     (module docstring); `run(batch)` -> (entries, seconds computing)."""
 
-    def __init__(self, campaign, rank: int, memory_limit_mb: float | None = None, retries: int = 0):
+    def __init__(self, campaign: "Campaign", rank: int, memory_limit_mb: float | None = None, retries: int = 0):
         self.campaign, self.rank, self.retries = campaign, rank, retries
         self.memory_limit_mb = memory_limit_mb
         self.limit_s = campaign.timeout_s + GRACE_S
         self.warm = False
+        self.pending: list[Item] | None = None    # the batch `submit` handed out, until `collect`
+        self.sent = False
         self._start(_early.pop("spawned", None) or _spawn())
 
     def _start(self, spawned):
@@ -160,9 +200,10 @@ class Isolated:
         self.conn.send((None if forked else self.campaign, self.rank, self.memory_limit_mb))
         self.warm = False
 
-    def ready(self) -> bool:
-        """Whether the task process has warmed up (never waits)."""
-        if not self.warm and self.conn.poll(0):
+    def ready(self, wait_s: float = 0.0) -> bool:
+        """Whether the task process has warmed up, waiting at most `wait_s` for it
+        (woken at once when it answers, where a nap would sleep on)."""
+        if not self.warm and self.conn.poll(wait_s):
             self._take_ready()
         return self.warm
 
@@ -171,19 +212,52 @@ class Isolated:
             raise RuntimeError("task process: unexpected first message")
         self.warm = True
 
-    def run(self, batch):
+    def run(self, batch: list[Item]) -> tuple[list[dict[str, Any]], float]:
         """`run_pickled`, unpickled: (entries, seconds computing)."""
         return pickle.loads(self.run_pickled(batch))
 
-    def run_pickled(self, batch):
+    def submit(self, batch: list[Item]) -> None:
+        """Hand `batch` to the task process without waiting for it (`collect`
+        takes the answer): the rank does its own work meanwhile."""
+        self.pending, self.sent = list(batch), self._send(batch)
+
+    def _send(self, todo):
+        """Whether `todo` reached the task process (if not, it died: `_attempt` says how)."""
+        try:
+            if not self.warm:
+                self._take_ready()
+            self.conn.send(todo)
+            return True
+        except (EOFError, OSError):
+            return False
+
+    def busy(self) -> bool:
+        """Whether a batch handed out by `submit` is still to `collect`."""
+        return self.pending is not None
+
+    def answered(self, wait_s: float) -> bool:
+        """Whether `collect` would not wait (the answer is there, the process has
+        ended, or its task is past the limit), waiting at most `wait_s` for it."""
+        if self.conn.poll(wait_s):
+            return True
+        return time.monotonic() - self.slot.read()[1] > self.limit_s
+
+    def collect(self) -> tuple[list[dict[str, Any]], float]:
+        """`run` of the batch `submit` handed out: (entries, seconds computing)."""
+        batch, self.pending = self.pending or [], None
+        return pickle.loads(self.run_pickled(batch, self.sent))
+
+    def run_pickled(self, batch: list[Item], sent: bool = False) -> bytes:
         """Every task of `batch` (a list of (task, payload, attempts)) computed,
         as pickled bytes of (entries, seconds computing: the task process's
         own count, or the wall time of a batch that lost its process); a task
-        that crashed or did not answer is a failed entry (after its retries)."""
+        that crashed or did not answer is a failed entry (after its retries).
+        `sent`: the batch is with the task process already (`submit`)."""
         started, todo, outside = time.perf_counter(), list(batch), 0
         entries: list = []
         while todo:
-            raw, lost = self._attempt(todo)
+            raw, lost = self._attempt(todo, sent)
+            sent = False
             if lost is None:
                 if not entries:
                     return raw            # as the task process sent it: the common case
@@ -204,13 +278,13 @@ class Isolated:
                 todo = todo[:place] + todo[place + 1:]
         return pickle.dumps((entries, time.perf_counter() - started))
 
-    def _attempt(self, todo):
+    def _attempt(self, todo, sent=False):
         """(pickled (entries, seconds computing), None) if the task process computed all of `todo`, else
-        (None, (place of the task lost, why, when it started)) with the process started again."""
+        (None, (place of the task lost, why, when it started)) with the process started again.
+        `sent`: `todo` is with the task process already."""
         try:
-            if not self.warm:
-                self._take_ready()
-            self.conn.send(todo)
+            if not sent and not self._send(todo):
+                raise EOFError
             while not self.conn.poll(self._wait_s()):
                 place, started = self.slot.read()
                 if time.monotonic() - started > self.limit_s:
@@ -240,8 +314,15 @@ class Isolated:
         self._start(_spawn())
         return place, reason, when
 
-    def close(self):
-        """The task process told to stop (its pipe closed) and reaped."""
+    def close(self) -> None:
+        """The task process told to stop (its pipe closed) and reaped; one still
+        warming up (a run that ended before rank 0 needed it) is killed: it
+        holds nothing, and would answer only once warm."""
+        try:
+            if not self.ready():
+                self.proc.kill()
+        except (EOFError, OSError):       # it has ended already
+            pass
         self.conn.close()
         try:
             self.proc.wait(timeout=5.0)
@@ -251,6 +332,6 @@ class Isolated:
         self.slot.close()
 
 
-def batch_attempts(batch, task):
+def batch_attempts(batch: list[Item], task: int) -> int:
     """The attempts `task` was handed out with in `batch`."""
     return next(a for t, _, a in batch if t == task)

@@ -54,7 +54,7 @@ BATCH_MAX = 512           # tasks in one message at most
 GUIDE = 2                 # guided self-scheduling: a batch is at most 1/(GUIDE R) of what is queued
 MASTER_LOAD_MAX = 0.5     # serving should take at most this share of rank 0's time
 MASTER_WORKERS_MAX = 15   # ... and it serves at most this many workers
-MASTER_BATCH_S = 0.02     # s: the work rank 0 takes at once between messages (workers hold a batch ahead)
+MASTER_BATCH_S = 0.04     # s: the work rank 0 takes at once between messages (workers hold a batch ahead)
 SMOOTHING = 0.2           # weight of the newest measurement in the running means
 
 

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 from campaign.policy import Policy, master_may_compute
 from campaign.progress import Progress
 from campaign.signals import stop as _stop
-from campaign import faults
+from campaign import isolation, task_hooks
 from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 from campaign.isolation import Isolated, memory_share_mb
 from campaign.task_key import COMPRESSION, is_compression
@@ -54,6 +54,7 @@ if TYPE_CHECKING:
 
 TAG_TASK, TAG_RESULT, TAG_STOP, TAG_WRITE = 1, 2, 3, 4
 FLUSH_S = 2.0           # s: rank 0's own results are flushed at least this often
+ANSWER_S = 0.002        # s: rank 0's longest wait for its task process's answer before it serves again
 IDLE_S = 0.0002         # s: rank 0's nap while it waits for results and computes nothing (a batch of
                         # 512 no-op tasks is ~2.6 ms of work: naps of 1 ms left the worker waiting for its next)
 SPIN_POLLS = 100        # a waiting worker's polls before it naps between them ...
@@ -71,10 +72,13 @@ def run(campaign: "Campaign", store_path: str, new: bool = False, retry_failed: 
     thing in `cortex campaign run`)."""
     from mpi4py import MPI
     comm = MPI.COMM_WORLD
-    tasks = Isolated(campaign, comm.Get_rank(), campaign.memory_limit_mb or memory_share_mb(), campaign.retries)
+    serving = comm.Get_rank() == 0 and comm.Get_size() > 1     # its task process: once the store is open
+    tasks = None if serving else _isolated(campaign, comm.Get_rank())
     store, path, error = _open_store(comm, campaign, store_path, new, writes)
     if error is not None:
-        tasks.close()
+        if tasks is not None:
+            tasks.close()
+        isolation.discard_early()
         if comm.Get_rank() == 0 or not isinstance(error, (InputError, OSError)):
             raise error
         return EXIT_WRITE_FAILED if is_write_failure(error) else EXIT_BAD_INPUT   # rank 0 says why
@@ -82,6 +86,7 @@ def run(campaign: "Campaign", store_path: str, new: bool = False, retry_failed: 
     gc.freeze()      # what the imports made, out of the collector's sight: the collections the result
     #                  entries trigger would walk it each time (unpickling an entry 2.7 us instead of 1.6)
     if comm.Get_rank() != 0:
+        assert tasks is not None           # a worker's task process: started above
         try:
             _worker(comm, tasks, parallel_file and Writer(parallel_file))
         finally:
@@ -90,9 +95,10 @@ def run(campaign: "Campaign", store_path: str, new: bool = False, retry_failed: 
     if parallel_file:
         store.attach(parallel_file)
     workers = comm.Get_size() - 1
-    if workers and not master_may_compute(workers):
-        tasks.close()                  # rank 0 only serves: its task process is not needed
-        tasks = None                   # type: ignore[assignment]
+    if workers and master_may_compute(workers):
+        tasks = _isolated(campaign, 0)      # it warms up while rank 0 serves (rank 0 computes once it is warm)
+    elif workers:
+        isolation.discard_early()           # rank 0 only serves: its task process is not needed
     if progress:
         print(f"campaign: {comm.Get_size()} rank{'s' * (comm.Get_size() > 1)}, store writes: {path}"
               f"{' (parallel HDF5)' if path == 'mpio' else ' (rank 0 writes every row)'}",
@@ -112,18 +118,25 @@ def run(campaign: "Campaign", store_path: str, new: bool = False, retry_failed: 
     return status
 
 
+def _isolated(campaign, rank):
+    """Rank `rank`'s task process (`campaign.isolation.Isolated`), told to warm up."""
+    return Isolated(campaign, rank, campaign.memory_limit_mb or memory_share_mb(), campaign.retries)
+
+
 def _open_store(comm, campaign, store_path, new, writes):
     """(store on rank 0 else None, write path, error or None), the same path
-    and error on every rank: rank 0 opens the store while every rank's task
-    process warms up (`campaign.isolation`)."""
+    and error on every rank: rank 0 opens the store while the workers' task
+    processes warm up (`campaign.isolation`; rank 0's, behind its serving)."""
     store, path, error = None, None, None
     if comm.Get_rank() == 0:
         try:
             path = write_path(writes, comm.Get_size())
             store = Store(store_path, campaign, new=new, ranks=comm.Get_size(), parallel=path == "mpio",
-                          on_record=faults.record_hook())
+                          on_record=task_hooks.record_hook())
         except Exception as err:
             error = err
+    arrived = comm.Ibarrier()        # the workers wait here napping: MPI's blocking bcast would spin,
+    _polled(lambda: arrived.Test() or None)   # taking a core from the task processes' warm-ups
     error, path = comm.bcast((error, path), root=0)
     return store, path, error
 
@@ -165,28 +178,38 @@ def _next_message(comm, status):
     NAP_S[1]: a message waits at most NAP_S[1] longer than with a blocking
     receive, and a worker only waits when rank 0 has nothing queued for it."""
     from mpi4py import MPI
+    return _polled(lambda: comm.improbe(source=0, tag=MPI.ANY_TAG, status=status)).recv()
+
+
+def _polled(probe):
+    """What `probe()` returns once it is not None, polled as `_next_message` says."""
     polls, nap = 0, NAP_S[0]
-    while (message := comm.improbe(source=0, tag=MPI.ANY_TAG, status=status)) is None:
+    while (got := probe()) is None:
         polls += 1
         if polls > SPIN_POLLS:
             time.sleep(nap)
             nap = min(2.0 * nap, NAP_S[1])
-    return message.recv()
+    return got
 
 
 def _master(comm, store, campaign, retry_failed, progress, tasks=None):
     """Rank 0's loop: serve the workers' results, compute tasks itself (in its
     task process, `tasks`) when the policy says so and that process has warmed
-    up (a worker is not kept waiting meanwhile), until nothing is left (or a
-    signal stopped the hand-outs)."""
+    up, until nothing is left (or a signal stopped the hand-outs). Its task
+    process computes one batch while rank 0 serves and records the last: rank
+    0 waits for the answer at most ANSWER_S at a time (woken by it at once),
+    so a worker is not kept waiting meanwhile."""
     master = _Master(comm, store, campaign, retry_failed, progress, tasks)
     master.refill()
     while master.active():
         master.serve()
-        if master.handing_out() and master.policy.master_computes() and (not master.policy.workers
-                                                                          or tasks.ready()):
-            master.compute()
-        else:
+        computes = master.handing_out() and master.policy.master_computes()
+        if tasks is not None and tasks.busy():
+            if tasks.answered(ANSWER_S):
+                master.collect(computes)
+        elif computes and (not master.policy.workers or tasks.ready(IDLE_S)):
+            master.submit()
+        elif not computes:
             time.sleep(IDLE_S)
         if time.time() - master.last_flush > FLUSH_S:
             master.flush()
@@ -229,7 +252,7 @@ class _Master:
         return bool(self.policy.todo) and not _stop["flag"]
 
     def active(self):
-        return self.handing_out() or self.link.busy()
+        return self.handing_out() or self.link.busy() or (self.tasks is not None and self.tasks.busy())
 
     def prepared(self, tasks):
         """(task, payload, attempt) of each task, shown running from the next flush on."""
@@ -282,11 +305,19 @@ class _Master:
             self.refill()
             self.policy.served(messages, time.perf_counter() - started)
 
-    def compute(self):
-        """Rank 0 computes the next tasks itself, as many as the policy says
-        (one message to its task process)."""
+    def submit(self):
+        """Rank 0's task process handed the next tasks, as many as the policy
+        says (one message), if any are queued."""
         batch = self.prepared(self.policy.take(self.policy.master_batch()))
-        entries, busy_s = self.tasks.run(batch)
+        if batch:
+            self.tasks.submit(batch)
+
+    def collect(self, more):
+        """Rank 0's task process's answer recorded; first, if `more`, the next
+        batch handed to it (it computes while rank 0 records)."""
+        entries, busy_s = self.tasks.collect()
+        if more:
+            self.submit()
         self.policy.timed(len(entries), busy_s)
         self.record(entries)
         self.refill()                 # a finished compression may have made trials ready

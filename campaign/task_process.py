@@ -9,7 +9,8 @@ never imports MPI. Its life:
 
 1. it ignores SIGINT and SIGTERM (the rank decides when to stop: a signal
    lets the batches in flight finish), dies with its rank (PR_SET_PDEATHSIG),
-   and imports the solver meanwhile the rank starts up;
+   and imports the solver meanwhile the rank starts up (`eager`; rank 0 of a
+   run with workers: once the rank sends its campaign);
 2. it receives `(campaign, rank, memory_limit_mb)` on its pipe, caps its
    address space at memory_limit_mb (RLIMIT_AS), warms up
    (`campaign.tasks.warm_up`: numba's compiled functions loaded from the
@@ -33,6 +34,8 @@ import signal
 import struct
 import sys
 import time
+from multiprocessing.connection import Connection
+from typing import Any
 
 READY = "ready"
 PR_SET_PDEATHSIG = 1
@@ -56,13 +59,13 @@ class Slot:
         slot.idle()
         return slot
 
-    def idle(self):
+    def idle(self) -> None:
         _PAIR.pack_into(self.map, 0, -1.0, math.inf)
 
-    def start(self, place):
+    def start(self, place: int) -> None:
         _PAIR.pack_into(self.map, 0, place, time.monotonic())
 
-    def read(self):
+    def read(self) -> tuple[int, float]:
         """(place, started) of the task running, (-1, inf) if none; read until
         two reads agree (the task process may be writing it)."""
         old, new = None, _PAIR.unpack_from(self.map, 0)
@@ -70,7 +73,7 @@ class Slot:
             old, new = new, _PAIR.unpack_from(self.map, 0)
         return int(new[0]), new[1]
 
-    def close(self):
+    def close(self) -> None:
         self.map.close()
         os.close(self.fd)
 
@@ -94,11 +97,11 @@ def _limit_memory(limit_mb):
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
 
 
-def serve(conn, slot, parent, inherited=None):
+def serve(conn: Connection, slot: Slot, parent: int, inherited: Any = None) -> None:
     """Steps 2 and 3 of the module docstring, until the pipe closes (or the
     rank is gone). A process forked with its campaign (`inherited`) is sent None instead."""
-    from campaign.tasks import run_task, warm_up
     sent, rank, limit_mb = conn.recv()
+    from campaign.tasks import run_task, warm_up
     campaign = sent or inherited
     _limit_memory(limit_mb)
     warm_up(campaign)
@@ -114,21 +117,22 @@ def serve(conn, slot, parent, inherited=None):
         conn.send((done, time.perf_counter() - started))
 
 
-def run(conn, slot, parent, inherited=None):
+def run(conn: Connection, slot: Slot, parent: int, inherited: Any = None, eager: bool = True) -> None:
     """The task process's life (module docstring), `serve` once it is set up;
-    `inherited`: the campaign of a forked task process."""
+    `inherited`: the campaign of a forked task process; `eager`: the solver
+    imported at once (else only once the rank sends the campaign)."""
     _die_with_parent()
     if os.getppid() != parent:        # the rank died before the death signal was set
         return
-    from campaign import tasks  # noqa: F401  (the solver's imports, while the rank starts up)
+    if eager:
+        from campaign import tasks  # noqa: F401  (the solver's imports, while the rank starts up)
     try:
         serve(conn, slot, parent, inherited)
     except (EOFError, OSError):         # the rank closed the pipe (or is gone): nothing more to do
         pass
 
 
-def main(argv):
-    from multiprocessing.connection import Connection
+def main(argv: list[str]) -> int:
     conn_fd, slot_fd, parent = (int(a) for a in argv)
     run(Connection(conn_fd), Slot(slot_fd), parent)
     return 0

@@ -7,7 +7,9 @@ exceeds the per-task timeout (SIGALRM) or (a compression) returns a
 non-finite result is failed with its message; nothing escapes, so one bad
 task never stops the others. (A task that kills its process, or is stuck
 where SIGALRM cannot end it, is failed by `campaign.isolation`.) A task comes
-as its number (`campaign.task_key.TaskNumbers`).
+as its number (`campaign.task_key.TaskNumbers`). A campaign's `[test]`
+section (the test suite's only) changes what a task does through its hooks
+(`campaign.task_hooks.TaskHooks`, the campaign's `test`).
 """
 
 import functools
@@ -16,10 +18,17 @@ import signal
 import socket
 import time
 import traceback
+from typing import TYPE_CHECKING, Any
 
-from campaign import faults
-from campaign.task_key import COMPRESSION, compression_entry, trial_entry
+from campaign.task_hooks import TaskHooks
+from campaign.task_key import COMPRESSION, CompressionEntry, TrialEntry, compression_entry, trial_entry
 from solver.compression import compress
+from solver.model import Shell
+
+if TYPE_CHECKING:
+    from campaign.config import Campaign
+
+Outcome = tuple[str, dict[str, Any], str, float]    # (state, results, error, started as Unix time)
 
 
 class TaskTimeout(Exception):
@@ -43,15 +52,18 @@ def _set_handler():
     _handler_set = True
 
 
-def compute(shell, method, timeout_s, fault=None, sleep_s=0.0):
-    """Run one compression: (state, results, error, started); `fault` and
-    `sleep_s` are the test knobs of `campaign.faults`."""
-    if fault:
-        faults.prepare(fault, shell)   # start-up costs outside the task's timer
+def compute(shell: Shell, method: str, timeout_s: float, row: int = 0,
+            hooks: TaskHooks | None = None) -> Outcome:
+    """Run one compression (grid index `row`): (state, results, error, started);
+    `hooks`: the `[test]` section's (`campaign.task_hooks`), or None."""
+    if hooks is not None:
+        hooks.prepare(row, shell)      # start-up costs outside the task's timer
 
     def work():
-        faults.pause(sleep_s)
-        result = faults.injected(fault, shell) if fault else compress(shell, method).to_dict()
+        if hooks is None:
+            result = compress(shell, method).to_dict()
+        else:
+            result = hooks.compression(row, shell, lambda: compress(shell, method).to_dict())
         result.pop("method", None)
         if not _finite(result.values()):
             raise _NonFinite()
@@ -68,15 +80,15 @@ def _finite(values):
         return all(math.isfinite(v) for v in values if isinstance(v, float))
 
 
-def compute_study(study, forces, errors, timeout_s, sleep_s=0.0):
+def compute_study(study: Any, forces: Any, errors: Any, timeout_s: float,
+                  hooks: TaskHooks | None = None) -> Outcome:
     """Run one Monte-Carlo trial task: (state, per-cell lists, error, started)."""
     from campaign.trials import run_study
 
-    def work():
-        faults.pause(sleep_s)
+    def trial():
         # numbers stay arrays (sent and journalled as raw float64), the strings become lists
         return {k: v.tolist() if v.dtype.kind in "UO" else v for k, v in run_study(study, forces, errors).items()}
-    return _guarded(work, timeout_s)
+    return _guarded(trial if hooks is None else lambda: hooks.trial(trial), timeout_s)
 
 
 def _guarded(work, timeout_s):
@@ -115,7 +127,7 @@ def _memory_limit():
     return f" (the process is limited to {limit / 2**20:.0f} MB: [solver] memory_limit_mb)"
 
 
-def warm_up(campaign):
+def warm_up(campaign: "Campaign") -> None:
     """Pay, before any task, the once-per-process costs of the campaign's first
     compression: its solver's modules imported, the droplet geometry's
     compiled quadrature and inverse table loaded, and the solver's own warm-up
@@ -128,12 +140,9 @@ def warm_up(campaign):
     is left for the task itself to meet and report."""
     if not campaign.shells:
         return
-    shell, fault = campaign.shells[0], campaign.test.fault(0)
+    shell = campaign.shells[0]
     try:
-        for other in set(campaign.test.by_row.values()) - {fault}:
-            faults.prepare(other, shell)
-        if fault:
-            faults.prepare(fault, shell)
+        if campaign.test is not None and campaign.test.warm_up(shell):
             return
         from solver.compression import warm_up as warm_up_solver
         from solver.geometry import droplet
@@ -143,18 +152,18 @@ def warm_up(campaign):
         pass
 
 
-def execute(campaign, task, payload):
+def execute(campaign: "Campaign", task: int, payload: Any) -> Outcome:
     """Task number `task`: (state, results, error, started); `payload` is a trial
     task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
     (kind, i), test = campaign.numbers.key(task), campaign.test
     if kind == COMPRESSION:
-        return compute(campaign.shells[i], campaign.method, campaign.timeout_s, test.fault(i),
-                       test.compression_sleep_s)
+        return compute(campaign.shells[i], campaign.method, campaign.timeout_s, i, test)
     forces, errors = payload
-    return compute_study(campaign.studies[i], forces, errors, campaign.timeout_s, test.trial_sleep_s)
+    return compute_study(campaign.studies[i], forces, errors, campaign.timeout_s, test)
 
 
-def entry(campaign, task, attempts, rank, outcome):
+def entry(campaign: "Campaign", task: int, attempts: int, rank: int,
+          outcome: Outcome) -> CompressionEntry | TrialEntry:
     """Task `task`'s journal entry from its `outcome` = (state, results, error,
     started) as `execute` returns it: a compression's `row` and `results`, or a
     trial task's `task` and per-cell `cells`. A failed task's message ends
@@ -173,6 +182,7 @@ def _host():
     return socket.gethostname()
 
 
-def run_task(campaign, task, payload, attempts, rank):
+def run_task(campaign: "Campaign", task: int, payload: Any, attempts: int,
+             rank: int) -> CompressionEntry | TrialEntry:
     """Compute task `task` (attempt `attempts`) on `rank`: its journal entry."""
     return entry(campaign, task, attempts, rank, execute(campaign, task, payload))

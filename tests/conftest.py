@@ -3,7 +3,12 @@ BIN, the virtual environment's bin directory (`cortex`, `mpiexec`); `cortex`,
 the one way a test runs the installed command (optionally under mpiexec); and the
 one way a test waits for something: `poll_until` a condition it can observe
 (a journal entry, a state in the store, a job's state), never a guessed
-number of seconds. `journal_counts` is the progress a campaign test observes."""
+number of seconds. `journal_counts` is the progress a campaign test observes.
+
+The test suite's faults (`faults.py`: a campaign file's `[test]` section) are
+installed here for the session and every process it starts (`cortex` under
+mpiexec, the task processes): the environment names them
+(`faults.environment()`, `campaign.task_hooks`)."""
 
 import os
 import subprocess
@@ -13,6 +18,9 @@ from pathlib import Path
 
 import pytest
 
+import faults
+
+os.environ.update(faults.environment())
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 POLL_S = 0.01           # between two looks: short against any task a test waits for

@@ -1,4 +1,4 @@
-"""The test-only knobs of a campaign's [test] section (campaign.faults): the
+"""The test-only knobs of a campaign's [test] section (tests/faults.py): the
 task sleep is wall time without CPU and counts towards the task's timeout,
 changes no number, and bad values are refused; the made-up law is the
 analysis's reference law."""
@@ -7,7 +7,8 @@ import time
 
 import pytest
 
-from campaign import faults
+import faults
+from campaign import task_hooks
 from campaign.tasks import compute
 from common.errors import InputError
 from solver.model import Shell
@@ -16,9 +17,9 @@ SHELL = Shell(volume_um3=4300.0, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=
 
 
 def test_a_sleeping_task_takes_its_wall_time_without_cpu_and_gives_the_same_numbers():
-    plain = compute(SHELL, "fast", 60.0, "fake_law")            # also warms up the geometry
+    plain = compute(SHELL, "fast", 60.0, hooks=faults.Knobs(every_row="fake_law"))   # also warms up the geometry
     wall, cpu = time.monotonic(), time.process_time()
-    slept = compute(SHELL, "fast", 60.0, "fake_law", sleep_s=0.3)
+    slept = compute(SHELL, "fast", 60.0, hooks=faults.Knobs(every_row="fake_law", compression_sleep_s=0.3))
     wall, cpu = time.monotonic() - wall, time.process_time() - cpu
     assert slept[0] == plain[0] == "done"
     assert slept[1] == plain[1]                                 # the knob changes no number
@@ -27,7 +28,8 @@ def test_a_sleeping_task_takes_its_wall_time_without_cpu_and_gives_the_same_numb
 
 
 def test_the_sleep_counts_towards_the_task_timeout():
-    state, results, error, _ = compute(SHELL, "fast", 0.2, "fake_law", sleep_s=600.0)
+    sleepy = faults.Knobs(every_row="fake_law", compression_sleep_s=600.0)
+    state, results, error, _ = compute(SHELL, "fast", 0.2, hooks=sleepy)
     assert (state, results) == ("failed", {}) and error == "timed out after 0.2 s"
 
 
@@ -68,3 +70,16 @@ def test_knobs_parse_into_what_the_scheduler_reads():
     assert faults.Knobs().fault(0) is None
     assert (knobs.compression_sleep_s, knobs.trial_sleep_s) == (0.0, 0.5)
     assert faults.parse("c.toml", {}, 3) == faults.Knobs()
+
+
+def test_without_the_test_suite_a_test_section_is_refused_in_one_line(tmp_path):
+    """The faults live in the test suite: the product alone (no CORTEX_TASK_HOOKS)
+    refuses a campaign file with a [test] section, status 2, nothing written."""
+    from conftest import cortex
+    (tmp_path / "c.toml").write_text('[grid]\nh0_um = 12.0\nbulk_mN_per_m = 25.0\nshear_mN_per_m = 8.33\n'
+                                     'tension_mN_per_m = 1.5\n[test]\nnoop = true\n')
+    out = cortex("campaign", "run", tmp_path / "c.toml", "--store", tmp_path / "s.h5",
+                 env={task_hooks.ENV: ""})
+    assert out.returncode == 2 and not (tmp_path / "s.h5").exists()
+    assert out.stderr.strip().count("\n") == 0 and "[test] is for the test suite only" in out.stderr
+    assert cortex("campaign", "run", tmp_path / "c.toml", "--store", tmp_path / "s.h5").returncode == 0

@@ -2,7 +2,7 @@
 
 The demo grid's compressions (campaigns/demo.toml without its Monte-Carlo
 study: 60 real solves) with one shell made to misbehave, h0 = 12 µm and
-K_S = 8.33 mN/m (its four tensions), by the test knobs of campaign.faults:
+K_S = 8.33 mN/m (its four tensions), by the test knobs of tests/faults.py:
 `segv_task` (a read of address 0: the task process dies of SIGSEGV) or
 `spin_task` (a loop in compiled code, which the task process's SIGALRM
 cannot end: only the rank's watchdog, past timeout_s + GRACE_S, does). One

@@ -78,7 +78,8 @@ def test_tasks_spread_over_ranks_each_done_once(tmp_path_factory, stop_flag):
     wall time, so no rank can take them all) and the trial tasks that wait for
     them; every worker computes some, each task once, with the law's numbers."""
     from mpi4py import MPI
-    from campaign import faults, scheduler
+    import faults
+    from campaign import scheduler
     from campaign.store.reader import read_results, read_trials
     size = MPI.COMM_WORLD.Get_size()
     campaign, store = shared_campaign(tmp_path_factory, "spread", GRID + MONTECARLO +

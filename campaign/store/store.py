@@ -71,7 +71,7 @@ class Store:
     """Rank 0's view of a store: the journal, and the rows (all of them on the
     rank0 path; on the mpio path rank 0's own, through `attach`).
     `on_record(store, entry)`, if given, is called after each `record`
-    (the fault injection of `campaign.faults` uses it)."""
+    (the test suite's fault injection, `tests/faults.py`, uses it)."""
 
     def __init__(self, path: str | os.PathLike[str], campaign: StoredCampaign, new: bool = False, ranks: int = 1,
                  parallel: bool = False, on_record: Callable[[Store, Entry], None] | None = None):

@@ -1,4 +1,9 @@
-"""Test-only fault injection: what a campaign's `[test]` section asks for.
+"""The test suite's fault injection: what a campaign's `[test]` section asks
+for, installed through the product's one registration point
+(`campaign.task_hooks`): the environment variable CORTEX_TASK_HOOKS names
+this module (`environment()`; tests/conftest.py sets it for the test session
+and every process it starts: the ranks under mpiexec and their task
+processes inherit it). Without it the product refuses a `[test]` section.
 
 Nothing here runs unless a campaign file has a `[test]` section (or, for the
 kill, the environment variable below is set); only the scheduler calls
@@ -41,9 +46,12 @@ import math
 import os
 import signal
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+from campaign import task_hooks
 from campaign.store.schema import RESULTS
 from campaign.task_key import COMPRESSION, entry_key
 from common.errors import InputError
@@ -54,16 +62,18 @@ SLEEP_KEYS = ("compression_sleep_s", "trial_sleep_s")
 KEYS = set(ROW_KEYS) | set(SLEEP_KEYS) | {"noop", "fake_law"}
 HANG_S = 1e6            # "forever" for a hung task: only the per-task timeout ends it
 KILL_ENV = "CORTEX_TEST_KILL_MID_WRITE"
+HERE = Path(__file__).resolve().parent
 
-# The made-up law of `fake_law`, its one home: analysis.synthetic.reference_law
-# takes these coefficients ("standard"; a test checks the two forces agree), K = K_B (1 + α exp(h̃/λ)), α = C(γ̃_a) ln K̃_S +
-# D(γ̃_a) with K̃_S = K_S/K_B, γ̃_a = γ_a/K_B (SPEC 4). Plausible in shape, not
-# fitted to anything: α between -0.02 and -0.006 over the test grids, so K
-# approaches K_B as the cell flattens; λ = 0.2 is twice the published ~0.1, so
-# this law is never mistaken for a real calibration. Lowest order first.
-FAKE_LAMBDA = 0.2
-FAKE_C = (-0.012, 0.03, -0.2, 0.6)
-FAKE_D = (-0.018, -0.04, 0.3, -1.0)
+
+def environment(base: dict[str, str] | None = None) -> dict[str, str]:
+    """The variables that install these faults in a process and every process
+    it starts: `base` (default os.environ) with CORTEX_TASK_HOOKS naming this
+    module and this folder on PYTHONPATH."""
+    base = dict(os.environ if base is None else base)
+    path = [p for p in base.get("PYTHONPATH", "").split(os.pathsep) if p]
+    if str(HERE) not in path:
+        path.insert(0, str(HERE))
+    return {**base, task_hooks.ENV: "faults", "PYTHONPATH": os.pathsep.join(path)}
 
 
 @dataclass(frozen=True)
@@ -74,15 +84,47 @@ class Knobs:
     trial_sleep_s: float = 0.0
     every_row: str | None = None                  # noop or fake_law: the fault of the rows by_row leaves out
 
-    def fault(self, row):
+    def fault(self, row: int) -> str | None:
         """Compression `row`'s fault (one of FAULTS), or None. (`every_row` is
         one name, not a dict of every row: a million no-op rows took 70 MB on each rank.)"""
         return self.by_row.get(row, self.every_row)
 
+    # campaign.task_hooks.TaskHooks: how the product's tasks meet the knobs
 
-def parse(path, table, n_rows):
+    def prepare(self, row: int, shell: Any) -> None:
+        """Before compression `row`'s timer: what its fault needs loaded (`prepare`)."""
+        fault = self.fault(row)
+        if fault:
+            prepare(fault, shell)
+
+    def compression(self, row: int, shell: Any, solve: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+        """Compression `row`: its sleep, then its fault's result, or `solve()`'s without one."""
+        pause(self.compression_sleep_s)
+        fault = self.fault(row)
+        return injected(fault, shell) if fault else solve()
+
+    def trial(self, run: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+        """A trial task: its sleep, then `run()`."""
+        pause(self.trial_sleep_s)
+        return run()
+
+    def warm_up(self, shell: Any) -> bool:
+        """Every fault of the campaign prepared (`shell`: compression 0); True
+        if compression 0 has a fault (so the solver needs no warm-up)."""
+        fault = self.fault(0)
+        for other in set(self.by_row.values()) - {fault}:
+            prepare(other, shell)
+        if fault:
+            prepare(fault, shell)
+        return bool(fault)
+
+
+def parse(path: str, table: dict[str, Any], n_rows: int) -> Knobs:
     """The `[test]` table of campaign file `path` (grid of `n_rows`) as Knobs;
-    InputError with one line if a value is wrong."""
+    InputError with one line if a key or a value is wrong."""
+    unknown = set(table) - KEYS
+    if unknown:
+        raise InputError(f"{path}: unknown key {sorted(unknown)[0]!r} in [test]")
     table = dict(table)
     by_row, every_row = {}, None
     for key in ("noop", "fake_law"):
@@ -105,18 +147,19 @@ def parse(path, table, n_rows):
     return Knobs(by_row=by_row, every_row=every_row, **sleeps)
 
 
-def pause(seconds):
+def pause(seconds: float) -> None:
     """Sleep `seconds` of wall time (no CPU); nothing for 0."""
     if seconds > 0:
         time.sleep(seconds)
 
 
-def prepare(fault, shell):
+def prepare(fault: str, shell: Any) -> None:
     """Load, before the task's timer starts, what `injected(fault, shell)` needs
     (the imports and the compiled droplet geometry of the fake law): a short
     test timeout then times the fault itself, not a process's start-up, on a
     machine of any speed. Once per process and shape."""
     if fault == "fake_law":
+        import analysis.synthetic  # noqa: F401  (the law's coefficients: its import outside the timer)
         from solver.geometry import droplet
         from solver.modulus import effective_modulus
         effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
@@ -125,7 +168,7 @@ def prepare(fault, shell):
         _spin()(0.0)                    # compiled (or loaded from numba's cache); returns at once for 0
 
 
-_compiled: dict[str, Any] = {}
+_compiled: dict[str, Callable[[float], float]] = {}
 
 
 def _spin():
@@ -146,7 +189,7 @@ def _spin():
     return _compiled["spin"]
 
 
-def injected(fault, shell):
+def injected(fault: str, shell: Any) -> dict[str, Any]:
     """The result (or the failure) of `fault` for compression `shell`."""
     if fault == "raise":
         raise RuntimeError("injected fault: this task raises")
@@ -169,17 +212,19 @@ def _cubic(coefficients, x):
     return sum(c * x**i for i, c in enumerate(coefficients))
 
 
-def fake_law(shell):
-    """The result of the made-up law (FAKE_*) instead of a solve, with the force
+def fake_law(shell: Any) -> dict[str, Any]:
+    """The result of the made-up law of the analysis's synthetic stores
+    (`analysis.synthetic.REFERENCE_*`) instead of a solve, with the force
     that gives it, F = (γ_a + K ε_A) 2 H(h1) A_c(h1) (SPEC 3 backwards), and
     K and the rest then from that force exactly as after a solve."""
+    from analysis.synthetic import REFERENCE_C, REFERENCE_D, REFERENCE_LAMBDA
     from solver.geometry import droplet
     from solver.modulus import effective_modulus
     V, h0, h1, bulk, g = shell.volume_um3, shell.h0_um, shell.h1_um, shell.bulk_mN_per_m, shell.tension_mN_per_m
     geo = effective_modulus(V, h0, h1, g, 0.0)
     gt = g / bulk
-    alpha = _cubic(FAKE_C, gt) * math.log(shell.shear_mN_per_m / bulk) + _cubic(FAKE_D, gt)
-    K = bulk * (1.0 + alpha * math.exp(float(geo["h_tilde"]) / FAKE_LAMBDA))
+    alpha = _cubic(REFERENCE_C, gt) * math.log(shell.shear_mN_per_m / bulk) + _cubic(REFERENCE_D, gt)
+    K = bulk * (1.0 + alpha * math.exp(float(geo["h_tilde"]) / REFERENCE_LAMBDA))
     force = (g + K * float(geo["area_strain"])) * float(droplet(V, h1).force_per_tension_um)
     out = {k: float(v) for k, v in effective_modulus(V, h0, h1, g, force).items()}
     out.update(force_nN=force, area_strain_shell=out["area_strain"], volume_error=0.0,
@@ -187,12 +232,12 @@ def fake_law(shell):
     return out
 
 
-def record_hook():
+def record_hook() -> Callable[[Any, dict[str, Any]], None] | None:
     """The store's `on_record` hook: `kill_mid_write` if KILL_ENV is set, else None."""
     return kill_mid_write if os.environ.get(KILL_ENV) is not None else None
 
 
-def kill_mid_write(store, entry):
+def kill_mid_write(store: Any, entry: dict[str, Any]) -> None:
     """SIGKILL rank 0 right after `entry`'s rows are written, if KILL_ENV names it."""
     kill, (kind, i) = os.environ.get(KILL_ENV), entry_key(entry)
     if kill is None or kill != (str(i) if kind == COMPRESSION else f"task{i}"):
