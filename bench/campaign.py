@@ -37,10 +37,11 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(1, str(ROOT / "tests"))
-import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
+if "--futures-child" not in sys.argv:   # mpi4py.futures puts bench/ first on sys.path: `campaign` would be this file
+    sys.path.insert(1, str(ROOT / "tests"))
+    import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
 
-os.environ.update(faults.environment())
+    os.environ.update(faults.environment())
 MPIO = ROOT / ".venv-mpio" / "bin"
 BIN = pathlib.Path(sys.executable).parent
 N_NOOP = 10_000
