@@ -50,7 +50,10 @@ class TaskHooks(Protocol):
 def _module() -> ModuleType | None:
     """The hooks' module `ENV` names, imported; None if it names none."""
     name = os.environ.get(ENV, "")
-    return importlib.import_module(name) if name else None
+    try:
+        return importlib.import_module(name) if name else None
+    except ImportError as err:
+        raise InputError(f"{ENV} names {name!r}, which cannot be imported: {err}") from None
 
 
 def parse(path: str | os.PathLike[str], table: dict[str, Any], n_rows: int) -> TaskHooks:
