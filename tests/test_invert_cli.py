@@ -115,13 +115,18 @@ def test_help_of_every_new_command_renders():
     assert "95 % intervals" in cortex("afm", "analyze", "--help").stdout
 
 
-def test_a_table_without_volumes_gets_the_one_default_where_it_is_read(tmp_path):
-    """The table reader is where a cell's volume is checked and, when the table has none,
-    set to the documented 4300 µm³; below it the volume is required."""
+def test_a_table_without_volumes_needs_one_volume_given_and_there_is_no_default(tmp_path):
+    """The table reader is where a cell's volume is checked; a table without volumes needs
+    --volume (one line and status 2 without it), and below the reader the volume is required."""
     from analysis.invert.table_input import read_table
     path = tmp_path / "t.csv"
     path.write_text("cell_id,h_tilde,modulus_mN_per_m,tension_mN_per_m\na,0.6,30,1\na,0.7,40,1\n")
-    assert read_table(path)["volume_um3"].tolist() == [4300.0, 4300.0]
+    assert read_table(path, 5100.0)["volume_um3"].tolist() == [5100.0, 5100.0]
+    run = cortex("analysis", "invert", str(path), "--out", str(tmp_path / "out"))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1
+    assert "no volume_um3 column" in run.stderr and "--volume" in run.stderr
+    run = cortex("analysis", "invert", str(path), "--volume", "-3", "--out", str(tmp_path / "out"))
+    assert run.returncode == 2 and "--volume must be a number > 0" in run.stderr
     cal, emu, _ = load()
     with pytest.raises(TypeError):
         emu.ratio(0.6, 0.5, 0.04)          # no default volume below the reader

@@ -5,8 +5,9 @@ CSV with a header; columns `cell_id, h_tilde, modulus_mN_per_m, tension_mN_per_m
 frequency) and height. Every value must be a finite number (cell_id: any
 text), h̃ in (0, 1), the modulus finite, tension and volume > 0. Anything else
 is an InputError naming the file, the line and the column. This is where a
-table's cell volumes are checked, and where a table without `volume_um3` gets
-its one default, `DEFAULT_VOLUME_UM3` (4300 µm³, docs/emulator.md).
+table's cell volumes are checked: a table without `volume_um3` needs one
+volume for all its cells (`cortex analysis invert --volume`); there is no
+default.
 """
 
 from os import PathLike
@@ -20,12 +21,12 @@ from common.errors import InputError
 REQUIRED = ("cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m")
 OPTIONAL = ("frequency_hz", "volume_um3")
 POSITIVE = ("tension_mN_per_m", "volume_um3", "frequency_hz")
-DEFAULT_VOLUME_UM3 = 4300.0         # a cell's volume where the table gives none
 
 
-def read_table(path: str | PathLike[str]) -> pd.DataFrame:
-    """The rows of `path` as a DataFrame with a `volume_um3` column (InputError, one line,
-    if malformed)."""
+def read_table(path: str | PathLike[str], volume_um3: float | None = None) -> pd.DataFrame:
+    """The rows of `path` as a DataFrame with a `volume_um3` column: the table's own, or
+    `volume_um3` (µm³) for every cell where it has none (InputError, one line, if malformed,
+    if both or neither give the volumes, or if `volume_um3` is not > 0)."""
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{path}: is a directory, not a table")
@@ -61,4 +62,16 @@ def read_table(path: str | PathLike[str]) -> pd.DataFrame:
             raise InputError(f"{path}: line {i + 2}: {col} must be {want} (got {frame[col].iloc[i]!r})")
         frame[col] = values.astype(float)
     frame = frame[[c for c in REQUIRED + OPTIONAL if c in frame.columns]]
-    return frame if "volume_um3" in frame else frame.assign(volume_um3=DEFAULT_VOLUME_UM3)
+    if "volume_um3" in frame and volume_um3 is not None:
+        raise InputError(f"{path}: has a volume_um3 column; --volume is for a table without one")
+    return frame if "volume_um3" in frame else frame.assign(volume_um3=_one_volume(path, volume_um3))
+
+
+def _one_volume(path: Path, volume_um3: float | None) -> float:
+    """The one volume (µm³) of every cell of a table without a `volume_um3` column."""
+    if volume_um3 is None:
+        raise InputError(f"{path}: no volume_um3 column: give each cell's volume there, or one for "
+                         "every cell with --volume UM3")
+    if not volume_um3 > 0 or not np.isfinite(volume_um3):
+        raise InputError(f"--volume must be a number > 0 (got {volume_um3})")
+    return float(volume_um3)

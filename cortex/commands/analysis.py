@@ -73,6 +73,8 @@ def _add_invert(s: Commands) -> None:
                                  "and height) into nu per cell and frequency. Writes DIR/cells.csv; with "
                                  "--json also a JSON list on stdout.")
     i.add_argument("table", metavar="TABLE.csv")
+    i.add_argument("--volume", type=float, metavar="UM3",
+                   help="one cell volume (um^3) for every cell of a table without a volume_um3 column")
     i.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(i)
     i.add_argument("--json", action="store_true", help="print the per-cell results as a JSON list")
@@ -119,7 +121,7 @@ def invert(args: argparse.Namespace) -> int:
     from analysis.invert.method import invert_rows
     from analysis.invert.table_input import read_table
     from outputs.ownership import OutputDir
-    rows = read_table(args.table)
+    rows = read_table(args.table, args.volume)
     file, errors = inversion_settings(args)
     out = OutputDir(args.out)
     out.check(["cells.csv"])                        # refused before any work if not ours
