@@ -39,14 +39,12 @@ import sys
 import tempfile
 import time
 
-# run as a script, this file would shadow the packages: put the repository first
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
-
-from campaign.store.reader import summary  # noqa: E402
-
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(1, str(ROOT / "tests"))
-import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
+# run as a script, this file would shadow the packages: the repository first, then the
+# test suite's [test] section (no-op tasks, installed for every process started)
+sys.path[0:1] = [str(ROOT), str(ROOT / "tests")]
+import faults  # noqa: E402
+from campaign.store.reader import summary  # noqa: E402
 
 os.environ.update(faults.environment())
 BIN = pathlib.Path(sys.executable).parent
