@@ -261,7 +261,7 @@ class Isolated:
             if lost is None:
                 if not entries:
                     return raw            # as the task process sent it: the common case
-                return pickle.dumps((entries + pickle.loads(raw)[0], time.perf_counter() - started))
+                return pickle.dumps(([*entries, *pickle.loads(raw)[0]], time.perf_counter() - started))
             place, reason, when = lost
             if place < 0:             # died outside any task (starting up, say): once, the batch is
                 outside += 1          # computed again; twice in a row, its first task is failed

@@ -44,6 +44,7 @@ from campaign.signals import stop as _stop
 from campaign import isolation, task_hooks
 from campaign.store import DONE, FAILED, PENDING, Store, Writer, open_parallel, write_path
 from campaign.isolation import Isolated, memory_share_mb
+from campaign.entry_batch import is_batch
 from campaign.task_key import COMPRESSION, is_compression
 from campaign.trial_inputs import TrialInputs
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_SIGNAL, EXIT_SOME_FAILED, EXIT_WRITE_FAILED, InputError,
@@ -277,17 +278,22 @@ class _Master:
                 self.link.send(w, self.prepared(batch))
 
     def record(self, entries):
-        """Finished tasks: journalled, their trials' inputs noted, the policy told."""
+        """Finished tasks (entries, or a `CompressionBatch`): journalled, their
+        trials' inputs noted, the policy told."""
         with self.link.guard():
+            self.store.record_all(entries)
+        if is_batch(entries) and not self.inputs.studies:     # no trial task waits for its forces
+            self.failed += entries.failed()
+            for t in self.numbers.of_compressions(entries.row.tolist()):
+                self.policy.finished(t)
+        else:
             for e in entries:
-                self.store.record(e)
-        for e in entries:
-            if is_compression(e):
-                self.inputs.compression_finished(e["row"], e["state"], e["results"], e["error"])
-                self.failed += e["state"] == "failed"
-            else:
-                self.failed += e["state"] == "failed" or "failed" in e["cells"].get("state", ())
-            self.policy.finished(self.numbers.of_entry(e))
+                if is_compression(e):
+                    self.inputs.compression_finished(e["row"], e["state"], e["results"], e["error"])
+                    self.failed += e["state"] == "failed"
+                else:
+                    self.failed += e["state"] == "failed" or "failed" in e["cells"].get("state", ())
+                self.policy.finished(self.numbers.of_entry(e))
         self.bar.update(len(entries))
 
     def serve(self):

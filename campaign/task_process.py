@@ -18,7 +18,8 @@ never imports MPI. Its life:
 3. for each batch it receives (a list of (task, payload, attempts)) it
    computes the tasks in order (`campaign.tasks.run_task`: a Python-level
    failure or timeout is a failed entry, as in any process) and sends back
-   `(entries, seconds computing)`. Before each task it writes into the slot
+   `(entries, seconds computing)`, a batch of compressions as its columns
+   (`campaign.entry_batch`). Before each task it writes into the slot
    shared with the rank (`Slot`) the task's place in the batch and when it
    started; between batches the start is +inf (no task running).
 
@@ -101,6 +102,7 @@ def serve(conn: Connection, slot: Slot, parent: int, inherited: Any = None) -> N
     """Steps 2 and 3 of the module docstring, until the pipe closes (or the
     rank is gone). A process forked with its campaign (`inherited`) is sent None instead."""
     sent, rank, limit_mb = conn.recv()
+    from campaign.entry_batch import CompressionBatch
     from campaign.tasks import run_task, warm_up
     campaign = sent or inherited
     _limit_memory(limit_mb)
@@ -114,7 +116,7 @@ def serve(conn: Connection, slot: Slot, parent: int, inherited: Any = None) -> N
             slot.start(place)
             done.append(run_task(campaign, task, payload, attempts, rank))
         slot.idle()
-        conn.send((done, time.perf_counter() - started))
+        conn.send((CompressionBatch.of(done) or done, time.perf_counter() - started))
 
 
 def run(conn: Connection, slot: Slot, parent: int, inherited: Any = None, eager: bool = True) -> None:

@@ -32,8 +32,10 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from campaign.store.schema import RESULTS, STATES, results_table
-from campaign.task_key import Entry, compression_entry, is_compression, split, trial_entry
+from campaign.entry_batch import CompressionBatch, compression_columns
+from campaign.entry_batch import split as split_chunks
+from campaign.store.schema import RESULTS, STATES
+from campaign.task_key import Entry, compression_entry, is_compression, trial_entry
 
 MAGIC = b"\x00cxj"
 _SIZES = struct.Struct("<QQ")
@@ -52,11 +54,12 @@ def approx_bytes(entry: Entry) -> int:
     return 64 + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else 64
 
 
-def encode(entries: Sequence[Entry]) -> bytes:
-    """One record (bytes) holding `entries`."""
+def encode(entries: Sequence[Entry | CompressionBatch]) -> bytes:
+    """One record (bytes) holding `entries` (a `CompressionBatch` among them
+    stands for its entries: the record is the same)."""
     arrays: dict[str, np.ndarray] = {}
     header: dict[str, Any] = {"errors": {}, "tasks": []}
-    compressions, trials = split(entries)
+    compressions, trials = split_chunks(entries)
     if compressions:
         _compression_arrays(compressions, arrays, header["errors"])
     for k, e in enumerate(trials):
@@ -68,18 +71,15 @@ def encode(entries: Sequence[Entry]) -> bytes:
     return MAGIC + _SIZES.pack(len(head), len(body) - len(head)) + body + _CRC.pack(zlib.crc32(body))
 
 
-def _compression_arrays(rows, arrays, errors):
-    results = [e.get("results") or {} for e in rows]
-    columns = {"row": [e["row"] for e in rows], "state": [STATES.index(e["state"]) for e in rows],
-               "attempts": [e["attempts"] for e in rows], "rank": [e["rank"] for e in rows],
-               "started": [e.get("started", np.nan) for e in rows],
-               "converged": [bool(r.get("converged", False)) for r in results]}
-    for key, dtype in _COMPRESSION.items():
-        arrays[f"c.{key}"] = np.array(columns[key], dtype)
-    present = [key for key in RESULTS if any(key in r for r in results)]
-    for key, column in zip(present, results_table(results, present).T):
+def _compression_arrays(chunks, arrays, errors):
+    """The compressions' arrays (entries and `CompressionBatch`es, in order): `_COMPRESSION`,
+    then each of RESULTS some task has; their messages by position."""
+    columns = compression_columns(chunks)
+    for key in _COMPRESSION:
+        arrays[f"c.{key}"] = columns[key]
+    for key, column in columns["results"].items():
         arrays[f"r.{key}"] = column
-    errors.update({str(i): e["error"] for i, e in enumerate(rows) if e.get("error")})
+    errors.update({str(i): m for i, m in columns["errors"].items()})
 
 
 def _trial_arrays(k, e, arrays):

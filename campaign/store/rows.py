@@ -16,8 +16,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, results_table, trial_rows
-from campaign.task_key import Entry, TrialEntry, split
+from campaign.entry_batch import CompressionBatch, compression_columns, split
+from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, clip, trial_rows
+from campaign.task_key import Entry, TrialEntry
 
 if TYPE_CHECKING:
     import h5py
@@ -25,25 +26,24 @@ if TYPE_CHECKING:
 RUNS_MAX = 16       # rank0 path: more runs of consecutive rows than this are written as one scattered write
 
 
-def write_entries(f: h5py.File, entries: Sequence[Entry], cells: int, contiguous: bool = False) -> None:
-    """Write journal entries into their rows of the open file `f`; `cells`:
-    trials per study (N)."""
+def write_entries(f: h5py.File, entries: Sequence[Entry | CompressionBatch], cells: int,
+                  contiguous: bool = False) -> None:
+    """Write journal entries (and `CompressionBatch`es, which stand for theirs)
+    into their rows of the open file `f`; `cells`: trials per study (N)."""
     compressions, trials = split(entries)
     _write_trials(f, {e["task"]: e for e in trials}, cells)
-    by_row = {e["row"]: e for e in compressions}
-    if not by_row:
+    if not compressions:
         return
-    rows = np.array(sorted(by_row))
-    batch = [by_row[i] for i in rows]
-    results = [e.get("results") or {} for e in batch]
+    c = compression_columns(compressions, RESULTS)
+    rows, last = np.unique(c["row"][::-1], return_index=True)
+    last = len(c["row"]) - 1 - last                # each row's last entry, rows in order
+    errors = np.full(len(c["row"]), "", object)
+    for i, message in c["errors"].items():
+        errors[i] = message
     columns: dict[str, np.ndarray] = {
-        "state": np.array([STATES.index(e["state"]) for e in batch], np.int8),
-        "attempts": np.array([e["attempts"] for e in batch], np.int32),
-        "rank": np.array([e["rank"] for e in batch], np.int32),
-        "error": np.array([e.get("error", "") for e in batch], object),
-        "converged": np.array([int(bool(r.get("converged", False))) for r in results], np.int8),
-        "started_unix_s": np.array([e.get("started", np.nan) for e in batch], float)}
-    columns.update(zip(RESULTS, results_table(results, RESULTS).T))
+        "state": c["state"][last], "attempts": c["attempts"][last], "rank": c["rank"][last],
+        "error": errors[last], "converged": c["converged"][last], "started_unix_s": c["started"][last]}
+    columns.update((key, values[last]) for key, values in c["results"].items())
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 

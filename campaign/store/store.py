@@ -48,9 +48,10 @@ import time
 import numpy as np
 import numpy.typing as npt
 
-from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, cast
 
+from campaign.entry_batch import CompressionBatch, is_batch
 from campaign.store import journal, provenance, schema
 from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
@@ -228,6 +229,28 @@ class Store:
             self._append_record()
         if self.on_record is not None:
             self.on_record(self, entry)
+
+    def record_all(self, entries: Sequence[Entry] | CompressionBatch) -> None:
+        """`record` of each of `entries`; a `CompressionBatch` is kept whole (no
+        entry made per task), split where `record` would have appended a
+        journal record, so the journal is the same as from its entries."""
+        if not is_batch(entries) or self.on_record is not None:
+            for e in entries:
+                self.record(e)
+            return
+        batch, size, at = cast(CompressionBatch, entries), cast(CompressionBatch, entries).entry_bytes(), 0
+        mine = not self.parallel or bool((batch.rank == 0).all())
+        self.running.difference_update(batch.keys())
+        while at < len(batch):
+            take = min(len(batch) - at, max(1, -(-(journal.RECORD_BYTES - self.unjournalled_bytes) // size)))
+            part = batch.part(at, at + take)
+            self.unjournalled.append(part)
+            self.unjournalled_bytes += take * size
+            if mine:
+                self.unwritten.append(part)
+            if self.unjournalled_bytes >= journal.RECORD_BYTES:
+                self._append_record()
+            at += take
 
     def _append_record(self):
         if self.unjournalled:
