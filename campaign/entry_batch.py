@@ -40,6 +40,8 @@ if TYPE_CHECKING:
 
 _CODE = {s: i for i, s in enumerate(STATES)}
 _META = operator.itemgetter("row", "state", "attempts", "rank", "started", "error")
+COLUMNS = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32, "started": np.float64,
+           "converged": np.int8}      # `compression_columns`' bookkeeping columns and their dtypes
 
 
 class CompressionBatch:
@@ -102,10 +104,6 @@ class CompressionBatch:
         """How many of its tasks failed."""
         return int(np.count_nonzero(self.state == _CODE["failed"]))
 
-    def entry_bytes(self) -> int:
-        """About how many bytes each of its entries takes in a journal record (`journal.approx_bytes`)."""
-        return 64 + 8 * len(self.names)
-
 
 Chunk = CompressionEntry | CompressionBatch
 
@@ -159,9 +157,6 @@ def compression_columns(chunks: Sequence[Chunk], names: Sequence[str] | None = N
     out["results"] = dict(zip(names, table.T))
     return out
 
-
-COLUMNS = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32, "started": np.float64,
-           "converged": np.int8}
 
 
 def _batch_columns(batch: CompressionBatch) -> dict[str, Any]:

@@ -32,7 +32,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from campaign.entry_batch import CompressionBatch, compression_columns
+from campaign.entry_batch import COLUMNS, CompressionBatch, compression_columns
 from campaign.entry_batch import split as split_chunks
 from campaign.store.schema import RESULTS, STATES
 from campaign.task_key import Entry, compression_entry, is_compression, trial_entry
@@ -42,14 +42,17 @@ _SIZES = struct.Struct("<QQ")
 _CRC = struct.Struct("<I")
 _HEAD = len(MAGIC) + _SIZES.size
 RECORD_BYTES = 64 * 1024    # a record holds at most about this much
-_COMPRESSION = {"row": np.int64, "state": np.int8, "attempts": np.int32, "rank": np.int32,
-                "started": np.float64, "converged": np.int8}
+
+
+def compression_bytes(results: int) -> int:
+    """About how many bytes a compression's entry with `results` values takes in a record."""
+    return 64 + 8 * results
 
 
 def approx_bytes(entry: Entry) -> int:
     """About how many bytes `entry` takes in a record."""
     if is_compression(entry):
-        return 64 + 8 * len(entry["results"] or ())
+        return compression_bytes(len(entry["results"] or ()))
     cells = entry["cells"]
     return 64 + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else 64
 
@@ -72,10 +75,10 @@ def encode(entries: Sequence[Entry | CompressionBatch]) -> bytes:
 
 
 def _compression_arrays(chunks, arrays, errors):
-    """The compressions' arrays (entries and `CompressionBatch`es, in order): `_COMPRESSION`,
+    """The compressions' arrays (entries and `CompressionBatch`es, in order): `COLUMNS`,
     then each of RESULTS some task has; their messages by position."""
     columns = compression_columns(chunks)
-    for key in _COMPRESSION:
+    for key in COLUMNS:
         arrays[f"c.{key}"] = columns[key]
     for key, column in columns["results"].items():
         arrays[f"r.{key}"] = column
@@ -110,7 +113,7 @@ def decode(header: dict[str, Any], data: bytes) -> list[Entry]:
 def _compression_entries(arrays, errors):
     if "c.row" not in arrays:
         return []
-    c = {key: arrays[f"c.{key}"].tolist() for key in _COMPRESSION}
+    c = {key: arrays[f"c.{key}"].tolist() for key in COLUMNS}
     r = {key: arrays[f"r.{key}"].tolist() for key in RESULTS if f"r.{key}" in arrays}
     out = []
     for i in range(len(c["row"])):

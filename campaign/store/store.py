@@ -238,7 +238,8 @@ class Store:
             for e in entries:
                 self.record(e)
             return
-        batch, size, at = cast(CompressionBatch, entries), cast(CompressionBatch, entries).entry_bytes(), 0
+        batch, at = cast(CompressionBatch, entries), 0
+        size = journal.compression_bytes(len(batch.names))
         mine = not self.parallel or bool((batch.rank == 0).all())
         self.running.difference_update(batch.keys())
         while at < len(batch):
