@@ -42,6 +42,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import math
 import os
 import time
 
@@ -242,8 +243,9 @@ class Store:
         size = journal.compression_bytes(len(batch.names))
         mine = not self.parallel or bool((batch.rank == 0).all())
         self.running.difference_update(batch.keys())
-        while at < len(batch):
-            take = min(len(batch) - at, max(1, -(-(journal.RECORD_BYTES - self.unjournalled_bytes) // size)))
+        while at < len(batch):         # the entries `record` would take to reach RECORD_BYTES, at least one
+            room = math.ceil((journal.RECORD_BYTES - self.unjournalled_bytes) / size)
+            take = min(len(batch) - at, max(1, room))
             part = batch.part(at, at + take)
             self.unjournalled.append(part)
             self.unjournalled_bytes += take * size
