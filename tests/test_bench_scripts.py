@@ -5,8 +5,9 @@ like an importable module (one of our packages, a library, the standard
 library, a test-suite module a benchmark puts on the path) would be imported
 in its place by every `import` of that name, ours or a library's. These tests
 check that no script has such a name, that every script's imports resolve
-with bench/ first on the path (without running its main), and that every
-`bench/X.py` the docs, the Makefile and the code name exists.
+with bench/ first on the path (without running its main), that every
+`bench/X.py` the docs, the Makefile and the code name exists, that the docs
+name every script, and that none is shown run with Python's -P flag.
 """
 
 import importlib.util
@@ -73,5 +74,7 @@ def test_every_named_script_exists_and_runs_plainly():
     named = {(path.name, m) for path, text in texts.items() for m in re.findall(r"bench/([a-z0-9_]+)\.py", text)}
     missing = sorted({(where, name) for where, name in named if not (BENCH / f"{name}.py").is_file()})
     assert missing == []
+    in_docs = {name for where, name in named if where.endswith(".md")}
+    assert sorted(path.stem for path in SCRIPTS if path.stem not in in_docs) == [], "bench scripts no doc names"
     run_with_p = sorted(path.name for path, text in texts.items() if re.search(r"python3? -P\b", text))
     assert run_with_p == []
