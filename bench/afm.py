@@ -4,17 +4,13 @@ four frequencies, errors on. The recordings come from the law forward model
 target analyze_wall_s < 10 s."""
 
 import json
-import sys
 import time
-from pathlib import Path
-
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
 from analysis.afm.analyze_pipeline import analyze
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration import Calibration
-from analysis.synthetic import reference_law  # noqa: E402
-import analysis.afm.synth.cells as synth  # noqa: E402
+from analysis.synthetic import reference_law
+import analysis.afm.synth.cells as synth
 
 
 def main():

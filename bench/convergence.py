@@ -33,9 +33,6 @@ import pathlib
 import sys
 import time
 
-# run as a script, this file would shadow the `solver` package: put the repository first
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
-
 import numpy as np
 
 from solver.compression import compress

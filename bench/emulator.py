@@ -14,16 +14,13 @@ emulator: the largest and RMS relative error of K.
 import json
 import sys
 import time
-from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.shipped import load  # noqa: E402
-from solver.compression import compress  # noqa: E402
-from solver.geometry import cell_radius  # noqa: E402
-from solver.model import Shell  # noqa: E402
+from analysis.shipped import load
+from solver.compression import compress
+from solver.geometry import cell_radius
+from solver.model import Shell
 
 POINTS = [(0.5, 0.3, 0.05), (0.7, 0.3, 0.05), (0.7, 3.0, 0.2), (0.6, 0.07, 0.015)]
 

@@ -29,13 +29,11 @@ import pickle
 import sys
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.synth import cells as synth  # noqa: E402
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.afm.synth import cells as synth
+from analysis.afm.analyze_pipeline import analyze
+from analysis.shipped import load
 
 ALL = dict(synth.ERRORS)
 ONLY = {"none": {}, "volume": {"volume_rel_sd"}, "height": {"height_offset_sd_um"},
@@ -53,7 +51,7 @@ def emulator_forward(emu, bending="standard"):
 
 
 def run_seed(seed, cal, emu, forward):
-    from roundtrip import score      # bench/ is on the path once main() runs
+    from roundtrip import score      # bench/roundtrip.py (bench/ is first on the path)
     rows = []
     for name, keep in ONLY.items():
         synth.ERRORS.update({k: (v if k in keep else 0.0) for k, v in ALL.items()})
@@ -99,7 +97,6 @@ def mean_over_seeds(rows):
 
 
 def main():
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     from roundtrip import memoised
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("seeds", nargs="*", type=int, default=[6, 7, 8, 9])

@@ -18,21 +18,17 @@ interval's midpoint (lo + hi)/2 − l*.
 import argparse
 import json
 import sys
-from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.synth import cells as synth  # noqa: E402
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
-from analysis.invert.intervals import Errors  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.afm.synth import cells as synth
+from analysis.afm.analyze_pipeline import analyze
+from analysis.invert.intervals import Errors
+from analysis.shipped import load
 
 
 def curves(seeds, emu, draws):
     """One row per included curve: l*, l_true, lo, hi (ln K̃_S) and the cell's offset δ (µm)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     from error_sources import emulator_forward
     keep = dict(synth.ERRORS)
     synth.ERRORS.update({k: (v if k == "height_offset_sd_um" else 0.0) for k, v in keep.items()})

@@ -11,17 +11,18 @@ import json
 import sys
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-from analysis.invert.intervals import Errors  # noqa: E402
-from analysis.invert.method import invert_rows  # noqa: E402
-from analysis.calibrate.pipeline import read_store  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.invert.intervals import Errors
+from analysis.invert.method import invert_rows
+from analysis.calibrate.pipeline import read_store
+from analysis.shipped import load
 
 
 def main():
     store = Path(sys.argv[1] if len(sys.argv) > 1 else "results/paper.h5")
     n_studies = int(sys.argv[2]) if len(sys.argv) > 2 else 20
+    if not store.is_file():
+        raise SystemExit(f"bench: {store}: no such store (run campaigns/paper.toml into it first, "
+                         "README's tour)")
     _, trials = read_store(store)
     trials = trials[(trials["state"] == "done") & (trials["study"] < n_studies)]
     cal, emu, _ = load()

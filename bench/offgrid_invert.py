@@ -17,14 +17,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
+import pandas as pd
 
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from analysis.afm.synth.cells import solver_forward  # noqa: E402
-from solver.elasticity import poisson_of_ratio  # noqa: E402
-from solver.geometry import cell_radius  # noqa: E402
+from analysis.afm.synth.cells import solver_forward
+from solver.elasticity import poisson_of_ratio
+from solver.geometry import cell_radius
 
 H_TILDES = np.linspace(0.745, 0.5, 8)
 

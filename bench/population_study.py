@@ -46,15 +46,13 @@ import sys
 import time
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
+import pandas as pd
+from scipy import stats
 
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy import stats  # noqa: E402
-
-from analysis.afm.population import random_effects, trend  # noqa: E402
-from analysis.afm.population.answer import answer  # noqa: E402
-from solver.elasticity import poisson_of_ratio  # noqa: E402
+from analysis.afm.population import random_effects, trend
+from analysis.afm.population.answer import answer
+from solver.elasticity import poisson_of_ratio
 
 FREQS = (0.02, 0.1, 1.0, 10.0)
 PAIRED = (0.1, 1.0, 10.0)

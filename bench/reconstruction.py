@@ -11,15 +11,13 @@ import json
 import sys
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.invert.intervals import Errors  # noqa: E402
-from analysis.invert.method import invert_rows  # noqa: E402
-from analysis.calibrate.pipeline import read_store  # noqa: E402
-from analysis.shipped import load  # noqa: E402
-from solver.elasticity import poisson_ratio  # noqa: E402
+from analysis.invert.intervals import Errors
+from analysis.invert.method import invert_rows
+from analysis.calibrate.pipeline import read_store
+from analysis.shipped import load
+from solver.elasticity import poisson_ratio
 
 
 def main():

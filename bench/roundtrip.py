@@ -24,13 +24,11 @@ import sys
 import time
 from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
-from analysis.afm.synth.cells import generate, solver_forward  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.afm.analyze_pipeline import analyze
+from analysis.afm.synth.cells import generate, solver_forward
+from analysis.shipped import load
 
 
 def memoised(forward, cache):

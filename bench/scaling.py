@@ -40,10 +40,8 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-# run as a script, this file would shadow the packages: the repository first, then the
-# test suite's [test] section (no-op tasks, installed for every process started)
-sys.path[0:1] = [str(ROOT), str(ROOT / "tests")]
-import faults  # noqa: E402
+sys.path.insert(1, str(ROOT / "tests"))
+import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
 from campaign.store.reader import summary  # noqa: E402
 
 os.environ.update(faults.environment())

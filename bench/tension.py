@@ -17,15 +17,13 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.formats.h5 import write_experiment  # noqa: E402
-from analysis.afm.formats.instruments import to_cell, wedge_height_um  # noqa: E402
-from analysis.afm.tension.ramp import fit_ramp  # noqa: E402
-from analysis.afm.tension.synth import droplet_recording  # noqa: E402
-from solver.geometry import cell_radius  # noqa: E402
+from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.formats.instruments import to_cell, wedge_height_um
+from analysis.afm.tension.ramp import fit_ramp
+from analysis.afm.tension.synth import droplet_recording
+from solver.geometry import cell_radius
 
 N = 100
 

@@ -18,9 +18,6 @@ import pathlib
 import sys
 import time
 
-# run as a script, this file would shadow the project's packages: put the repository first
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
-
 import numpy as np
 
 from campaign import config

@@ -20,22 +20,19 @@ the paired test.
 import json
 import sys
 import time
-from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.synth import cells as sy  # noqa: E402
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
-from analysis.afm.rheology import analyze as rheology  # noqa: E402
-from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex  # noqa: E402
-from analysis.invert.intervals import Errors  # noqa: E402
-from analysis.shipped import load  # noqa: E402
-from analysis.viscoelastic_table import shipped  # noqa: E402
-from solver.geometry import cell_radius  # noqa: E402
-from solver.model import Shell  # noqa: E402
-from solver.viscoelastic import correction, hessian_parts  # noqa: E402
+from analysis.afm.synth import cells as sy
+from analysis.afm.analyze_pipeline import analyze
+from analysis.afm.rheology import analyze as rheology
+from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex
+from analysis.invert.intervals import Errors
+from analysis.shipped import load
+from analysis.viscoelastic_table import shipped
+from solver.geometry import cell_radius
+from solver.model import Shell
+from solver.viscoelastic import correction, hessian_parts
 
 
 def table_error(n, seed=3):

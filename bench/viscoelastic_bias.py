@@ -11,17 +11,13 @@ analysis does: ν_mag - ν per (ν, δ_B, δ_S), and Re ν* of the complex Poiss
 """
 
 import json
-import sys
-from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.invert.emulator_fit import invert_curves_emulator  # noqa: E402
-from analysis.shipped import load  # noqa: E402
-from analysis.viscoelastic_table import shipped  # noqa: E402
-from solver.elasticity import shear_ratio  # noqa: E402
+from analysis.invert.emulator_fit import invert_curves_emulator
+from analysis.shipped import load
+from analysis.viscoelastic_table import shipped
+from solver.elasticity import shear_ratio
 
 NUS = (0.2, 0.5, 0.7)
 ANGLES = ((0.16, 0.16), (0.16, 0.31), (0.16, 0.47), (0.31, 0.16), (0.08, 0.47), (0.31, 0.63))

@@ -14,16 +14,12 @@ K_B = 25, K_S = 8.33, γ_a = 1.5 mN/m, standard bending), best of --repeat:
 
 import argparse
 import json
-import pathlib
-import sys
 import time
 
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])   # not bench/ (its solver.py)
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from solver import viscous, viscous_time  # noqa: E402
-from solver.model import Shell  # noqa: E402
+from solver import viscous, viscous_time
+from solver.model import Shell
 
 SHELL = Shell(volume_um3=4300.0, h0_um=12.0, dh_um=0.5, bulk_mN_per_m=25.0, shear_mN_per_m=8.33,
               tension_mN_per_m=1.5)

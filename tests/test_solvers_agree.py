@@ -6,7 +6,7 @@ The explicit scheme needs 1-3 minutes per point at its default resolution
 (its time step falls as ds_min², or ds_min⁴ with bending), so here it runs at
 resolutions 0.25 and 0.5 and is extrapolated to its continuum limit with its
 measured order 2 (Richardson: K∞ = K_0.5 + (K_0.5 - K_0.25)/3); the README
-lists the default-resolution comparison from `bench/solver.py`."""
+lists the default-resolution comparison from `bench/solvers.py`."""
 
 import pytest
 

@@ -12,7 +12,7 @@ best of 3 (target 10 s on one core; wall and CPU time both given).
 cells) generated from the laws (`analysis.synthetic`), reading excluded —
 the analysis cost alone, measurable before any campaign has run.
 
-    python bench/analysis.py [STORE]
+    python bench/calibrate_invert.py [STORE]
 """
 
 import json
@@ -22,12 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-# This file is called analysis.py: keep its folder off the path so that
-# `analysis` is the package, not this script.
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-
-import analysis.calibrate.pipeline as report  # noqa: E402
-from analysis.synthetic import reference_law, results_table, trials_table  # noqa: E402
+import analysis.calibrate.pipeline as report
+from analysis.synthetic import reference_law, results_table, trials_table
 
 
 def timed_run(store, out):

@@ -16,12 +16,7 @@ fast_failed counts solves that raised (each says why).
 import argparse
 import itertools
 import json
-import pathlib
-import sys
 import time
-
-# run as a script, this file would shadow the `solver` package: put the repository first
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])
 
 import numpy as np
 

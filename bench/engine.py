@@ -49,7 +49,7 @@ import tempfile
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-if "--futures-child" not in sys.argv:   # mpi4py.futures puts bench/ first on sys.path: `campaign` would be this file
+if "--futures-child" not in sys.argv:   # the mpi4py.futures child times its own pool: no campaign, no faults
     sys.path.insert(1, str(ROOT / "tests"))
     import faults  # noqa: E402  (the test suite's [test] section: no-op tasks; installed for every process started)
 
