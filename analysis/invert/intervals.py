@@ -26,8 +26,7 @@ If a draw's offset and noise were the cell's own, its refit would be the truth; 
 interval of ln K̃_S is the percentile one, [q_2.5, q_97.5] of the refitted
 l_m = ln K̃_S,m, and ν's is its image through ν = (1 - K̃_S)/(1 + K̃_S) (decreasing:
 the ends swap).  The standard error of ln K̃_S is the SD of the same draws,
-se = sd_m(l_m) (`ln_ks_se` in the cells table: the measurement SD the population
-model takes, `analysis.afm.population`).
+se = sd_m(l_m) (`ln_ks_se` in the cells table).
 
 The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(δ̂), A(V, h) = R_cell² Â(δ̂),
 δ̂ = 2 (1 - h̃), with ĝ and Â from the droplet's one table (`solver.droplet_table`), so

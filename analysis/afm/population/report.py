@@ -61,8 +61,8 @@ def markdown_population(doc: dict, mann_whitney: dict) -> list:
     """Lines of report.md: the trend sentence, then the population tables (population.json)."""
     lines = [trend_sentence(doc["trend"], doc.get("trend_design_weighted")), ""] if doc.get("trend") else []
     lines += ["## Population per frequency, measurement error taken out", "",
-              "Random-effects model of ln K̃_S per frequency with each cell's own measurement SD (the standard "
-              "error of its bootstrap): the mean with its t interval, the between-cell SD by REML with its profile-likelihood "
+              "Random-effects model of ln K̃_S per frequency with each cell's own measurement SD (from its "
+              "95 % interval): the mean with its t interval, the between-cell SD by REML with its profile-likelihood "
               "interval (docs/population.md). "
               "The measurement share is the part of the observed variance of ln K̃_S that measurement "
               "error alone explains.", ""]

@@ -2,7 +2,7 @@
 (the answer's trend is `mean_trend`; this one stays beside it in population.json).
 
 Observation j of cell c at frequency f_j: y_j = ln K̃_S, x_j = log10(f_j / 1 Hz), s_j its
-measurement SD (the cell's bootstrap standard error, `random_effects`):
+measurement SD (`random_effects.measurement_sd`):
 
     y_j = a + b x_j + u_c + e_j,   u_c ~ N(0, τ²) (one per cell),   e_j ~ N(0, σ_e² + s_j²),
 
