@@ -4,7 +4,7 @@ Prints one JSON object.
 
     python bench/population_study.py full SEED ... [--no-errors] --cache FILE.jsonl
     python bench/population_study.py simulate --cache FILE.jsonl [--experiments 200] [--reps 400] [--rho 1 0.7]
-    python bench/population_study.py rescore --cache FILE.jsonl
+    python bench/population_study.py rescore --cache FILE.jsonl [--sd interval|bootstrap]
 
 `full`: per seed, the whole pipeline: `cortex afm synth`'s experiment (85 cells,
 the published design, the fast solver as the forward model, errors on unless
@@ -12,15 +12,18 @@ the published design, the fast solver as the forward model, errors on unless
 with --no-errors the intervals also assume no volume or height error) and its
 population.json (`analysis.afm.population.answer.answer`). Each experiment is
 appended to the cache (one JSON line: truth, the answer, every cell's estimate,
-its SD and its true ln K̃_S) and the summary covers every cached experiment of
-that kind: how often the 95 % intervals of the population mean μ_f and SD σ_f
-hold the synth's (μ_f, σ_f), how often the slope's holds the true slope (the
-pseudo-true one the truth records, and the least-squares line through μ_f), the
-measurement shares, the seconds per experiment.
+its standard error `ln_ks_se`, its 95 % interval and its true ln K̃_S) and the summary
+covers every cached experiment of that kind: how often the 95 % intervals of the
+population mean μ_f and SD σ_f hold the synth's (μ_f, σ_f), how often the interval of
+the answer's slope (`slope_*`) and of the design-weighted one (`slope_design_weighted_*`)
+hold the least-squares line through the μ_f (`true_slope`) and the design-weighted
+pseudo-true slope (`true_slope_design_weighted`), the measurement shares, the seconds
+per experiment.
 
 `rescore`: the `full` summary of every cached experiment (errors on and off) with
 the population statistics recomputed by the current code from the cached per-cell
-estimates (the inversion is not rerun).
+estimates (the inversion is not rerun); with --sd bootstrap each cell's s is its
+bootstrap SD `ln_ks_se` instead of the one read off its interval.
 
 `simulate`: the same statistics over many more experiments, without the solver:
 each simulated cell takes a fresh true ln K̃_S(f) = μ_f + σ_f z and the
@@ -50,7 +53,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from analysis.afm.population import random_effects, trend
+from analysis.afm.population import mean_trend, random_effects, trend
 from analysis.afm.population.answer import answer
 from solver.elasticity import poisson_of_ratio
 
@@ -79,11 +82,13 @@ def run_full(seed, errors):
     rows = [{"cell_id": r.cell_id, "frequency_hz": float(r.frequency_hz),
              "ln_ks": float(np.log(r.ks_tilde)) if ok[i] else None,
              "s": float(random_effects.measurement_sd(r.ks_lo95, r.ks_hi95)) if ok[i] else None,
+             "ln_ks_se": float(r.ln_ks_se) if ok[i] else None,
+             "ks_lo95": float(r.ks_lo95) if ok[i] else None, "ks_hi95": float(r.ks_hi95) if ok[i] else None,
              "true_ln_ks": true[(r.cell_id, float(r.frequency_hz))]} for i, r in zip(table.index, table.itertuples())]
     return {"seed": seed, "errors": errors, "synth_s": t1 - t0, "analyze_s": t2 - t1,
-            "s_z": random_effects.Z_INTERVAL,
             "populations": truth["populations"], "true_slope": truth["trend_slope_ln_ks_per_decade"],
-            "true_slope_ols": truth["trend_slope_ols_ln_ks_per_decade"], "answer": doc, "cells": rows}
+            "true_slope_design_weighted": truth["trend_slope_design_weighted_ln_ks_per_decade"], "answer": doc,
+            "cells": rows}
 
 
 def _holds(lo, x, hi):
@@ -108,15 +113,17 @@ def summarise(records):
             "measurement_share_median": float(np.median(share)),
             "measurement_share_range": [float(share.min()), float(share.max())],
             "n_cells_median": float(np.median(n))}
-    t = [rec["answer"]["trend"] for rec in records]
-    out["slope_coverage"] = float(np.mean([_holds(x["slope_lo95"], rec["true_slope"], x["slope_hi95"])
-                                           for x, rec in zip(t, records)]))
-    out["slope_coverage_ols_truth"] = float(np.mean([_holds(x["slope_lo95"], rec["true_slope_ols"], x["slope_hi95"])
-                                                     for x, rec in zip(t, records)]))
-    slopes = np.array([x["slope_ln_ks_per_decade"] for x in t])
-    out["slope_mean"], out["slope_sd"] = float(slopes.mean()), float(slopes.std(ddof=1)) if len(t) > 1 else None
-    out["slope_half_width_median"] = float(np.median([(x["slope_hi95"] - x["slope_lo95"]) / 2 for x in t]))
-    out["true_slope"], out["true_slope_ols"] = records[0]["true_slope"], records[0]["true_slope_ols"]
+    for key, name in (("trend", "slope"), ("trend_design_weighted", "slope_design_weighted")):
+        t = [rec["answer"][key] for rec in records]
+        for truth in ("true_slope", "true_slope_design_weighted"):
+            out[f"{name}_holds_{truth}"] = float(np.mean([_holds(x["slope_lo95"], rec[truth], x["slope_hi95"])
+                                                           for x, rec in zip(t, records)]))
+        slopes = np.array([x["slope_ln_ks_per_decade"] for x in t])
+        out[f"{name}_mean"] = float(slopes.mean())
+        out[f"{name}_sd"] = float(slopes.std(ddof=1)) if len(t) > 1 else None
+        out[f"{name}_half_width_median"] = float(np.median([(x["slope_hi95"] - x["slope_lo95"]) / 2 for x in t]))
+    out["true_slope"] = records[0]["true_slope"]
+    out["true_slope_design_weighted"] = records[0]["true_slope_design_weighted"]
     return out
 
 
@@ -139,15 +146,14 @@ def actual_errors(records):
     return out
 
 
-def _load(cache, errors=None):
-    """The cached experiments (of `errors` if given), each cell's s converted to the current
-    `random_effects.Z_INTERVAL` (`s_z`: the z its s was read with; 1.96 before it was recorded)."""
+def _load(cache, errors=None, sd="interval"):
+    """The cached experiments (of `errors` if given), each cell's s read off its interval by the
+    current `random_effects.measurement_sd`, or (sd="bootstrap") its bootstrap SD `ln_ks_se`."""
     recs = [json.loads(line) for line in Path(cache).read_text().splitlines() if line.strip()]
     recs = [r for r in recs if errors is None or r["errors"] == errors]
-    for r in recs:
-        k = r.get("s_z", 1.959964) / random_effects.Z_INTERVAL
-        for c in r["cells"]:
-            c["s"] = None if c["s"] is None else c["s"] * k
+    for c in (c for r in recs for c in r["cells"] if c["ln_ks"] is not None):
+        c["s"] = (c["ln_ks_se"] if sd == "bootstrap" else
+                  float(random_effects.measurement_sd(c["ks_lo95"], c["ks_hi95"])))
     return recs
 
 
@@ -212,7 +218,8 @@ def _simulated_answer(rows):
     df = pd.DataFrame(rows, columns=["cell", "f", "y", "s"]).dropna()
     doc = {"frequencies": [{"frequency_hz": f, **random_effects.fit(g["y"], g["s"]).to_dict()}
                            for f, g in df.groupby("f")]}
-    doc["trend"] = trend.fit(trend.Observations.of(df["cell"], df["f"], df["y"], df["s"])).to_dict()
+    doc["trend"] = mean_trend.fit(df["cell"], df["f"], df["y"]).to_dict()
+    doc["trend_design_weighted"] = trend.fit(trend.Observations.of(df["cell"], df["f"], df["y"], df["s"])).to_dict()
     return doc
 
 
@@ -225,7 +232,7 @@ def coverage_sim(rng, pool, template, n_exp):
             rows += [(c + base, f, y, s) for c, f, y, s in _draw_cells(rng, pool, tuple(freqs), n,
                                                                          template["populations"])]
             base += n
-        recs.append({**{k: template[k] for k in ("populations", "true_slope", "true_slope_ols")},
+        recs.append({**{k: template[k] for k in ("populations", "true_slope", "true_slope_design_weighted")},
                      "answer": _simulated_answer(rows)})
     return summarise(recs)
 
@@ -268,7 +275,7 @@ def rescore(args):
     recomputed by the current code from the cached per-cell estimates (the inversion is not rerun)."""
     out = {}
     for errors in (True, False):
-        recs = _load(args.cache, errors)
+        recs = _load(args.cache, errors, args.sd)
         if not recs:
             continue
         t0 = time.perf_counter()
@@ -317,6 +324,8 @@ def main():
                    help="within-cell correlations of the power table (1: the synth's cells)")
     r = sub.add_parser("rescore")
     r.add_argument("--cache", required=True)
+    r.add_argument("--sd", choices=("interval", "bootstrap"), default="interval",
+                   help="each cell's s: read off its 95 %% interval (the model's) or its bootstrap SD ln_ks_se")
     args = p.parse_args()
     {"full": full, "simulate": simulate, "rescore": rescore}[args.cmd](args)
 

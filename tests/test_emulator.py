@@ -154,6 +154,11 @@ def test_intervals_widen_with_the_errors(shipped, solver_curves):
                                                                       draws=60))
     large = invert_rows(rows, "emulator", cal, emu, "standard", Errors(draws=60))
     assert np.all((large["nu_hi95"] - large["nu_lo95"]) > 2 * (small["nu_hi95"] - small["nu_lo95"]))
+    # the standard error of ln K̃_S is the same draws' SD: it widens alike, and a normal error of that SD
+    # has about the percentile interval's width
+    assert np.all(large["ln_ks_se"] > 2 * small["ln_ks_se"])
+    ratio = 2 * 1.96 * large["ln_ks_se"] / np.log(large["ks_hi95"] / large["ks_lo95"])
+    assert np.all((ratio > 0.75) & (ratio < 1.33)), ratio.to_numpy()
 
 
 def _recorded_with_offset(emu, cid, ks, bulk, tension, offset_um, volume=4300.0, dh=0.5):

@@ -1,12 +1,13 @@
 """The population answer's statistics against known truth on generated data:
-the random-effects fit, the trend's mixed model, the paired tests, population.json."""
+the random-effects fit, the trend (the line through the population means, and the
+design-weighted mixed model), the paired tests, population.json."""
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.afm.population import random_effects, trend
+from analysis.afm.population import mean_trend, random_effects, trend
 from analysis.afm.population.paired import paired_tests
 from analysis.afm.population.answer import answer
 from solver.elasticity import poisson_of_ratio
@@ -99,6 +100,55 @@ def test_pseudo_true_slope_is_what_the_fit_reaches_on_a_large_sample():
     assert big.slope == pytest.approx(trend.pseudo_true_slope(POPULATIONS, subset_sizes(85)), abs=0.01)
 
 
+def _published_design(rng, s_obs, scale=1):
+    """One experiment of the synth's design (cells per frequency set x `scale`), y = μ_f + σ_f z + N(0, s_obs²)
+    with the synth's populations (μ_f not linear in log10 f): columns (cell, f, y)."""
+    from analysis.afm.synth.cells import POPULATIONS, subset_sizes
+    cell, f, y, c = [], [], [], 0
+    for freqs, n in subset_sizes(85):
+        for _ in range(n * scale):
+            z = rng.standard_normal()
+            for fr in freqs:
+                cell.append(c), f.append(fr)
+                y.append(POPULATIONS[fr][0] + POPULATIONS[fr][1] * z + s_obs * rng.standard_normal())
+            c += 1
+    return np.array(cell), np.array(f), np.array(y)
+
+
+def _ols_through_true_means():
+    from analysis.afm.synth.cells import POPULATIONS
+    return float(np.polyfit(np.log10(list(POPULATIONS)), [m for m, _ in POPULATIONS.values()], 1)[0])
+
+
+def test_mean_trend_is_the_line_through_the_sample_means_with_their_covariance():
+    cell, f, y = _published_design(np.random.default_rng(2), 0.3, scale=20)
+    freqs, means, cov, n, n_cells = mean_trend.means_and_covariance(cell, f, y)
+    assert list(freqs) == [0.02, 0.1, 1.0, 10.0] and list(n) == [700, 1200, 1200, 1200] and n_cells == 1700
+    assert means == pytest.approx([y[f == fr].mean() for fr in freqs], abs=1e-12)
+    t = mean_trend.fit(cell, f, y, [1.0])
+    assert t.slope == pytest.approx(np.polyfit(np.log10(freqs), means, 1)[0], abs=1e-12)
+    assert t.intercept == pytest.approx(np.polyfit(np.log10(freqs), means, 1)[1], abs=1e-12)
+    # the covariance of the means: 200 cells share 0.02 Hz with 0.1 Hz, y's covariance there σ_0.02 σ_0.1
+    assert cov[0, 1] == pytest.approx(200 * 0.8 * 0.8 / (700 * 1200), rel=0.15)
+    assert cov[1, 1] == pytest.approx((0.8**2 + 0.3**2) / 1200, rel=0.1)
+    assert t.at[1.0]["ln_ks_lo95"] < t.at[1.0]["ln_ks"] < t.at[1.0]["ln_ks_hi95"]
+
+
+def test_the_trend_holds_the_line_through_the_true_means_whatever_the_design():
+    """The published design (50 cells at 0.1/1/10 Hz, 10 at all four, 25 at 0.02 Hz only) and small
+    measurement error: the line through the population means holds the line through the true μ_f
+    at about 95 %; the design-weighted slope (mixed model; 0.379 for this design) does not."""
+    truth, rng, reps = _ols_through_true_means(), np.random.default_rng(11), 40
+    new = old = 0
+    for _ in range(reps):
+        cell, f, y = _published_design(rng, 0.1)
+        t = mean_trend.fit(cell, f, y)
+        d = trend.fit(trend.Observations.of(cell, f, y, np.full(y.size, 0.1)))
+        new += t.slope_lo <= truth <= t.slope_hi
+        old += d.slope_lo <= truth <= d.slope_hi
+    assert new >= 34 and old <= 8, (new, old)
+
+
 def _table(rng, n=12):
     """Cells at 0.1/1/10 Hz whose ν falls with frequency in every cell, with a large spread between cells."""
     rows = []
@@ -107,9 +157,10 @@ def _table(rng, n=12):
         for k, f in enumerate((0.1, 1.0, 10.0)):
             ks = np.exp(-1.0 + 0.9 * z + 0.2 * k)
             rows.append({"cell_id": f"c{c}", "frequency_hz": f, "ks_tilde": ks, "nu": float(poisson_of_ratio(ks)),
-                         "ks_lo95": ks * np.exp(-0.4), "ks_hi95": ks * np.exp(0.4), "excluded_reason": None})
+                         "ks_lo95": ks * np.exp(-0.4), "ks_hi95": ks * np.exp(0.4), "ln_ks_se": 0.2,
+                         "excluded_reason": None})
     rows.append({"cell_id": "solo", "frequency_hz": 0.02, "ks_tilde": 0.3, "nu": float(poisson_of_ratio(0.3)),
-                 "ks_lo95": 0.2, "ks_hi95": 0.45, "excluded_reason": None})
+                 "ks_lo95": 0.2, "ks_hi95": 0.45, "ln_ks_se": 0.2, "excluded_reason": None})
     return pd.DataFrame(rows)
 
 
@@ -137,8 +188,11 @@ def test_population_json_has_the_interface_keys():
     assert {"n_cells", "wilcoxon_p"} <= set(doc["paired"]["0.1Hz_vs_10Hz"]) and doc["friedman_p"] < 1e-3
     t = doc["trend"]
     assert {"slope_ln_ks_per_decade", "slope_lo95", "slope_hi95"} <= set(t)
-    assert t["slope_lo95"] < 0.2 < t["slope_hi95"]          # _table: ln K̃_S rises by 0.2 per decade
-    assert [r["frequency_hz"] for r in t["frequencies"]] == [0.02, 0.1, 1.0, 10.0]
+    assert t["slope_ln_ks_per_decade"] == pytest.approx(0.2)   # _table: ln K̃_S rises by 0.2 per decade in every cell
+    assert t["slope_lo95"] <= t["slope_ln_ks_per_decade"] <= t["slope_hi95"]
+    assert [r["frequency_hz"] for r in t["frequencies"]] == [0.02, 0.1, 1.0, 10.0]   # the line at every one
+    d = doc["trend_design_weighted"]
+    assert d["slope_lo95"] < 0.2 < d["slope_hi95"] and d["n_cells"] == 21
 
 
 def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(tmp_path):
@@ -153,15 +207,18 @@ def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(
     assert main(["afm", "synth", "--cells", "12", "--seed", "3", "--out", str(tmp_path / "exp"), "--solver", "law",
                  "--calibration", str(cal)]) == 0
     truth = json.loads((tmp_path / "exp" / "truth.json").read_text())
+    pops = {float(f): p for f, p in truth["populations"].items()}
     assert truth["trend_slope_ln_ks_per_decade"] == pytest.approx(
-        trend.pseudo_true_slope({float(f): p for f, p in truth["populations"].items()},
-                                subset_sizes(12)))
+        np.polyfit(np.log10(list(pops)), [m for m, _ in pops.values()], 1)[0])
+    assert truth["trend_slope_design_weighted_ln_ks_per_decade"] == pytest.approx(
+        trend.pseudo_true_slope(pops, subset_sizes(12)))
     assert main(["afm", "analyze", str(tmp_path / "exp"), "--calibration", str(cal), "--method", "law",
                  "--out", str(tmp_path / "a")]) == 0
     doc = json.loads((tmp_path / "a" / "population.json").read_text())
     assert doc["measurement_from_intervals"] is False          # the law gives no intervals
     assert all(r["measurement_share"] is None for r in doc["frequencies"])
     assert doc["trend"]["slope_lo95"] < doc["trend"]["slope_ln_ks_per_decade"] < doc["trend"]["slope_hi95"]
+    assert doc["trend_design_weighted"]["n_observations"] >= doc["trend"]["n_cells"]
     first = [line for line in (tmp_path / "a" / "report.md").read_text().splitlines()[1:]
              if line and not line.startswith("Method:")][0]
     assert first.startswith("**Trend:**")

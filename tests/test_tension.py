@@ -9,7 +9,7 @@ from analysis.afm.tension.ramp import fit_ramp, force_per_tension_um
 from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.pipeline import Options, Trace, analyse
 from analysis.afm.tension.synth import droplet_force_nN, droplet_recording
-from solver.droplet_table import mean_curvature_per_um, unit_shape
+from solver.droplet_table import mean_curvature_per_um, unit_area, unit_shape
 from common.errors import InputError
 from solver.geometry import cell_radius, droplet
 
@@ -28,8 +28,10 @@ def test_the_table_is_the_exact_droplet():
     g, h = unit_shape(depth)
     np.testing.assert_allclose(g, exact.force_per_tension_um, rtol=1e-6)
     np.testing.assert_allclose(h, exact.mean_curvature_per_um, rtol=1e-6)
+    np.testing.assert_allclose(unit_area(depth), exact.surface_area_um2, rtol=1e-6)
     g, h = unit_shape(np.array([0.0, -0.3]))
     assert list(g) == [0.0, 0.0] and list(h) == [1.0, 1.0]          # no contact: no force, the free sphere
+    assert list(unit_area(np.array([0.0, -0.3]))) == [4.0 * np.pi] * 2
     d = droplet(4300.0, 12.0)                                       # and at a cell's scale (SPEC 1)
     assert mean_curvature_per_um(4300.0, 12.0) == pytest.approx(float(d.mean_curvature_per_um), rel=1e-7)
 

@@ -25,11 +25,12 @@ moduli K_j, tension γ_a, residual RMS s over n used heights), draw m = 1..M:
 If a draw's offset and noise were the cell's own, its refit would be the truth; the
 interval of ln K̃_S is the percentile one, [q_2.5, q_97.5] of the refitted
 l_m = ln K̃_S,m, and ν's is its image through ν = (1 - K̃_S)/(1 + K̃_S) (decreasing:
-the ends swap).
+the ends swap).  The standard error of ln K̃_S is the SD of the same draws,
+se = sd_m(l_m) (`ln_ks_se` in the cells table).
 
-The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(h̃), A(V, h) = R_cell² Â(h̃),
-so ĝ and Â are tabulated once (`solver.geometry.droplet` at R_cell = 1 on a fine
-h̃ grid, cubic splines) and every draw costs array arithmetic only.
+The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(δ̂), A(V, h) = R_cell² Â(δ̂),
+δ̂ = 2 (1 - h̃), with ĝ and Â from the droplet's one table (`solver.droplet_table`), so
+every draw costs array arithmetic only.
 
 Per frequency: the median ν of the included cells with a percentile bootstrap
 95 % interval (`scipy.stats.bootstrap`, cells resampled; `median_table`).
@@ -41,20 +42,19 @@ published ones) and the draws.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
-from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
 from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from common.errors import InputError
 from solver.elasticity import poisson_of_ratio
-from solver.geometry import cell_radius, droplet
+from solver.droplet_table import unit_area, unit_force_per_tension
+from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
     from analysis.emulator import Emulator
@@ -85,20 +85,10 @@ class Errors:
         return self
 
 
-@lru_cache(maxsize=1)
-def _unit_droplet():
-    """Splines ĝ(h̃), Â(h̃) of the droplet at R_cell = 1."""
-    v1 = 4.0 * np.pi / 3.0
-    ht = np.linspace(0.2, 0.999, 800)
-    d = droplet(v1, 2.0 * ht)
-    return CubicSpline(ht, d.force_per_tension_um), CubicSpline(ht, d.surface_area_um2)
-
-
 def _shape(radius, heights):
     """(g, A) = (2 H A_c, A) for cells of radius R_cell at heights (µm), broadcast."""
-    g, a = _unit_droplet()
-    ht = heights / (2.0 * radius)
-    return radius * g(ht), radius**2 * a(ht)
+    depth = np.broadcast_to(2.0 - heights / radius, np.broadcast_shapes(np.shape(radius), np.shape(heights)))
+    return radius * unit_force_per_tension(depth), radius**2 * unit_area(depth)
 
 
 def _seen(true, measured, tension_t, modulus_t, *, dh):
@@ -146,13 +136,13 @@ truth_moduli = _truth_moduli
 def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
                    rms: npt.NDArray[np.float64], *, draws: int = DRAWS,
                    volume_sd: float = VOLUME_SD, height_sd_um: float = HEIGHT_SD_UM, dh_um: float = DH_UM,
-                   seed: int = 0, steps: int = GN_STEPS) -> tuple[Any, Any, Any, Any]:
-    """(ks_lo, ks_hi, nu_lo, nu_hi) arrays per cell (rows of `curves`, an
+                   seed: int = 0, steps: int = GN_STEPS) -> tuple[Any, Any, Any, Any, Any]:
+    """(ks_lo, ks_hi, nu_lo, nu_hi, ln_ks_se) arrays per cell (rows of `curves`, an
     `analysis.invert.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
     NaN where θ is not finite)."""
     h, k, use, tension, volume = curves
     n_cells, m = h.shape
-    out = np.full((4, n_cells), np.nan)
+    out = np.full((5, n_cells), np.nan)
     ok = np.isfinite(theta).all(axis=1) & (use.sum(axis=1) >= 3)
     if not ok.any():
         return tuple(out)
@@ -177,6 +167,7 @@ def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float
     lo, hi = np.nanpercentile(lks, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
     out[0, ok], out[1, ok] = np.exp(lo), np.exp(hi)
     out[2, ok], out[3, ok] = poisson_of_ratio(np.exp(hi)), poisson_of_ratio(np.exp(lo))
+    out[4, ok] = np.nanstd(lks, axis=1, ddof=1)
     return tuple(out)
 
 

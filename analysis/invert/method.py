@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from analysis.emulator import Emulator
 
 Array = npt.NDArray[np.float64]
-INTERVAL_COLUMNS = ("nu_lo95", "nu_hi95", "ks_lo95", "ks_hi95")
+INTERVAL_COLUMNS = ("nu_lo95", "nu_hi95", "ks_lo95", "ks_hi95", "ln_ks_se")
 Tables = tuple[pd.DataFrame, pd.DataFrame]
 
 
@@ -162,11 +162,12 @@ class EmulatorInversion(Inversion):
         out = invert_curves_emulator(h, k, tension, volume, self.emulator, bending)
         use, _, _ = used_heights(h, k)
         theta = np.column_stack([np.log(out["bulk_mN_per_m"]), np.log(out["ks_tilde"])])
-        ks_lo, ks_hi, nu_lo, nu_hi = intervals.cell_intervals(
+        ks_lo, ks_hi, nu_lo, nu_hi, ln_ks_se = intervals.cell_intervals(
             self.emulator, bending, theta, Curves(h, k, use, tension, volume), out["rms_mN_per_m"].to_numpy(),
             draws=errors.draws, volume_sd=errors.volume_rel_sd, height_sd_um=errors.height_sd_um,
             seed=errors.seed)
         out["nu_lo95"], out["nu_hi95"], out["ks_lo95"], out["ks_hi95"] = nu_lo, nu_hi, ks_lo, ks_hi
+        out["ln_ks_se"] = ln_ks_se
         return out
 
     def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,

@@ -1,14 +1,17 @@
 """population.json of `cortex afm analyze`: the population answer from the cells table.
 
-Per frequency (the included cells, y = ln K̃_S, s from each cell's 95 % interval):
-the random-effects fit (`analysis.afm.population.random_effects`: μ, between-cell SD τ,
-measurement SD s_m and its share of the observed variance, with 95 % intervals),
-beside the raw numbers (mean and SD of y, median and IQR of ν) and the ν the
+Per frequency (the included cells, y = ln K̃_S, s from each cell's 95 % interval,
+`random_effects.measurement_sd`): the random-effects fit (`analysis.afm.population.random_effects`: μ,
+between-cell SD τ, measurement SD s_m and its share of the observed variance, with 95 %
+intervals), beside the raw numbers (mean and SD of y, median and IQR of ν) and the ν the
 deconvolved population N(μ, τ²) implies (median ν = ν(e^μ); quartiles
 ν(e^(μ ± 0.674 τ)), ν falling as K̃_S rises). The paired tests
-(`analysis.afm.population.paired`) and the trend over all cells and frequencies
-(`analysis.afm.population.trend`, with the line's ν at each measured frequency and on a
-grid of frequencies for the figure's band).
+(`analysis.afm.population.paired`). The trend (`trend`): the least-squares line through
+the per-frequency population means, every frequency weighted alike
+(`analysis.afm.population.mean_trend`, with the line's ν at each measured frequency and on
+a grid of frequencies for the figure's band); beside it `trend_design_weighted`, the slope
+of the mixed model over all cells and frequencies (`analysis.afm.population.trend`), whose
+weights follow the number of cells measured at each frequency.
 
 Without per-cell intervals (the `law` method) every s is 0: τ is then the raw
 spread and the measurement fields are null.
@@ -19,7 +22,7 @@ from collections.abc import Iterable
 import numpy as np
 import pandas as pd
 
-from analysis.afm.population import random_effects, trend
+from analysis.afm.population import mean_trend, random_effects, trend
 from analysis.afm.population.paired import paired_tests
 from solver.elasticity import poisson_of_ratio
 
@@ -62,15 +65,18 @@ def answer(table: pd.DataFrame) -> dict:
     """The population.json document of a cells table (`analysis.afm.analyze`)."""
     ok, has = _cells(table)
     doc = {"measurement_from_intervals": has, "frequencies": per_frequency(ok, has), **paired_tests(table)}
-    freqs = sorted(ok["frequency_hz"].unique())
-    obs = trend.Observations.of(ok["cell_id"], ok["frequency_hz"], ok["ln_ks"], ok["s"])
+    freqs = sorted(map(float, ok["frequency_hz"].unique()))
     band: Iterable[float] = np.geomspace(freqs[0], freqs[-1], BAND_POINTS) if len(freqs) > 1 else []
-    fitted = trend.fit(obs, sorted(set(map(float, freqs)) | set(map(float, band))))
-    if fitted is None:
-        doc["trend"] = None
-        return doc
-    t = fitted.to_dict()
-    t["band"] = t.pop("frequencies")
-    t["frequencies"] = [r for r in t["band"] if r["frequency_hz"] in set(map(float, freqs))]
-    doc["trend"] = t
+    line = mean_trend.fit(ok["cell_id"], ok["frequency_hz"], ok["ln_ks"], sorted(set(freqs) | set(map(float, band))))
+    doc["trend"] = None if line is None else _with_band(line.to_dict(), freqs)
+    mixed = trend.fit(trend.Observations.of(ok["cell_id"], ok["frequency_hz"], ok["ln_ks"], ok["s"]))
+    doc["trend_design_weighted"] = None if mixed is None else {
+        k: v for k, v in mixed.to_dict().items() if k != "frequencies"}
     return doc
+
+
+def _with_band(t: dict, measured: list) -> dict:
+    """The trend's rows split into `band` (all) and `frequencies` (the measured ones)."""
+    t["band"] = t.pop("frequencies")
+    t["frequencies"] = [r for r in t["band"] if r["frequency_hz"] in set(measured)]
+    return t

@@ -5,8 +5,10 @@ interval, s_i = (ln hi_i - ln lo_i) / (2 z_c) (`measurement_sd`), with z_c the n
 quantile of the coverage the per-cell intervals are measured to have, c = 98 %
 (`INTERVAL_COVERAGE`; docs/emulator.md: 97.6-98.0 % of included cells on synthetic
 experiments), z_c = 2.33, not the nominal 1.96: a normal error whose 95 % interval
-holds the truth 98 % of the time has that SD. With 1.96 the SDs were 1.25-1.37 times
-the actual errors' on the full pipeline and τ came out low (docs/population.md).
+holds the truth 98 % of the time has that SD. The SD of the cell's bootstrap draws
+itself (`ln_ks_se` in the cells table), like any scale of the draws or the interval read
+with 1.96, is 1.25-1.45 times the actual errors' of the included cells on the full
+pipeline, and with it τ comes out low (docs/population.md).
 The normal-normal random-effects model (the one of meta-analysis):
 
     y_i = θ_i + e_i,   θ_i ~ N(μ, τ²) (the cells),   e_i ~ N(0, s_i²) (the measurement),

@@ -12,14 +12,20 @@ def _ci(lo, hi, fmt=".3f"):
     return f"[{_f(lo, fmt)}, {_f(hi, fmt)}]"
 
 
-def trend_sentence(t: dict) -> str:
-    """"ln K̃_S rises by b [lo, hi] per decade ...; ν of the median cell ..." from population.json's trend."""
+def trend_sentence(t: dict, design_weighted: dict | None = None) -> str:
+    """"ln K̃_S changes by b [lo, hi] per decade ...; ν of the median cell ..." from population.json's
+    trend, with the design-weighted slope beside it when given."""
     at = ", ".join(f"{r['nu']:.2f} {_ci(r['nu_lo95'], r['nu_hi95'], '.2f')} at {r['frequency_hz']:g} Hz"
                    for r in t["frequencies"])
+    beside = "" if not design_weighted else (
+        f" Design-weighted slope (mixed model over {design_weighted['n_cells']} cells, "
+        f"{design_weighted['n_observations']} cell-frequency results; its weights follow how many cells were "
+        f"measured at each frequency): {design_weighted['slope_ln_ks_per_decade']:+.3f} "
+        f"{_ci(design_weighted['slope_lo95'], design_weighted['slope_hi95'])}.")
     return (f"**Trend:** ln K̃_S changes by {t['slope_ln_ks_per_decade']:+.3f} "
-            f"{_ci(t['slope_lo95'], t['slope_hi95'])} per decade of frequency (95 % profile-likelihood "
-            f"interval; mixed model over {t['n_cells']} cells, {t['n_observations']} cell-frequency results); "
-            f"ν of the population's median cell: {at}.")
+            f"{_ci(t['slope_lo95'], t['slope_hi95'])} per decade of frequency (95 % interval; least-squares line "
+            f"through the population means of ln K̃_S at {t['n_frequencies']} frequencies, each weighted alike; "
+            f"{t['n_cells']} cells); ν of the population's median cell: {at}.{beside}")
 
 
 def _populations(rows, from_intervals):
@@ -53,7 +59,7 @@ def _tests(doc, mann_whitney):
 
 def markdown_population(doc: dict, mann_whitney: dict) -> list:
     """Lines of report.md: the trend sentence, then the population tables (population.json)."""
-    lines = [trend_sentence(doc["trend"]), ""] if doc.get("trend") else []
+    lines = [trend_sentence(doc["trend"], doc.get("trend_design_weighted")), ""] if doc.get("trend") else []
     lines += ["## Population per frequency, measurement error taken out", "",
               "Random-effects model of ln K̃_S per frequency with each cell's own measurement SD (from its "
               "95 % interval): the mean with its t interval, the between-cell SD by REML with its profile-likelihood "

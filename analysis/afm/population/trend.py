@@ -1,4 +1,5 @@
-"""The frequency trend of ln K̃_S as one estimate: a linear mixed model over all cells and frequencies.
+"""The design-weighted frequency trend of ln K̃_S: a linear mixed model over all cells and frequencies
+(the answer's trend is `mean_trend`; this one stays beside it in population.json).
 
 Observation j of cell c at frequency f_j: y_j = ln K̃_S, x_j = log10(f_j / 1 Hz), s_j its
 measurement SD (`random_effects.measurement_sd`):
