@@ -16,7 +16,7 @@ import itertools
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Law
+from analysis.calibration.law import Law
 from solver.elasticity import poisson_of_ratio, shear_ratio
 from solver.geometry import droplet
 from solver.modulus import effective_modulus

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from analysis.calibrate.figures import _save, plt
+from analysis.calibration.command.figures import _save, plt
 from campaign.store.reader import read_results
 from common.errors import InputError
 

@@ -26,7 +26,7 @@ from pathlib import Path
 # `analysis` is the package, not this script.
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-import analysis.calibrate.pipeline as report  # noqa: E402
+import analysis.calibration.command.pipeline as report  # noqa: E402
 from analysis.synthetic import reference_law, results_table, trials_table  # noqa: E402
 
 
@@ -42,8 +42,9 @@ def emulator_inversion(repeat=3):
     import pandas as pd
 
     from analysis.invert.method import invert_rows
-    from analysis.shipped import load
-    cal, emu, _ = load()
+    from analysis.calibration.file import load_calibration
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     rng = np.random.default_rng(0)
     h = np.linspace(0.745, 0.5, 8)
     rows = []

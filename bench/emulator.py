@@ -20,7 +20,7 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 
 import numpy as np  # noqa: E402
 
-from analysis.shipped import load  # noqa: E402
+from analysis.calibration.file import load_calibration  # noqa: E402
 from solver.compression import compress  # noqa: E402
 from solver.geometry import cell_radius  # noqa: E402
 from solver.model import Shell  # noqa: E402
@@ -67,7 +67,8 @@ def dependence():
 
 def main():
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 15
-    _, emu, prov = load()
+    file = load_calibration()
+    emu, prov = file.emulator, file.provenance
     start = time.perf_counter()
     out = {"benchmark": "emulator", "offgrid": offgrid(emu, n, np.random.default_rng(13)),
            "dependence": dependence(), "emulator_built": prov.get("built", {})}

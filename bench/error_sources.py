@@ -34,8 +34,9 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 import numpy as np  # noqa: E402
 
 from analysis.afm.synth import cells as synth  # noqa: E402
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.afm import analyze as cell_analyses  # noqa: E402
+from analysis.invert.method import choose  # noqa: E402
+from analysis.calibration.file import load_calibration  # noqa: E402
 
 ALL = dict(synth.ERRORS)
 ONLY = {"none": {}, "volume": {"volume_rel_sd"}, "height": {"height_offset_sd_um"},
@@ -63,7 +64,7 @@ def run_seed(seed, cal, emu, forward):
             synth.ERRORS.update(ALL)
         row = {"seed": seed, "errors_on": name}
         for method in ("emulator", "law"):
-            table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
+            table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
             s = score(table, truth)
             row[method] = {"n_included": s["n_included"], "n_curves": s["n_curves"],
                            "coverage_95": s.get("coverage_95"),
@@ -106,7 +107,8 @@ def main():
     p.add_argument("--forward", choices=("solver", "emulator"), default="solver")
     p.add_argument("--cache", type=Path, help="pickle of the forward model's answers (read if present, written)")
     a = p.parse_args()
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     base = synth.solver_forward("standard") if a.forward == "solver" else emulator_forward(emu)
     cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
     forward = memoised(base, cache)

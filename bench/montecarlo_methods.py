@@ -13,10 +13,10 @@ from pathlib import Path
 
 sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-from analysis.invert.intervals import Errors  # noqa: E402
+from analysis.invert.measurement_errors import MeasurementErrors  # noqa: E402
 from analysis.invert.method import invert_rows  # noqa: E402
-from analysis.calibrate.pipeline import read_store  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.calibration.command.pipeline import read_store  # noqa: E402
+from analysis.calibration.file import load_calibration  # noqa: E402
 
 
 def main():
@@ -24,14 +24,15 @@ def main():
     n_studies = int(sys.argv[2]) if len(sys.argv) > 2 else 20
     _, trials = read_store(store)
     trials = trials[(trials["state"] == "done") & (trials["study"] < n_studies)]
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     rows = trials.rename(columns={"trial_id": "cell_id", "volume_used_um3": "volume_um3"})
     rows = rows.assign(tension_mN_per_m=rows["tension_seen_mN_per_m"])
     meta = trials.groupby("trial_id")[["nu_true", "height_error_mode", "study"]].first()
     out = {"benchmark": "montecarlo_methods", "store": str(store), "studies": n_studies, "rows": []}
     for method in ("emulator", "law"):
         t = invert_rows(rows[["cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m", "volume_um3"]],
-                        method, cal, emu, "standard", Errors(draws=10))
+                        method, cal, emu, "standard", MeasurementErrors(draws=10))
         t = t.join(meta, on="cell_id")
         for (nu, mode), g in t.groupby(["nu_true", "height_error_mode"]):
             ok = g[g["excluded_reason"].isna()]

@@ -28,9 +28,10 @@ sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).re
 
 import numpy as np  # noqa: E402
 
-from analysis.afm.analyze_pipeline import analyze  # noqa: E402
+from analysis.afm import analyze as cell_analyses  # noqa: E402
+from analysis.invert.method import choose  # noqa: E402
 from analysis.afm.synth.cells import generate, solver_forward  # noqa: E402
-from analysis.shipped import load  # noqa: E402
+from analysis.calibration.file import load_calibration  # noqa: E402
 
 
 def memoised(forward, cache):
@@ -72,7 +73,8 @@ def main():
     p.add_argument("--errors", nargs="+", choices=("off", "on"), default=["off", "on"])
     p.add_argument("--cache", type=Path, help="pickle of the solver's answers (read if present, written)")
     a = p.parse_args()
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
     forward = memoised(solver_forward("standard"), cache)
     out = {"benchmark": "roundtrip", "cells": 85, "runs": []}
@@ -84,7 +86,7 @@ def main():
             run = {"seed": seed, "errors": errors, "synth_s": round(synth_s, 1)}
             for method in ("emulator", "law"):
                 start = time.perf_counter()
-                table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
+                table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
                 run[method] = {**score(table, truth), "analyze_s": round(time.perf_counter() - start, 2)}
             out["runs"].append(run)
             print(json.dumps(run), file=sys.stderr, flush=True)

@@ -127,8 +127,8 @@ def per_frequency(table, segments, emulator, bending, table_c, errors=None, lags
 
 
 def intervals_errors():
-    from analysis.invert.intervals import Errors
-    return Errors()
+    from analysis.invert.measurement_errors import MeasurementErrors
+    return MeasurementErrors()
 
 
 def _interval(x):
@@ -211,11 +211,11 @@ def paired_test(rheology):
     return out
 
 
-def analyze(table, segments, emulator, bending, errors=None, lags=None, lag_source=None):
-    """The viscoelastic reading: (table with the per-frequency columns, rheology table,
-    summary dict with the instrument phase and the paired test)."""
-    from analysis.viscoelastic_table import shipped
-    cols, theta, th_m = per_frequency(table, segments, emulator, bending, shipped(), errors, lags)
+def analyze(table, segments, model, bending, errors=None, lags=None, lag_source=None):
+    """The viscoelastic reading with the complex forward model `model` (the calibration file's
+    `ComplexModel`: emulator and complex-modulus table): (table with the per-frequency columns,
+    rheology table, summary dict with the instrument phase and the paired test)."""
+    cols, theta, th_m = per_frequency(table, segments, model.emulator, bending, model.table, errors, lags)
     table = pd.concat([table.reset_index(drop=True), cols], axis=1)
     rheology = power_laws(table, theta, th_m)
     summ = {"instrument_phase": lag_source or NO_LAG,

@@ -3,7 +3,7 @@ K(h̃), γ_a measured.
 
 Model of cell i at its used heights j (`analysis.invert.inversion.used_heights`):
 
-    K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.emulator`)
+    K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.calibration.emulator`)
 
 Unknowns θ_i = (ln K_B,i, ln K̃_S,i); least squares of the residuals
 r_ij = K_ij(θ_i) - K_ij^measured (mN/m), all cells in one
@@ -37,7 +37,7 @@ from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
 
 if TYPE_CHECKING:
-    from analysis.emulator import Emulator
+    from analysis.calibration.emulator import Emulator
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25

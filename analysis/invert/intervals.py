@@ -34,13 +34,12 @@ h̃ grid, cubic splines) and every draw costs array arithmetic only.
 Per frequency: the median ν of the included cells with a percentile bootstrap
 95 % interval (`scipy.stats.bootstrap`, cells resampled; `median_table`).
 
-`Errors` is what an interval includes: the measurement errors (defaults: the
-published ones) and the draws.
+What an interval includes, the measurement errors and the draws, is
+`measurement_errors.MeasurementErrors`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
@@ -51,38 +50,16 @@ from scipy.interpolate import CubicSpline
 from scipy.stats import bootstrap
 
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
-from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
-from common.errors import InputError
+from analysis.invert.measurement_errors import DRAWS, HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius, droplet
 
 if TYPE_CHECKING:
-    from analysis.emulator import Emulator
+    from analysis.calibration.emulator import Emulator
 
-DRAWS = 100
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
-
-
-@dataclass
-class Errors:
-    """The measurement errors an interval includes (defaults: the published ones)."""
-
-    volume_rel_sd: float = VOLUME_SD
-    height_sd_um: float = HEIGHT_SD_UM
-    draws: int = DRAWS
-    seed: int = 0
-
-    def check(self) -> Errors:
-        """Itself, or InputError (one line) for an impossible error or draw count."""
-        if not (0 <= self.volume_rel_sd < 0.5):
-            raise InputError(f"--volume-sd must be in [0, 0.5) (got {self.volume_rel_sd:g})")
-        if not (0 <= self.height_sd_um < 5):
-            raise InputError(f"--height-sd must be in [0, 5) um (got {self.height_sd_um:g})")
-        if not (10 <= self.draws <= 100_000):
-            raise InputError(f"--draws must be in 10..100000 (got {self.draws})")
-        return self
 
 
 @lru_cache(maxsize=1)

@@ -107,11 +107,12 @@ def read_experiment(path: str | Path) -> list[Cell]:
                 raise InputError(f"{where}: data unreadable (truncated or corrupt file)") from None
             segments = _segments(cols.pop("segments"), amp, where)
             volume = _attr(g, "volume_um3", where, default=np.nan)
+            arr = {k: np.asarray(v, float) if np.issubdtype(np.asarray(v).dtype, np.number) else np.asarray(v)
+                   for k, v in cols.items()}
             cell = Cell(cell_id=cid, volume_um3=float(volume), segments=segments,
                         volume_source=str(_attr(g, "volume_source", where, "")),
                         spring_constant_N_per_m=float(_attr(g, "spring_constant_N_per_m", where, np.nan)),
                         date=str(_attr(g, "date", where, "")),
-                        **{k: np.asarray(v, float) if np.issubdtype(np.asarray(v).dtype, np.number) else np.asarray(v)
-                           for k, v in cols.items()})
+                        time_s=arr["time_s"], force_nN=arr["force_nN"], height_um=arr["height_um"])
             cells.append(cell.validate(f"{path}: "))
     return cells

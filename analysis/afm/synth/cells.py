@@ -43,7 +43,7 @@ from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
-    from analysis.calibration import Law
+    from analysis.calibration.law import Law
 
 POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
 SUBSETS = (((0.1, 1.0, 10.0), 50), ((0.02, 0.1, 1.0, 10.0), 10), ((0.02,), 25))

@@ -1,4 +1,4 @@
-"""report.md of `cortex analysis calibrate` (`analysis.calibrate.pipeline`), as text.
+"""report.md of `cortex analysis calibrate` (`analysis.calibration.command.pipeline`), as text.
 
 One function per section: the header (what was used and left out), the
 calibration laws (SPEC 4) with the goodness of every fitting stage and the α
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.calibrate.figures import ORDER
+from analysis.calibration.command.figures import ORDER
 
 
 def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
@@ -168,7 +168,7 @@ def _montecarlo(mc_records):
 
 
 def render(inputs: Any, result: Any, checks: list[dict[str, Any]], figs: list[Path]) -> str:
-    """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
+    """report.md as text: `inputs` and `result` of `analysis.calibration.command.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration
     variants = [v for v in ORDER if v in cal.laws] + [v for v in cal.laws if v not in ORDER]

@@ -8,7 +8,7 @@ The three stages are one function each, and the data passes through them once:
     fit(inputs, say)            calibration (SPEC 4), reconstruction check, Monte-Carlo
                                 study (SPEC 5), all in memory;
     write(out, inputs, result)  the tables, the figures and report.md
-                                (`analysis.calibrate.report`) into DIR.
+                                (`analysis.calibration.command.report`) into DIR.
 
 Nothing is written before the input is checked and fitted. DIR gets:
 
@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis import calibration as cal_mod
+from analysis.calibration import law as cal_mod
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
@@ -133,8 +133,8 @@ def fit(inputs: Inputs, say: Callable[[str], None], marks: list[tuple[str, float
     """Calibration, reconstruction check and Monte-Carlo study of `inputs` as
     `Fitted` (bad data is refused here, before any output); adds to
     inputs.left_out what could not be used and to `marks` the stage times."""
-    from analysis.calibrate import montecarlo as mc_mod
-    from analysis.calibrate import reconstruction as rec_mod
+    from analysis.calibration.command import montecarlo as mc_mod
+    from analysis.calibration.command import reconstruction as rec_mod
 
     done, trials, left_out = inputs.done, inputs.trials, inputs.left_out
     calibration, fits, loglaw = cal_mod.calibrate(done)
@@ -173,7 +173,7 @@ def _tables(result):
 
 def _figures(done, result, out):
     """The figures' paths (PNG; a PDF beside each)."""
-    from analysis.calibrate import figures
+    from analysis.calibration.command import figures
     cal = result.calibration
     figs = [figures.modulus_curves(done, cal, result.fits, out)[0],
             figures.alpha_law(cal, result.fits, out)[0],
@@ -188,7 +188,7 @@ def _figures(done, result, out):
 def write(out: OutputDir, inputs: Inputs, result: Fitted, say: Callable[[str], None]) -> Path:
     """Write every output of the module docstring into the `OutputDir` out;
     returns the report's path."""
-    from analysis.calibrate.report import render, solver_checks
+    from analysis.calibration.command.report import render, solver_checks
 
     say(f"writing {out.path}/")
     tables = _tables(result)

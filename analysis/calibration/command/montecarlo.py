@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.invert.inversion import invert_curves, to_curves
 
 KEYS = ["bending", "nu_true", "height_error_mode", "study", "cell", "trial_id"]

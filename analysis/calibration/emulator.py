@@ -60,7 +60,7 @@ def _tensor_spline(coords: list[Any], values: npt.ArrayLike, degrees: tuple[int,
     return NdBSpline(tuple(knots), c, tuple(ks))
 
 
-tensor_spline = _tensor_spline       # public: `analysis.viscoelastic_table` splines its coefficients alike
+tensor_spline = _tensor_spline       # public: `analysis.calibration.viscoelastic_table` splines its coefficients alike
 
 
 @dataclass

@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 if TYPE_CHECKING:
-    from analysis.calibration import Calibration
+    from analysis.calibration.law import Calibration
     from outputs.ownership import OutputDir
 
 ORDER = ("standard", "double", "none")
