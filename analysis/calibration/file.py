@@ -79,7 +79,7 @@ def shipped_path(name: str = SHIPPED_NAME) -> Path:
     return Path(str(resources.files("analysis.calibration") / "data" / name))
 
 
-def _store_provenance(path):
+def _store_provenance(path: str | PathLike[str]) -> dict[str, Any]:
     from campaign.store.reader import read_provenance
     p = read_provenance(path)
     return {"store": Path(path).name, "campaign_text": p.get("config_text", ""),

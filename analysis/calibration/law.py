@@ -142,7 +142,7 @@ def read_document(path: str | PathLike[str]) -> dict[str, Any]:
     return doc
 
 
-def _number(path, where, value, finite=True):
+def _number(path: str | PathLike[str], where: str, value: Any, finite: bool = True) -> float:
     if value is None and not finite:
         return float("nan")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (finite and not math.isfinite(value)):
@@ -150,7 +150,7 @@ def _number(path, where, value, finite=True):
     return float(value)
 
 
-def _law_from_json(path, name, v):
+def _law_from_json(path: str | PathLike[str], name: str, v: Any) -> Law:
     if not isinstance(v, dict):
         raise InputError(f"{path}: variants.{name} must be an object")
     for key in ("lambda", "C", "D"):
@@ -175,7 +175,7 @@ def _law_from_json(path, name, v):
                alpha=values, goodness=v.get("goodness", {}), info=info)
 
 
-def _nan_to_none(x):
+def _nan_to_none(x: Any) -> Any:
     if isinstance(x, dict):
         return {k: _nan_to_none(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -187,7 +187,7 @@ def _nan_to_none(x):
     return x
 
 
-def _free_fits(results, bending):
+def _free_fits(results: pd.DataFrame, bending: str) -> pd.DataFrame:
     """Step 1 per (K_B, K_S, γ_a) curve with at least MIN_HEIGHTS heights: α and c
     free. One row per curve (its heights and moduli kept in `_h`, `_k`)."""
     df = results.dropna(subset=["h_tilde", "modulus_mN_per_m"])
@@ -213,7 +213,7 @@ def _free_fits(results, bending):
     return pd.DataFrame(rows)
 
 
-def _alpha_at_lambda(fits, lam):
+def _alpha_at_lambda(fits: pd.DataFrame, lam: float) -> None:
     """Step 2: α of every curve with c = λ (columns added to `fits`)."""
     step2 = [law_fits.fit_alpha(h, k, b, lam) for h, k, b in zip(fits["_h"], fits["_k"], fits["bulk_mN_per_m"])]
     fits["alpha"] = [f["alpha"] for f in step2]
@@ -221,7 +221,7 @@ def _alpha_at_lambda(fits, lam):
     fits["max_residual_alpha_mN_per_m"] = [f["max_residual_mN_per_m"] for f in step2]
 
 
-def _log_laws(fits, bending):
+def _log_laws(fits: pd.DataFrame, bending: str) -> pd.DataFrame:
     """Step 3: α = C ln K̃_S + D per γ̃_a with at least two K_S; one row each."""
     per_gamma = []
     for g, group in fits.groupby("gamma_tilde", sort=True):
@@ -237,7 +237,7 @@ def _log_laws(fits, bending):
     return pd.DataFrame(per_gamma)
 
 
-def _polynomials(loglaw):
+def _polynomials(loglaw: pd.DataFrame) -> tuple[dict[str, Any], dict[str, Any]]:
     """Step 4: C(γ̃_a) and D(γ̃_a) as polynomials (`C_poly`, `D_poly` added to `loglaw`)."""
     fit_C = law_fits.fit_polynomial(loglaw["gamma_tilde"], loglaw["C"])
     fit_D = law_fits.fit_polynomial(loglaw["gamma_tilde"], loglaw["D"])
@@ -246,7 +246,7 @@ def _polynomials(loglaw):
     return fit_C, fit_D
 
 
-def _check_law(law, fits):
+def _check_law(law: Law, fits: pd.DataFrame) -> tuple[tuple[float, float], tuple[float, float]]:
     """The whole law against the curves: α_law, K's residual, K̃_S and ν
     inverted (columns added to `fits`); returns the R² and largest error of α and K."""
     fits["alpha_law"] = law.alpha_of(fits["ks_tilde"], fits["gamma_tilde"])
@@ -259,7 +259,7 @@ def _check_law(law, fits):
             law_fits.goodness(np.concatenate(list(fits["_k"])), np.concatenate(k_law)))
 
 
-def _alpha_table(law, fits):
+def _alpha_table(law: Law, fits: pd.DataFrame) -> None:
     """The fitted α on the (γ̃_a, K̃_S) grid, stored in `law`."""
     ks_axis = sorted(fits["ks_tilde"].unique())
     g_axis = sorted(fits["gamma_tilde"].unique())
@@ -270,7 +270,8 @@ def _alpha_table(law, fits):
     law.alpha = [[float(a) for a in row] for row in table.to_numpy()]
 
 
-def _goodness(fits, loglaw, polys, law_fit):
+def _goodness(fits: pd.DataFrame, loglaw: pd.DataFrame, polys: tuple[dict[str, Any], dict[str, Any]],
+              law_fit: tuple[tuple[float, float], tuple[float, float]]) -> dict[str, Any]:
     """The `goodness` document of a Law: every stage's R² and largest residual."""
     (fit_C, fit_D), ((r2_alpha_law, worst_alpha_law), (r2_k_law, worst_k_law)) = polys, law_fit
     return {

@@ -50,7 +50,7 @@ BULK_MN_PER_M = 25.0
 TERMS = tuple((i, j) for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i) if i + j > 0)
 
 
-def _monomials(db, ds):
+def _monomials(db: npt.ArrayLike, ds: npt.ArrayLike) -> tuple[Any, Any, Any]:
     """(..., len(TERMS)) monomials δ_B^i δ_S^j and their derivatives by δ_B and δ_S."""
     db, ds = np.asarray(db, float)[..., None], np.asarray(ds, float)[..., None]
     i = np.array([t[0] for t in TERMS])
@@ -134,7 +134,7 @@ class ComplexTable:
         n = len(TERMS)
         m, mb, ms = (a.reshape(-1, n) for a in _monomials(db.ravel(), ds.ravel()))
 
-        def contract(c):
+        def contract(c: Any) -> list[Any]:
             c = c[:, :n] + 1j * c[:, n:]
             return [np.sum(c * w, axis=1).reshape(h.shape) for w in (m, mb, ms)]
 

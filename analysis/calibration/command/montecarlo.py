@@ -52,7 +52,7 @@ def invert_trials(trials: pd.DataFrame, calibration: Calibration) -> pd.DataFram
     return pd.concat(parts, ignore_index=True)
 
 
-def _iqr(x):
+def _iqr(x: Any) -> float:
     q25, q75 = np.percentile(x, [25, 75])
     return q75 - q25
 

@@ -87,13 +87,13 @@ def read_store(path: str | PathLike[str]) -> tuple[pd.DataFrame, pd.DataFrame | 
     return results, trials
 
 
-def _progress(start):
-    def say(message):
+def _progress(start: float) -> Callable[[str], None]:
+    def say(message: str) -> None:
         print(f"[analysis {time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
     return say
 
 
-def _missing(frame, unit, id_column):
+def _missing(frame: pd.DataFrame | None, unit: str, id_column: str) -> tuple[int, int, str]:
     """(how many not done, how many in all, 'a pending, b failed' text)."""
     if frame is None or not len(frame):
         return 0, 0, ""
@@ -162,7 +162,7 @@ def fit(inputs: Inputs, say: Callable[[str], None], marks: list[tuple[str, float
     return result
 
 
-def _tables(result):
+def _tables(result: Fitted) -> dict[str, pd.DataFrame]:
     """{file name: DataFrame} of the CSV tables."""
     tables = {"calibration_fits.csv": result.fits, "calibration_log_law.csv": result.loglaw,
               "reconstruction.csv": result.recon}
@@ -171,7 +171,7 @@ def _tables(result):
     return tables
 
 
-def _figures(done, result, out):
+def _figures(done: pd.DataFrame, result: Fitted, out: OutputDir) -> list[Path]:
     """The figures' paths (PNG; a PDF beside each)."""
     from analysis.calibration.command import figures
     cal = result.calibration
