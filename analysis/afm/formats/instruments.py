@@ -38,6 +38,7 @@ without a volume is an error. Segment kinds: approach, pause and retract are kep
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -53,7 +54,7 @@ NATIVE_KIND = {"approach": "approach", "pause": "pause", "retract": "retract", "
 NAMES = "JPK (.txt, .txt.gz, " + ", ".join(SUFFIXES) + ") or Bruker NanoScope (.000, .001, ..., or a text export)"
 
 
-def _name_kind(path):
+def _name_kind(path: Path) -> str | None:
     """'archive', 'text' or 'nanoscope' by the file's name; None for any other name."""
     from analysis.afm.formats.bruker.nanoscope import is_nanoscope_name
     name = Path(path).name.lower()
@@ -118,7 +119,7 @@ def read_recordings(paths: Sequence[str | Path], spring_constant_N_per_m: float 
     return recs
 
 
-def _table_volume(row, name):
+def _table_volume(row: dict[str, Any], name: str) -> tuple[float, str] | None:
     """(V µm³, how) of one table row: volume_um3, else equator_radius_um at
     imaged_height_um (the confined droplet of that shape), else diameter_um of
     the free cell (V = π d³/6); None where the row gives none of them."""
