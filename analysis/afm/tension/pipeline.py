@@ -98,7 +98,8 @@ def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], di
     return traces, skipped
 
 
-def _ramp_row(trace, index, x, f, options, radius):
+def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
+              ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp (the selected model, the other for comparison)."""
     fit = fit_ramp(x, f, radius, options.model)
     other = next(m for m in MODELS if m != options.model)
@@ -121,7 +122,9 @@ def _ramp_row(trace, index, x, f, options, radius):
     return row, ("approach", index, x, f, fit, cmp)
 
 
-def _pause_row(trace, index, t, x, f, ramp, options, radius):
+def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.ndarray,
+               ramp: tuple[float, float] | None, options: Options, radius: float
+               ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one pause: its last half's mean force and height;
     `ramp` (contact x0, free baseline force) of the first fitted ramp, or None."""
     last = slice(len(f) // 2, None)
