@@ -45,7 +45,7 @@ MAX_STEP = np.array([0.5, 0.5, 0.2, 0.2])
 ANGLE_BOUNDS = (-0.3, 1.3)      # rad: δ kept within (the table is fitted over 0-1 rad)
 
 
-def _model(table, slice_, theta, h, tension, volume_um3):
+def _model(table: Any, slice_: Any, theta: Any, h: Any, tension: Any, volume_um3: Any) -> tuple[Any, Any]:
     """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ (tables at one volume)."""
     bulk = np.exp(theta[:, 0])[:, None]
     ks = np.exp(theta[:, 1])[:, None]

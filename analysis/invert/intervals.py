@@ -63,7 +63,7 @@ DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
 
 
 @lru_cache(maxsize=1)
-def _unit_droplet():
+def _unit_droplet() -> tuple[CubicSpline, CubicSpline]:
     """Splines ĝ(h̃), Â(h̃) of the droplet at R_cell = 1."""
     v1 = 4.0 * np.pi / 3.0
     ht = np.linspace(0.2, 0.999, 800)
@@ -71,14 +71,14 @@ def _unit_droplet():
     return CubicSpline(ht, d.force_per_tension_um), CubicSpline(ht, d.surface_area_um2)
 
 
-def _shape(radius, heights):
+def _shape(radius: Any, heights: Any) -> tuple[Any, Any]:
     """(g, A) = (2 H A_c, A) for cells of radius R_cell at heights (µm), broadcast."""
     g, a = _unit_droplet()
     ht = heights / (2.0 * radius)
     return radius * g(ht), radius**2 * a(ht)
 
 
-def _seen(true, measured, tension_t, modulus_t, *, dh):
+def _seen(true: Any, measured: Any, tension_t: Any, modulus_t: Any, *, dh: float) -> tuple[Any, Any]:
     """What the analysis makes of a true cell (`true` = (radius_t, mean heights h_t),
     tension γ, modulus K) measured at `measured` = (radius_s, heights h_s):
     (K_seen, γ_seen) per height (SPEC 3, see module doc)."""
@@ -92,7 +92,8 @@ def _seen(true, measured, tension_t, modulus_t, *, dh):
     return (force / g_s1 - seen) / ((a_s1 - a_s0) / a_s0), seen
 
 
-def _draw_truths(rng, volume, heights, tension, use, *, draws, volume_sd, height_sd_um):
+def _draw_truths(rng: np.random.Generator, volume: Any, heights: Any, tension: Any, use: Any, *, draws: int,
+                 volume_sd: float, height_sd_um: float) -> tuple[Any, Any, Any]:
     """Step 1: truths the cells (measured volumes (c,), mean heights (c, 1, m) in µm) could
     have had: true radii (c, M, 1), mean heights (c, M, m) and tensions (c, M)."""
     c = volume.shape[0]
@@ -106,7 +107,7 @@ def _draw_truths(rng, volume, heights, tension, use, *, draws, volume_sd, height
     return r_true, h_true, gamma_t
 
 
-def _truth_moduli(k_seen, true, measured, gamma_t, *, dh):
+def _truth_moduli(k_seen: Any, true: Any, measured: Any, gamma_t: Any, *, dh: float) -> Any:
     """Step 2: the true moduli K_j,m that make the analysis see `k_seen` (rows: cell x draw),
     inverting the affine map K_seen = c1 K + c0 of `_seen` (c0 = K_seen at K = 0);
     `true` = (radii, mean heights) of the drawn truths, `measured` the same as measured."""
@@ -157,7 +158,7 @@ def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float
     return tuple(out)
 
 
-def _gauss_newton(table, x, curves, *, steps, bounds):
+def _gauss_newton(table: Any, x: Any, curves: Curves, *, steps: int, bounds: Any) -> Any:
     """Refit θ = (ln K_B, ln K̃_S) of every row of `curves` from its start `x`: damped Gauss-Newton
     steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
     ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""

@@ -80,7 +80,7 @@ def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[
     applied before the R² filter."""
     reasons = np.full(len(n), None, dtype=object)
 
-    def exclude(where, text):
+    def exclude(where: Any, text: Callable[[Any], str]) -> None:
         for i in np.flatnonzero(where & (reasons == None)):  # noqa: E711 (elementwise)
             reasons[i] = text(i)
 
