@@ -69,8 +69,8 @@ def open(paths: str | Path | Sequence[str | Path], options: ImportOptions = Impo
         raise InputError("give one experiment (.h5) or CSV file, or JPK or Bruker files and folders (not a mixture)")
     path = Path(paths[0])
     if options.given():
-        raise InputError(f"{path}: {', '.join(options.given())} apply to instrument files only; the experiment "
-                         "and CSV formats carry their own volumes and heights")
+        raise InputError(f"{path}: {', '.join(options.given())} given: the import options apply to instrument "
+                         "files only; the experiment and CSV formats carry their own volumes and heights")
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
         from analysis.afm.formats.h5 import read_experiment
