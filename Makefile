@@ -6,7 +6,7 @@
 #   make demo            the main job, end to end
 #   make test            the type checker, then the whole suite, MPI tests on both stacks
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
-#   make calibration     rebuild the shipped calibration (analysis/data/calibration.json)
+#   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
 #   make bench-full      every script in bench/; the others take minutes to an hour and more each
 #                        (the solver-forward round trip and error sources, the Monte-Carlo study by
@@ -103,7 +103,7 @@ analysis: setup
 # The shipped calibration: the emulator campaign and the paper campaign under
 # mpiexec (about 4-5 min on 2 shared cores; reruns resume), then one file with
 # both and their provenance ($(CALIBRATION)/calibration.json).
-CALIBRATION := analysis/data
+CALIBRATION := analysis/calibration/data
 .PHONY: calibration
 calibration: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/emulator.toml --store results/emulator.h5 || [ $$? = 1 ]  # a failed point is solved again by build-calibration

@@ -2,25 +2,24 @@
 inversion (SPEC 6) shared with the measured cells, the reconstruction check,
 the Monte-Carlo error study (SPEC 5), figures and reports.
 
-Modules: `laws` (the law and its fits), `calibration` (steps 1-4, the
-`Calibration` file), `emulator` (the spline of the solver's K/K_B), `shipped`
-(the calibration file: law and emulator, read once), `calibrate/` (`cortex
-analysis calibrate`: pipeline, reconstruction check, Monte-Carlo study, figures,
-report), `invert/` (the `Inversion` interface with the law and the emulator as
-its two implementations, the intervals, the table of curves), `viscoelastic_table`
-and `viscoelastic_fit` (the complex modulus), `viscosity`, `cli`, `synthetic`
-(store tables generated from the laws, for tests and benchmarks), `afm/`.
+Modules: `calibration/` (everything a measured K(h̃) is read with: the law and its
+fits, the emulator, the complex-modulus table, the calibration file with its one
+loader, and `cortex analysis calibrate`'s pipeline under `calibration/command/`),
+`invert/` (the `Inversion` interface with the law and the emulator as its two
+implementations, the intervals, the table of curves), `viscoelastic_fit` (the
+complex modulus of a cell), `viscosity`, `synthetic` (store tables generated from
+the laws, for tests and benchmarks), `afm/`.
 
 Public API (imported on first use):
 
 - `calibrate(results)` -> `Calibration` (a `Law` per bending variant), from
-  `campaign.read_results(store)`; `Calibration.load(path)`.
-- `load_calibration(path=None)` -> (Calibration or None, Emulator or None,
-  provenance): a calibration file, by default the one shipped in the package
-  (`shipped_path()`).
+  `campaign.read_results(store)`.
+- `load_calibration(path=None)` -> `CalibrationFile` (its `calibration`, `emulator`,
+  `provenance` and the viscoelastic reading's `viscoelastic`): a calibration file, by
+  default the one shipped in the package (`shipped_path()`).
 - `invert_cell(h_tilde, K, gamma_a, calibration, bending)` -> `CellInversion`
   (ν of one cell by the law); `invert_rows(rows, method, ...)`: a table of
-  K(h̃) per cell by either method, with 95 % intervals (`Errors`); `METHODS`,
+  K(h̃) per cell by either method, with 95 % intervals (`MeasurementErrors`); `METHODS`,
   the inversion methods.
 """
 
@@ -29,21 +28,21 @@ from typing import TYPE_CHECKING
 from common.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
-    from analysis.calibrate.reconstruction import reconstruct
-    from analysis.calibration import Calibration, Law, calibrate
-    from analysis.emulator import Emulator
-    from analysis.invert.intervals import Errors
+    from analysis.calibration.command.reconstruction import reconstruct
+    from analysis.calibration.emulator import Emulator
+    from analysis.calibration.file import CalibrationFile, load_calibration, shipped_path
+    from analysis.calibration.law import Calibration, Law, calibrate
+    from analysis.invert.measurement_errors import MeasurementErrors
     from analysis.invert.inversion import CellInversion, invert_cell
     from analysis.invert.method import invert_rows
     from analysis.invert.table import METHODS
-    from analysis.shipped import load as load_calibration
-    from analysis.shipped import shipped_path
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
-    "calibrate": "analysis.calibration", "Calibration": "analysis.calibration", "Law": "analysis.calibration",
-    "load_calibration": "analysis.shipped:load", "shipped_path": "analysis.shipped",
-    "Emulator": "analysis.emulator",
+    "calibrate": "analysis.calibration.law", "Calibration": "analysis.calibration.law",
+    "Law": "analysis.calibration.law", "load_calibration": "analysis.calibration.file",
+    "CalibrationFile": "analysis.calibration.file", "shipped_path": "analysis.calibration.file",
+    "Emulator": "analysis.calibration.emulator",
     "invert_cell": "analysis.invert.inversion", "CellInversion": "analysis.invert.inversion",
-    "invert_rows": "analysis.invert.method", "Errors": "analysis.invert.intervals", "METHODS": "analysis.invert.table",
-    "reconstruct": "analysis.calibrate.reconstruction",
+    "invert_rows": "analysis.invert.method", "MeasurementErrors": "analysis.invert.measurement_errors", "METHODS": "analysis.invert.table",
+    "reconstruct": "analysis.calibration.command.reconstruction",
 })

@@ -12,11 +12,13 @@ the true ones (SPEC 5).
 """
 
 import itertools
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Law
+from analysis.calibration.law import Law
 from solver.elasticity import poisson_of_ratio, shear_ratio
 from solver.geometry import droplet
 from solver.modulus import effective_modulus
@@ -39,7 +41,7 @@ REFERENCE_C = (-0.012, 0.03, -0.2, 0.6)
 REFERENCE_D = (-0.018, -0.04, 0.3, -1.0)
 
 
-def reference_law(bending="standard"):
+def reference_law(bending: str = "standard") -> Law:
     """A plausible calibration law for one bending variant (made up): the law that
     a campaign's `[test] fake_law` of the test suite answers with (REFERENCE_*),
     for `standard`; the other variants scale its λ and the constant terms of C, D."""
@@ -49,7 +51,8 @@ def reference_law(bending="standard"):
     return Law(bending=bending, lam=REFERENCE_LAMBDA * (1.0 + 0.05 * (s - 1.0)), C=C, D=D)
 
 
-def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
+def results_table(laws: dict[str, Law], grid: dict[str, Any] = PAPER_GRID, noise: float = 0.0,
+                  rng: Any = None) -> pd.DataFrame:
     """Rows of `read_results` for every grid point and variant in `laws`
     (dict bending -> Law); relative Gaussian noise of SD `noise` on K."""
     rng = np.random.default_rng(rng)
@@ -91,29 +94,31 @@ def results_table(laws, grid=PAPER_GRID, noise=0.0, rng=None):
     return df
 
 
-def trials_table(law, *, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_height"), n_cells=55,
-                 n_studies=10, volume_rel_sd=0.075, height_sd_um=0.5, volume=4300.0, bulk=25.0,
-                 heights=(15.0, 14.0, 13.0, 12.0, 11.0, 10.0), tensions=(0.5, 1.0, 1.5, 2.0, 2.5, 3.0),
-                 dh=0.5, seed=0):
+def trials_table(law: Law, *, nu_values: Sequence[float] = (0.5, 0.43, 0.25),
+                 modes: Sequence[str] = ("per_cell", "per_height"), n_cells: int = 55, n_studies: int = 10,
+                 volume_rel_sd: float = 0.075, height_sd_um: float = 0.5, volume: float = 4300.0,
+                 bulk: float = 25.0, heights: Sequence[float] = (15.0, 14.0, 13.0, 12.0, 11.0, 10.0),
+                 tensions: Sequence[float] = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0), dh: float = 0.5,
+                 seed: int = 0) -> pd.DataFrame:
     """Rows of `read_trials` (one per trial and height) for cells of the given
     true ν, γ_a drawn from `tensions`, errors drawn per cell (`per_cell`: one
     height offset for all heights) or per height (`per_height`)."""
     rng = np.random.default_rng(seed)
-    heights = np.asarray(heights, float)
+    heights_um = np.asarray(heights, float)
     cells = list(itertools.product(nu_values, modes, range(n_studies), range(n_cells)))
-    n, m = len(cells), heights.size
+    n, m = len(cells), heights_um.size
     nu = np.array([c[0] for c in cells])
     mode = np.array([c[1] for c in cells])
     tension = rng.choice(np.asarray(tensions, float), n)
     shear = bulk * shear_ratio(nu)
     vol_used = volume * (1.0 + volume_rel_sd * rng.standard_normal(n))
     offset = np.where((mode == "per_cell")[:, None], rng.standard_normal(n)[:, None], rng.standard_normal((n, m)))
-    h0_used = heights[None, :] + height_sd_um * offset
-    h0_true = np.broadcast_to(heights, (n, m))
-    true = effective_modulus(volume, heights, heights - dh, 0.0, 0.0)           # (m,)
+    h0_used = heights_um[None, :] + height_sd_um * offset
+    h0_true = np.broadcast_to(heights_um, (n, m))
+    true = effective_modulus(volume, heights_um, heights_um - dh, 0.0, 0.0)           # (m,)
     K = bulk * (1.0 + law.alpha_of(shear / bulk, tension / bulk)[:, None] * np.exp(true["h_tilde"] / law.lam))
-    force = (tension[:, None] + K * true["area_strain"]) * droplet(volume, heights - dh).force_per_tension_um
-    fa0 = tension[:, None] * droplet(volume, heights).force_per_tension_um     # F_a(h0), true shape
+    force = (tension[:, None] + K * true["area_strain"]) * droplet(volume, heights_um - dh).force_per_tension_um
+    fa0 = tension[:, None] * droplet(volume, heights_um).force_per_tension_um     # F_a(h0), true shape
     tension_seen = fa0 / droplet(vol_used[:, None], h0_used).force_per_tension_um
     seen = effective_modulus(vol_used[:, None], h0_used, h0_used - dh, tension_seen, force)
     rep = lambda x: np.repeat(np.asarray(x), m)   # noqa: E731
@@ -130,7 +135,8 @@ def trials_table(law, *, nu_values=(0.5, 0.43, 0.25), modes=("per_cell", "per_he
         "tension_seen_mN_per_m": tension_seen.ravel()})
 
 
-def solver_results(variants=("standard",), grid=PAPER_GRID, method="fast", progress=None):
+def solver_results(variants: Sequence[str] = ("standard",), grid: dict[str, Any] = PAPER_GRID,
+                   method: str = "fast", progress: Callable[[str], None] | None = None) -> pd.DataFrame:
     """Rows of `read_results` computed directly with the solver
     (`solver.compression.compress`), no campaign: for tests and checks where
     no store exists. Slow: one solve per grid point and variant."""

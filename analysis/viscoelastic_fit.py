@@ -4,8 +4,8 @@ Model of one curve (a cell at one frequency) at its used heights j:
 
     ln K*_j = ln K_B + ln f(h̃_j, K̃_S, γ_a/K_B; V) + ln C(h̃_j, K̃_S, γ_a/K_B, δ_B, δ_S)
 
-(f: the emulator, `analysis.emulator`; C: the correspondence factor,
-`analysis.viscoelastic_table`; K_B, K_S the magnitudes |K_B*|, |K_S*|). The
+(f: the emulator, `analysis.calibration.emulator`; C: the correspondence factor,
+`analysis.calibration.viscoelastic_table`; K_B, K_S the magnitudes |K_B*|, |K_S*|). The
 measured K*_j = |K_j| e^{iδ_j} (δ_j the segment's loss angle after the instrument's
 lag is removed). Unknowns θ = (ln K_B, ln K̃_S, δ_B, δ_S); residuals the real and
 imaginary parts of ln K*_j(measured) - ln K*_j(θ), i.e. relative amplitude and phase,
@@ -36,8 +36,8 @@ from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
 from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
-    from analysis.emulator import Emulator
-    from analysis.viscoelastic_table import ComplexTable
+    from analysis.calibration.emulator import Emulator
+    from analysis.calibration.viscoelastic_table import ComplexTable
 
 STEPS = 8             # Gauss-Newton steps of the fit
 DRAW_STEPS = 4        # ... of each bootstrap refit, from θ*
@@ -45,7 +45,7 @@ MAX_STEP = np.array([0.5, 0.5, 0.2, 0.2])
 ANGLE_BOUNDS = (-0.3, 1.3)      # rad: δ kept within (the table is fitted over 0-1 rad)
 
 
-def _model(table, slice_, theta, h, tension, volume_um3):
+def _model(table: Any, slice_: Any, theta: Any, h: Any, tension: Any, volume_um3: Any) -> tuple[Any, Any]:
     """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ (tables at one volume)."""
     bulk = np.exp(theta[:, 0])[:, None]
     ks = np.exp(theta[:, 1])[:, None]

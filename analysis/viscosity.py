@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from os import PathLike
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-from analysis.calibrate.figures import _save, plt
+from analysis.calibration.command.figures import _save, plt
 from campaign.store.reader import read_results
 from common.errors import InputError
 
@@ -85,7 +85,7 @@ def figure(tab: pd.DataFrame, out: OutputDir) -> list[Path]:
     return _save(fig, out, "viscosity")
 
 
-def _markdown(tab, limits):
+def _markdown(tab: pd.DataFrame, limits: Any) -> str:
     lines = ["# Viscous interior: |K*|/K and loss angle", "",
              "| f [Hz] | eta [Pa s] | h0 [um] | h~ | K [mN/m] | abs(K*) [mN/m] | abs(K*)/K - 1 | loss angle [rad] |",
              "|---|---|---|---|---|---|---|---|"]

@@ -6,9 +6,10 @@ target analyze_wall_s < 10 s."""
 import json
 import time
 
-from analysis.afm.analyze_pipeline import analyze
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
 from analysis.afm.synth.cells import generate, law_forward
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.synthetic import reference_law
 import analysis.afm.synth.cells as synth
 
@@ -18,7 +19,8 @@ def main():
     t0 = time.perf_counter()
     cells, _ = generate(100, seed=0, errors=True, forward=law_forward(reference_law()))
     t1 = time.perf_counter()
-    table, segs = analyze(cells, Calibration({"standard": reference_law()}))
+    table, segs = choose("law", Calibration({"standard": reference_law()}), None).analyze_cells(
+        cells, "standard", None, cell_analyses)
     t2 = time.perf_counter()
     print(json.dumps({"cells": len(cells), "frequencies": 4, "segments": len(segs),
                       "samples": int(sum(len(c.time_s) for c in cells)),

@@ -22,7 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-import analysis.calibrate.pipeline as report
+
+import analysis.calibration.command.pipeline as report
 from analysis.synthetic import reference_law, results_table, trials_table
 
 
@@ -38,8 +39,9 @@ def emulator_inversion(repeat=3):
     import pandas as pd
 
     from analysis.invert.method import invert_rows
-    from analysis.shipped import load
-    cal, emu, _ = load()
+    from analysis.calibration.file import load_calibration
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     rng = np.random.default_rng(0)
     h = np.linspace(0.745, 0.5, 8)
     rows = []

@@ -17,7 +17,8 @@ import time
 
 import numpy as np
 
-from analysis.shipped import load
+
+from analysis.calibration.file import load_calibration
 from solver.compression import compress
 from solver.geometry import cell_radius
 from solver.model import Shell
@@ -64,7 +65,8 @@ def dependence():
 
 def main():
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 15
-    _, emu, prov = load()
+    file = load_calibration()
+    emu, prov = file.emulator, file.provenance
     start = time.perf_counter()
     out = {"benchmark": "emulator", "offgrid": offgrid(emu, n, np.random.default_rng(13)),
            "dependence": dependence(), "emulator_built": prov.get("built", {})}

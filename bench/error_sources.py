@@ -31,9 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
+
 from analysis.afm.synth import cells as synth
-from analysis.afm.analyze_pipeline import analyze
-from analysis.shipped import load
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
+from analysis.calibration.file import load_calibration
 
 ALL = dict(synth.ERRORS)
 ONLY = {"none": {}, "volume": {"volume_rel_sd"}, "height": {"height_offset_sd_um"},
@@ -61,7 +63,7 @@ def run_seed(seed, cal, emu, forward):
             synth.ERRORS.update(ALL)
         row = {"seed": seed, "errors_on": name}
         for method in ("emulator", "law"):
-            table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
+            table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
             s = score(table, truth)
             row[method] = {"n_included": s["n_included"], "n_curves": s["n_curves"],
                            "coverage_95": s.get("coverage_95"),
@@ -103,7 +105,8 @@ def main():
     p.add_argument("--forward", choices=("solver", "emulator"), default="solver")
     p.add_argument("--cache", type=Path, help="pickle of the forward model's answers (read if present, written)")
     a = p.parse_args()
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     base = synth.solver_forward("standard") if a.forward == "solver" else emulator_forward(emu)
     cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
     forward = memoised(base, cache)

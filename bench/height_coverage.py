@@ -21,10 +21,12 @@ import sys
 
 import numpy as np
 
+
 from analysis.afm.synth import cells as synth
-from analysis.afm.analyze_pipeline import analyze
-from analysis.invert.intervals import Errors
-from analysis.shipped import load
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
+from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.calibration.file import load_calibration
 
 
 def curves(seeds, emu, draws):
@@ -37,8 +39,8 @@ def curves(seeds, emu, draws):
         for seed in seeds:
             cells, truth = synth.generate(85, seed, errors=True, forward=emulator_forward(emu))
             offset = {c.cell_id: float(c.height_um[0] - 0.78 * t["diameter_um"]) for c, t in zip(cells, truth["cells"])}
-            table, _ = analyze(cells, None, "standard", method="emulator", emulator=emu,
-                               errors=Errors(draws=draws, seed=seed))
+            table, _ = choose("emulator", None, emu).analyze_cells(cells, "standard", MeasurementErrors(draws=draws, seed=seed),
+                                                                   cell_analyses)
             for r in table[table["excluded_reason"].isna()].itertuples():
                 t = truth["frequencies"][str(float(r.frequency_hz))]["cells"][r.cell_id]
                 rows.append((np.log(r.ks_tilde), np.log(t["ks_tilde"]), np.log(r.ks_lo95), np.log(r.ks_hi95),
@@ -68,7 +70,7 @@ def main():
     p.add_argument("seeds", nargs="*", type=int, default=[6, 7, 8, 9])
     p.add_argument("--draws", nargs="+", type=int, default=[100])
     a = p.parse_args()
-    _, emu, _ = load()
+    emu = load_calibration().emulator
     out = {"benchmark": "height_coverage", "seeds": a.seeds, "cells": 85, "runs": []}
     for draws in a.draws:
         out["runs"].append({"draws": draws, **summary(curves(a.seeds, emu, draws))})

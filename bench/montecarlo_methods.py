@@ -11,10 +11,11 @@ import json
 import sys
 from pathlib import Path
 
-from analysis.invert.intervals import Errors
+
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.method import invert_rows
-from analysis.calibrate.pipeline import read_store
-from analysis.shipped import load
+from analysis.calibration.command.pipeline import read_store
+from analysis.calibration.file import load_calibration
 
 
 def main():
@@ -25,14 +26,15 @@ def main():
                          "README's tour)")
     _, trials = read_store(store)
     trials = trials[(trials["state"] == "done") & (trials["study"] < n_studies)]
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     rows = trials.rename(columns={"trial_id": "cell_id", "volume_used_um3": "volume_um3"})
     rows = rows.assign(tension_mN_per_m=rows["tension_seen_mN_per_m"])
     meta = trials.groupby("trial_id")[["nu_true", "height_error_mode", "study"]].first()
     out = {"benchmark": "montecarlo_methods", "store": str(store), "studies": n_studies, "rows": []}
     for method in ("emulator", "law"):
         t = invert_rows(rows[["cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m", "volume_um3"]],
-                        method, cal, emu, "standard", Errors(draws=10))
+                        method, cal, emu, "standard", MeasurementErrors(draws=10))
         t = t.join(meta, on="cell_id")
         for (nu, mode), g in t.groupby(["nu_true", "height_error_mode"]):
             ok = g[g["excluded_reason"].isna()]

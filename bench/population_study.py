@@ -65,15 +65,17 @@ ALPHA = 0.05
 
 def run_full(seed, errors):
     from analysis.afm.synth import cells as synth
-    from analysis.afm.analyze_pipeline import analyze
-    from analysis.invert.intervals import Errors
-    from analysis.shipped import load
-    cal, emu, _ = load(None)
+    from analysis.afm import analyze as cell_analyses
+    from analysis.invert.method import choose
+    from analysis.invert.measurement_errors import MeasurementErrors
+    from analysis.calibration.file import load_calibration
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     t0 = time.perf_counter()
     cells, truth = synth.generate(85, seed=seed, errors=errors)
     t1 = time.perf_counter()
-    err = Errors() if errors else Errors(volume_rel_sd=0.0, height_sd_um=0.0)
-    table, _ = analyze(cells, cal, "standard", method="emulator", emulator=emu, errors=err)
+    err = MeasurementErrors() if errors else MeasurementErrors(volume_rel_sd=0.0, height_sd_um=0.0)
+    table, _ = choose("emulator", cal, emu).analyze_cells(cells, "standard", err, cell_analyses)
     doc = answer(table)
     t2 = time.perf_counter()
     true = {(c["cell_id"], float(f)): float(np.log(v["ks_tilde"])) for c in truth["cells"]

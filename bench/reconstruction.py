@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.invert.intervals import Errors
+
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.method import invert_rows
-from analysis.calibrate.pipeline import read_store
-from analysis.shipped import load
+from analysis.calibration.command.pipeline import read_store
+from analysis.calibration.file import load_calibration
 from solver.elasticity import poisson_ratio
 
 
@@ -27,7 +28,8 @@ def main():
                          "README's tour)")
     results, _ = read_store(store)
     results = results[results["state"] == "done"]
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     out = {"benchmark": "reconstruction", "store": str(store), "variants": {}}
     for bending, g in results.groupby("bending"):
         rows = g.assign(cell_id=[f"{s:g}/{t:g}" for s, t in zip(g["shear_mN_per_m"], g["tension_mN_per_m"])])
@@ -36,7 +38,7 @@ def main():
         rows = rows[["cell_id", "h_tilde", "modulus_mN_per_m", "tension_mN_per_m", "volume_um3"]]
         res = {}
         for method in ("emulator", "law"):
-            t = invert_rows(rows, method, cal, emu, bending, Errors(draws=20))
+            t = invert_rows(rows, method, cal, emu, bending, MeasurementErrors(draws=20))
             ok = t[t["excluded_reason"].isna()]
             err = np.abs(ok["nu"].to_numpy() - ok["cell_id"].map(truth).to_numpy())
             res[method] = {"n_curves": len(t), "n_included": len(ok), "max_abs_err": float(err.max()),

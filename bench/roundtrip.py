@@ -26,9 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.afm.analyze_pipeline import analyze
+
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
 from analysis.afm.synth.cells import generate, solver_forward
-from analysis.shipped import load
+from analysis.calibration.file import load_calibration
 
 
 def memoised(forward, cache):
@@ -70,7 +72,8 @@ def main():
     p.add_argument("--errors", nargs="+", choices=("off", "on"), default=["off", "on"])
     p.add_argument("--cache", type=Path, help="pickle of the solver's answers (read if present, written)")
     a = p.parse_args()
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     cache = pickle.loads(a.cache.read_bytes()) if a.cache and a.cache.is_file() else {}
     forward = memoised(solver_forward("standard"), cache)
     out = {"benchmark": "roundtrip", "cells": 85, "runs": []}
@@ -82,7 +85,7 @@ def main():
             run = {"seed": seed, "errors": errors, "synth_s": round(synth_s, 1)}
             for method in ("emulator", "law"):
                 start = time.perf_counter()
-                table, _ = analyze(cells, cal, "standard", method=method, emulator=emu)
+                table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
                 run[method] = {**score(table, truth), "analyze_s": round(time.perf_counter() - start, 2)}
             out["runs"].append(run)
             print(json.dumps(run), file=sys.stderr, flush=True)

@@ -1,7 +1,7 @@
 """The viscoelastic reading (SPEC 10): the complex table against the solver, round trips,
 the speed of the analysis. Prints one JSON object.
 
-`table`: ln C = ln(K*/K) from the shipped table (`analysis.viscoelastic_table`) against
+`table`: ln C = ln(K*/K) from the shipped table (`analysis.calibration.viscoelastic_table`) against
 `solver.viscoelastic` at random points between its nodes (seeded; h̃ 0.45-0.82, K̃_S
 0.05-5 and γ̃_a 0.01-0.25 uniform in their logarithms, δ_B and δ_S 0-0.9 rad, V 3000-6500
 µm³): the largest and RMS error of the phase (rad) and of ln |C| (the relative error of
@@ -23,13 +23,14 @@ import time
 
 import numpy as np
 
+
 from analysis.afm.synth import cells as sy
-from analysis.afm.analyze_pipeline import analyze
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
 from analysis.afm.rheology import analyze as rheology
 from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex
-from analysis.invert.intervals import Errors
-from analysis.shipped import load
-from analysis.viscoelastic_table import shipped
+from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.calibration.file import load_calibration
 from solver.geometry import cell_radius
 from solver.model import Shell
 from solver.viscoelastic import correction, hessian_parts
@@ -37,7 +38,7 @@ from solver.viscoelastic import correction, hessian_parts
 
 def table_error(n, seed=3):
     rng = np.random.default_rng(seed)
-    table, errs = shipped(), []
+    table, errs = load_calibration().viscoelastic.table, []
     while len(errs) < n:
         ht, v = rng.uniform(0.45, 0.82), rng.uniform(3000, 6500)
         ks, g = np.exp(rng.uniform(np.log(0.05), np.log(5))), np.exp(rng.uniform(np.log(0.01), np.log(0.25)))
@@ -57,15 +58,16 @@ def table_error(n, seed=3):
 
 def experiment(bulk, shear, errors, n_cells=85, seed=1):
     cells, truth = sy.generate(n_cells, seed, errors=errors,
-                               forward=ViscoelasticForward(bulk, shear, emulator_complex(), seed=seed))
+                               forward=ViscoelasticForward(bulk, shear, emulator_complex(load_calibration().viscoelastic),
+                                                           seed=seed))
     return cells, truth
 
 
 def analyse(cells):
-    _, emu, _ = load(None)
-    table, segs = analyze(cells, None, "standard", method="emulator", emulator=emu, errors=Errors())
+    model = load_calibration().viscoelastic
+    table, segs = choose("emulator", None, model.emulator).analyze_cells(cells, "standard", MeasurementErrors(), cell_analyses)
     start = time.perf_counter()
-    table, rheo, summ = rheology(table, segs, emu, "standard", Errors())
+    table, rheo, summ = rheology(table, segs, model, "standard", MeasurementErrors())
     return table, rheo, summ, time.perf_counter() - start
 
 
@@ -119,7 +121,7 @@ def main():
     cells, _ = experiment(0.1, 0.3, True, n_cells=100, seed=7)
     table, rheo, summ, wall = analyse(cells)
     result["speed"] = {"cells": 100, "frequencies": 4, "curves": int(table["bulk_loss_angle_rad"].notna().sum()),
-                       "draws": Errors().draws, "viscoelastic_wall_s": wall}
+                       "draws": MeasurementErrors().draws, "viscoelastic_wall_s": wall}
     print(json.dumps(result))
 
 

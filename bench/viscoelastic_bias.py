@@ -3,7 +3,7 @@
 
 A cell (V = 4300 µm³, K_B = 25 mN/m, γ_a = 1.5 mN/m, six heights h̃ 0.5-0.75) of true
 magnitudes K̃_S = |K_S*|/|K_B*| (ν = (1 - K̃_S)/(1 + K̃_S)) and loss angles (δ_B, δ_S):
-its |K*(h̃)| from the complex forward model (emulator × `analysis.viscoelastic_table`),
+its |K*(h̃)| from the complex forward model (emulator × `analysis.calibration.viscoelastic_table`),
 inverted by the magnitude-only emulator fit (`analysis.invert.emulator_fit`) as today's
 analysis does: ν_mag - ν per (ν, δ_B, δ_S), and Re ν* of the complex Poisson ratio.
 
@@ -14,9 +14,9 @@ import json
 
 import numpy as np
 
+
 from analysis.invert.emulator_fit import invert_curves_emulator
-from analysis.shipped import load
-from analysis.viscoelastic_table import shipped
+from analysis.calibration.file import load_calibration
 from solver.elasticity import shear_ratio
 
 NUS = (0.2, 0.5, 0.7)
@@ -24,7 +24,8 @@ ANGLES = ((0.16, 0.16), (0.16, 0.31), (0.16, 0.47), (0.31, 0.16), (0.08, 0.47), 
 
 
 def main():
-    emu, table = load(None)[1], shipped()
+    model = load_calibration().viscoelastic
+    emu, table = model.emulator, model.table
     h = np.linspace(0.5, 0.75, 6)
     rows = []
     for nu in NUS:

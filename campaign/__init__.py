@@ -3,7 +3,7 @@ scheduler and the resumable HDF5 store.
 
 Public API (imported on first use):
 
-- `load_config(path)` -> `Campaign`: a campaign file, checked (its shells,
+- `load(path)` -> `Campaign`: a campaign file, checked (its shells,
   studies, solver method).
 - `run(campaign, store_path, ...)`: run or resume it under MPI (every rank
   calls it; the exit status is returned).
@@ -22,12 +22,12 @@ from typing import TYPE_CHECKING
 from common.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
-    from campaign.config import Campaign, load as load_config
+    from campaign.config import Campaign, load
     from campaign.scheduler import run
     from campaign.store.reader import read_provenance, read_results, read_trials, summary
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
-    "load_config": "campaign.config:load", "Campaign": "campaign.config",
+    "load": "campaign.config", "Campaign": "campaign.config",
     "run": "campaign.scheduler",
     "read_results": "campaign.store.reader", "read_trials": "campaign.store.reader",
     "summary": "campaign.store.reader", "read_provenance": "campaign.store.reader",

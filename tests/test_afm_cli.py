@@ -9,7 +9,7 @@ import pytest
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.synth.cells import generate, law_forward
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.synthetic import reference_law
 from cortex.cli import main
 
@@ -136,11 +136,11 @@ def test_bad_calibration_and_variant(setup, tmp_path, capsys):
 
 def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     """The calibration file is read and parsed once per `afm analyze` and handed down."""
-    import analysis.shipped
+    import analysis.calibration.file
     _, cal, good, _ = setup
     reads = []
-    real = analysis.shipped.read_document
-    monkeypatch.setattr(analysis.shipped, "read_document", lambda path: reads.append(path) or real(path))
+    real = analysis.calibration.file.read_document
+    monkeypatch.setattr(analysis.calibration.file, "read_document", lambda path: reads.append(path) or real(path))
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
                  "--out", str(tmp_path / "out")]) == 0
     assert [str(p) for p in reads] == [str(cal)]

@@ -12,10 +12,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from analysis.afm.analyze_pipeline import analyze
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, solver_forward
-from analysis.calibration import calibrate
+from analysis.calibration.law import calibrate
 from campaign.store.reader import read_results
 from conftest import BIN, ROOT
 
@@ -55,7 +56,7 @@ def calibration(tmp_path_factory):
 @pytest.mark.slow
 def test_solver_round_trip_without_errors(calibration):
     cells, truth = generate(40, seed=5, errors=False, forward=solver_forward("standard"))
-    table, _ = analyze(cells, calibration, "standard")
+    table, _ = choose("law", calibration, None).analyze_cells(cells, "standard", None, cell_analyses)
     s = summary(table)
     assert [r["frequency_hz"] for r in s["frequencies"]] == [0.02, 0.1, 1.0, 10.0]
     for r in s["frequencies"]:

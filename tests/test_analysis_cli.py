@@ -9,8 +9,8 @@ import types
 import numpy as np
 import pytest
 
-import analysis.calibrate.pipeline as report
-from analysis.calibration import Calibration
+import analysis.calibration.command.pipeline as report
+from analysis.calibration.file import load_calibration
 from analysis.synthetic import reference_law, results_table, trials_table
 from cortex.cli import main
 
@@ -49,7 +49,8 @@ def test_full_run_writes_everything(store, tmp_path, capsys):
         assert (out / name).stat().st_size > 0, name
     for fig in ("modulus_vs_height", "alpha_vs_shear", "reconstruction", "equator_shear_ratio", "montecarlo"):
         assert (out / f"{fig}.png").exists() and (out / f"{fig}.pdf").exists()
-    cal = Calibration.load(out / "calibration.json")
+    cal = load_calibration(out / "calibration.json").calibration
+    assert cal is not None
     assert set(cal.laws) == set(LAWS)
     for name, law in cal.laws.items():
         assert law.lam == pytest.approx(LAWS[name].lam, rel=0.01)

@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibrate import montecarlo, reconstruction
-from analysis.calibration import Calibration, calibrate
+from analysis.calibration.command import montecarlo, reconstruction
+from analysis.calibration.law import Calibration, calibrate
 from analysis.synthetic import reference_law, results_table, trials_table
 
 LAW = reference_law("standard")

@@ -16,7 +16,8 @@ import pytest
 
 from analysis.afm.formats.bruker.nanoscope import read_curve, read_nanoscope
 from analysis.afm.formats.bruker.text import read_columns, read_nanoscope_text
-from analysis.afm.formats.instruments import import_cells, read_file, read_recordings
+from analysis.afm.formats.instruments import read_file, read_recordings
+from analysis.afm.formats.reader import ImportOptions, open as open_cells
 from conftest import ROOT
 from cortex.cli import main
 from common.errors import EXIT_BAD_INPUT, EXIT_SOME_FAILED, InputError
@@ -156,7 +157,7 @@ def test_an_export_alone_needs_its_spring_constant(tmp_path):
     np.testing.assert_allclose(rec.segments[0].force_nN, 0.1 * d_nm)
     assert np.isnan(rec.segments[0].time_s).all()                                # no sampling without the binary
     with pytest.raises(InputError, match="sample times unknown"):
-        import_cells([alone], volume_um3=4000.0, dish_um=-5.0, spring_constant_N_per_m=0.1)
+        open_cells([alone], ImportOptions(volume_um3=4000.0, dish_um=-5.0, spring_constant_N_per_m=0.1))
 
 
 def test_an_export_of_force_and_a_retract(tmp_path):

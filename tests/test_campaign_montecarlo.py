@@ -310,8 +310,8 @@ def test_zero_error_trials_invert_to_their_true_nu(tmp_path):
     """The fake law is exactly of the calibration's form, so with zero errors
     every trial's curve inverts to its model cell's ν (the whole chain:
     compressions -> trials -> store -> calibration -> inversion)."""
-    from analysis.calibration import calibrate
-    from analysis.calibrate.montecarlo import montecarlo
+    from analysis.calibration.law import calibrate
+    from analysis.calibration.command.montecarlo import montecarlo
     text = FAKE.replace("volume_error_rel_sd = 0.075", "volume_error_rel_sd = 0.0") \
         .replace("height_error_sd_um = 0.5", "height_error_sd_um = 0.0")
     assert run(tmp_path, text).returncode == 0

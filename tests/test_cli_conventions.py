@@ -11,7 +11,7 @@ import subprocess
 import h5py
 import pytest
 
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.invert.table import METHODS as INVERSION_METHODS
 from analysis.synthetic import reference_law
 from conftest import CORTEX, ROOT, cortex

@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 
 from analysis.afm.synth.cells import solver_forward
-from analysis.emulator import AXES
+from analysis.calibration.emulator import AXES
 from analysis.invert.emulator_fit import invert_curves_emulator
-from analysis.invert.intervals import Errors
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.method import invert_rows
-from analysis.shipped import load, shipped_path
+from analysis.calibration.file import TABLE_NAME, load_calibration, shipped_path
 from campaign.config import load as load_campaign
 from campaign.store.reader import read_results
 from conftest import BIN, ROOT
@@ -39,8 +39,8 @@ bending = "{bending}"
 
 @pytest.fixture(scope="module")
 def shipped():
-    cal, emu, prov = load()
-    return cal, emu, prov
+    file = load_calibration()
+    return file.calibration, file.emulator, file.provenance
 
 
 def test_ratio_axes_give_the_absolute_grid(tmp_path):
@@ -134,7 +134,7 @@ def solver_curves():
 def test_emulator_inversion_recovers_solver_cells(shipped, solver_curves):
     rows, truth = solver_curves
     cal, emu, _ = shipped
-    out = invert_rows(rows, "emulator", cal, emu, "standard", Errors(draws=60)).set_index("cell_id")
+    out = invert_rows(rows, "emulator", cal, emu, "standard", MeasurementErrors(draws=60)).set_index("cell_id")
     law = invert_rows(rows, "law", cal, emu, "standard").set_index("cell_id")
     for cid, (ks, bulk) in truth.items():
         nu = (1 - ks) / (1 + ks)
@@ -150,9 +150,9 @@ def test_emulator_inversion_recovers_solver_cells(shipped, solver_curves):
 def test_intervals_widen_with_the_errors(shipped, solver_curves):
     rows, _ = solver_curves
     cal, emu, _ = shipped
-    small = invert_rows(rows, "emulator", cal, emu, "standard", Errors(volume_rel_sd=0.01, height_sd_um=0.05,
+    small = invert_rows(rows, "emulator", cal, emu, "standard", MeasurementErrors(volume_rel_sd=0.01, height_sd_um=0.05,
                                                                       draws=60))
-    large = invert_rows(rows, "emulator", cal, emu, "standard", Errors(draws=60))
+    large = invert_rows(rows, "emulator", cal, emu, "standard", MeasurementErrors(draws=60))
     assert np.all((large["nu_hi95"] - large["nu_lo95"]) > 2 * (small["nu_hi95"] - small["nu_lo95"]))
     # the standard error of ln K̃_S is the same draws' SD: it widens alike, and a normal error of that SD
     # has about the percentile interval's width
@@ -189,7 +189,7 @@ def test_intervals_hold_the_truth_of_cells_with_a_height_offset(shipped):
             cid = f"{offset:+}-{i}"
             rows += _recorded_with_offset(emu, cid, ks, bulk, tension, offset)
             truth[cid] = ks
-    out = invert_rows(pd.DataFrame(rows), "emulator", shipped[0], emu, "standard", Errors()).set_index("cell_id")
+    out = invert_rows(pd.DataFrame(rows), "emulator", shipped[0], emu, "standard", MeasurementErrors()).set_index("cell_id")
     included = out[out["excluded_reason"].isna()]
     assert len(included) >= 8
     biased = [cid for cid in included.index if abs(np.log(included.loc[cid, "ks_tilde"] / truth[cid])) > 0.3]
@@ -207,5 +207,7 @@ def test_fit_at_the_bound_is_excluded(shipped):
     assert "limit of the fit" in out["excluded_reason"][0] and out["nu"][0] > 0.9
 
 
-def test_shipped_path_is_inside_the_package():
-    assert shipped_path().is_file() and shipped_path().parent.parent.name == "analysis"
+def test_shipped_files_are_inside_the_package():
+    for path in (shipped_path(), shipped_path(TABLE_NAME)):
+        assert path.is_file() and path.parent.parent.name == "calibration"
+        assert path.parent.parent.parent.name == "analysis"

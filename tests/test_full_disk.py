@@ -14,7 +14,7 @@ import h5py
 import pandas as pd
 import pytest
 
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.synthetic import reference_law
 from campaign.store import journal
 from campaign.store.journal import read as read_journal

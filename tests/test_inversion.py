@@ -4,9 +4,9 @@ under noise, and the published filters exclude what they should, with reasons.""
 import numpy as np
 import pytest
 
-from analysis.calibration import Calibration, poisson, shear_ratio
+from analysis.calibration.law import Calibration, poisson, shear_ratio
 from analysis.invert.inversion import invert_cell, invert_curves
-from analysis.laws import modulus_law
+from analysis.calibration.law_fits import modulus_law
 from analysis.synthetic import reference_law
 
 LAW = reference_law("standard")
@@ -127,10 +127,11 @@ def test_one_implementation_per_method_and_the_part_each_needs():
     """`choose` builds the inversion a calibration file's parts serve, and refuses a file
     without the part the method needs with its one line."""
     from analysis.invert.method import INVERSIONS, EmulatorInversion, LawInversion, choose
-    from analysis.shipped import load
+    from analysis.calibration.file import load_calibration
     from common.errors import InputError
     from common.names import INVERSION_METHODS
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     assert tuple(INVERSIONS) == INVERSION_METHODS
     assert isinstance(choose("law", cal, None), LawInversion)
     assert isinstance(choose("emulator", None, emu), EmulatorInversion)

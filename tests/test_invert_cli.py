@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.shipped import load
+from analysis.calibration.file import load_calibration
 from conftest import ROOT, cortex
 
 KEYS = ["cell_id", "frequency_hz", "nu", "nu_lo95", "nu_hi95", "ks_tilde", "bulk_mN_per_m", "r2", "method",
@@ -19,7 +19,7 @@ KEYS = ["cell_id", "frequency_hz", "nu", "nu_lo95", "nu_hi95", "ks_tilde", "bulk
 @pytest.fixture(scope="module")
 def table(tmp_path_factory):
     """Two cells at two frequencies from the shipped emulator itself (K_B 22 and 30 mN/m)."""
-    _, emu, _ = load()
+    emu = load_calibration().emulator
     h = np.linspace(0.745, 0.5, 6)
     rows = []
     for cid, ks, bulk, tension, volume in (("x", 0.3, 22.0, 1.1, 4800.0), ("y", 1.5, 30.0, 2.0, 3900.0)):
@@ -74,7 +74,7 @@ def test_invert_refuses_a_malformed_table(tmp_path, content, words):
 def test_invert_refuses_a_folder_and_a_law_only_calibration(tmp_path, table):
     run = cortex("analysis", "invert", tmp_path, "--out", tmp_path / "out")
     assert run.returncode == 2 and "is a directory" in run.stderr
-    cal, _, _ = load()
+    cal = load_calibration().calibration
     law_only = tmp_path / "law.json"
     cal.save(law_only)
     run = cortex("analysis", "invert", table, "--out", tmp_path / "out", "--calibration", law_only,
@@ -91,7 +91,7 @@ def test_afm_analyze_needs_no_calibration(tmp_path):
     """A small synthetic experiment (the shipped law as forward model, errors off) analysed
     with the shipped emulator: intervals per cell, medians with intervals, the figure."""
     exp = tmp_path / "exp"
-    shipped = str(__import__("analysis.shipped", fromlist=["x"]).shipped_path())
+    shipped = str(__import__("analysis.calibration.file", fromlist=["x"]).shipped_path())
     run = cortex("afm", "synth", "--cells", 8, "--seed", 2, "--no-errors", "--solver", "law",
                  "--calibration", shipped, "--out", exp)
     assert run.returncode == 0, run.stderr
@@ -127,6 +127,7 @@ def test_a_table_without_volumes_needs_one_volume_given_and_there_is_no_default(
     assert "no volume_um3 column" in run.stderr and "--volume" in run.stderr
     run = cortex("analysis", "invert", str(path), "--volume", "-3", "--out", str(tmp_path / "out"))
     assert run.returncode == 2 and "--volume must be a number > 0" in run.stderr
-    cal, emu, _ = load()
+    file = load_calibration()
+    cal, emu = file.calibration, file.emulator
     with pytest.raises(TypeError):
         emu.ratio(0.6, 0.5, 0.04)          # no default volume below the reader

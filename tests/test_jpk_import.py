@@ -11,9 +11,9 @@ import pytest
 
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.formats.h5 import read_experiment
-from analysis.afm.formats.instruments import import_cells
+from analysis.afm.formats.reader import ImportOptions, open as open_cells
 from analysis.afm.synth.cells import generate, law_forward
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.synthetic import reference_law
 from cortex.cli import main
 from jpk_writer import write_force, write_map
@@ -52,14 +52,14 @@ def _same_cell(got, want):
 
 def test_written_force_archives_import_to_the_cells(exp):
     d, cells, folder, vol, _ = exp
-    recs, got = import_cells([folder], volumes_csv=vol, dish_um=3.0)
-    assert [r.cell_id for r in recs] == [c.cell_id for c in cells]
-    for g, c, r in zip(got, cells, recs):
+    got = open_cells([folder], ImportOptions(volumes_csv=str(vol), dish_um=3.0))
+    assert [g.cell_id for g in got] == [c.cell_id for c in cells]
+    for g, c in zip(got, cells):
         _same_cell(g, c)
         assert g.volume_um3 == c.volume_um3 and g.volume_source == "confocal"
-        assert r.spring_constant_N_per_m == c.spring_constant_N_per_m
-        mods = [s for s in r.segments if s.kind == "modulation"]
-        assert mods and all(s.amplitude_um == pytest.approx(0.25) for s in mods)
+        assert g.recorded is not None and g.recorded["spring_constant_N_per_m"] == c.spring_constant_N_per_m
+        mods = [s for s in g.recorded["segments"] if s["kind"] == "modulation"]
+        assert mods and all(s["amplitude_um"] == pytest.approx(0.25) for s in mods)
 
 
 @pytest.mark.parametrize("at_top, suffix", [(False, ".jpk-force-map"), (True, ".jpk-force-map"),
@@ -69,8 +69,8 @@ def test_written_map_pixels_import_to_the_cells(exp, tmp_path, at_top, suffix):
     same = [cells[0]] * 2 if at_top else cells      # top-level settings: one segment plan for all pixels
     scan = "quantitative-imaging-map" if suffix == ".jpk-qi-data" else "force-scan-map"
     path = write_map(tmp_path / f"map{suffix}", same, settings_at_top=at_top, scan_type=scan)
-    recs, got = import_cells([path], volume_um3=4000.0)
-    assert [r.cell_id for r in recs] == [f"map-px{i}" for i in range(len(same))]
+    got = open_cells([path], ImportOptions(volume_um3=4000.0))
+    assert [g.cell_id for g in got] == [f"map-px{i}" for i in range(len(same))]
     for g, c in zip(got, same):
         _same_cell(g, c)
         assert g.spring_constant_N_per_m == same[0].spring_constant_N_per_m
@@ -82,7 +82,7 @@ def test_native_round_trip(exp, tmp_path, capsys):
     assert main(["afm", "import", str(folder), "--volumes", str(vol), "--dish-height-um", "3", "--out",
                  str(out)]) == 0
     back = read_experiment(out / "experiment.h5")
-    _, direct = import_cells([folder], volumes_csv=vol, dish_um=3.0)
+    direct = open_cells([folder], ImportOptions(volumes_csv=str(vol), dish_um=3.0))
     def plan(cell):
         return [(s.kind, s.start, s.stop, *np.nan_to_num([s.frequency_hz, s.amplitude_um], nan=-1.0))
                 for s in cell.segments]
@@ -118,8 +118,8 @@ def test_dish_curve_sets_the_height_reference(exp, tmp_path):
     dish = Cell("dish", 1.0, np.arange(n) * 0.01, force, h, [Segment("approach", 0, n)], spring_constant_N_per_m=k)
     write_force(tmp_path / "dish.jpk-force", dish, dish_um=7.5)
     write_force(tmp_path / "c.jpk-force", cells[0], dish_um=7.5)
-    _, (got,) = import_cells([tmp_path / "c.jpk-force"], volume_um3=cells[0].volume_um3,
-                             dish_curve=tmp_path / "dish.jpk-force")
+    got, = open_cells([tmp_path / "c.jpk-force"], ImportOptions(volume_um3=cells[0].volume_um3,
+                                                                 dish_curve=str(tmp_path / "dish.jpk-force")))
     np.testing.assert_allclose(got.height_um, cells[0].height_um, atol=HEIGHT_UM)
 
 
@@ -233,14 +233,14 @@ def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_pat
     assert set(done["cell_id"]) == {x.cell_id for x in cells} and done["nu"].notna().any()
 
 
-def test_jpk_options_refused_for_the_native_format(exp, tmp_path, capsys):
+def test_import_options_refused_for_the_native_format(exp, tmp_path, capsys):
     _, cells, _, _, cal = exp
     from analysis.afm.formats.h5 import write_experiment
     native = write_experiment(tmp_path / "n.h5", cells)
     capsys.readouterr()
     assert main(["afm", "analyze", str(native), "--volume", "4000", "--calibration", str(cal),
                  "--out", str(tmp_path / "o")]) == 2
-    assert "JPK files only" in capsys.readouterr().err and not (tmp_path / "o").exists()
+    assert "apply to instrument files only" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
 def _text_export(path, modulation):
@@ -267,7 +267,7 @@ def test_text_export_modulation_segment(tmp_path, capsys):
     mod = rec.segments[1]
     assert (mod.frequency_hz, mod.amplitude_um, mod.duration_s, mod.n_samples) == (1.0, pytest.approx(0.25), 2.0, 200)
     np.testing.assert_allclose(mod.time_s[[0, -1]], [2.005, 3.995])
-    _, (cell,) = import_cells([tmp_path / "m.txt"], volume_um3=4000.0)
+    cell, = open_cells([tmp_path / "m.txt"], ImportOptions(volume_um3=4000.0))
     osc, = cell.oscillations()
     np.testing.assert_allclose(cell.height_um[osc.start:osc.stop], mod.height_um + 20.0 * 1e-3 / 0.5)
     capsys.readouterr()

@@ -199,7 +199,7 @@ def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(
     import json
 
     from analysis.afm.synth.cells import subset_sizes
-    from analysis.calibration import Calibration
+    from analysis.calibration.law import Calibration
     from analysis.synthetic import reference_law
     from cortex.cli import main
     cal = tmp_path / "cal.json"

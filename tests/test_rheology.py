@@ -6,12 +6,13 @@ import pandas as pd
 import pytest
 
 from analysis.afm import rheology
-from analysis.afm.analyze_pipeline import analyze
+from analysis.afm import analyze as cell_analyses
+from analysis.invert.method import choose
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.synth.cells import generate
 from analysis.afm.synth.rheology import ViscoelasticForward, solver_complex
-from analysis.invert.intervals import Errors
-from analysis.shipped import load
+from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.calibration.file import load_calibration
 from conftest import cortex
 from common.errors import InputError
 
@@ -22,9 +23,10 @@ def solver_round_trip():
     response (K_sec from the compression, C from the linear response), errors off."""
     cells, truth = generate(3, seed=4, errors=False,
                             forward=ViscoelasticForward(0.1, 0.3, solver_complex(), seed=4))
-    emu = load(None)[1]
-    table, segs = analyze(cells, None, "standard", method="emulator", emulator=emu, errors=Errors(draws=20))
-    return truth, rheology.analyze(table, segs, emu, "standard", Errors(draws=20))
+    model = load_calibration(None).viscoelastic
+    table, segs = choose("emulator", None, model.emulator).analyze_cells(cells, "standard", MeasurementErrors(draws=20),
+                                                                        cell_analyses)
+    return truth, rheology.analyze(table, segs, model, "standard", MeasurementErrors(draws=20))
 
 
 def test_round_trip_through_the_solver_recovers_exponents_and_loss_angles(solver_round_trip):

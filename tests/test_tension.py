@@ -1,12 +1,14 @@
 """Cortical tension from ramps and pauses (SPEC 11) on curves of known truth:
 tension-only droplets made with the project's exact geometry plus noise."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from analysis.afm.formats.instruments import wedge_height_um
 from analysis.afm.tension.ramp import fit_ramp, force_per_tension_um
-from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.pipeline import Options, Trace, analyse
 from analysis.afm.tension.synth import droplet_force_nN, droplet_recording
 from solver.droplet_table import mean_curvature_per_um, unit_area, unit_shape
@@ -84,7 +86,7 @@ def test_a_pause_gives_back_tension_and_pressure():
         assert p.pressure_Pa == pytest.approx(2.0 * tension * 1e-3 * H * 1e6, rel=1e-6)
         assert p.tension_lo95_mN_per_m < tension < p.tension_hi95_mN_per_m
         assert p.pressure_lo95_Pa < p.pressure_Pa < p.pressure_hi95_Pa
-    exact = pause_tension(force, h, volume, errors=ErrorModel(volume_sd=0.0, height_sd_um=0.0))
+    exact = pause_tension(force, h, volume, errors=replace(TENSION_ERRORS, volume_rel_sd=0.0, height_sd_um=0.0))
     assert exact.tension_lo95_mN_per_m == pytest.approx(tension) == exact.tension_hi95_mN_per_m
     # the free sphere: the Laplace pressure 2T/R
     assert pressure_Pa(1.0, 1.0 / 10.0) == pytest.approx(200.0)
@@ -93,7 +95,7 @@ def test_a_pause_gives_back_tension_and_pressure():
 def test_interval_widths_follow_the_errors():
     volume, h = 4300.0, 12.0
     force = float(droplet_force_nN(volume, 1.0, np.array([h]))[0])
-    vol_only = pause_tension(force, h, volume, errors=ErrorModel(height_sd_um=0.0))
+    vol_only = pause_tension(force, h, volume, errors=replace(TENSION_ERRORS, height_sd_um=0.0))
     both = pause_tension(force, h, volume)
     width = lambda p: p.tension_hi95_mN_per_m - p.tension_lo95_mN_per_m  # noqa: E731
     assert 0 < width(vol_only) < width(both)
@@ -130,7 +132,7 @@ def test_the_ramp_interval_is_the_volume_error():
     fit = fit_ramp(x, f, radius)
     lo, hi, _, _ = ramp_interval(fit, x, f, volume)
     assert lo < fit.tension_mN_per_m < hi
-    lo0, hi0, _, _ = ramp_interval(fit, x, f, volume, ErrorModel(volume_sd=0.0))
+    lo0, hi0, _, _ = ramp_interval(fit, x, f, volume, replace(TENSION_ERRORS, volume_rel_sd=0.0))
     assert lo0 == pytest.approx(fit.tension_mN_per_m, rel=1e-6) and hi0 == pytest.approx(lo0, rel=1e-9)
 
 

@@ -4,15 +4,18 @@ per-cell inversion and population statistics.
 Public API (imported on first use):
 
 - `read_experiment(path)` / `write_experiment(path, cells)`: the native
-  experiment file (HDF5) of `Cell`s; `load_cells(paths)`: cells from an
-  experiment, a single-cell CSV, or JPK or Bruker files and folders.
-- `import_cells(paths, volume_um3=..., volumes_csv=...)`: JPK and Bruker
-  NanoScope files -> (recordings, cells), as `cortex afm import`.
-- `synthesize(n_cells, seed, errors, forward)` -> (cells, truth): synthetic recordings, as `cortex afm synth`.
-- `analyze_cells(cells, calibration, bending, method, ...)` -> (per-cell
-  table, per-segment table); `analyze_experiment(data, calibration_file, out,
-  AnalyzeSettings(bending, method, errors, jpk_options))`: the whole `cortex afm
-  analyze` into a folder; `population_summary(table)`.
+  experiment file (HDF5) of `Cell`s; `open(paths, ImportOptions(...))` (the one
+  reader, in `analysis.afm.formats`): cells from an experiment, a single-cell CSV,
+  or JPK or Bruker files and folders, as every `cortex afm` command reads them.
+- `analyze_cell(cell, calibration, bending)`: one cell by the paper law.
+
+Every public name is its definition's own. The commands' pipelines are used as modules:
+`analysis.afm.synth.cells.generate(n_cells, seed, errors, forward)` -> (cells, truth)
+(`cortex afm synth`); `analysis.afm.analyze_pipeline.run(data, calibration_file, out,
+Settings(bending, method, errors, import_options))` (the whole `cortex afm analyze` into
+a folder, with the parts of the calibration file `analysis.calibration.load_calibration`
+read); the cells alone by a method: `analysis.invert.method.choose(...).analyze_cells(...)`;
+`analysis.afm.population.summary.summary(table)`.
 """
 
 from typing import TYPE_CHECKING
@@ -21,20 +24,11 @@ from common.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:           # what the type checker sees of the names below
     from analysis.afm.analyze import analyze_cell
-    from analysis.afm.analyze_pipeline import analyze as analyze_cells
-    from analysis.afm.analyze_pipeline import Settings as AnalyzeSettings, load as load_cells, run as analyze_experiment
     from analysis.afm.cell import Cell, Segment
     from analysis.afm.formats.h5 import read_experiment, write_experiment
-    from analysis.afm.formats.instruments import import_cells
-    from analysis.afm.population.summary import summary as population_summary
-    from analysis.afm.synth.cells import generate as synthesize
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
     "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
-    "load_cells": "analysis.afm.analyze_pipeline:load", "import_cells": "analysis.afm.formats.instruments",
-    "synthesize": "analysis.afm.synth.cells:generate",
-    "analyze_cells": "analysis.afm.analyze_pipeline:analyze", "analyze_cell": "analysis.afm.analyze",
-    "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings",
-    "population_summary": "analysis.afm.population.summary:summary",
+    "analyze_cell": "analysis.afm.analyze",
 })

@@ -31,8 +31,8 @@ from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
-    from analysis.calibration import Calibration
-    from analysis.invert.intervals import Errors
+    from analysis.calibration.law import Calibration
+    from analysis.invert.measurement_errors import MeasurementErrors
 
 TENSION_TOLERANCE = 0.10
 
@@ -83,7 +83,7 @@ def analyze_each(cells: list[Cell], calibration: Calibration,
 
 
 def analyze_together(cells: list[Cell], inversion: CurveInversion, bending: str = "standard",
-                     errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                     errors: MeasurementErrors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """All cells at once by `inversion` (with intervals): (per cell-and-frequency DataFrame,
     per-segment DataFrame)."""
     segs, dev = [], {}

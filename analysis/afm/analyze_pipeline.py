@@ -1,6 +1,6 @@
 """`cortex afm analyze DATA --out DIR`: read -> fit -> write.
 
-    read(data, calibration, settings)        the recordings (`load`) and the
+    read(data, calibration, settings)        the recordings (`formats.open`) and the
                                              inversion (`analysis.invert.method`) the
                                              calibration file (read once) serves;
                                              recordings without any oscillation
@@ -15,12 +15,11 @@ DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
 random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
-report.md, which also lists the recordings not analysed. `analyze(cells, ...)`
-is the inversion of cells alone, the method named.
+report.md, which also lists the recordings not analysed.
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
-NanoScope files and folders of them (`formats.instruments.import_cells`, with the volume and dish options
-of `cortex afm import`).
+NanoScope files and folders of them (`analysis.afm.formats.reader.open`, with the volume and dish
+options of `cortex afm import`, `Settings.import_options`).
 
 With the emulator (the default method) every cell and frequency has a 95 %
 interval of ν and K̃_S (`nu_lo95`, `nu_hi95`, `ks_lo95`, `ks_hi95` in cells.csv),
@@ -41,18 +40,18 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import pandas as pd
 
+from analysis.afm.formats.reader import ImportOptions
+from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.population.summary import summary
-from analysis.invert.method import INVERSIONS, Inversion, choose
+from analysis.invert.method import INVERSIONS, Inversion
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
-    from analysis.calibration import Calibration
-    from analysis.emulator import Emulator
-    from analysis.invert.intervals import Errors
-    from analysis.shipped import CalibrationFile
+    from analysis.calibration.file import CalibrationFile
+    from analysis.invert.measurement_errors import MeasurementErrors
 
 
 NO_OSCILLATION = "no modulation (oscillation) segment"
@@ -61,12 +60,12 @@ NO_OSCILLATION = "no modulation (oscillation) segment"
 @dataclass(frozen=True)
 class Settings:
     """How to analyse: the selected bending variant, the inversion method,
-    the error model of the emulator's intervals, the JPK import options."""
+    the error model of the emulator's intervals, how to read instrument files."""
 
     bending: str = "standard"
-    method: str = "law"
-    errors: Errors | None = None
-    jpk_options: dict[str, Any] | None = None
+    method: str = "emulator"     # the command's default (`cortex.options.inversion_settings`)
+    errors: MeasurementErrors | None = None
+    import_options: ImportOptions = ImportOptions()
     phase: bool = False          # the viscoelastic reading (`analysis.afm.rheology`)
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
@@ -75,14 +74,14 @@ class Settings:
 @dataclass
 class Recordings:
     """What `read` found: the cells to analyse, the skipped ones {id: reason},
-    the data's name, the inversion, the calibration file's emulator (None for a
-    law-only file), and the variants to run (the selected one first)."""
+    the data's name, the inversion, the calibration file (read once: its parts serve the
+    inversion and the viscoelastic reading), and the variants to run (the selected one first)."""
 
     name: str
     cells: list[Cell]
     skipped: dict[str, str]
     inversion: Inversion
-    emulator: Emulator | None
+    calibration: CalibrationFile
     variants: list[str]
 
 
@@ -95,32 +94,6 @@ class Fitted:
     segments: pd.DataFrame | None = None
     population: dict[str, Any] | None = None          # population.json (`analysis.afm.population.answer`)
     rheology: pd.DataFrame | None = None      # the viscoelastic reading's table, when on
-
-
-def load(paths: str | Path | Sequence[str | Path],
-         jpk_options: dict[str, Any] | None = None) -> list[Cell]:
-    """Cells from an experiment (.h5/.hdf5), a single-cell CSV (.csv), or JPK or
-    Bruker files and folders (`jpk_options`: keyword arguments of `import_cells`)."""
-    from analysis.afm.formats.instruments import import_cells, is_instrument_file
-    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
-    if all(is_instrument_file(p) for p in paths):
-        return import_cells(paths, **(jpk_options or {}))[1]
-    if len(paths) != 1:
-        raise InputError("give one experiment (.h5) or CSV file, or JPK or Bruker files and folders (not a mixture)")
-    given = [k for k, v in (jpk_options or {}).items() if v is not None]
-    if given:
-        raise InputError(f"{paths[0]}: --volume(s), --dish-* and --spring-constant apply to Bruker and JPK files "
-                         "only; the experiment and CSV formats carry their own volumes and heights")
-    path = Path(paths[0])
-    suffix = path.suffix.lower()
-    if suffix in (".h5", ".hdf5"):
-        from analysis.afm.formats.h5 import read_experiment
-        return read_experiment(path)
-    if suffix == ".csv":
-        from analysis.afm.formats.csvcell import read_csv_cell
-        return [read_csv_cell(path)]
-    raise InputError(f"{path}: unknown recording format '{suffix}' (expected .h5, .hdf5, .csv, "
-                     "a JPK or Bruker file or a folder of them)")
 
 
 def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
@@ -138,22 +111,14 @@ def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
 def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
          settings: Settings) -> Recordings:
     """`Recordings` of `data` (a path or a list of paths) with the inversion the
-    calibration file (`analysis.shipped.read`) serves. InputError for bad input."""
-    cells = load(data, settings.jpk_options)
+    calibration file (`analysis.calibration.file.load_calibration`) serves. InputError for bad input."""
+    cells = open_cells(data, settings.import_options)
     inversion = _inversion(calibration, settings.method, settings.bending)
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
     name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
     variants = [settings.bending] + [v for v in inversion.variants() if v != settings.bending]
     return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
-                      inversion=inversion, emulator=calibration.emulator, variants=variants)
-
-
-def analyze(cells: list[Cell], calibration: Calibration | None, bending: str = "standard", method: str = "law",
-            emulator: Emulator | None = None, errors: Errors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """All cells by the method named (`analysis.invert.method.choose`): (per cell-and-frequency
-    DataFrame, per-segment DataFrame)."""
-    from analysis.afm import analyze as cell_analyses
-    return choose(method, calibration, emulator).analyze_cells(cells, bending, errors, cell_analyses)
+                      inversion=inversion, calibration=calibration, variants=variants)
 
 
 def fit(rec: Recordings, settings: Settings) -> Fitted:
@@ -174,16 +139,13 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
 
 
 def _viscoelastic(rec, settings, fitted):
-    """The viscoelastic reading of the selected variant (`analysis.afm.rheology`): its
-    cells table gains the per-frequency columns; `fitted.rheology` = (table, summary)."""
+    """The viscoelastic reading of the selected variant (`analysis.afm.rheology`) with the
+    calibration file's complex forward model: its cells table gains the per-frequency
+    columns; `fitted.rheology` = (table, summary)."""
     from analysis.afm.rheology import analyze as rheology
-    emulator = rec.emulator
-    if emulator is None:                    # a law-only calibration file: the shipped emulator
-        from analysis.shipped import read as read_calibration
-        emulator = read_calibration(None).emulator
     b = settings.bending
-    table, rheo, summ = rheology(fitted.tables[b], fitted.segments, emulator, b, settings.errors, settings.lags,
-                                 settings.lag_source)
+    table, rheo, summ = rheology(fitted.tables[b], fitted.segments, rec.calibration.viscoelastic, b, settings.errors,
+                                 settings.lags, settings.lag_source)
     fitted.tables[b] = table
     fitted.sums[b] = {**fitted.sums[b], "viscoelastic": summ}
     fitted.rheology = rheo
@@ -234,7 +196,7 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
 def run(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
         out: str | Path, settings: Settings = Settings()) -> dict[str, Any]:
     """Analyse `data` (a path or a list of paths) into DIR `out` (read -> fit ->
-    write) with the calibration file `calibration` (`analysis.shipped.read`, read
+    write) with the calibration file `calibration` (`analysis.calibration.file.load_calibration`, read
     once); the result has the report's path, the summary, the table and the
     skipped recordings."""
     from analysis.afm.analyze_report import markdown_skipped

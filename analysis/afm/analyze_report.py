@@ -29,11 +29,11 @@ def markdown_skipped(name: str | None, skipped: dict[str, str]) -> str:
     return "\n".join(lines) + "\n" if lines else ""
 
 
-def _fmt3(x):
+def _fmt3(x: float | None) -> str:
     return "–" if x is None or not np.isfinite(x) else f"{x:.3f}"
 
 
-def _populations(sums):
+def _populations(sums: dict[str, dict[str, Any]]) -> list[str]:
     lines = ["| variant | f (Hz) | cells | excluded | median ν | IQR ν | lognormal μ | lognormal σ |",
              "|---|---|---|---|---|---|---|---|"]
     for v, s in sums.items():
@@ -44,7 +44,7 @@ def _populations(sums):
     return lines
 
 
-def _outside(tab):
+def _outside(tab: pd.DataFrame) -> list[str]:
     ok = tab[tab["excluded_reason"].isna()]
     if not ok["outside_calibration"].notna().any():
         return []

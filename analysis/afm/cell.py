@@ -10,10 +10,16 @@ frequency f around a mean height, with its piezo amplitude in µm where the
 file says it: JPK's `modulation` segments). `validate` checks everything the
 analysis relies on and raises InputError with one line naming the cell and
 what is wrong; a cell without any oscillation is valid (it is imported, and
-the analysis lists it with that reason).
+the analysis lists it with that reason). A cell read from a file keeps where
+it came from (`source`) and, from an instrument file, what the file said of
+the recording (`recorded`: `formats.recording.Recording.summary`); neither is
+written to the experiment file. `dish_known` False: the heights are the
+instrument's channel, not gaps from the dish (`formats.reader.ImportOptions.
+contact_heights`), and are not checked to be positive.
 """
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -43,6 +49,9 @@ class Cell:
     volume_source: str = "imaging"
     spring_constant_N_per_m: float = float("nan")
     date: str = ""
+    source: str = ""
+    recorded: dict[str, Any] | None = None
+    dish_known: bool = True
 
     @property
     def frequencies_hz(self) -> list[float]:
@@ -71,7 +80,7 @@ class Cell:
         dt = np.diff(self.time_s)
         if np.any(dt <= 0):
             raise InputError(f"{at}: time_s is not increasing at sample {int(np.flatnonzero(dt <= 0)[0]) + 1}")
-        if np.any(self.height_um <= 0):
+        if self.dish_known and np.any(self.height_um <= 0):
             raise InputError(f"{at}: height_um must be > 0 (min {np.min(self.height_um):g}); "
                              "heights in m instead of um?")
         for i, s in enumerate(self.segments):

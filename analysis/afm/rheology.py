@@ -21,9 +21,12 @@ Population: medians and quartiles of β_B and β_S and the Wilcoxon signed-rank 
 turnover reading predicts, and two-sided).
 """
 
+from __future__ import annotations
+
 import warnings
 import zlib
-from typing import Any
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -35,19 +38,26 @@ from analysis.invert.inversion import to_curves, used_heights
 from analysis.viscoelastic_fit import complex_poisson, draws, fit
 from common.errors import InputError
 
+if TYPE_CHECKING:
+    from analysis.afm.cell import Cell
+    from analysis.calibration.emulator import Emulator
+    from analysis.calibration.file import ComplexModel
+    from analysis.calibration.viscoelastic_table import ComplexTable
+    from analysis.invert.measurement_errors import MeasurementErrors
+
 MIN_FREQUENCIES = 3
 RHEOLOGY_COLUMNS = ("cell_id", "bulk_exponent", "bulk_exponent_lo95", "bulk_exponent_hi95", "shear_exponent",
                     "shear_exponent_lo95", "shear_exponent_hi95", "bulk_1hz_mN_per_m", "shear_1hz_mN_per_m")
 NO_LAG = "none given: the loss angles include the instrument's own phase lag"
 
 
-def parse_lags(text):
+def parse_lags(text: str) -> dict[float, float]:
     """`F=RAD,...` -> {frequency_hz: lag_rad}; InputError (one line) if malformed."""
     lags = {}
     for item in filter(None, (p.strip() for p in text.split(","))):
         try:
-            f, rad = item.split("=")
-            f, rad = float(f), float(rad)
+            f_text, rad_text = item.split("=")
+            f, rad = float(f_text), float(rad_text)
         except ValueError:
             raise InputError(f"--phase-lag-rad: '{item}' is not F=RAD (e.g. 1=0.05,10=0.3)") from None
         if not (np.isfinite(f) and f > 0 and np.isfinite(rad) and abs(rad) < np.pi):
@@ -58,7 +68,7 @@ def parse_lags(text):
     return lags
 
 
-def reference_lags(cells):
+def reference_lags(cells: list[Cell]) -> dict[float, float]:
     """{frequency_hz: lag_rad} from recordings on the bare dish: per oscillation segment the
     phase of the force relative to the compression -h(t) (`analysis.afm.timeseries.fit_sinusoid`),
     the median per frequency (a hard dish answers in phase, so this is the instrument's lag)."""
@@ -76,7 +86,7 @@ def reference_lags(cells):
     return {f: float(np.median(v)) for f, v in phases.items()}
 
 
-def instrument_lags(lags, frequencies):
+def instrument_lags(lags: dict[float, float] | None, frequencies: Iterable[float]) -> dict[float, float]:
     """Lag (rad) per frequency of the data (0 where none was given). The instrument makes the
     recorded force trail by its lag, so δ_true = δ_measured + lag. InputError if lags were
     given but not for every frequency of the data."""
@@ -89,7 +99,7 @@ def instrument_lags(lags, frequencies):
     return {f: next(v for g, v in lags.items() if np.isclose(f, g)) for f in frequencies}
 
 
-def _cell_normals(cell_ids, draws_, seed):
+def _cell_normals(cell_ids: list[str], draws_: int, seed: int) -> Any:
     """(rows, M, 2) standard normals, the same for every row of one cell."""
     cache = {}
     for c in set(cell_ids):
@@ -97,7 +107,9 @@ def _cell_normals(cell_ids, draws_, seed):
     return np.stack([cache[c] for c in cell_ids])
 
 
-def per_frequency(table, segments, emulator, bending, table_c, errors=None, lags=None):
+def per_frequency(table: pd.DataFrame, segments: pd.DataFrame, emulator: Emulator, bending: str,
+                  table_c: ComplexTable, errors: MeasurementErrors | None = None,
+                  lags: dict[float, float] | None = None) -> tuple[pd.DataFrame, Any, Any]:
     """Fit every included (cell, frequency) of `table` (the magnitude-only analysis, emulator
     columns) to the complex K* of `segments`: the new columns (a DataFrame aligned with
     `table`) and the draws θ_m (rows, M, 4) with θ*."""
@@ -126,12 +138,12 @@ def per_frequency(table, segments, emulator, bending, table_c, errors=None, lags
     return _columns(theta, th_m, table["frequency_hz"].map(lag).to_numpy(float)), theta, th_m
 
 
-def intervals_errors():
-    from analysis.invert.intervals import Errors
-    return Errors()
+def intervals_errors() -> MeasurementErrors:
+    from analysis.invert.measurement_errors import MeasurementErrors
+    return MeasurementErrors()
 
 
-def _interval(x):
+def _interval(x: Any) -> tuple[Any, Any]:
     """Percentile 95 % interval along the last axis (NaN where every draw is NaN)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)        # all-NaN rows: excluded curves
@@ -139,7 +151,7 @@ def _interval(x):
     return lo, hi
 
 
-def _columns(theta, th_m, lag):
+def _columns(theta: Any, th_m: Any, lag: Any) -> pd.DataFrame:
     """The per-frequency columns from θ* and the draws."""
     out = {}
     for name, col in (("bulk_loss_angle_rad", 2), ("shear_loss_angle_rad", 3)):
@@ -157,14 +169,14 @@ def _columns(theta, th_m, lag):
     return pd.DataFrame(out)
 
 
-def _slopes(x, y):
+def _slopes(x: Any, y: Any) -> tuple[Any, Any]:
     """Least-squares slope and intercept of y against x along the first axis (NaN-free columns)."""
     xm = x.mean()
     slope = ((x - xm)[:, None] * (y - y.mean(axis=0))).sum(axis=0) / ((x - xm) ** 2).sum()
     return slope, y.mean(axis=0) - slope * xm
 
 
-def power_laws(table, theta, th_m):
+def power_laws(table: pd.DataFrame, theta: Any, th_m: Any) -> pd.DataFrame:
     """One row per cell with ≥ MIN_FREQUENCIES fitted frequencies: exponents with intervals,
     the 1 Hz moduli, and the power-law check of the loss angles."""
     rows = []
@@ -193,7 +205,7 @@ def power_laws(table, theta, th_m):
     return pd.DataFrame(rows, columns=cols)
 
 
-def paired_test(rheology):
+def paired_test(rheology: pd.DataFrame) -> dict[str, Any]:
     """The population of exponents and the Wilcoxon signed-rank test of β_S against β_B."""
     b, s = rheology["bulk_exponent"].to_numpy(float), rheology["shear_exponent"].to_numpy(float)
     out: dict[str, Any] = {"test": "Wilcoxon signed-rank, shear_exponent - bulk_exponent over the cells", "n_cells": int(b.size)}
@@ -211,11 +223,13 @@ def paired_test(rheology):
     return out
 
 
-def analyze(table, segments, emulator, bending, errors=None, lags=None, lag_source=None):
-    """The viscoelastic reading: (table with the per-frequency columns, rheology table,
-    summary dict with the instrument phase and the paired test)."""
-    from analysis.viscoelastic_table import shipped
-    cols, theta, th_m = per_frequency(table, segments, emulator, bending, shipped(), errors, lags)
+def analyze(table: pd.DataFrame, segments: pd.DataFrame, model: ComplexModel, bending: str,
+            errors: MeasurementErrors | None = None, lags: dict[float, float] | None = None,
+            lag_source: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
+    """The viscoelastic reading with the complex forward model `model` (the calibration file's
+    `ComplexModel`: emulator and complex-modulus table): (table with the per-frequency columns,
+    rheology table, summary dict with the instrument phase and the paired test)."""
+    cols, theta, th_m = per_frequency(table, segments, model.emulator, bending, model.table, errors, lags)
     table = pd.concat([table.reset_index(drop=True), cols], axis=1)
     rheology = power_laws(table, theta, th_m)
     summ = {"instrument_phase": lag_source or NO_LAG,
@@ -224,7 +238,7 @@ def analyze(table, segments, emulator, bending, errors=None, lags=None, lag_sour
     return table, rheology, summ
 
 
-def markdown(rheology, summ):
+def markdown(rheology: pd.DataFrame, summ: dict[str, Any]) -> str:
     """report.md's section on the viscoelastic reading."""
     t = summ["paired_test"]
     lines = ["", "## Viscoelastic cortex (SPEC 10)", "",

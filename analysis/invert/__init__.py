@@ -6,7 +6,7 @@ curves, `table_input` reads the one `cortex analysis invert` takes.
 
 Public API (imported on first use): `INVERSIONS` (method name -> `Inversion`
 class), `choose(method, calibration, emulator)`, `invert_rows(rows, method, ...)`,
-`invert_with(inversion, rows, ...)`, `invert_cell`, `Errors`.
+`invert_with(inversion, rows, ...)`, `invert_cell`, `MeasurementErrors`.
 """
 
 from common.lazy_exports import lazy_exports
@@ -16,5 +16,5 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "EmulatorInversion": "analysis.invert.method", "INVERSIONS": "analysis.invert.method",
     "choose": "analysis.invert.method", "invert_rows": "analysis.invert.method",
     "invert_with": "analysis.invert.table", "invert_cell": "analysis.invert.inversion",
-    "CellInversion": "analysis.invert.inversion", "Errors": "analysis.invert.intervals",
+    "CellInversion": "analysis.invert.inversion", "MeasurementErrors": "analysis.invert.measurement_errors",
 })

@@ -3,7 +3,7 @@ K(h̃), γ_a measured.
 
 Model of cell i at its used heights j (`analysis.invert.inversion.used_heights`):
 
-    K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.emulator`)
+    K_ij = K_B,i f(h̃_ij, K̃_S,i, γ_a,i / K_B,i; V_i)       (f: `analysis.calibration.emulator`)
 
 Unknowns θ_i = (ln K_B,i, ln K̃_S,i); least squares of the residuals
 r_ij = K_ij(θ_i) - K_ij^measured (mN/m), all cells in one
@@ -37,7 +37,7 @@ from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
 
 if TYPE_CHECKING:
-    from analysis.emulator import Emulator
+    from analysis.calibration.emulator import Emulator
 
 KS_MARGIN = 2.0          # K̃_S bounds: the grid's range widened by this factor
 START_POINTS = 25
@@ -66,7 +66,7 @@ def filled_heights(h: npt.ArrayLike, use: npt.ArrayLike) -> npt.NDArray[np.float
     return np.where(use, h, 0.6)
 
 
-def _start(emulator, bending, curves):
+def _start(emulator: Emulator, bending: str, curves: Curves) -> Any:
     """θ0 per cell: the best of START_POINTS values of ln K̃_S, K_B by three
     fixed-point steps of the linear least squares at each."""
     h, k, use, tension, volume = curves
@@ -113,11 +113,11 @@ def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.floa
     rows = np.repeat(np.arange(cells * m), 2)
     cols = (np.repeat(np.arange(cells), m)[:, None] * 2 + np.arange(2)).ravel()
 
-    def residuals(x):
+    def residuals(x: Any) -> Any:
         K, _, _ = model(emulator, bending, x.reshape(-1, 2), hs, ts, vs)
         return np.where(us, K - ks, 0.0).ravel()
 
-    def jacobian(x):
+    def jacobian(x: Any) -> Any:
         _, dkb, dks = model(emulator, bending, x.reshape(-1, 2), hs, ts, vs)
         vals = np.stack([np.where(us, dkb, 0.0), np.where(us, dks, 0.0)], axis=-1).ravel()
         return sparse.csr_matrix((vals, (rows, cols)), shape=(cells * m, cells * 2))
@@ -169,7 +169,7 @@ def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tensi
                          "excluded_reason": pd.Series(reasons, dtype=object)})
 
 
-def _goodness(emulator, bending, theta, curves):
+def _goodness(emulator: Emulator, bending: str, theta: Any, curves: Curves) -> tuple[Any, Any]:
     """R² and the RMS residual (mN/m, n - 2 degrees of freedom) per cell."""
     h, k, use, tension, volume = curves
     with np.errstate(invalid="ignore", divide="ignore"):

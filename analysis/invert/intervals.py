@@ -35,13 +35,12 @@ every draw costs array arithmetic only.
 Per frequency: the median ν of the included cells with a percentile bootstrap
 95 % interval (`scipy.stats.bootstrap`, cells resampled; `median_table`).
 
-`Errors` is what an interval includes: the measurement errors (defaults: the
-published ones) and the draws.
+What an interval includes, the measurement errors and the draws, is
+`measurement_errors.MeasurementErrors`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -50,48 +49,26 @@ import pandas as pd
 from scipy.stats import bootstrap
 
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
-from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
-from common.errors import InputError
+from analysis.invert.measurement_errors import DRAWS, HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.droplet_table import unit_area, unit_force_per_tension
 from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
-    from analysis.emulator import Emulator
+    from analysis.calibration.emulator import Emulator
 
-DRAWS = 100
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
 
 
-@dataclass
-class Errors:
-    """The measurement errors an interval includes (defaults: the published ones)."""
-
-    volume_rel_sd: float = VOLUME_SD
-    height_sd_um: float = HEIGHT_SD_UM
-    draws: int = DRAWS
-    seed: int = 0
-
-    def check(self) -> Errors:
-        """Itself, or InputError (one line) for an impossible error or draw count."""
-        if not (0 <= self.volume_rel_sd < 0.5):
-            raise InputError(f"--volume-sd must be in [0, 0.5) (got {self.volume_rel_sd:g})")
-        if not (0 <= self.height_sd_um < 5):
-            raise InputError(f"--height-sd must be in [0, 5) um (got {self.height_sd_um:g})")
-        if not (10 <= self.draws <= 100_000):
-            raise InputError(f"--draws must be in 10..100000 (got {self.draws})")
-        return self
-
-
-def _shape(radius, heights):
+def _shape(radius: Any, heights: Any) -> tuple[Any, Any]:
     """(g, A) = (2 H A_c, A) for cells of radius R_cell at heights (µm), broadcast."""
     depth = np.broadcast_to(2.0 - heights / radius, np.broadcast_shapes(np.shape(radius), np.shape(heights)))
     return radius * unit_force_per_tension(depth), radius**2 * unit_area(depth)
 
 
-def _seen(true, measured, tension_t, modulus_t, *, dh):
+def _seen(true: Any, measured: Any, tension_t: Any, modulus_t: Any, *, dh: float) -> tuple[Any, Any]:
     """What the analysis makes of a true cell (`true` = (radius_t, mean heights h_t),
     tension γ, modulus K) measured at `measured` = (radius_s, heights h_s):
     (K_seen, γ_seen) per height (SPEC 3, see module doc)."""
@@ -105,7 +82,8 @@ def _seen(true, measured, tension_t, modulus_t, *, dh):
     return (force / g_s1 - seen) / ((a_s1 - a_s0) / a_s0), seen
 
 
-def _draw_truths(rng, volume, heights, tension, use, *, draws, volume_sd, height_sd_um):
+def _draw_truths(rng: np.random.Generator, volume: Any, heights: Any, tension: Any, use: Any, *, draws: int,
+                 volume_sd: float, height_sd_um: float) -> tuple[Any, Any, Any]:
     """Step 1: truths the cells (measured volumes (c,), mean heights (c, 1, m) in µm) could
     have had: true radii (c, M, 1), mean heights (c, M, m) and tensions (c, M)."""
     c = volume.shape[0]
@@ -119,7 +97,7 @@ def _draw_truths(rng, volume, heights, tension, use, *, draws, volume_sd, height
     return r_true, h_true, gamma_t
 
 
-def _truth_moduli(k_seen, true, measured, gamma_t, *, dh):
+def _truth_moduli(k_seen: Any, true: Any, measured: Any, gamma_t: Any, *, dh: float) -> Any:
     """Step 2: the true moduli K_j,m that make the analysis see `k_seen` (rows: cell x draw),
     inverting the affine map K_seen = c1 K + c0 of `_seen` (c0 = K_seen at K = 0);
     `true` = (radii, mean heights) of the drawn truths, `measured` the same as measured."""
@@ -171,7 +149,7 @@ def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float
     return tuple(out)
 
 
-def _gauss_newton(table, x, curves, *, steps, bounds):
+def _gauss_newton(table: Any, x: Any, curves: Curves, *, steps: int, bounds: Any) -> Any:
     """Refit θ = (ln K_B, ln K̃_S) of every row of `curves` from its start `x`: damped Gauss-Newton
     steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
     ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""

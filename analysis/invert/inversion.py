@@ -6,7 +6,7 @@ One cell: moduli K at normalised heights h̃ and its active tension γ_a.
 1. Keep the heights with 0.5 ≤ h̃ ≤ 0.75 (finite K only).
 2. Filters on the curve: at least four heights; the highest h̃ > 0.68.
 3. Fit K(h̃) = K_B (1 + α exp(h̃/λ)), λ from the calibration, K_B and α free:
-   linear least squares in K_B and K_B·α (`analysis.laws.fit_bulk_alpha`).
+   linear least squares in K_B and K_B·α (`analysis.calibration.law_fits.fit_bulk_alpha`).
 4. γ̃_a = γ_a / K_B; K̃_S = exp((α - D(γ̃_a)) / C(γ̃_a)); ν = (1 - K̃_S)/(1 + K̃_S).
 5. Filter on the fit: R² > 0.5, unless ν > 0.7 (a nearly flat K(h̃) cannot
    beat its mean). A fit with K_B ≤ 0 or a non-finite ν is excluded too.
@@ -28,8 +28,8 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from analysis.calibration import Calibration, Law
-from analysis.laws import fit_bulk_alpha
+from analysis.calibration.law import Calibration, Law
+from analysis.calibration.law_fits import fit_bulk_alpha
 from solver.elasticity import poisson_of_ratio
 
 H_TILDE_MIN, H_TILDE_MAX = 0.5, 0.75   # heights used
@@ -80,7 +80,7 @@ def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[
     applied before the R² filter."""
     reasons = np.full(len(n), None, dtype=object)
 
-    def exclude(where, text):
+    def exclude(where: Any, text: Callable[[Any], str]) -> None:
         for i in np.flatnonzero(where & (reasons == None)):  # noqa: E711 (elementwise)
             reasons[i] = text(i)
 

@@ -38,14 +38,15 @@ import pandas as pd
 from analysis.invert import intervals
 from analysis.invert.emulator_fit import Curves, invert_curves_emulator
 from analysis.invert.inversion import invert_curves, used_heights
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.table import invert_with
 from common.errors import InputError
 from common.names import INVERSION_METHODS
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
-    from analysis.calibration import Calibration
-    from analysis.emulator import Emulator
+    from analysis.calibration.law import Calibration
+    from analysis.calibration.emulator import Emulator
 
 Array = npt.NDArray[np.float64]
 INTERVAL_COLUMNS = ("nu_lo95", "nu_hi95", "ks_lo95", "ks_hi95", "ln_ks_se")
@@ -60,7 +61,7 @@ class CellAnalyses(Protocol):
     def analyze_each(self, cells: list[Cell], calibration: Calibration, bending: str = ...) -> Tables: ...
 
     def analyze_together(self, cells: list[Cell], inversion: Any, bending: str = ...,
-                         errors: intervals.Errors | None = ...) -> Tables: ...
+                         errors: MeasurementErrors | None = ...) -> Tables: ...
 
 
 class Inversion(ABC):
@@ -82,13 +83,13 @@ class Inversion(ABC):
 
     @abstractmethod
     def invert(self, h: Array, k: Array, tension: Array, volume: Array, bending: str,
-               errors: intervals.Errors | None) -> pd.DataFrame:
+               errors: MeasurementErrors | None) -> pd.DataFrame:
         """Invert curves: h̃ and K (mN/m) of shape (curves, heights), NaN-padded; γ_a (mN/m) and
         V (µm³) per curve. One row per curve: ν, K̃_S, K_B, R², excluded_reason, the 95 %
         intervals (NaN where the method gives none) and the method's own columns."""
 
     @abstractmethod
-    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: MeasurementErrors | None,
                       analyses: CellAnalyses) -> Tables:
         """Measured cells by the caller's `analyses`: (per cell-and-frequency table, per-segment table)."""
 
@@ -126,13 +127,13 @@ class LawInversion(Inversion):
         return list(self.calibration.laws)
 
     def invert(self, h: Array, k: Array, tension: Array, volume: Array, bending: str,
-               errors: intervals.Errors | None) -> pd.DataFrame:
+               errors: MeasurementErrors | None) -> pd.DataFrame:
         out = invert_curves(h, k, tension, self.calibration, bending)
         for col in INTERVAL_COLUMNS:
             out[col] = np.nan
         return out
 
-    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: MeasurementErrors | None,
                       analyses: CellAnalyses) -> Tables:
         return analyses.analyze_each(cells, self.calibration, bending)
 
@@ -157,8 +158,8 @@ class EmulatorInversion(Inversion):
         return list(self.emulator.tables)
 
     def invert(self, h: Array, k: Array, tension: Array, volume: Array, bending: str,
-               errors: intervals.Errors | None) -> pd.DataFrame:
-        errors = (errors or intervals.Errors()).check()
+               errors: MeasurementErrors | None) -> pd.DataFrame:
+        errors = (errors or MeasurementErrors()).check()
         out = invert_curves_emulator(h, k, tension, volume, self.emulator, bending)
         use, _, _ = used_heights(h, k)
         theta = np.column_stack([np.log(out["bulk_mN_per_m"]), np.log(out["ks_tilde"])])
@@ -170,7 +171,7 @@ class EmulatorInversion(Inversion):
         out["ln_ks_se"] = ln_ks_se
         return out
 
-    def analyze_cells(self, cells: list[Cell], bending: str, errors: intervals.Errors | None,
+    def analyze_cells(self, cells: list[Cell], bending: str, errors: MeasurementErrors | None,
                       analyses: CellAnalyses) -> Tables:
         return analyses.analyze_together(cells, self, bending, errors)
 
@@ -219,6 +220,6 @@ def choose(method: str, calibration: Calibration | None, emulator: Emulator | No
 
 def invert_rows(rows: pd.DataFrame, method: str = "emulator", calibration: Calibration | None = None,
                 emulator: Emulator | None = None, bending: str = "standard",
-                errors: intervals.Errors | None = None) -> pd.DataFrame:
+                errors: MeasurementErrors | None = None) -> pd.DataFrame:
     """Invert every curve of `rows` (`analysis.invert.table`) by the method named `method`."""
     return invert_with(choose(method, calibration, emulator), rows, bending, errors)

@@ -25,12 +25,12 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from analysis.invert.intervals import Errors
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.inversion import to_curves
 from common.names import INVERSION_METHODS
 
 METHODS = INVERSION_METHODS
-__all__ = ["METHODS", "Errors", "CurveInversion", "curves", "invert_with"]
+__all__ = ["METHODS", "MeasurementErrors", "CurveInversion", "curves", "invert_with"]
 
 Array = npt.NDArray[np.float64]
 
@@ -43,7 +43,7 @@ class CurveInversion(Protocol):
     def name(self) -> str: ...
 
     def invert(self, h: Array, k: Array, tension: Array, volume: Array, bending: str,
-               errors: Errors | None) -> pd.DataFrame: ...
+               errors: MeasurementErrors | None) -> pd.DataFrame: ...
 
 
 def curves(rows: pd.DataFrame) -> tuple[pd.DataFrame, Array, Array, Array, Array]:
@@ -61,7 +61,7 @@ def curves(rows: pd.DataFrame) -> tuple[pd.DataFrame, Array, Array, Array, Array
 
 
 def invert_with(inversion: CurveInversion, rows: pd.DataFrame, bending: str = "standard",
-                errors: Errors | None = None) -> pd.DataFrame:
+                errors: MeasurementErrors | None = None) -> pd.DataFrame:
     """Invert every curve of `rows` (DataFrame, columns as in the module docstring) by `inversion`."""
     keys, h, k, tension, volume = curves(rows)
     out = inversion.invert(h, k, tension, volume, bending, errors)

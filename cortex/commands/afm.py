@@ -14,19 +14,20 @@ import argparse
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from analysis.invert.measurement_errors import HEIGHT_SD_UM, VOLUME_SD
 from common.names import RAMP_MODELS, SOLVERS
-from cortex.options import OUT_HELP, Commands, add_bending, add_inversion_options, inversion_settings
+from cortex.options import (OUT_HELP, Commands, add_bending, add_error_options, add_inversion_options,
+                            inversion_settings, measurement_errors)
 from cortex.results import plain, say_result
 
 if TYPE_CHECKING:
+    from analysis.afm.formats.reader import ImportOptions
     from outputs.ownership import OutputDir
 
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
 
 
-def _jpk_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
+def _import_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
     """The volume, dish-reference and spring-constant options of instrument recordings
     (docs/jpk.md, docs/bruker.md); `free_radius` adds --radius-um to the volumes,
     `dish_default` says what stands for Z without a dish option."""
@@ -49,15 +50,12 @@ def _jpk_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_def
                         "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
 
 
-def jpk_options(args: argparse.Namespace) -> dict[str, Any]:
-    """`import_cells` keyword arguments from the parsed options."""
-    from common.errors import InputError
-    if args.volume is not None and not args.volume > 0:
-        raise InputError(f"--volume must be a positive number of um^3 (got {args.volume})")
-    if args.spring_constant is not None and not args.spring_constant > 0:
-        raise InputError(f"--spring-constant must be a positive number of N/m (got {args.spring_constant})")
-    return {"volume_um3": args.volume, "volumes_csv": args.volumes, "dish_um": args.dish_height_um,
-            "dish_curve": args.dish_curve, "spring_constant_N_per_m": args.spring_constant}
+def import_options(args: argparse.Namespace, contact_heights: bool = False) -> ImportOptions:
+    """The `ImportOptions` of the parsed options (checked)."""
+    from analysis.afm.formats.reader import ImportOptions
+    return ImportOptions(volume_um3=args.volume, volumes_csv=args.volumes, radius_um=getattr(args, "radius_um", None),
+                         dish_um=args.dish_height_um, dish_curve=args.dish_curve,
+                         spring_constant_N_per_m=args.spring_constant, contact_heights=contact_heights).check()
 
 
 def register(sub: Commands) -> None:
@@ -105,7 +103,7 @@ def _add_import(s: Commands) -> None:
                                  "See docs/jpk.md, docs/bruker.md.")
     m.add_argument("files", nargs="+", metavar="FILES", help="JPK or Bruker files, or folders of them")
     m.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
-    _jpk_options(m)
+    _import_options(m)
     m.add_argument("--json", action="store_true", help="one JSON object per recording: cell_id, "
                    "spring_constant_N_per_m, segments [{kind, duration_s, n_samples, frequency_hz, amplitude_um}]")
     m.set_defaults(handler=import_)
@@ -123,7 +121,7 @@ def _add_analyze(s: Commands) -> None:
                         "single-cell CSV, or JPK or Bruker files and folders of them")
     a.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     add_inversion_options(a)
-    _jpk_options(a)
+    _import_options(a)
     a.add_argument("--no-phase", action="store_true",
                    help="skip the viscoelastic reading of the loss angles (on by default: DIR/rheology.csv, "
                         "loss-angle columns in cells.csv, the paired test in summary.json)")
@@ -149,13 +147,10 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("files", nargs="+", metavar="FILES",
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
-    _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
+    _import_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
     t.add_argument("--model", choices=RAMP_MODELS, default="droplet", metavar="MODEL",
                    help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
-    t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
-                   help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
-    t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
-                   help="SD of a pause's height in the intervals, um (default %(default)s)")
+    add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
     t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "
@@ -213,8 +208,11 @@ def _forward(args: argparse.Namespace) -> Any:
         return sy.solver_forward(args.bending, method=args.solver)
     if not args.calibration:
         raise InputError("--solver law needs --calibration CAL.json")
-    from analysis.calibration import Calibration
-    return sy.law_forward(Calibration.load(args.calibration)[args.bending])
+    from analysis.calibration.file import load_calibration
+    file = load_calibration(args.calibration)
+    if file.calibration is None:
+        raise InputError(f"{file.where}: holds no calibration law ('variants'); --solver law needs one")
+    return sy.law_forward(file.calibration[args.bending])
 
 
 def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | None, float | None]) -> Any:
@@ -225,8 +223,12 @@ def _viscoelastic_forward(args: argparse.Namespace, exponents: tuple[float | Non
         raise InputError("--bulk-exponent and --shear-exponent go together, each in [0, 0.6]")
     if args.solver not in ("fast", "emulator"):
         raise InputError("viscoelastic cells need --solver fast or emulator")
-    complex_forward = sr.emulator_complex if args.solver == "emulator" else sr.solver_complex
-    return sr.ViscoelasticForward(bulk, shear, complex_forward(args.bending), seed=args.seed)
+    if args.solver == "emulator":
+        from analysis.calibration.file import load_calibration
+        complex_forward = sr.emulator_complex(load_calibration(None).viscoelastic, args.bending)
+    else:
+        complex_forward = sr.solver_complex(args.bending)
+    return sr.ViscoelasticForward(bulk, shear, complex_forward, seed=args.seed)
 
 
 def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] | None, str | None]:
@@ -237,8 +239,8 @@ def phase_settings(args: argparse.Namespace) -> tuple[bool, dict[float, float] |
     if args.phase_lag_rad:
         return True, rheology.parse_lags(args.phase_lag_rad), f"--phase-lag-rad {args.phase_lag_rad}"
     if args.phase_reference:
-        from analysis.afm.analyze_pipeline import load
-        lags = rheology.reference_lags(load(args.phase_reference))
+        from analysis.afm.formats.reader import open as open_cells
+        lags = rheology.reference_lags(open_cells(args.phase_reference))
         return True, lags, f"measured on the bare dish ({args.phase_reference})"
     return True, None, None
 
@@ -247,30 +249,38 @@ def import_(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.formats.h5 import write_experiment
-    from analysis.afm.formats.instruments import import_cells
+    from analysis.afm.formats.instruments import NAMES, is_instrument_file
+    from analysis.afm.formats.reader import open as open_cells
+    from common.errors import InputError
+    for f in args.files:                # instrument files only: an experiment is never imported again
+        if not is_instrument_file(f):
+            raise InputError(f"{f}: not a recording file (expected {NAMES})")
     out = new_experiment_folder(args.out, [EXPERIMENT])
-    recs, cells = import_cells(args.files, **jpk_options(args))
+    cells = open_cells(args.files, import_options(args))
     with out.writing(EXPERIMENT) as path:
         write_experiment(path, cells)
-    for r in recs:
-        print(json.dumps(r.summary()) if args.json else _summary_line(r))
+    for c in cells:
+        assert c.recorded is not None, "an instrument cell keeps its recording's summary"
+        print(json.dumps(c.recorded) if args.json else _summary_line(c.recorded))
     if not args.json:
         print(f"wrote {path} ({len(cells)} cells)")
     return 0
 
 
-def _summary_line(rec: Any) -> str:
-    """cell, spring constant and segments by kind (count, samples, total duration, frequencies)."""
+def _summary_line(rec: dict[str, Any]) -> str:
+    """cell, spring constant and segments by kind (count, samples, total duration, frequencies) of a
+    recording's summary (`formats.recording.Recording.summary`)."""
     parts = []
     for kind in ("approach", "pause", "modulation", "retract"):
-        segs = [s for s in rec.segments if s.kind == kind]
+        segs = [s for s in rec["segments"] if s["kind"] == kind]
         if not segs:
             continue
-        text = f"{len(segs)} {kind} ({sum(s.n_samples for s in segs)} samples, {sum(s.duration_s for s in segs):g} s"
+        text = (f"{len(segs)} {kind} ({sum(s['n_samples'] for s in segs)} samples, "
+                f"{sum(s['duration_s'] for s in segs):g} s")
         if kind == "modulation":
-            text += ", at " + ", ".join(f"{f:g}" for f in sorted({s.frequency_hz for s in segs})) + " Hz"
+            text += ", at " + ", ".join(f"{f:g}" for f in sorted({s["frequency_hz"] for s in segs})) + " Hz"
         parts.append(text + ")")
-    return f"{rec.cell_id}: k {rec.spring_constant_N_per_m:.4g} N/m; " + "; ".join(parts)
+    return f"{rec['cell_id']}: k {rec['spring_constant_N_per_m']:.4g} N/m; " + "; ".join(parts)
 
 
 TRUTH_FORMAT = "cortex-afm-truth"      # the key that says a truth.json is ours (may be replaced)
@@ -296,9 +306,9 @@ def analyze(args: argparse.Namespace) -> int:
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     file, errors = inversion_settings(args)          # also settles the default --method
-    data, options = experiment_in(args.data), jpk_options(args)
+    data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
-    settings = Settings(bending=args.bending, method=args.method, errors=errors, jpk_options=options,
+    settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
                         phase=phase, lags=lags, lag_source=lag_source)
     result = run(data, file, args.out, settings)
     if args.json:
@@ -314,16 +324,11 @@ def analyze(args: argparse.Namespace) -> int:
 def tension(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.afm.tension.pause import ErrorModel
+    from analysis.afm.tension.pause import DRAWS
     from analysis.afm.tension.pipeline import Options, run
-    from common.errors import EXIT_DONE, EXIT_SOME_FAILED, InputError
-    for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
-        if not value >= 0:
-            raise InputError(f"{name} must be >= 0 (got {value})")
-    options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
-                      dish_um=args.dish_height_um, dish_curve=args.dish_curve,
-                      spring_constant_N_per_m=args.spring_constant,
-                      errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
+    from common.errors import EXIT_DONE, EXIT_SOME_FAILED
+    options = Options(model=args.model, import_options=import_options(args, contact_heights=True),
+                      errors=measurement_errors(args, DRAWS))
     result = run(args.files, options, args.out)
     if args.json:
         finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731

@@ -61,7 +61,7 @@ def _add_build_calibration(s: Commands) -> None:
     b.add_argument("--emulator-store", required=True, metavar="STORE.h5")
     b.add_argument("--law-store", metavar="STORE.h5", help="store of campaigns/paper.toml (optional)")
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP + "; a folder holding only a "
-                   "calibration.json cortex wrote (like analysis/data) is accepted")
+                   "calibration.json cortex wrote (like analysis/calibration/data) is accepted")
     b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
     b.set_defaults(handler=build_calibration)
 
@@ -82,7 +82,7 @@ def _add_invert(s: Commands) -> None:
 
 
 def calibrate(args: argparse.Namespace) -> int:
-    from analysis.calibrate.pipeline import run
+    from analysis.calibration.command.pipeline import run
     result = run(args.store, args.out, partial=args.partial)
     laws = result["calibration"].laws
     say_result(args, {"report": str(result["report"]), "lambda": {b: law.lam for b, law in laws.items()},
@@ -102,13 +102,13 @@ def viscosity(args: argparse.Namespace) -> int:
 
 
 def build_calibration(args: argparse.Namespace) -> int:
-    from analysis import shipped
+    from analysis.calibration import file
     from outputs.ownership import OutputDir
     out = OutputDir(args.out)
     out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
-    doc = shipped.build(args.emulator_store, args.law_store, progress=_say)
+    doc = file.build(args.emulator_store, args.law_store, progress=_say)
     with out.writing(CALIBRATION_FILE) as path:
-        shipped.write(doc, path)
+        file.write(doc, path)
     say_result(args, {"calibration": str(path), "emulator_variants": list(doc["emulator"]),
                       "law_variants": list(doc["variants"])},
                f"wrote {path} (emulator: {', '.join(doc['emulator'])}; law: {', '.join(doc['variants']) or 'none'})")

@@ -39,7 +39,7 @@ def write_csv_cell(path: str | Path, cell: Cell) -> str | Path:
     return path
 
 
-def _read_table(path):
+def _read_table(path: Path) -> tuple[dict[str, str], pd.DataFrame]:
     """The '# key: value' metadata lines and the table below them, checked."""
     meta, n_head = {}, 0
     try:
@@ -66,7 +66,7 @@ def _read_table(path):
     return meta, df
 
 
-def _segments(df):
+def _segments(df: pd.DataFrame) -> list[Segment]:
     """One `Segment` per run of equal values in the `segment` column."""
     seg = df["segment"].to_numpy()
     edges = np.r_[0, np.flatnonzero(np.diff(seg) != 0) + 1, len(seg)]

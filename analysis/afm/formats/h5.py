@@ -18,6 +18,7 @@ the end, so no file is left half-written and a full disk is one clear error. Rea
 
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -36,7 +37,7 @@ def write_experiment(path: str | Path, cells: Iterable[Cell]) -> Path:
     return Path(write_atomically(path, hdf5_image(lambda f: _fill(f, cells))))
 
 
-def _fill(f, cells):
+def _fill(f: h5py.File, cells: Iterable[Cell]) -> None:
     f.attrs["format"], f.attrs["version"] = FORMAT, VERSION
     root = f.create_group("cells")
     for c in cells:
@@ -52,7 +53,7 @@ def _fill(f, cells):
             g.create_dataset("segment_amplitude_um", data=amp)
 
 
-def _attr(g, key, where, default=None):
+def _attr(g: h5py.Group, key: str, where: str, default: Any = None) -> Any:
     if key not in g.attrs:
         if default is not None:
             return default
@@ -61,7 +62,7 @@ def _attr(g, key, where, default=None):
     return v.decode() if isinstance(v, bytes) else v
 
 
-def _segments(seg, amp, where):
+def _segments(seg: Any, amp: Any, where: str) -> list[Segment]:
     """Segment objects from the `segments` table and the optional amplitudes."""
     try:
         amp = np.full(len(seg), np.nan) if amp is None else np.asarray(amp, float).ravel()
@@ -107,11 +108,12 @@ def read_experiment(path: str | Path) -> list[Cell]:
                 raise InputError(f"{where}: data unreadable (truncated or corrupt file)") from None
             segments = _segments(cols.pop("segments"), amp, where)
             volume = _attr(g, "volume_um3", where, default=np.nan)
+            arr = {k: np.asarray(v, float) if np.issubdtype(np.asarray(v).dtype, np.number) else np.asarray(v)
+                   for k, v in cols.items()}
             cell = Cell(cell_id=cid, volume_um3=float(volume), segments=segments,
                         volume_source=str(_attr(g, "volume_source", where, "")),
                         spring_constant_N_per_m=float(_attr(g, "spring_constant_N_per_m", where, np.nan)),
                         date=str(_attr(g, "date", where, "")),
-                        **{k: np.asarray(v, float) if np.issubdtype(np.asarray(v).dtype, np.number) else np.asarray(v)
-                           for k, v in cols.items()})
+                        time_s=arr["time_s"], force_nN=arr["force_nN"], height_um=arr["height_um"])
             cells.append(cell.validate(f"{path}: "))
     return cells

@@ -38,6 +38,7 @@ without a volume is an error. Segment kinds: approach, pause and retract are kep
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -53,7 +54,7 @@ NATIVE_KIND = {"approach": "approach", "pause": "pause", "retract": "retract", "
 NAMES = "JPK (.txt, .txt.gz, " + ", ".join(SUFFIXES) + ") or Bruker NanoScope (.000, .001, ..., or a text export)"
 
 
-def _name_kind(path):
+def _name_kind(path: Path) -> str | None:
     """'archive', 'text' or 'nanoscope' by the file's name; None for any other name."""
     from analysis.afm.formats.bruker.nanoscope import is_nanoscope_name
     name = Path(path).name.lower()
@@ -118,7 +119,7 @@ def read_recordings(paths: Sequence[str | Path], spring_constant_N_per_m: float 
     return recs
 
 
-def _table_volume(row, name):
+def _table_volume(row: dict[str, Any], name: str) -> tuple[float, str] | None:
     """(V µm³, how) of one table row: volume_um3, else equator_radius_um at
     imaged_height_um (the confined droplet of that shape), else diameter_um of
     the free cell (V = π d³/6); None where the row gives none of them."""
@@ -195,8 +196,10 @@ def dish_from_curve(path: str | Path) -> float:
     return float(wedge_height_um(best, rec.spring_constant_N_per_m)[i])
 
 
-def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: float = 0.0) -> Cell:
-    """One recording as a native `Cell` (h = z + F/k - Z), validated."""
+def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: float = 0.0,
+            dish_known: bool = True) -> Cell:
+    """One recording as a native `Cell` (h = z + F/k - Z), validated; with `dish_known` False
+    (no dish reference) the heights are not checked to be gaps."""
     segs, parts, n0 = [], [], 0
     for s in rec.segments:
         if not s.n_samples:
@@ -210,33 +213,11 @@ def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: floa
     if np.isnan(t).any():
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': sample times unknown (a NanoScope Analysis "
                          "export without the NanoScope file it was exported from beside it)")
-    if np.min(h) <= 0:
+    if dish_known and np.min(h) <= 0:
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': height z + F/k - Z reaches {np.min(h):.4g} um "
                          f"with dish reference Z = {dish_um:g} um: give the dish with --dish-height-um or "
                          "--dish-curve")
     cell = Cell(cell_id=rec.cell_id, volume_um3=float(volume_um3), time_s=t, force_nN=f, height_um=h,
                 segments=segs, volume_source=volume_source,
-                spring_constant_N_per_m=float(rec.spring_constant_N_per_m), date=rec.date)
+                spring_constant_N_per_m=float(rec.spring_constant_N_per_m), date=rec.date, dish_known=dish_known)
     return cell.validate(f"{rec.source}: ")
-
-
-def import_cells(paths: Sequence[str | Path], volume_um3: float | None = None, volumes_csv: str | Path | None = None,
-                 dish_um: float | None = None, dish_curve: str | Path | None = None,
-                 spring_constant_N_per_m: float | None = None) -> tuple[list[Recording], list[Cell]]:
-    """(recordings, cells) of instrument files, every cell with its volume and height."""
-    recs = read_recordings(paths, spring_constant_N_per_m)
-    if dish_curve is not None:
-        dish_um = dish_from_curve(dish_curve)
-    table = read_volumes(volumes_csv) if volumes_csv is not None else None
-    cells = []
-    for r in recs:
-        if table is not None:
-            if r.cell_id not in table:
-                raise InputError(f"{volumes_csv}: no volume for cell '{r.cell_id}'")
-            vol, src = table[r.cell_id]
-        elif volume_um3 is not None:
-            vol, src = volume_um3, "one value for every cell (--volume)"
-        else:
-            raise InputError(f"no volume for cell '{r.cell_id}': give --volumes TABLE.csv or --volume UM3")
-        cells.append(to_cell(r, vol, src, dish_um or 0.0))
-    return recs, cells

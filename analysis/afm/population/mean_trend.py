@@ -74,7 +74,7 @@ def means_and_covariance(cell_ids: npt.ArrayLike, freq_hz: npt.ArrayLike, ln_ks:
     return wide.columns.to_numpy(float), wide.mean().to_numpy(), cov, n.astype(int), int(len(wide))
 
 
-def _interval(c, means, cov, t):
+def _interval(c: np.ndarray, means: np.ndarray, cov: np.ndarray, t: float) -> tuple[float, float, float]:
     """c·μ̂ and its t interval."""
     centre, sd = float(c @ means), float(np.sqrt(max(float(c @ cov @ c), 0.0)))
     return centre, centre - t * sd, centre + t * sd

@@ -41,7 +41,9 @@ cells and normal on the ln K̃_S scale with the SD of the interval, the cells a
 random sample of the population (the quality filters do not select on K̃_S).
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -83,11 +85,11 @@ class Population:
                 "measurement_share_lo95": self.share_lo, "measurement_share_hi95": self.share_hi}
 
 
-def _variance(s2, tau):
+def _variance(s2: Any, tau: Any) -> Any:
     return np.maximum(tau**2 + s2, 1e-12)       # τ = s = 0 would divide by zero
 
 
-def _weighted_mean(y, s2, tau):
+def _weighted_mean(y: Any, s2: Any, tau: Any) -> tuple[float, Any]:
     w = 1.0 / _variance(s2, tau)
     return float(np.sum(w * y) / np.sum(w)), w
 
@@ -104,7 +106,7 @@ def restricted_loglik(y: np.ndarray, s2: np.ndarray, tau: float) -> float:
     return loglik(y, s2, mu, tau) - 0.5 * float(np.log(np.sum(w)))
 
 
-def _argmax(f, hi):
+def _argmax(f: Callable[[float], float], hi: float) -> tuple[float, float]:
     """The τ in [0, hi] that maximises f, and f there."""
     r = optimize.minimize_scalar(lambda t: -f(t), bounds=(0.0, hi), method="bounded",
                                  options={"xatol": 1e-6 * hi})
@@ -112,7 +114,7 @@ def _argmax(f, hi):
     return x, f(x)
 
 
-def _ends(dev, centre, lo_bound, hi_bound):
+def _ends(dev: Callable[[float], float], centre: float, lo_bound: float, hi_bound: float) -> tuple[float, float]:
     """The roots of dev(x) = χ² left and right of `centre` in [lo_bound, hi_bound]
     (the bound itself where dev stays below the cut)."""
     g = lambda x: dev(x) - CHI2                                                  # noqa: E731

@@ -1,14 +1,16 @@
 """The population answer's part of report.md (`analysis.afm.analyze_report`): the trend's
 sentence first, then the deconvolved populations, the paired and Friedman tests."""
 
+from typing import Any
+
 import numpy as np
 
 
-def _f(x, fmt=".3f"):
+def _f(x: float | None, fmt: str = ".3f") -> str:
     return "–" if x is None or not np.isfinite(x) else format(x, fmt)
 
 
-def _ci(lo, hi, fmt=".3f"):
+def _ci(lo: float | None, hi: float | None, fmt: str = ".3f") -> str:
     return f"[{_f(lo, fmt)}, {_f(hi, fmt)}]"
 
 
@@ -28,7 +30,7 @@ def trend_sentence(t: dict, design_weighted: dict | None = None) -> str:
             f"{t['n_cells']} cells); ν of the population's median cell: {at}.{beside}")
 
 
-def _populations(rows, from_intervals):
+def _populations(rows: list[dict[str, Any]], from_intervals: bool) -> list[str]:
     lines = ["| f (Hz) | cells | mean ln K̃_S [95 %] | between-cell SD [95 %] | raw SD | measurement SD | "
              "measurement share [95 %] | raw median ν (IQR) | population median ν (IQR) |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -44,7 +46,7 @@ def _populations(rows, from_intervals):
     return lines
 
 
-def _tests(doc, mann_whitney):
+def _tests(doc: dict[str, Any], mann_whitney: Any) -> list[str]:
     lines = ["| pair | paired cells | Wilcoxon p (ν) | Wilcoxon p (ln K̃_S) | median Δν | Mann-Whitney p (unpaired) |",
              "|---|---|---|---|---|---|"]
     for k, r in doc["paired"].items():

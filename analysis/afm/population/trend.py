@@ -67,7 +67,7 @@ class Observations:
         return Observations(self.cell, self.x - x0, self.y, self.s2)
 
 
-def _gls(obs, theta, fixed=None):
+def _gls(obs: Any, theta: Any, fixed: Any = None) -> tuple[Any, Any, Any]:
     """(ℓ, β, cov β) at θ = (ln τ, ln σ_e); `fixed` = (k, value) holds β_k at value.
     With z = (1, x, y) per observation, M_c = Σ_j z zᵀ / d_j and m_c its first column,
     Σ_c (zᵀ Σ_c⁻¹ z) = Σ_c [M_c - τ² m_c m_cᵀ / (1 + τ² M_c,11)]: six bincounts give it all."""
@@ -91,7 +91,7 @@ def _gls(obs, theta, fixed=None):
     return ll, beta, np.linalg.inv(A)
 
 
-def _maximise(obs, fixed=None, start=None):
+def _maximise(obs: Any, fixed: Any = None, start: Any = None) -> tuple[float, Any]:
     """max over θ of ℓ (with β_k held if `fixed`), from `start` or from two starts (σ_e may sit
     at its bound): (ℓ, θ)."""
     starts = [start] if start is not None else [(np.log(0.5), np.log(0.2)), (np.log(0.5), np.log(0.02))]
@@ -104,7 +104,8 @@ def _maximise(obs, fixed=None, start=None):
     return -float(best.fun), best.x
 
 
-def _profile_interval(obs, k, ll_hat, theta, centre, se):
+def _profile_interval(obs: Any, k: int, ll_hat: float, theta: Any, centre: float, se: float
+                      ) -> tuple[float, float]:
     """The β_k with 2 (ℓ̂ - max ℓ | β_k) ≤ χ²: brentq on each side, bracketed by steps of 2 Wald SEs."""
     dev = lambda v: 2.0 * (ll_hat - _maximise(obs, (k, v), theta)[0]) - CHI2   # noqa: E731
     ends = []
@@ -180,7 +181,7 @@ def pseudo_true_slope(populations: dict[float, tuple[float, float]],
         sd = np.array([populations[f][1] for f in freqs])
         groups.append((n, np.column_stack([np.ones_like(x), x]), mu, np.outer(sd, sd)))
 
-    def expected(theta, beta_only=False):
+    def expected(theta: Any, beta_only: bool = False) -> Any:
         tau2, e2 = np.exp(2 * theta[0]), np.exp(2 * theta[1])
         inv = [(n, X, mu, C, np.linalg.inv(e2 * np.eye(len(mu)) + tau2)) for n, X, mu, C in groups]
         beta = np.linalg.solve(sum(n * X.T @ S @ X for n, X, _, _, S in inv),

@@ -43,7 +43,7 @@ from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
-    from analysis.calibration import Law
+    from analysis.calibration.law import Law
 
 POPULATIONS = {10.0: (-0.31, 0.92), 1.0: (-0.70, 0.82), 0.1: (-1.03, 0.80), 0.02: (-1.50, 0.80)}
 SUBSETS = (((0.1, 1.0, 10.0), 50), ((0.02, 0.1, 1.0, 10.0), 10), ((0.02,), 25))
@@ -99,7 +99,7 @@ def subset_sizes(n_cells: int) -> list[tuple[tuple[float, ...], int]]:
     return [(freqs, n) for (freqs, _), n in zip(SUBSETS, sizes)]
 
 
-def _parameters(i, rng):
+def _parameters(i: int, rng: np.random.Generator) -> tuple[dict[str, Any], dict[str, Any]]:
     """The cell's drawn truth: diameter D, V = π D³/6, γ_a, K_B at 1 Hz, the
     population draw z, the height step and heights, blebbing, spring constant."""
     D = rng.uniform(19.0, 23.0)
@@ -114,7 +114,8 @@ def _parameters(i, rng):
     return p, truth
 
 
-def _moduli(p, freqs, forward, truth):
+def _moduli(p: dict[str, Any], freqs: tuple[float, ...], forward: Any, truth: dict[str, Any]
+            ) -> dict[float, np.ndarray]:
     """K (mN/m) at every mean height per frequency: K_B = K_B(1 Hz) f^β,
     K̃_S from the frequency's population; the truth gets ν, K̃_S and K_B.
     A viscoelastic forward model (`analysis.afm.synth.rheology`) makes its own."""
@@ -129,7 +130,8 @@ def _moduli(p, freqs, forward, truth):
     return K
 
 
-def _protocol(rng, p, freqs, K):
+def _protocol(rng: np.random.Generator, p: dict[str, Any], freqs: tuple[float, ...], K: dict[float, np.ndarray]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Segment]]:
     """The recording's time s, height µm and elastic Δγ (mN/m; NaN on the
     approaches) and its segments: per mean height an approach and a wait, then
     the oscillations at every frequency (the area lags by δ = β π/2, or where K
@@ -161,7 +163,8 @@ def _protocol(rng, p, freqs, K):
     return np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks), segs
 
 
-def _cell(i, freqs, rng, forward, errors):
+def _cell(i: int, freqs: tuple[float, ...], rng: np.random.Generator, forward: Any,
+          errors: bool) -> tuple[Cell, dict[str, Any]]:
     p, truth = _parameters(i, rng)
     K = _moduli(p, freqs, forward, truth)
     t, h, dg, segs = _protocol(rng, p, freqs, K)

@@ -11,17 +11,21 @@ published 1 Hz population (μ, σ) = (-0.70, 0.82). The recording at each mean h
 with K*(h̃) = K_sec · C (`solver.viscoelastic`): |K*| sets the tension's amplitude, arg K*
 its lead over the area. Forward models: `solver` (the fast solver's compression for K_sec,
 its linear response for C; ~0.2 s a height and frequency) or `emulator` (the shipped
-emulator and `analysis.viscoelastic_table`; what the long round trips in bench/ use).
+emulator and complex-modulus table, the calibration file's `ComplexModel`; what the long round
+trips in bench/ use).
 """
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from analysis.afm.synth.cells import POPULATIONS
 from solver.elasticity import poisson_of_ratio
+
+if TYPE_CHECKING:
+    from analysis.calibration.file import ComplexModel
 
 SPREAD = 0.03                     # per-cell SD of both exponents around their medians
 EXPONENT_RANGE = (0.0, 0.6)
@@ -49,13 +53,11 @@ def solver_complex(bending: str = "standard") -> ComplexForward:
     return forward
 
 
-def emulator_complex(bending: str = "standard") -> ComplexForward:
-    """K*(V, mean heights, K_B, K_S, γ_a, δ_B, δ_S) from the shipped emulator and table."""
-    from analysis.shipped import load
-    from analysis.viscoelastic_table import shipped
+def emulator_complex(model: "ComplexModel", bending: str = "standard") -> ComplexForward:
+    """K*(V, mean heights, K_B, K_S, γ_a, δ_B, δ_S) from the emulator and complex-modulus table
+    of `model` (`CalibrationFile.viscoelastic`)."""
     from solver.geometry import cell_radius
-    emulator, table = load(None)[1], shipped()
-    assert emulator is not None, "the shipped calibration holds the emulator"
+    emulator, table = model.emulator, model.table
 
     def forward(volume: float, heights: npt.NDArray[np.float64], bulk: float, shear: float, tension: float,
                 db: float, ds: float) -> np.ndarray:

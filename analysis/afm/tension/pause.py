@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from analysis.afm.tension.ramp import RampFit, refit
-from analysis.invert.measurement_errors import HEIGHT_SD_UM, LEVEL, VOLUME_SD
+from analysis.invert.measurement_errors import LEVEL, MeasurementErrors
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from common.errors import InputError
 from solver.geometry import cell_radius
@@ -47,14 +47,7 @@ def pressure_Pa(tension_mN_per_m: npt.ArrayLike, mean_curvature_per_um: npt.Arra
     return 2.0 * PA_PER_MN_PER_M_PER_UM * np.asarray(tension_mN_per_m) * np.asarray(mean_curvature_per_um)
 
 
-@dataclass(frozen=True)
-class ErrorModel:
-    """The measurement errors behind the intervals: relative SD of V, SD of h (µm)."""
-
-    volume_sd: float = VOLUME_SD
-    height_sd_um: float = HEIGHT_SD_UM
-    draws: int = DRAWS
-    seed: int = 0
+TENSION_ERRORS = MeasurementErrors(draws=DRAWS)     # the published errors, DRAWS draws
 
 
 @dataclass(frozen=True)
@@ -80,7 +73,7 @@ def _tension_pressure(force, volume, height):
 
 
 def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth_um: float | None = None,
-                  errors: ErrorModel = ErrorModel()) -> PauseTension:
+                  errors: MeasurementErrors = TENSION_ERRORS) -> PauseTension:
     """γ_a and ΔP of a cell of volume V held at gap h by force F (above the
     baseline); `depth_um` δ where h = 2R - δ comes from the contact point.
     InputError for F ≤ 0 or a gap at or above the free cell's diameter."""
@@ -92,7 +85,7 @@ def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth
                          f"{2 * radius:.4g} um (volume {volume_um3:.4g} um^3): no contact")
     gamma, dp = _tension_pressure(force_nN, volume_um3, height_um)
     rng = np.random.default_rng(errors.seed)
-    v = volume_um3 * np.clip(1.0 + errors.volume_sd * rng.standard_normal(errors.draws), 1e-3, None)
+    v = volume_um3 * np.clip(1.0 + errors.volume_rel_sd * rng.standard_normal(errors.draws), 1e-3, None)
     eta = rng.standard_normal(errors.draws)
     h = (2.0 * cell_radius(v) - depth_um) if depth_um is not None else height_um + errors.height_sd_um * eta
     flat = h < FLATTEST * 2.0 * cell_radius(v)
@@ -105,12 +98,12 @@ def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth
 
 
 def ramp_interval(fit: RampFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
-                  errors: ErrorModel = ErrorModel()) -> tuple[float, float, float, float]:
+                  errors: MeasurementErrors = TENSION_ERRORS) -> tuple[float, float, float, float]:
     """(T_lo, T_hi, ΔP_lo, ΔP_hi) of a ramp fit from the volume error: refits at
     V (1 ± 1.96 σ_V) on the fit's window; ΔP = 2 T / R of the free cell."""
     ts, ps = [], []
     for sign in (-1.0, 1.0):
-        r = float(cell_radius(volume_um3 * (1.0 + sign * Z95 * errors.volume_sd)))
+        r = float(cell_radius(volume_um3 * (1.0 + sign * Z95 * errors.volume_rel_sd)))
         t = refit(fit, x_um, force_nN, r).tension_mN_per_m
         ts.append(t)
         ps.append(float(pressure_Pa(t, 1.0 / r)))

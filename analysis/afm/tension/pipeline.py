@@ -1,12 +1,11 @@
 """`cortex afm tension FILES`: read -> analyse -> write (docs/tension.md).
 
-read     every FILE on its own: an experiment (.h5/.hdf5) or single-cell CSV
-         (heights are gaps, volumes their own), else an instrument file or a
-         folder of them through `formats.instruments.read_recordings`
-         (heights x = z + F/k - Z, `formats.instruments.wedge_height_um`, with
-         Z the dish reference when one is given), each recording with its
-         volume (`--volume`, `--volumes` via `formats.instruments.read_volumes`,
-         or `--radius-um` R: V = 4πR³/3);
+read     every FILE on its own by the one reader, `formats.open`: an experiment
+         (.h5/.hdf5) or single-cell CSV (heights are gaps, volumes their own), else
+         an instrument file or a folder of them (heights x = z + F/k - Z, with Z
+         the dish reference when one is given, else the height channel, left for
+         the contact point, `ImportOptions.contact_heights`), each recording with
+         its volume (`--volume`, `--volumes` or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
          fitted (`ramp`: the selected model and, for comparison, the other
          one, each on its own automatic window; the interval from the volume
@@ -27,33 +26,30 @@ nothing written); otherwise the command ends with status 1.
 """
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from analysis.afm.cell import Cell
+from analysis.afm.formats.reader import ImportOptions
+from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
-from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
+from analysis.invert.measurement_errors import MeasurementErrors
 from common.errors import InputError
 from solver.geometry import cell_radius
 
-NATIVE = (".h5", ".hdf5", ".csv")
-
-
 @dataclass(frozen=True)
 class Options:
-    """What to analyse with: the ramp model, one of the volume sources, the dish reference, the errors."""
+    """What to analyse with: the ramp model, how to read the files (one of the volume sources,
+    the dish reference; heights refer to the approach's contact point without one), the errors."""
 
     model: str = "droplet"
-    volume_um3: float | None = None
-    volumes_csv: str | None = None
-    radius_um: float | None = None
-    dish_um: float | None = None
-    dish_curve: str | None = None
-    spring_constant_N_per_m: float | None = None
-    errors: ErrorModel = ErrorModel()
+    import_options: ImportOptions = ImportOptions(contact_heights=True)
+    errors: MeasurementErrors = TENSION_ERRORS
 
 
 @dataclass
@@ -69,70 +65,29 @@ class Trace:
     dish_known: bool
 
 
-def _volume(cell_id, options, table):
-    """(V, how it was obtained) for one recording from the options."""
-    if table is not None:
-        if cell_id not in table:
-            raise InputError(f"{options.volumes_csv}: no volume for cell '{cell_id}'")
-        volume, how = table[cell_id][:2]
-        return volume, how
-    if options.volume_um3 is not None:
-        return options.volume_um3, "one value for every cell (--volume)"
-    if options.radius_um is not None:
-        return 4.0 * np.pi * options.radius_um ** 3 / 3.0, f"free-cell radius {options.radius_um:g} um (--radius-um)"
-    raise InputError(f"no volume for cell '{cell_id}': give --volume UM3, --volumes TABLE.csv or --radius-um R")
-
-
-def _native(path, options):
-    """Traces of an experiment or single-cell CSV (their own volumes and gaps)."""
-    if any(v is not None for v in (options.volume_um3, options.volumes_csv, options.radius_um, options.dish_um,
-                                   options.dish_curve, options.spring_constant_N_per_m)):
-        raise InputError(f"{path}: --volume(s), --radius-um, --dish-* and --spring-constant apply to instrument "
-                         "files only; the experiment and CSV formats carry their own volumes and heights")
-    if path.suffix.lower() == ".csv":
-        from analysis.afm.formats.csvcell import read_csv_cell
-        cells = [read_csv_cell(path)]
-    else:
-        from analysis.afm.formats.h5 import read_experiment
-        cells = read_experiment(path)
-    return [Trace(c.cell_id, str(path), c.volume_um3, c.volume_source,
-                  [(i, s.kind, c.time_s[s.start:s.stop], c.force_nN[s.start:s.stop], c.height_um[s.start:s.stop])
-                   for i, s in enumerate(c.segments)], True) for c in cells]
-
-
-def _instrument(path, options, table, dish):
-    """Traces of instrument files (`formats.instruments.read_recordings`): x = z + F/k - Z."""
-    from analysis.afm.formats.instruments import read_recordings, wedge_height_um
-    out = []
-    for r in read_recordings([path], options.spring_constant_N_per_m):
-        volume, how = _volume(r.cell_id, options, table)
-        parts = [(i, s.kind, s.time_s, s.force_nN, wedge_height_um(s, r.spring_constant_N_per_m) - (dish or 0.0))
-                 for i, s in enumerate(r.segments) if s.n_samples]
-        out.append(Trace(r.cell_id, r.source or str(path), volume, how, parts, dish is not None))
-    return out
+def _trace(cell: Cell) -> Trace:
+    """A cell (`formats.open`) as the analysis takes it: its segments' samples in order."""
+    parts = [(i, s.kind, cell.time_s[s.start:s.stop], cell.force_nN[s.start:s.stop], cell.height_um[s.start:s.stop])
+             for i, s in enumerate(cell.segments)]
+    return Trace(cell.cell_id, cell.source, cell.volume_um3, cell.volume_source, parts, cell.dish_known)
 
 
 def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
-    """(traces, {file or cell: reason}) of FILES; InputError for bad options. The
-    instrument readers (and pandas) are imported only for what needs them."""
+    """(traces, {file or cell: reason}) of FILES, each read on its own by `formats.open`;
+    InputError for bad options (the volume table and the dish curve are read first)."""
     if options.model not in MODELS:
         raise InputError(f"--model {options.model!r}: not one of {', '.join(MODELS)}")
-    for name, value in (("--volume", options.volume_um3), ("--radius-um", options.radius_um),
-                        ("--spring-constant", options.spring_constant_N_per_m)):
-        if value is not None and not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} must be a positive number (got {value})")
-    table, dish = None, options.dish_um
-    if options.volumes_csv is not None:
+    reading = options.import_options.check()
+    if reading.volumes_csv is not None:
         from analysis.afm.formats.instruments import read_volumes
-        table = read_volumes(options.volumes_csv)
-    if options.dish_curve is not None:
+        read_volumes(reading.volumes_csv)
+    if reading.dish_curve is not None:
         from analysis.afm.formats.instruments import dish_from_curve
-        dish = dish_from_curve(options.dish_curve)
+        reading = replace(reading, dish_um=dish_from_curve(reading.dish_curve), dish_curve=None)
     traces, skipped = [], {}
     for p in map(Path, paths):
         try:
-            traces += _native(p, options) if p.is_file() and p.suffix.lower() in NATIVE else \
-                _instrument(p, options, table, dish)
+            traces += [_trace(c) for c in open_cells([p], reading)]
         except InputError as err:
             skipped[str(p)] = str(err) if str(p) in str(err) else f"{p}: {err}"
     seen: dict[str, str] = {}
@@ -143,7 +98,8 @@ def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], di
     return traces, skipped
 
 
-def _ramp_row(trace, index, x, f, options, radius):
+def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
+              ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp (the selected model, the other for comparison)."""
     fit = fit_ramp(x, f, radius, options.model)
     other = next(m for m in MODELS if m != options.model)
@@ -166,7 +122,9 @@ def _ramp_row(trace, index, x, f, options, radius):
     return row, ("approach", index, x, f, fit, cmp)
 
 
-def _pause_row(trace, index, t, x, f, ramp, options, radius):
+def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.ndarray,
+               ramp: tuple[float, float] | None, options: Options, radius: float
+               ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one pause: its last half's mean force and height;
     `ramp` (contact x0, free baseline force) of the first fitted ramp, or None."""
     last = slice(len(f) // 2, None)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from analysis.afm.tension.pause import ErrorModel
+from analysis.invert.measurement_errors import MeasurementErrors
 
 if TYPE_CHECKING:
     from outputs.ownership import OutputDir
@@ -101,12 +101,12 @@ def _num(row, key, spec):
     return "—" if value != value else format(value, spec)
 
 
-def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: ErrorModel,
+def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: MeasurementErrors,
              figures: list[Path]) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
              f"Ramp model: **{model}** (the other model for comparison). Volume errors: relative SD "
-             f"{errors.volume_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
+             f"{errors.volume_rel_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
              "Fit window: deformations up to the deepest one reached (at most R), and as much baseline above "
              "the contact; see docs/tension.md.", "",
              "| cell | part | T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | h̃ | contact (um) | R² | "
@@ -124,7 +124,7 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
 
 
 def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analysed], skipped: dict[str, str],
-          model: str, errors: ErrorModel) -> tuple[Path, Path]:
+          model: str, errors: MeasurementErrors) -> tuple[Path, Path]:
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
         pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)

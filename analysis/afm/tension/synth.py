@@ -32,7 +32,8 @@ def droplet_force_nN(volume_um3: float, tension_mN_per_m: float, gap_um: npt.Arr
     return tension_mN_per_m * g
 
 
-def _segment(kind, x, t0, volume, tension, rng, *, k, baseline_nN, noise_nN, height_noise_um):
+def _segment(kind: str, x: np.ndarray, t0: float, volume: float, tension: float, rng: np.random.Generator, *,
+             k: float, baseline_nN: float, noise_nN: float, height_noise_um: float) -> RecordedSegment:
     force = baseline_nN + droplet_force_nN(volume, tension, x) + noise_nN * rng.standard_normal(x.size)
     z = x - 1e-3 * force / k + height_noise_um * rng.standard_normal(x.size)
     duration = x.size / RATE_HZ

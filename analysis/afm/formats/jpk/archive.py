@@ -28,6 +28,9 @@ import zipfile
 import zlib
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from analysis.afm.formats.jpk.channels import convert, multiplier
 from analysis.afm.formats.jpk.properties import parse_properties, resolve_shared, subtree
 from analysis.afm.formats.recording import HEIGHT_CHANNELS, RecordedSegment, Recording, kind_of, segment_times
@@ -64,7 +67,7 @@ class _Archive:
         return parse_properties(text, f"{self.path}: {name}")
 
 
-def _number(props, keys, where):
+def _number(props: dict[str, str], keys: list[str], where: str) -> float:
     for key in keys:
         if key in props:
             try:
@@ -74,7 +77,7 @@ def _number(props, keys, where):
     raise InputError(f"{where}: header '{keys[0]}' missing")
 
 
-def _settings(seg, top, index):
+def _settings(seg: dict[str, str], top: dict[str, str], index: int) -> dict[str, str]:
     """A segment's settings: its own header's, else the top-level header's copy."""
     own = subtree(seg, "force-segment-header.settings.segment-settings")
     if own:
@@ -82,14 +85,16 @@ def _settings(seg, top, index):
     return subtree(top, f"{top.get('type', '')}.settings.force-settings.segment.{index}")
 
 
-def _channel(arc, seg, folder, name, slot, where):
+def _channel(arc: _Archive, seg: dict[str, str], folder: str, name: str, slot: str | None, where: str
+             ) -> tuple[npt.NDArray[np.float64], str]:
     ch = subtree(seg, f"channel.{name}")
     raw = arc.read(folder + ch.get("data.file.name", f"channels/{name}.dat"))
     n = int(_number(seg, ["force-segment-header.num-points"], where))
     return convert(ch, raw, n, slot, f"{where}: channel {name}")
 
 
-def _segment(arc, top, shared, folder, index, start_s):
+def _segment(arc: _Archive, top: dict[str, str], shared: dict[str, str], folder: str, index: int,
+             start_s: float) -> tuple[RecordedSegment, float, str]:
     where = f"{arc.path}: {folder}"
     seg = resolve_shared(arc.properties(folder + "segment-header.properties"), shared, where)
     settings = _settings(seg, top, index)
@@ -116,7 +121,7 @@ def _segment(arc, top, shared, folder, index, start_s):
     return out, k, seg.get("force-segment-header.time-stamp", "")
 
 
-def _layout(arc):
+def _layout(arc: _Archive) -> dict[int | None, list[int]]:
     """{pixel (None for a single curve): [segment indices]}, every segment with its header."""
     found: dict[int | None, set[int]] = {}
     for name in arc.names:

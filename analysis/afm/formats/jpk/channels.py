@@ -35,7 +35,7 @@ INTEGER_TYPES = {"short", "short-data", "integer", "integer-data", "long", "long
 FLOAT_DTYPES = {"float": ">f4", "float-data": ">f4", "double": ">f8", "double-data": ">f8"}
 
 
-def _number(props, key, where):
+def _number(props: dict[str, str], key: str, where: str) -> float:
     if key not in props:
         raise InputError(f"{where}: '{key}' missing")
     try:
@@ -44,7 +44,7 @@ def _number(props, key, where):
         raise InputError(f"{where}: {key} = {props[key]!r} is not a number") from None
 
 
-def _linear(scaling, where):
+def _linear(scaling: dict[str, str], where: str) -> tuple[float, float, str]:
     """(offset, multiplier, unit) of a `scaling.*` subtree."""
     kind, style = scaling.get("type"), scaling.get("style")
     if kind != "linear" or style != "offsetmultiplier":
@@ -52,7 +52,7 @@ def _linear(scaling, where):
     return _number(scaling, "offset", where), _number(scaling, "multiplier", where), scaling.get("unit.unit", "")
 
 
-def _storage(ch, where):
+def _storage(ch: dict[str, str], where: str) -> tuple[str, dict[str, str] | None]:
     """(numpy dtype, encoder scaling or None) of one channel."""
     dtype = ch.get("data.type") or ch.get("type")
     encoder = subtree(ch, "data.encoder") or subtree(ch, "encoder")

@@ -13,6 +13,7 @@ entry `NAME.K.REST` (from `shared-data/header.properties`), which
 """
 
 import re
+from collections.abc import Iterator
 
 from common.errors import InputError
 
@@ -20,8 +21,8 @@ _ESCAPES = {"t": "\t", "n": "\n", "r": "\r", "f": "\f"}
 _ESCAPE = re.compile(r"\\(u[0-9a-fA-F]{4}|.)")
 
 
-def _unescape(s):
-    def sub(m):
+def _unescape(s: str) -> str:
+    def sub(m: re.Match[str]) -> str:
         c = m.group(1)
         if len(c) == 5 and c[0] == "u":
             return chr(int(c[1:], 16))
@@ -29,7 +30,7 @@ def _unescape(s):
     return _ESCAPE.sub(sub, s)
 
 
-def _logical_lines(text):
+def _logical_lines(text: str) -> Iterator[str]:
     buf = ""
     for raw in text.splitlines():
         line = raw.lstrip()
@@ -45,7 +46,7 @@ def _logical_lines(text):
         yield buf
 
 
-def _split(line):
+def _split(line: str) -> tuple[str, str]:
     """(key, value) at the first unescaped `=`, `:` or blank."""
     i = 0
     while i < len(line) and line[i] not in "=: \t":

@@ -54,7 +54,7 @@ class JpkExport:
     segments: list[JpkSegment]
 
 
-def _blocks(path):
+def _blocks(path: Path) -> tuple[dict[str, str], list[dict[str, Any]]]:
     """Split the file into (header lines, data lines) per segment."""
     glob: dict[str, str] = {}
     blocks: list[dict[str, Any]] = []
@@ -82,7 +82,7 @@ def _blocks(path):
     return glob, blocks
 
 
-def _float(path, seg, header, key):
+def _float(path: Path, seg: str, header: dict[str, str], key: str) -> float:
     if key not in header:
         raise InputError(f"{path}: segment {seg}: header '{key}' missing")
     try:
@@ -91,7 +91,7 @@ def _float(path, seg, header, key):
         raise InputError(f"{path}: segment {seg}: {key} = {header[key]!r} is not a number") from None
 
 
-def _numbers(path, seg, h, block, cols):
+def _numbers(path: Path, seg: str, h: dict[str, str], block: dict[str, Any], cols: list[str]) -> Any:
     """The segment's data lines as a (rows, columns) array, checked against the header."""
     rows = []
     for lineno, line in block["data"]:
@@ -112,7 +112,7 @@ def _numbers(path, seg, h, block, cols):
     return a
 
 
-def _force_nN(where, deflection, u, k, sens):
+def _force_nN(where: str, deflection: Any, u: str, k: float, sens: float) -> Any:
     """The deflection column in nN: a force, a voltage (× sensitivity m/V × k N/m)
     or a length (× k N/m)."""
     if u in FORCE_TO_NN:
@@ -126,7 +126,8 @@ def _force_nN(where, deflection, u, k, sens):
     raise InputError(f"{where}: vDeflection in unknown unit {u!r} (expected N, V or m)")
 
 
-def _columns(where, raw, unit, cols, k, sens):
+def _columns(where: str, raw: dict[str, Any], unit: dict[str, str], cols: list[str], k: float,
+             sens: float) -> dict[str, Any]:
     """{column name with unit: values}: time, force and every height column in µm."""
     out = {}
     if "time" not in raw:
@@ -149,7 +150,7 @@ def _columns(where, raw, unit, cols, k, sens):
     return out
 
 
-def _segment(path, block, position):
+def _segment(path: Path, block: dict[str, Any], position: int) -> JpkSegment:
     """One `JpkSegment` of a parsed block (`position`: its place, if the header has no index)."""
     h = block["header"]
     seg = h.get("segmentIndex", "?")
@@ -187,7 +188,7 @@ def read_jpk(path: str | Path) -> JpkExport:
     return JpkExport(path=path, header=glob, segments=segments)
 
 
-def _segment_setting(glob, seg, key):
+def _segment_setting(glob: dict[str, str], seg: JpkSegment, key: str) -> float:
     """`force-settings.segment.N.key` of a segment: its block's header, else the file's first lines."""
     name = f"force-settings.segment.{seg.index}.{key}"
     v = seg.header.get(name, glob.get(name))

@@ -8,7 +8,7 @@ The three stages are one function each, and the data passes through them once:
     fit(inputs, say)            calibration (SPEC 4), reconstruction check, Monte-Carlo
                                 study (SPEC 5), all in memory;
     write(out, inputs, result)  the tables, the figures and report.md
-                                (`analysis.calibrate.report`) into DIR.
+                                (`analysis.calibration.command.report`) into DIR.
 
 Nothing is written before the input is checked and fitted. DIR gets:
 
@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis import calibration as cal_mod
+from analysis.calibration import law as cal_mod
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
@@ -87,13 +87,13 @@ def read_store(path: str | PathLike[str]) -> tuple[pd.DataFrame, pd.DataFrame | 
     return results, trials
 
 
-def _progress(start):
-    def say(message):
+def _progress(start: float) -> Callable[[str], None]:
+    def say(message: str) -> None:
         print(f"[analysis {time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
     return say
 
 
-def _missing(frame, unit, id_column):
+def _missing(frame: pd.DataFrame | None, unit: str, id_column: str) -> tuple[int, int, str]:
     """(how many not done, how many in all, 'a pending, b failed' text)."""
     if frame is None or not len(frame):
         return 0, 0, ""
@@ -133,8 +133,8 @@ def fit(inputs: Inputs, say: Callable[[str], None], marks: list[tuple[str, float
     """Calibration, reconstruction check and Monte-Carlo study of `inputs` as
     `Fitted` (bad data is refused here, before any output); adds to
     inputs.left_out what could not be used and to `marks` the stage times."""
-    from analysis.calibrate import montecarlo as mc_mod
-    from analysis.calibrate import reconstruction as rec_mod
+    from analysis.calibration.command import montecarlo as mc_mod
+    from analysis.calibration.command import reconstruction as rec_mod
 
     done, trials, left_out = inputs.done, inputs.trials, inputs.left_out
     calibration, fits, loglaw = cal_mod.calibrate(done)
@@ -162,7 +162,7 @@ def fit(inputs: Inputs, say: Callable[[str], None], marks: list[tuple[str, float
     return result
 
 
-def _tables(result):
+def _tables(result: Fitted) -> dict[str, pd.DataFrame]:
     """{file name: DataFrame} of the CSV tables."""
     tables = {"calibration_fits.csv": result.fits, "calibration_log_law.csv": result.loglaw,
               "reconstruction.csv": result.recon}
@@ -171,9 +171,9 @@ def _tables(result):
     return tables
 
 
-def _figures(done, result, out):
+def _figures(done: pd.DataFrame, result: Fitted, out: OutputDir) -> list[Path]:
     """The figures' paths (PNG; a PDF beside each)."""
-    from analysis.calibrate import figures
+    from analysis.calibration.command import figures
     cal = result.calibration
     figs = [figures.modulus_curves(done, cal, result.fits, out)[0],
             figures.alpha_law(cal, result.fits, out)[0],
@@ -188,7 +188,7 @@ def _figures(done, result, out):
 def write(out: OutputDir, inputs: Inputs, result: Fitted, say: Callable[[str], None]) -> Path:
     """Write every output of the module docstring into the `OutputDir` out;
     returns the report's path."""
-    from analysis.calibrate.report import render, solver_checks
+    from analysis.calibration.command.report import render, solver_checks
 
     say(f"writing {out.path}/")
     tables = _tables(result)

@@ -60,7 +60,7 @@ def _tensor_spline(coords: list[Any], values: npt.ArrayLike, degrees: tuple[int,
     return NdBSpline(tuple(knots), c, tuple(ks))
 
 
-tensor_spline = _tensor_spline       # public: `analysis.viscoelastic_table` splines its coefficients alike
+tensor_spline = _tensor_spline       # public: `analysis.calibration.viscoelastic_table` splines its coefficients alike
 
 
 @dataclass
@@ -87,7 +87,8 @@ class Table:
                   for a, log in zip(AXES, LOG_AXES)]
         self._spline = _tensor_spline(coords, np.log(self.ratio - 1.0 + OFFSET), DEGREES)
 
-    def _points(self, h_tilde, ks_tilde, gamma_tilde, volume_um3):
+    def _points(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
+                volume_um3: npt.ArrayLike) -> Any:
         arrays = np.broadcast_arrays(*(np.asarray(x, float) for x in
                                        (volume_um3, h_tilde, ks_tilde, gamma_tilde)))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -248,7 +249,8 @@ def from_results(results: pd.DataFrame, progress: Callable[[str], None] | None =
     return Emulator(tables)
 
 
-def _refill(results, resolution, progress):
+def _refill(results: pd.DataFrame, resolution: float, progress: Callable[[str], None] | None
+            ) -> tuple[pd.DataFrame, list[Any]]:
     """(results with every failed row solved again on a finer mesh, the list of those rows)."""
     from solver.compression import compress
     from common.errors import SolverError
@@ -276,6 +278,6 @@ def _refill(results, resolution, progress):
     return frame, refilled
 
 
-def _product_index(axes):
+def _product_index(axes: dict[str, Any]) -> Any:
     import pandas as pd
     return pd.MultiIndex.from_product([axes[a] for a in AXES], names=list(AXES))

@@ -13,8 +13,9 @@ Inverse: K̃_S = exp((α - D(γ̃_a)) / C(γ̃_a)), ν = (1 - K̃_S)/(1 + K̃_S)
 
 Every stage records its goodness of fit (R², largest residual); the whole
 law is also checked end to end against the simulated α and K.
-`Calibration.save/load` use `calibration.json` (per variant: `lambda`, `C`,
-`D`, the `alpha` table with its `K_S/K_B` and `gamma_a/K_B` axes, goodness).
+`Calibration.save` writes `calibration.json` (per variant: `lambda`, `C`, `D`,
+the `alpha` table with its `K_S/K_B` and `gamma_a/K_B` axes, goodness);
+`analysis.calibration.file.load_calibration` reads it.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 import pandas as pd
 
-from analysis import laws
+from analysis.calibration import law_fits
 from solver.elasticity import poisson_of_ratio as poisson, poisson_ratio, shear_ratio  # noqa: F401 (poisson, shear_ratio: this module's names for them)
 from common.errors import InputError
 
@@ -115,11 +116,6 @@ class Calibration:
         return path
 
     @classmethod
-    def load(cls, path: str | PathLike[str]) -> Calibration:
-        """Read a calibration.json; a malformed file raises InputError (one line)."""
-        return cls.from_document(path, read_document(path))
-
-    @classmethod
     def from_document(cls, path: str | PathLike[str], doc: dict[str, Any]) -> Calibration:
         """The laws of a calibration document (`read_document`) read from `path`."""
         variants = doc.get("variants")
@@ -146,7 +142,7 @@ def read_document(path: str | PathLike[str]) -> dict[str, Any]:
     return doc
 
 
-def _number(path, where, value, finite=True):
+def _number(path: str | PathLike[str], where: str, value: Any, finite: bool = True) -> float:
     if value is None and not finite:
         return float("nan")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (finite and not math.isfinite(value)):
@@ -154,7 +150,7 @@ def _number(path, where, value, finite=True):
     return float(value)
 
 
-def _law_from_json(path, name, v):
+def _law_from_json(path: str | PathLike[str], name: str, v: Any) -> Law:
     if not isinstance(v, dict):
         raise InputError(f"{path}: variants.{name} must be an object")
     for key in ("lambda", "C", "D"):
@@ -179,7 +175,7 @@ def _law_from_json(path, name, v):
                alpha=values, goodness=v.get("goodness", {}), info=info)
 
 
-def _nan_to_none(x):
+def _nan_to_none(x: Any) -> Any:
     if isinstance(x, dict):
         return {k: _nan_to_none(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -191,7 +187,7 @@ def _nan_to_none(x):
     return x
 
 
-def _free_fits(results, bending):
+def _free_fits(results: pd.DataFrame, bending: str) -> pd.DataFrame:
     """Step 1 per (K_B, K_S, γ_a) curve with at least MIN_HEIGHTS heights: α and c
     free. One row per curve (its heights and moduli kept in `_h`, `_k`)."""
     df = results.dropna(subset=["h_tilde", "modulus_mN_per_m"])
@@ -201,7 +197,7 @@ def _free_fits(results, bending):
         if len(curve) < MIN_HEIGHTS:
             continue
         curve = curve.sort_values("h_tilde")
-        free = laws.fit_alpha_c(curve["h_tilde"], curve["modulus_mN_per_m"], bulk)
+        free = law_fits.fit_alpha_c(curve["h_tilde"], curve["modulus_mN_per_m"], bulk)
         rows.append({"bending": bending, "bulk_mN_per_m": bulk, "shear_mN_per_m": shear,
                      "tension_mN_per_m": tension, "ks_tilde": shear / bulk,
                      "gamma_tilde": round(tension / bulk, 12),
@@ -217,21 +213,21 @@ def _free_fits(results, bending):
     return pd.DataFrame(rows)
 
 
-def _alpha_at_lambda(fits, lam):
+def _alpha_at_lambda(fits: pd.DataFrame, lam: float) -> None:
     """Step 2: α of every curve with c = λ (columns added to `fits`)."""
-    step2 = [laws.fit_alpha(h, k, b, lam) for h, k, b in zip(fits["_h"], fits["_k"], fits["bulk_mN_per_m"])]
+    step2 = [law_fits.fit_alpha(h, k, b, lam) for h, k, b in zip(fits["_h"], fits["_k"], fits["bulk_mN_per_m"])]
     fits["alpha"] = [f["alpha"] for f in step2]
     fits["r2_alpha"] = [f["r2"] for f in step2]
     fits["max_residual_alpha_mN_per_m"] = [f["max_residual_mN_per_m"] for f in step2]
 
 
-def _log_laws(fits, bending):
+def _log_laws(fits: pd.DataFrame, bending: str) -> pd.DataFrame:
     """Step 3: α = C ln K̃_S + D per γ̃_a with at least two K_S; one row each."""
     per_gamma = []
     for g, group in fits.groupby("gamma_tilde", sort=True):
         if group["ks_tilde"].nunique() < 2:
             continue
-        f = laws.fit_log_law(group["ks_tilde"], group["alpha"])
+        f = law_fits.fit_log_law(group["ks_tilde"], group["alpha"])
         per_gamma.append({"bending": bending, "gamma_tilde": g, "C": f["C"], "D": f["D"],
                           "r2_log_law": f["r2"], "max_residual_log_law": f["max_residual"],
                           "n_shear": group["ks_tilde"].nunique()})
@@ -241,29 +237,29 @@ def _log_laws(fits, bending):
     return pd.DataFrame(per_gamma)
 
 
-def _polynomials(loglaw):
+def _polynomials(loglaw: pd.DataFrame) -> tuple[dict[str, Any], dict[str, Any]]:
     """Step 4: C(γ̃_a) and D(γ̃_a) as polynomials (`C_poly`, `D_poly` added to `loglaw`)."""
-    fit_C = laws.fit_polynomial(loglaw["gamma_tilde"], loglaw["C"])
-    fit_D = laws.fit_polynomial(loglaw["gamma_tilde"], loglaw["D"])
+    fit_C = law_fits.fit_polynomial(loglaw["gamma_tilde"], loglaw["C"])
+    fit_D = law_fits.fit_polynomial(loglaw["gamma_tilde"], loglaw["D"])
     loglaw["C_poly"] = np.polynomial.polynomial.polyval(loglaw["gamma_tilde"], fit_C["coefficients"])
     loglaw["D_poly"] = np.polynomial.polynomial.polyval(loglaw["gamma_tilde"], fit_D["coefficients"])
     return fit_C, fit_D
 
 
-def _check_law(law, fits):
+def _check_law(law: Law, fits: pd.DataFrame) -> tuple[tuple[float, float], tuple[float, float]]:
     """The whole law against the curves: α_law, K's residual, K̃_S and ν
     inverted (columns added to `fits`); returns the R² and largest error of α and K."""
     fits["alpha_law"] = law.alpha_of(fits["ks_tilde"], fits["gamma_tilde"])
-    k_law = [laws.modulus_law(h, b, a, law.lam) for h, b, a in
+    k_law = [law_fits.modulus_law(h, b, a, law.lam) for h, b, a in
              zip(fits["_h"], fits["bulk_mN_per_m"], fits["alpha_law"])]
     fits["max_residual_law_mN_per_m"] = [float(np.max(np.abs(k - kl))) for k, kl in zip(fits["_k"], k_law)]
     fits["ks_tilde_law"] = law.invert(fits["alpha"], fits["gamma_tilde"])
     fits["nu_law"] = poisson(fits["ks_tilde_law"])
-    return (laws.goodness(fits["alpha"], fits["alpha_law"]),
-            laws.goodness(np.concatenate(list(fits["_k"])), np.concatenate(k_law)))
+    return (law_fits.goodness(fits["alpha"], fits["alpha_law"]),
+            law_fits.goodness(np.concatenate(list(fits["_k"])), np.concatenate(k_law)))
 
 
-def _alpha_table(law, fits):
+def _alpha_table(law: Law, fits: pd.DataFrame) -> None:
     """The fitted α on the (γ̃_a, K̃_S) grid, stored in `law`."""
     ks_axis = sorted(fits["ks_tilde"].unique())
     g_axis = sorted(fits["gamma_tilde"].unique())
@@ -274,7 +270,8 @@ def _alpha_table(law, fits):
     law.alpha = [[float(a) for a in row] for row in table.to_numpy()]
 
 
-def _goodness(fits, loglaw, polys, law_fit):
+def _goodness(fits: pd.DataFrame, loglaw: pd.DataFrame, polys: tuple[dict[str, Any], dict[str, Any]],
+              law_fit: tuple[tuple[float, float], tuple[float, float]]) -> dict[str, Any]:
     """The `goodness` document of a Law: every stage's R² and largest residual."""
     (fit_C, fit_D), ((r2_alpha_law, worst_alpha_law), (r2_k_law, worst_k_law)) = polys, law_fit
     return {

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from analysis.invert.inversion import invert_curves, to_curves
 
 KEYS = ["bending", "nu_true", "height_error_mode", "study", "cell", "trial_id"]
@@ -52,7 +52,7 @@ def invert_trials(trials: pd.DataFrame, calibration: Calibration) -> pd.DataFram
     return pd.concat(parts, ignore_index=True)
 
 
-def _iqr(x):
+def _iqr(x: Any) -> float:
     q25, q75 = np.percentile(x, [25, 75])
     return q75 - q25
 

@@ -1,7 +1,7 @@
-"""The calibration file: the emulator tables and the paper law in one versioned
-JSON document, and the default one shipped inside the package.
+"""The calibration file: every part a command takes to read cells (the paper law, the
+emulator, the complex-modulus table), loaded once by the one loader, `load_calibration`.
 
-Layout (a superset of `calibration.json`, so `Calibration.load` reads it too):
+Layout of the file (a JSON document, versioned):
 
     format      "cortex-calibration"
     version     2 (1: law only, as `cortex analysis calibrate` writes)
@@ -13,30 +13,46 @@ Layout (a superset of `calibration.json`, so `Calibration.load` reads it too):
                 `built`: the date and code version of this file
 
 `build` makes the document from two finished stores (`make calibration`);
-`read` reads one (None: the shipped default, `SHIPPED_NAME`) once into a
-`CalibrationFile`: a `Calibration` (or None), an `Emulator` (or None, for a
-law-only file), the provenance and where it came from; `load` gives the same
-as a tuple.
+`load_calibration` reads one (None: the shipped default, `SHIPPED_NAME`) once into a
+`CalibrationFile`: a `Calibration` (or None), an `Emulator` (or None, for a law-only
+file), the provenance and where it came from, and (read on its first use) the
+viscoelastic reading's `ComplexModel`: the complex-modulus table of the solver alone
+(`viscoelastic_table`, no campaign behind it, so one table shipped in the package,
+`TABLE_NAME`) with the file's emulator, or the shipped emulator for a law-only file.
+Every command reads the file here once and hands its parts on; no other code opens it.
+The droplet ramp table of the tension analysis is to become one more part of this file.
 """
 
 import json
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from importlib.metadata import version
 from os import PathLike
 from pathlib import Path
 from typing import Any, Callable
 
-from analysis.calibration import FORMAT, Calibration, _nan_to_none, read_document
-from analysis.emulator import Emulator, from_results
+from analysis.calibration.emulator import Emulator, from_results
+from analysis.calibration.law import FORMAT, Calibration, _nan_to_none, read_document
+from analysis.calibration.viscoelastic_table import ComplexTable
 from common.errors import InputError
 
 VERSION = 2
 SHIPPED_NAME = "calibration.json"
+TABLE_NAME = "viscoelastic_table.json"          # the complex-modulus table (`viscoelastic_table`)
 
 
 SHIPPED_WHERE = "the shipped calibration"      # how messages name the default file
+
+
+@dataclass(frozen=True)
+class ComplexModel:
+    """The complex forward model K* = K_sec · C of a viscoelastic cell (SPEC 10): the
+    emulator's K_sec and the complex-modulus table's C."""
+
+    emulator: Emulator
+    table: ComplexTable
 
 
 @dataclass(frozen=True)
@@ -49,13 +65,21 @@ class CalibrationFile:
     provenance: dict[str, Any]
     where: str
 
+    @cached_property
+    def viscoelastic(self) -> ComplexModel:
+        """The viscoelastic reading's forward model (read on first use): this file's emulator
+        (the shipped one for a law-only file) and the shipped complex-modulus table."""
+        emulator = self.emulator if self.emulator is not None else load_calibration(None).emulator
+        assert emulator is not None, "the shipped calibration holds the emulator"
+        return ComplexModel(emulator, _complex_table(shipped_path(TABLE_NAME)))
 
-def shipped_path() -> Path:
-    """The default calibration file inside the installed package."""
-    return Path(str(resources.files("analysis") / "data" / SHIPPED_NAME))
+
+def shipped_path(name: str = SHIPPED_NAME) -> Path:
+    """A file shipped inside the installed package (default: the calibration file)."""
+    return Path(str(resources.files("analysis.calibration") / "data" / name))
 
 
-def _store_provenance(path):
+def _store_provenance(path: str | PathLike[str]) -> dict[str, Any]:
     from campaign.store.reader import read_provenance
     p = read_provenance(path)
     return {"store": Path(path).name, "campaign_text": p.get("config_text", ""),
@@ -66,9 +90,9 @@ def _store_provenance(path):
 def build(emulator_store: str | PathLike[str], law_store: str | PathLike[str] | None = None,
           progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """The calibration document from an emulator campaign's store and (optionally)
-    the paper campaign's store (its law fitted by `analysis.calibration.calibrate`)."""
-    from analysis.calibration import calibrate
-    from analysis.calibrate.pipeline import read_store
+    the paper campaign's store (its law fitted by `analysis.calibration.law.calibrate`)."""
+    from analysis.calibration.law import calibrate
+    from analysis.calibration.command.pipeline import read_store
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
     doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "variants": {},
@@ -94,7 +118,7 @@ def write(doc: dict[str, Any], path: str | PathLike[str]) -> Path:
     return Path(write_atomically(path, text.encode()))
 
 
-def read(path: str | PathLike[str] | None = None) -> CalibrationFile:
+def load_calibration(path: str | PathLike[str] | None = None) -> CalibrationFile:
     """The calibration file at `path` (None: the shipped default), read and parsed once.
     Malformed: InputError (one line)."""
     where = str(path) if path is not None else SHIPPED_WHERE
@@ -107,7 +131,9 @@ def read(path: str | PathLike[str] | None = None) -> CalibrationFile:
     return CalibrationFile(cal, emu, doc.get("provenance", {}), where)
 
 
-def load(path: str | PathLike[str] | None = None) -> tuple[Calibration | None, Emulator | None, dict[str, Any]]:
-    """(Calibration or None, Emulator or None, provenance dict) of a calibration file (`read`)."""
-    file = read(path)
-    return file.calibration, file.emulator, file.provenance
+def _complex_table(path: Path) -> ComplexTable:
+    """The complex-modulus table at `path`; InputError (one line) if it is missing."""
+    if not path.is_file():
+        raise InputError(f"{path}: the viscoelastic table is missing "
+                         "(rebuild: python -m analysis.calibration.viscoelastic_table)")
+    return ComplexTable.from_json(json.loads(path.read_text()), where=str(path))

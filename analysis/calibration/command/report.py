@@ -1,4 +1,4 @@
-"""report.md of `cortex analysis calibrate` (`analysis.calibrate.pipeline`), as text.
+"""report.md of `cortex analysis calibrate` (`analysis.calibration.command.pipeline`), as text.
 
 One function per section: the header (what was used and left out), the
 calibration laws (SPEC 4) with the goodness of every fitting stage and the α
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.calibrate.figures import ORDER
+from analysis.calibration.command.figures import ORDER
 
 
 def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
@@ -36,13 +36,13 @@ def solver_checks(done: pd.DataFrame) -> list[dict[str, Any]]:
     return rows
 
 
-def _fmt(x, digits=4):
+def _fmt(x: Any, digits: int = 4) -> str:
     if x is None or (isinstance(x, float) and not np.isfinite(x)):
         return "-"
     return f"{x:.{digits}g}"
 
 
-def _table(header, rows):
+def _table(header: list[str], rows: Any) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
@@ -51,7 +51,7 @@ def _table(header, rows):
 FAILED_SHOWN = 20      # failed compressions listed by name in the report; the rest counted
 
 
-def _failed_tasks(failed):
+def _failed_tasks(failed: pd.DataFrame | None) -> list[str]:
     """The failed compressions, each with its parameters and message (`cortex campaign status` lists all)."""
     if failed is None or not len(failed):
         return []
@@ -63,7 +63,7 @@ def _failed_tasks(failed):
         ([f"... and {more} more: `cortex campaign status STORE` lists them all.", ""] if more else [])
 
 
-def _header(inputs):
+def _header(inputs: Any) -> list[str]:
     done = inputs.done
     L = [f"# Calibration and Monte-Carlo analysis of `{inputs.store}`", "",
          f"cortex {version('cortex-poisson')}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; "
@@ -78,7 +78,7 @@ def _header(inputs):
     return L
 
 
-def _laws(calibration, variants):
+def _laws(calibration: Any, variants: list[str]) -> list[str]:
     L = ["## Calibration (SPEC 4)", "",
          "K(h~) = K_B (1 + alpha exp(h~/lambda)); alpha = C(g) ln(K_S/K_B) + D(g), g = gamma_a/K_B; "
          "C, D cubic in g (coefficients lowest order first).", ""]
@@ -98,7 +98,7 @@ def _laws(calibration, variants):
     return L
 
 
-def _goodness_row(v, g):
+def _goodness_row(v: str, g: dict[str, Any]) -> list[str]:
     return [v,
             f"{_fmt(g['step1_free_c']['r2_min'], 6)}, {_fmt(g['step1_free_c']['max_residual_mN_per_m'], 3)} mN/m",
             f"{_fmt(g['step2_alpha']['r2_min'], 6)}, {_fmt(g['step2_alpha']['max_residual_mN_per_m'], 3)} mN/m",
@@ -108,7 +108,7 @@ def _goodness_row(v, g):
             _fmt(g["law_nu"]["max_abs_error"], 3)]
 
 
-def _goodness(calibration, variants):
+def _goodness(calibration: Any, variants: list[str]) -> list[str]:
     L = ["Goodness of fit at every stage (lowest R², largest residual):", ""]
     rows = [_goodness_row(v, calibration.laws[v].goodness) for v in variants]
     L += [_table(["bending", "1: alpha, c free", "2: alpha (c = lambda)", "3: log law (alpha)",
@@ -121,7 +121,7 @@ def _goodness(calibration, variants):
     return L
 
 
-def _checks(checks):
+def _checks(checks: Any) -> list[str]:
     if not checks:
         return []
     return ["Solver checks: largest relative volume error; largest deviation of the droplet area "
@@ -131,7 +131,7 @@ def _checks(checks):
                     for c in checks]), ""]
 
 
-def _reconstruction(recon_summary, variants):
+def _reconstruction(recon_summary: Any, variants: list[str]) -> list[str]:
     L = ["## Reconstruction check", "",
          "Every simulated K(h~) curve inverted as a measured cell (heights 0.5 <= h~ <= 0.75, K_B and alpha "
          "fitted with lambda fixed, the published filters) with gamma_a known (the simulation's). "
@@ -150,7 +150,7 @@ def _reconstruction(recon_summary, variants):
     return L
 
 
-def _montecarlo(mc_records):
+def _montecarlo(mc_records: Any) -> list[str]:
     if not mc_records:
         return []
     return ["## Monte-Carlo error study (SPEC 5)", "",
@@ -168,7 +168,7 @@ def _montecarlo(mc_records):
 
 
 def render(inputs: Any, result: Any, checks: list[dict[str, Any]], figs: list[Path]) -> str:
-    """report.md as text: `inputs` and `result` of `analysis.calibrate.pipeline`
+    """report.md as text: `inputs` and `result` of `analysis.calibration.command.pipeline`
     (`Inputs`, `Fitted`), `checks` of `solver_checks`, `figs` the figures' paths."""
     cal = result.calibration
     variants = [v for v in ORDER if v in cal.laws] + [v for v in cal.laws if v not in ORDER]

@@ -4,7 +4,7 @@ The measured complex modulus of a viscoelastic cell (`solver.viscoelastic`) is
 
     K*(h̃) = K_sec(h̃; K_B, K_S, γ_a) · C(h̃, K̃_S, γ̃_a, δ_B, δ_S),
 
-K_sec the elastic modulus the emulator gives (`analysis.emulator`, K_B f(h̃, K̃_S, γ̃_a; V)),
+K_sec the elastic modulus the emulator gives (`analysis.calibration.emulator`, K_B f(h̃, K̃_S, γ̃_a; V)),
 C = K*_lin(δ_B, δ_S)/K*_lin(0, 0) the linear response's complex factor (no viscosity).
 C is dimensionless; with lengths scaled by R_cell and moduli by |K_B*| it depends on
 (h̃, K̃_S = |K_S*|/|K_B*|, γ̃_a = γ_a/|K_B*|, δ_B, δ_S), weakly on t_c/R and not on Δh.
@@ -31,18 +31,15 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import BSpline, NdBSpline
 
-from analysis.emulator import tensor_spline
+from analysis.calibration.emulator import tensor_spline
 from common.errors import InputError
 
-DATA = Path(__file__).parent / "data" / "viscoelastic_table.json"
 H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)
 KS_TILDE = (0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56, 5.12)
 GAMMA_TILDE = (0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
@@ -53,7 +50,7 @@ BULK_MN_PER_M = 25.0
 TERMS = tuple((i, j) for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i) if i + j > 0)
 
 
-def _monomials(db, ds):
+def _monomials(db: npt.ArrayLike, ds: npt.ArrayLike) -> tuple[Any, Any, Any]:
     """(..., len(TERMS)) monomials δ_B^i δ_S^j and their derivatives by δ_B and δ_S."""
     db, ds = np.asarray(db, float)[..., None], np.asarray(ds, float)[..., None]
     i = np.array([t[0] for t in TERMS])
@@ -137,7 +134,7 @@ class ComplexTable:
         n = len(TERMS)
         m, mb, ms = (a.reshape(-1, n) for a in _monomials(db.ravel(), ds.ravel()))
 
-        def contract(c):
+        def contract(c: Any) -> list[Any]:
             c = c[:, :n] + 1j * c[:, n:]
             return [np.sum(c * w, axis=1).reshape(h.shape) for w in (m, mb, ms)]
 
@@ -149,16 +146,9 @@ class ComplexTable:
         return value, d_ks, d_g, d_b, d_s
 
 
-@lru_cache(maxsize=1)
-def shipped() -> ComplexTable:
-    """The table shipped in the package (`analysis/data/viscoelastic_table.json`)."""
-    if not DATA.is_file():
-        raise InputError(f"{DATA}: the viscoelastic table is missing (rebuild: python -m analysis.viscoelastic_table)")
-    return ComplexTable.from_json(json.loads(DATA.read_text()), where=str(DATA))
-
-
 def main() -> None:
-    """Rebuild the shipped table (about 15 min on one core)."""
+    """Rebuild the shipped table, `analysis/calibration/data/viscoelastic_table.json` (about 15 min
+    on one core); `analysis.calibration.file.load_calibration` reads it."""
     import sys
     done = [0]
 
@@ -166,7 +156,8 @@ def main() -> None:
         done[0] += 1
         if done[0] % 40 == 0:
             print(f"{done[0]} nodes", file=sys.stderr)
-    DATA.write_text(json.dumps(build(progress=progress)) + "\n")
+    from analysis.calibration.file import TABLE_NAME, shipped_path
+    shipped_path(TABLE_NAME).write_text(json.dumps(build(progress=progress)) + "\n")
 
 
 if __name__ == "__main__":

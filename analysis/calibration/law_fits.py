@@ -57,7 +57,7 @@ def fit_alpha_c(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, bulk: float) -> 
     hm = h.mean()
     x = h - hm
 
-    def best_a(r):
+    def best_a(r: npt.ArrayLike) -> tuple[Any, Any]:
         e = np.exp(np.multiply.outer(r, x))
         return (e @ y) / np.sum(e * e, axis=-1), e
 

@@ -25,24 +25,24 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 if TYPE_CHECKING:
-    from analysis.calibration import Calibration
+    from analysis.calibration.law import Calibration
     from outputs.ownership import OutputDir
 
 ORDER = ("standard", "double", "none")
 H_LABEL = "h~ = h / (2 R_cell)  [dimensionless]"
 
 
-def _variants(names):
+def _variants(names: Any) -> list[str]:
     names = list(dict.fromkeys(names))
     return [v for v in ORDER if v in names] + [v for v in names if v not in ORDER]
 
 
-def _panels(n, width=4.2, height=3.4):
+def _panels(n: int, width: float = 4.2, height: float = 3.4) -> tuple[Any, Any]:
     fig, axes = plt.subplots(1, n, figsize=(width * n, height), squeeze=False, constrained_layout=True)
     return fig, axes[0]
 
 
-def _save(fig, out, name):
+def _save(fig: Any, out: OutputDir, name: str) -> list[Path]:
     for ax in fig.axes:
         ax.title.set_fontsize(9)
         ax.xaxis.label.set_fontsize(8)
@@ -58,7 +58,7 @@ def _save(fig, out, name):
     return paths
 
 
-def _middle(values):
+def _middle(values: Any) -> Any:
     values = sorted(set(values))
     return values[(len(values) - 1) // 2]
 

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.invert.inversion import invert_curves, to_curves
-from analysis.calibration import Calibration
+from analysis.calibration.law import Calibration
 from solver.elasticity import poisson_of_ratio
 
 KEYS = ["bending", "bulk_mN_per_m", "shear_mN_per_m", "tension_mN_per_m"]
