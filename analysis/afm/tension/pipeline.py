@@ -35,6 +35,7 @@ import numpy as np
 
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.pause import ErrorModel, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from common.errors import InputError
 from solver.geometry import cell_radius
@@ -167,11 +168,13 @@ def _ramp_row(trace, index, x, f, options, radius):
 
 
 def _pause_row(trace, index, t, x, f, ramp, options, radius):
-    """The row and plot of one pause: its last half's mean force and height;
-    `ramp` (contact x0, free baseline force) of the first fitted ramp, or None."""
+    """The row and plot of one pause: the relaxed force F_∞ of its relaxation
+    (`relaxation.fit_relaxation`; NaN tension where F_∞ ≤ 0, flagged) and, for
+    comparison, its last half's mean; the height the last half's mean; `ramp`
+    (contact x0, free baseline force) of the first fitted ramp, or None."""
     last = slice(len(f) // 2, None)
     contact, base = ramp if ramp else (float("nan"), 0.0)
-    force = float(np.mean(f[last])) - base
+    half = float(np.mean(f[last])) - base
     xm = float(np.mean(x[last]))
     if trace.dish_known or ramp is None:
         depth, height = None, xm
@@ -181,13 +184,21 @@ def _pause_row(trace, index, t, x, f, ramp, options, radius):
         if depth >= 2.0 * radius:
             raise InputError(f"pause {depth:.4g} um below the approach's contact point, deeper than the free "
                              f"cell's diameter {2 * radius:.4g} um (is the volume right?)")
-    p = pause_tension(force, height, trace.volume_um3, depth_um=depth, errors=options.errors)
-    row = {"part": "pause", "segment": index, "model": "droplet", "tension_mN_per_m": p.tension_mN_per_m,
-           "tension_lo95_mN_per_m": p.tension_lo95_mN_per_m, "tension_hi95_mN_per_m": p.tension_hi95_mN_per_m,
-           "pressure_Pa": p.pressure_Pa, "pressure_lo95_Pa": p.pressure_lo95_Pa, "pressure_hi95_Pa": p.pressure_hi95_Pa,
-           "force_nN": force, "height_um": height, "h_tilde": p.h_tilde, "height_reference": ref,
-           "contact_um": contact, "baseline_nN": base}
-    return row, ("pause", index, t, f - base, force, None)
+    p_half = pause_tension(half, height, trace.volume_um3, depth_um=depth, errors=options.errors)
+    relax = fit_relaxation(t, f - base)
+    force = relax.relaxed_force_nN
+    p = pause_tension(force, height, trace.volume_um3, depth_um=depth, errors=options.errors,
+                      force_sd_nN=relax.relaxed_force_sd_nN) if force > 0 else None
+    nan = float("nan")
+    row = {"part": "pause", "segment": index, "model": "droplet", "tension_mN_per_m": p.tension_mN_per_m if p else nan,
+           "tension_lo95_mN_per_m": p.tension_lo95_mN_per_m if p else nan,
+           "tension_hi95_mN_per_m": p.tension_hi95_mN_per_m if p else nan,
+           "pressure_Pa": p.pressure_Pa if p else nan, "pressure_lo95_Pa": p.pressure_lo95_Pa if p else nan,
+           "pressure_hi95_Pa": p.pressure_hi95_Pa if p else nan, "force_nN": force, "height_um": height,
+           "h_tilde": p_half.h_tilde, "height_reference": ref, "contact_um": contact, "baseline_nN": base,
+           **relaxation_columns(relax), "last_half_force_nN": half,
+           "last_half_tension_mN_per_m": p_half.tension_mN_per_m}
+    return row, ("pause", index, t, f - base, half, relax)
 
 
 def analyse(trace: Trace, options: Options) -> Analysed:

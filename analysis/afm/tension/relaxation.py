@@ -57,10 +57,10 @@ BETA_RANGE = (0.05, 20.0)  # the power law's exponents tried (β → ∞ at fixe
 GRID_SAMPLES = 400        # the start grid works on at most this many block means of the pause
 
 
-def shape(model: str, t_s: npt.ArrayLike, tau_s: float, beta: float = float("nan")) -> np.ndarray:
-    """φ(t) of the relaxing part A φ: e^{−t/τ} or (1 + t/τ)^{−β}; 1 at t = 0."""
-    t = np.asarray(t_s, float)
-    return np.exp(-t / tau_s) if model == EXPONENTIAL else (1.0 + t / tau_s) ** -beta
+def shape(model: str, t_s: npt.ArrayLike, tau_s: npt.ArrayLike, beta: npt.ArrayLike = float("nan")) -> np.ndarray:
+    """φ(t) of the relaxing part A φ: e^{−t/τ} or (1 + t/τ)^{−β}; 1 at t = 0 (broadcast)."""
+    t, tau = np.asarray(t_s, float), np.asarray(tau_s, float)
+    return np.exp(-t / tau) if model == EXPONENTIAL else (1.0 + t / tau) ** -np.asarray(beta, float)
 
 
 def time_to_s(model: str, share: float, tau_s: float, beta: float = float("nan")) -> float:
@@ -118,15 +118,21 @@ def _blocks(t, f):
     return t[:m].reshape(-1, size).mean(axis=1), f[:m].reshape(-1, size).mean(axis=1)
 
 
-def _start(model, t, f, span):
-    """(F_∞, A, ln τ[, ln β]) of the best grid point (τ from the sampling step to 100 pauses)."""
+def _bounds(model, step, span):
+    """Bounds of (F_∞, A, ln τ[, ln β]): τ from a quarter sampling step to 100 pauses."""
+    lo = [-np.inf, -np.inf, np.log(step / 4.0)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[0])])
+    hi = [np.inf, np.inf, np.log(100.0 * span)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[1])])
+    return np.array(lo), np.array(hi)
+
+
+def _start(model, t, f, lo, hi):
+    """(F_∞, A, ln τ[, ln β]) of the best point of a grid within the bounds."""
     tb, fb = _blocks(t, f)
-    step = max(float(np.median(np.diff(t))), span * 1e-6)
-    taus = np.geomspace(step / 4.0, 100.0 * span, 32)
+    taus = np.exp(np.linspace(lo[2], hi[2], 32))
     if model == EXPONENTIAL:
         tau, beta = taus, np.full(taus.size, np.nan)
     else:
-        tau, beta = (a.ravel() for a in np.meshgrid(taus, np.geomspace(*BETA_RANGE, 16)))
+        tau, beta = (a.ravel() for a in np.meshgrid(taus, np.exp(np.linspace(lo[3], hi[3], 16))))
     phi = shape(model, tb[:, None], tau[None, :], beta[None, :])
     f_inf, amp, rss = _linear(phi, fb)
     j = int(np.argmin(rss))
@@ -150,13 +156,10 @@ def _jacobian(p, model, t, f):
                             -p[1] * phi * beta * np.log1p(x)])
 
 
-def _fit(model, t, f, span):
+def _fit(model, t, f, step, span):
     """Least-squares parameters, residuals and the unscaled covariance (JᵀJ)⁻¹."""
-    p0 = _start(model, t, f, span)
-    step = max(float(np.median(np.diff(t))), span * 1e-6)
-    lo = [-np.inf, -np.inf, np.log(step / 4.0)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[0])])
-    hi = [np.inf, np.inf, np.log(100.0 * span)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[1])])
-    p0 = np.clip(p0, np.array(lo) + 1e-9, np.array(hi) - 1e-9)
+    lo, hi = _bounds(model, step, span)
+    p0 = np.clip(_start(model, t, f, lo, hi), lo + 1e-9, hi - 1e-9)
     res = least_squares(_residuals, p0, jac=_jacobian, bounds=(lo, hi), args=(model, t, f), x_scale="jac",
                         method="trf")
     jac = res.jac
@@ -181,11 +184,13 @@ def fit_relaxation(t_s: npt.ArrayLike, force_nN: npt.ArrayLike) -> Relaxation:
     t = np.asarray(t_s, float)
     f = np.asarray(force_nN, float)
     t = t - t[0]
-    n, span = f.size, float(t[-1]) if t.size else 0.0
-    if n < MIN_SAMPLES or not span > 0:
+    n = f.size
+    step = float(np.median(np.diff(t))) if n > 1 else 0.0
+    span = float(t[-1]) + step if n else 0.0         # the pause's duration: n sampling steps
+    if n < MIN_SAMPLES or not step > 0:
         return _constant(f, span, 0.0, {NONE: float("nan")},
                          f"too few samples ({n}) to fit a relaxation: the pause's mean force is used")
-    fits = {m: _fit(m, t, f, span) for m in MODELS}
+    fits = {m: _fit(m, t, f, step, span) for m in MODELS}
     rho = _lag1(fits[POWER][1])
     rss = {m: float(r @ r) for m, (_, r, _) in fits.items()}
     rss[NONE] = float(((f - f.mean()) ** 2).sum())
@@ -226,3 +231,14 @@ def flag_reason(r: Relaxation) -> str:
 
 def _flagged(r: Relaxation) -> Relaxation:
     return replace(r, flag=flag_reason(r))
+
+
+COLUMNS = ("pause_duration_s", "relaxation_model", "relaxation_time_s", "relaxation_t90_s", "relaxation_exponent",
+           "relaxation_bic_margin", "relaxed_force_nN", "relaxed_force_lo95_nN", "relaxed_force_hi95_nN",
+           "relaxation_flag")
+
+
+def relaxation_columns(r: Relaxation) -> dict[str, object]:
+    """A relaxation as the columns of a pause's row (`COLUMNS`, units in the names)."""
+    return dict(zip(COLUMNS, (r.pause_s, r.model, r.time_s, r.t90_s, r.exponent, r.bic_margin, r.relaxed_force_nN,
+                              r.relaxed_force_lo95_nN, r.relaxed_force_hi95_nN, r.flag)))
