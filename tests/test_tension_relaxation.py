@@ -48,10 +48,10 @@ def test_the_time_scales_are_where_the_relaxing_part_falls_to_1_over_e_and_10_pe
 
 
 def test_the_last_half_misses_a_slow_tail_that_the_fit_recovers():
-    """A power-law cortex (β = 1): 3 % of A is still relaxing in the last half."""
+    """A power-law cortex (β = 1): 4 % of A is still relaxing in the last half."""
     f = _pause(POWER, 1)
     r = fit_relaxation(T, f)
-    assert np.mean(f[T.size // 2:]) - F_INF > 0.04
+    assert np.mean(f[T.size // 2:]) - F_INF > 0.05          # 0.066 nN
     assert abs(r.relaxed_force_nN - F_INF) < TOLERANCE_NN
 
 

@@ -90,7 +90,7 @@ def _pause_axes(ax, plot):
     ax.set_xlabel("time (s)")
     ax.set_ylabel("force above baseline (nN)")
     ax.set_title(f"pause (segment {index})")
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="best")
 
 
 def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
