@@ -24,8 +24,8 @@ number of samples of residuals whose lag-1 autocorrelation is ρ ≥ 0 (an AR(1)
 noise: samples closer than the noise's memory are not independent; n_e = n
 for white noise). A constant F(t) = F_∞ (k = 1, no relaxation above the
 noise) competes too; the lowest BIC wins. BIC rather than AIC: its penalty
-grows with n, so at 10³-10⁴ samples a flat pause is not given a spurious
-relaxation (AIC would pick the exponential for about one flat pause in seven).
+grows with n, so at 10³-10⁴ samples a flat pause is seldom given a spurious
+relaxation (of 200 flat 3 s pauses of 3000 samples, BIC gave 1 one, AIC 38).
 
 Time scales. The relaxing part A φ(t) falls to 1/e of A at the relaxation time
 (`time_s`): τ for the exponential, τ (e^{1/β} − 1) for the power law; and to
