@@ -115,3 +115,15 @@ def test_the_command_reads_the_relaxed_force_and_flags_a_short_pause(tmp_path):
     import pandas as pd
     table = pd.read_csv(result["table"])
     assert {"relaxation_model", "relaxation_time_s", "relaxed_force_nN", "last_half_tension_mN_per_m"} <= set(table)
+
+
+def test_a_relaxed_force_below_zero_gives_no_tension_but_the_last_half_for_comparison():
+    """A pause (dish known, no ramp) whose last half pushes but whose relaxation heads below zero."""
+    from analysis.afm.tension.pipeline import Trace, analyse
+    t = T[:1000]
+    f = -1.0 + 3.0 * shape(EXPONENTIAL, t, 2.0) + NOISE * np.random.default_rng(7).standard_normal(t.size)
+    parts = [(0, "pause", t, f, np.full(t.size, 12.0))]
+    row, = analyse(Trace("c", "synthetic", VOLUME, "known", parts, dish_known=True), Options()).rows
+    assert row["relaxed_force_nN"] == pytest.approx(-1.0, abs=0.2) and np.isnan(row["tension_mN_per_m"])
+    assert row["relaxation_flag"].startswith("too short to relax")
+    assert row["last_half_force_nN"] > 0.9 and row["last_half_tension_mN_per_m"] > 0

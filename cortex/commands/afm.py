@@ -355,8 +355,9 @@ def _tension_line(r: dict[str, Any]) -> str:
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     elif r["part"] == "pause":
-        text += (f", relaxed F {r['relaxed_force_nN']:.4g} nN ({r['relaxation_model']}, "
-                 f"{r['relaxation_time_s']:.3g} s); last half F {r['last_half_force_nN']:.4g} nN, "
+        how = "no relaxation" if r["relaxation_model"] == "none" else \
+            f"{r['relaxation_model']}, {r['relaxation_time_s']:.3g} s"
+        text += (f", relaxed F {r['relaxed_force_nN']:.4g} nN ({how}); last half F {r['last_half_force_nN']:.4g} nN, "
                  f"T {r['last_half_tension_mN_per_m']:.4g} mN/m" + (f"; FLAG {r['relaxation_flag']}"
                                                                    if r["relaxation_flag"] else ""))
     return text

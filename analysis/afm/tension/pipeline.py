@@ -11,12 +11,14 @@ analyse  per recording, in order until its first retract: every approach ramp
          fitted (`ramp`: the selected model and, for comparison, the other
          one, each on its own automatic window; the interval from the volume
          error, `pause.ramp_interval`), every pause's tension and pressure
-         (`pause.pause_tension`) from its force over its last half, above the
+         (`pause.pause_tension`) from its relaxed force (`relaxation`; the
+         last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
          `ramp.baseline_noise`: the deflection with nothing touching), at
          its height: the recorded gap where the dish is known (native files,
          `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
-         ramp's contact x0, else the height channel (Z = 0);
+         ramp's contact x0, else the height channel (Z = 0), each the last
+         half's mean;
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
          recording (`report`), report.md, which also lists what was not
          analysed.
@@ -189,12 +191,10 @@ def _pause_row(trace, index, t, x, f, ramp, options, radius):
     force = relax.relaxed_force_nN
     p = pause_tension(force, height, trace.volume_um3, depth_um=depth, errors=options.errors,
                       force_sd_nN=relax.relaxed_force_sd_nN) if force > 0 else None
-    nan = float("nan")
-    row = {"part": "pause", "segment": index, "model": "droplet", "tension_mN_per_m": p.tension_mN_per_m if p else nan,
-           "tension_lo95_mN_per_m": p.tension_lo95_mN_per_m if p else nan,
-           "tension_hi95_mN_per_m": p.tension_hi95_mN_per_m if p else nan,
-           "pressure_Pa": p.pressure_Pa if p else nan, "pressure_lo95_Pa": p.pressure_lo95_Pa if p else nan,
-           "pressure_hi95_Pa": p.pressure_hi95_Pa if p else nan, "force_nN": force, "height_um": height,
+    keys = ("tension_mN_per_m", "tension_lo95_mN_per_m", "tension_hi95_mN_per_m", "pressure_Pa",
+            "pressure_lo95_Pa", "pressure_hi95_Pa")
+    row = {"part": "pause", "segment": index, "model": "droplet",
+           **{k: getattr(p, k) if p else float("nan") for k in keys}, "force_nN": force, "height_um": height,
            "h_tilde": p_half.h_tilde, "height_reference": ref, "contact_um": contact, "baseline_nN": base,
            **relaxation_columns(relax), "last_half_force_nN": half,
            "last_half_tension_mN_per_m": p_half.tension_mN_per_m}
