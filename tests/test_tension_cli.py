@@ -133,6 +133,9 @@ def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
     assert 6.595 < ramp["contact_um"] < 7.095            # within the ramp's wedge heights
     assert ramp["tension_mN_per_m"] > 0 and pause["tension_mN_per_m"] > 0
     assert pause["force_nN"] == pytest.approx(18.6 - 7.9, abs=0.15)    # pause force above the free baseline
+    # a constant-force pause: the feedback holds the force, nothing relaxes, F_inf is the mean
+    assert pause["relaxation_model"] == "none" and pause["relaxation_flag"] == ""
+    assert pause["force_nN"] == pytest.approx(pause["last_half_force_nN"], abs=0.002)
     # with the height channel taken as the gap (Z = 0): a pause at h~ ≈ 0.49
     status, dish = _json(capsys, TEXT, "--radius-um", 6.8, "--dish-height-um", 0)
     pause = next(r for r in dish["rows"] if r["part"] == "pause")

@@ -141,7 +141,9 @@ def _add_tension(s: Commands) -> None:
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
                                  "ramp onto the free cell fitted by the exact droplet model and by the "
                                  "small-deformation formula (contact point, T, R², the automatic fit window), "
-                                 "each pause from its force and the droplet shape at its height, with 95 % "
+                                 "each pause from its relaxed force (its relaxation fitted, exponential or "
+                                 "power law, and extrapolated; too short a pause flagged; the last half's mean "
+                                 "for comparison) and the droplet shape at its height, with 95 % "
                                  "intervals. Recordings that cannot be analysed are listed (exit status 1). "
                                  "See docs/tension.md.")
     t.add_argument("files", nargs="+", metavar="FILES",
@@ -357,4 +359,10 @@ def _tension_line(r: dict[str, Any]) -> str:
     if r["part"] == "approach":
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
+    elif r["part"] == "pause":
+        how = "no relaxation" if r["relaxation_model"] == "none" else \
+            f"{r['relaxation_model']}, {r['relaxation_time_s']:.3g} s"
+        text += (f", relaxed F {r['relaxed_force_nN']:.4g} nN ({how}); last half F {r['last_half_force_nN']:.4g} nN, "
+                 f"T {r['last_half_tension_mN_per_m']:.4g} mN/m" + (f"; FLAG {r['relaxation_flag']}"
+                                                                   if r["relaxation_flag"] else ""))
     return text

@@ -11,8 +11,10 @@ mN/m, H in 1/µm, so 2 γ H is in mN/m/µm = 10³ Pa: ΔP (Pa) = 2000 γ H.
 95 % intervals: the percentile interval of DRAWS draws of the truth the cell
 could have had, as for the oscillation analysis (`analysis.invert.intervals`): a
 volume V_m = V (1 + σ_V ε_m) (σ_V = 7.5 %) and a height h_m = h + σ_h η_m
-(σ_h = 0.5 µm, an uneven wedge or dish reference), ε, η ~ N(0, 1), giving
-γ_m = F / (2 H A_c)(V_m, h_m) and ΔP_m = 2 γ_m H(V_m, h_m). Where the height
+(σ_h = 0.5 µm, an uneven wedge or dish reference) and a force F_m = F + σ_F ζ_m
+(σ_F the SD of the relaxed force, `relaxation`; 0 for a force taken as
+known), ε, η, ζ ~ N(0, 1), giving γ_m = F_m / (2 H A_c)(V_m, h_m) and
+ΔP_m = 2 γ_m H(V_m, h_m). Where the height
 comes from the approach's contact point instead of a dish reference
 (h = 2R - δ with δ the compression since contact), the height error is the
 radius's: h_m = 2 R_m - δ. A draw whose gap reaches the free sphere (no
@@ -73,10 +75,11 @@ def _tension_pressure(force, volume, height):
 
 
 def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth_um: float | None = None,
-                  errors: MeasurementErrors = TENSION_ERRORS) -> PauseTension:
+                  errors: MeasurementErrors = TENSION_ERRORS, force_sd_nN: float = 0.0) -> PauseTension:
     """γ_a and ΔP of a cell of volume V held at gap h by force F (above the
-    baseline); `depth_um` δ where h = 2R - δ comes from the contact point.
-    InputError for F ≤ 0 or a gap at or above the free cell's diameter."""
+    baseline), F known to SD `force_sd_nN`; `depth_um` δ where h = 2R - δ comes
+    from the contact point. InputError for F ≤ 0 or a gap at or above the free
+    cell's diameter."""
     radius = float(cell_radius(volume_um3))
     if not force_nN > 0:
         raise InputError(f"pause without force: {force_nN:.3g} nN above the baseline")
@@ -89,7 +92,8 @@ def pause_tension(force_nN: float, height_um: float, volume_um3: float, *, depth
     eta = rng.standard_normal(errors.draws)
     h = (2.0 * cell_radius(v) - depth_um) if depth_um is not None else height_um + errors.height_sd_um * eta
     flat = h < FLATTEST * 2.0 * cell_radius(v)
-    g_m, p_m = _tension_pressure(force_nN, v, np.where(flat, 2.0 * cell_radius(v), h))
+    f = force_nN + force_sd_nN * rng.standard_normal(errors.draws)
+    g_m, p_m = _tension_pressure(f, v, np.where(flat, 2.0 * cell_radius(v), h))
     g_m[flat], p_m[flat] = np.nan, np.nan
     q = [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2]
     (t_lo, t_hi), (p_lo, p_hi) = (np.nanpercentile(a, q, method="nearest") for a in (g_m, p_m))

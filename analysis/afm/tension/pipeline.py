@@ -10,12 +10,14 @@ analyse  per recording, in order until its first retract: every approach ramp
          fitted (`ramp`: the selected model and, for comparison, the other
          one, each on its own automatic window; the interval from the volume
          error, `pause.ramp_interval`), every pause's tension and pressure
-         (`pause.pause_tension`) from its force over its last half, above the
+         (`pause.pause_tension`) from its relaxed force (`relaxation`; the
+         last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
          `ramp.baseline_noise`: the deflection with nothing touching), at
          its height: the recorded gap where the dish is known (native files,
          `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
-         ramp's contact x0, else the height channel (Z = 0);
+         ramp's contact x0, else the height channel (Z = 0), each the last
+         half's mean;
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
          recording (`report`), report.md, which also lists what was not
          analysed.
@@ -37,6 +39,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
+from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.errors import InputError
@@ -125,11 +128,13 @@ def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: O
 def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.ndarray,
                ramp: tuple[float, float] | None, options: Options, radius: float
                ) -> tuple[dict[str, Any], tuple[Any, ...]]:
-    """The row and plot of one pause: its last half's mean force and height;
-    `ramp` (contact x0, free baseline force) of the first fitted ramp, or None."""
+    """The row and plot of one pause: the relaxed force F_∞ of its relaxation
+    (`relaxation.fit_relaxation`; NaN tension where F_∞ ≤ 0, flagged) and, for
+    comparison, its last half's mean; the height the last half's mean; `ramp`
+    (contact x0, free baseline force) of the first fitted ramp, or None."""
     last = slice(len(f) // 2, None)
     contact, base = ramp if ramp else (float("nan"), 0.0)
-    force = float(np.mean(f[last])) - base
+    half = float(np.mean(f[last])) - base
     xm = float(np.mean(x[last]))
     if trace.dish_known or ramp is None:
         depth, height = None, xm
@@ -139,13 +144,19 @@ def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.nda
         if depth >= 2.0 * radius:
             raise InputError(f"pause {depth:.4g} um below the approach's contact point, deeper than the free "
                              f"cell's diameter {2 * radius:.4g} um (is the volume right?)")
-    p = pause_tension(force, height, trace.volume_um3, depth_um=depth, errors=options.errors)
-    row = {"part": "pause", "segment": index, "model": "droplet", "tension_mN_per_m": p.tension_mN_per_m,
-           "tension_lo95_mN_per_m": p.tension_lo95_mN_per_m, "tension_hi95_mN_per_m": p.tension_hi95_mN_per_m,
-           "pressure_Pa": p.pressure_Pa, "pressure_lo95_Pa": p.pressure_lo95_Pa, "pressure_hi95_Pa": p.pressure_hi95_Pa,
-           "force_nN": force, "height_um": height, "h_tilde": p.h_tilde, "height_reference": ref,
-           "contact_um": contact, "baseline_nN": base}
-    return row, ("pause", index, t, f - base, force, None)
+    p_half = pause_tension(half, height, trace.volume_um3, depth_um=depth, errors=options.errors)
+    relax = fit_relaxation(t, f - base)
+    force = relax.relaxed_force_nN
+    p = pause_tension(force, height, trace.volume_um3, depth_um=depth, errors=options.errors,
+                      force_sd_nN=relax.relaxed_force_sd_nN) if force > 0 else None
+    keys = ("tension_mN_per_m", "tension_lo95_mN_per_m", "tension_hi95_mN_per_m", "pressure_Pa",
+            "pressure_lo95_Pa", "pressure_hi95_Pa")
+    row = {"part": "pause", "segment": index, "model": "droplet",
+           **{k: getattr(p, k) if p else float("nan") for k in keys}, "force_nN": force, "height_um": height,
+           "h_tilde": p_half.h_tilde, "height_reference": ref, "contact_um": contact, "baseline_nN": base,
+           **relaxation_columns(relax), "last_half_force_nN": half,
+           "last_half_tension_mN_per_m": p_half.tension_mN_per_m}
+    return row, ("pause", index, t, f - base, half, relax)
 
 
 def analyse(trace: Trace, options: Options) -> Analysed:

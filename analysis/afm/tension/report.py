@@ -2,8 +2,10 @@
 `COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
-and the comparison model; each pause's force over time with the mean of its last
-half) and report.md (the table in short, the window rule, what was not analysed)."""
+and the comparison model; each pause's force over time with its fitted
+relaxation, the relaxed force F_∞ and the mean of its last half) and report.md
+(the table in short, the window rule, each pause's relaxation and flag, what was
+not analysed)."""
 
 import re
 from collections.abc import Iterable
@@ -15,6 +17,8 @@ import numpy as np
 import pandas as pd
 
 from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.afm.tension.relaxation import COLUMNS as RELAXATION_COLUMNS
+from analysis.afm.tension.relaxation import NONE
 
 if TYPE_CHECKING:
     from outputs.ownership import OutputDir
@@ -25,6 +29,9 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
+
+# a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
+PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
 
 
 @dataclass
@@ -72,14 +79,18 @@ def _ramp_axes(ax, plot, radius):
 
 
 def _pause_axes(ax, plot):
-    _, index, t, f, force, _ = plot
+    _, index, t, f, half, relax = plot
     ax.plot(t, f, ".", ms=2, color="tab:blue")
-    ax.axhline(force, color="tab:red", label=f"last half: {force:.3g} nN")
+    if relax.model != NONE:
+        ax.plot(t, relax.force_nN(t - t[0]), color="tab:green", label=f"{relax.model}: {relax.time_s:.3g} s")
+    ax.axhline(relax.relaxed_force_nN, color="tab:green", ls="--",
+               label=f"relaxed F_inf: {relax.relaxed_force_nN:.3g} nN" + (" (flagged)" if relax.flag else ""))
+    ax.axhline(half, color="tab:red", label=f"last half: {half:.3g} nN")
     ax.axvspan(t[len(t) // 2], t[-1], color="tab:red", alpha=0.08)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("force above baseline (nN)")
     ax.set_title(f"pause (segment {index})")
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="best")
 
 
 def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
@@ -101,6 +112,30 @@ def _num(row, key, spec):
     return "—" if value != value else format(value, spec)
 
 
+def _pause_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """report.md's pauses: the relaxation preferred, the relaxed and last-half readings, the flags."""
+    pauses = [r for r in rows if r["part"] == "pause"]
+    if not pauses:
+        return []
+    lines = ["", "## Pauses: the relaxed force", "",
+             "γ above is read from the relaxed force F_inf of the relaxation the data prefer (exponential, power "
+             "law or none, by BIC); the last half's mean force and its γ for comparison. A flagged pause cannot "
+             "give F_inf (see docs/tension.md).", "",
+             "| cell | part | pause (s) | relaxation | time (s) | F_inf (nN) | 95 % | last half (nN) | "
+             "γ relaxed (mN/m) | γ last half (mN/m) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in pauses:
+        lines.append(f"| {r['cell_id']} | pause {r['segment']} | {_num(r, 'pause_duration_s', '.3g')} | "
+                     f"{r['relaxation_model']} | {_num(r, 'relaxation_time_s', '.3g')} | "
+                     f"{_num(r, 'relaxed_force_nN', '.4g')} | [{_num(r, 'relaxed_force_lo95_nN', '.4g')}, "
+                     f"{_num(r, 'relaxed_force_hi95_nN', '.4g')}] | {_num(r, 'last_half_force_nN', '.4g')} | "
+                     f"{_num(r, 'tension_mN_per_m', '.4g')} | {_num(r, 'last_half_tension_mN_per_m', '.4g')} |")
+    flagged = [r for r in pauses if r["relaxation_flag"]]
+    if flagged:
+        lines += ["", "Flagged pauses:", ""] + [f"- {r['cell_id']} pause {r['segment']}: {r['relaxation_flag']}"
+                                                for r in flagged]
+    return lines
+
+
 def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: MeasurementErrors,
              figures: list[Path]) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
@@ -117,6 +152,7 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
                      f"{_num(r, 'pressure_Pa', '.4g')} | {_num(r, 'height_um', '.4g')} | {_num(r, 'h_tilde', '.3f')} | "
                      f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
                      f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
+    lines += _pause_lines(rows)
     lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]
     if skipped:
         lines += ["## Not analysed", ""] + [f"- {k}: {v}" for k, v in skipped.items()] + [""]
@@ -127,7 +163,7 @@ def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analy
           model: str, errors: MeasurementErrors) -> tuple[Path, Path]:
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
-        pd.DataFrame(rows, columns=list(COLUMNS)).to_csv(table, index=False)
+        pd.DataFrame(rows, columns=list(COLUMNS + PAUSE_COLUMNS)).to_csv(table, index=False)
     figures, names = [], file_names(done)
     for cell_id, analysed in done.items():
         with folder.writing(names[cell_id]) as path:
