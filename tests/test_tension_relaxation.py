@@ -8,7 +8,8 @@ import pytest
 
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.instruments import to_cell
-from analysis.afm.tension.pause import ErrorModel, pause_tension
+from analysis.afm.tension.pause import pause_tension
+from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.pipeline import Options, run
 from analysis.afm.tension.relaxation import EXPONENTIAL, NONE, POWER, fit_relaxation, shape, time_to_s
 from analysis.afm.tension.synth import RATE_HZ, droplet_force_nN, droplet_recording
@@ -81,7 +82,7 @@ def test_a_pause_too_short_to_relax_is_flagged():
 def test_the_force_error_widens_the_tension_interval_as_it_should():
     volume, h = 4300.0, 12.0
     force = float(droplet_force_nN(volume, 1.0, np.array([h]))[0])
-    exact = ErrorModel(volume_sd=0.0, height_sd_um=0.0, draws=20000)
+    exact = MeasurementErrors(volume_rel_sd=0.0, height_sd_um=0.0, draws=20000)
     p = pause_tension(force, h, volume, errors=exact, force_sd_nN=0.05 * force)
     assert (p.tension_lo95_mN_per_m, p.tension_hi95_mN_per_m) == pytest.approx((1 - 0.098, 1 + 0.098), abs=0.006)
 
