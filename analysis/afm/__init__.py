@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING
 from common.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:           # what the type checker sees of the names below
-    from analysis.afm.analyze import analyze_cell
     from analysis.afm.analyze_pipeline import analyze as analyze_cells
     from analysis.afm.analyze_pipeline import Settings as AnalyzeSettings, load as load_cells, run as analyze_experiment
     from analysis.afm.cell import Cell, Segment
@@ -34,7 +33,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
     "load_cells": "analysis.afm.analyze_pipeline:load", "import_cells": "analysis.afm.formats.instruments",
     "synthesize": "analysis.afm.synth.cells:generate",
-    "analyze_cells": "analysis.afm.analyze_pipeline:analyze", "analyze_cell": "analysis.afm.analyze",
+    "analyze_cells": "analysis.afm.analyze_pipeline:analyze",
     "analyze_experiment": "analysis.afm.analyze_pipeline:run", "AnalyzeSettings": "analysis.afm.analyze_pipeline:Settings",
     "population_summary": "analysis.afm.population.summary:summary",
 })
