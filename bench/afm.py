@@ -17,6 +17,8 @@ imports). Prints one JSON object; target: cli_wall_s <= 15 s on 2 cores.
 """
 
 import argparse
+import contextlib
+import io
 import json
 import subprocess
 import sys
@@ -43,7 +45,7 @@ def _timers():
     import analysis.afm.population.figures as figures
     import analysis.invert.intervals as intervals
     import analysis.invert.method as method
-    spent = defaultdict(lambda: [0.0, 0.0])
+    spent: defaultdict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
 
     def wrap(module, name, step):
         inner = getattr(module, name)
@@ -84,7 +86,8 @@ def main():
         runs = []
         for i in range(args.repeat):
             spent.clear()
-            cortex(["afm", "analyze", str(data), "--out", str(Path(tmp) / f"an{i}")])
+            with contextlib.redirect_stdout(io.StringIO()):
+                cortex(["afm", "analyze", str(data), "--out", str(Path(tmp) / f"an{i}")])
             runs.append({k: v[:] for k, v in spent.items()})
         best = min(runs, key=lambda r: r["total"][0])
         best["report_and_tables"] = [best["write"][j] - best["figures"][j] for j in (0, 1)]
