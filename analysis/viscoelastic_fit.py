@@ -45,14 +45,20 @@ MAX_STEP = np.array([0.5, 0.5, 0.2, 0.2])
 ANGLE_BOUNDS = (-0.3, 1.3)      # rad: δ kept within (the table is fitted over 0-1 rad)
 
 
-def _model(table: Any, slice_: Any, theta: Any, h: Any, tension: Any, volume_um3: Any) -> tuple[Any, Any]:
-    """ln K* (rows, m) complex and its Jacobian (rows, m, 4) by θ (tables at one volume)."""
+def _model(table: Any, slice_: Any, theta: Any, h: Any, tension: Any, volume_um3: Any, use: Any,
+           jacobian: bool = True) -> tuple[Any, Any]:
+    """ln K* (rows, m) complex and (with `jacobian`) its Jacobian (rows, m, 4) by θ (tables at
+    one volume), at the heights `use` selects (NaN at the others)."""
     bulk = np.exp(theta[:, 0])[:, None]
     ks = np.exp(theta[:, 1])[:, None]
     g = tension[:, None] / bulk
-    lr, f_ks, f_g = slice_.grad_log(h, ks, g)
+    if not jacobian:
+        lr = slice_.grad_log(h, ks, g, values_only=True, where=use)
+        return theta[:, :1] + lr + table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4], volume_um3,
+                                                   where=use), None
+    lr, f_ks, f_g = slice_.grad_log(h, ks, g, where=use)
     lc, c_ks, c_g, c_b, c_s = table.log_factor(h, ks, g, theta[:, 2:3], theta[:, 3:4], volume_um3,
-                                                  derivatives=True)
+                                                  derivatives=True, where=use)
     value = theta[:, :1] + lr + lc
     jac = np.stack([1.0 - f_g - c_g, f_ks + c_ks, c_b, c_s], axis=-1)
     return value, jac
@@ -71,7 +77,7 @@ def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: n
         sl, tsl = emulator[bending].at_volume(v), table.at_volume(v)
         xr, hr, ur, tr, kr = x[rows], filled_heights(h[rows], use[rows]), use[rows], tension[rows], lnk[rows]
         for it in range(steps + 1):
-            value, jac = _model(tsl, sl, xr, hr, tr, v)
+            value, jac = _model(tsl, sl, xr, hr, tr, v, ur, jacobian=it < steps)
             r = np.where(ur, np.nan_to_num(kr - value), 0.0)
             if it == steps:
                 break

@@ -7,14 +7,14 @@ Public API (imported on first use):
   experiment file (HDF5) of `Cell`s; `open(paths, ImportOptions(...))` (the one
   reader, in `analysis.afm.formats`): cells from an experiment, a single-cell CSV,
   or JPK or Bruker files and folders, as every `cortex afm` command reads them.
-- `analyze_cell(cell, calibration, bending)`: one cell by the paper law.
 
 Every public name is its definition's own. The commands' pipelines are used as modules:
 `analysis.afm.synth.cells.generate(n_cells, seed, errors, forward)` -> (cells, truth)
 (`cortex afm synth`); `analysis.afm.analyze_pipeline.run(data, calibration_file, out,
 Settings(bending, method, errors, import_options))` (the whole `cortex afm analyze` into
 a folder, with the parts of the calibration file `analysis.calibration.load_calibration`
-read); the cells alone by a method: `analysis.invert.method.choose(...).analyze_cells(...)`;
+read); the cells alone: `analysis.afm.analyze.measure(cells)` (their curves, once), then
+`analysis.invert.method.choose(...).invert(curves, bending, errors)` and `analysis.afm.analyze.cell_table`;
 `analysis.afm.population.summary.summary(table)`.
 """
 
@@ -23,12 +23,10 @@ from typing import TYPE_CHECKING
 from common.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:           # what the type checker sees of the names below
-    from analysis.afm.analyze import analyze_cell
     from analysis.afm.cell import Cell, Segment
     from analysis.afm.formats.h5 import read_experiment, write_experiment
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
     "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
-    "analyze_cell": "analysis.afm.analyze",
 })

@@ -1,68 +1,122 @@
-"""Per cell and frequency: moduli from the oscillations, the tension filter,
-the inversion (`analysis.invert.method`: each method's `analyze_cells` lands here).
+"""Measured cells -> curves -> the cells table: what `cortex afm analyze` does
+around the one inversion (`analysis.invert.method.Inversion.invert`).
 
-γ_a = mean over the segments at that frequency of <γ_eff>. Tension filter
-(published): the segment means over the whole recording (all frequencies)
-stay within 10 % of their median, max |<γ_eff>_i - median| / median ≤ 0.10;
-a cell failing it (e.g. blebbing) is excluded with that reason. The K(h̃)
-filters and the fit are those of `analysis.invert.inversion`.
+`measure(cells)`, once for every variant: the segment moduli of every cell
+(`analysis.afm.timeseries.segment_moduli`), the curves K(h̃) per cell and
+frequency (`analysis.invert.curves.curves_of`: γ_a = mean over the segments at
+that frequency of <γ_eff>, V the cell's volume), and per cell its tension
+deviation: the segment means over the whole recording (all frequencies),
+max |<γ_eff>_i - median| / median.
 
-`outside_calibration` flags a result whose K̃_S or γ̃_a lies outside the
-calibration grid (the law's α-table axes): there ν rests on the log law's
-extrapolation (no flag, None, for a law without a table).
+`cell_table(measured, inverted, law)`, per variant: the inversion's table with
+the segments' count and median loss angle per curve, the tension filter
+(published: a deviation above TENSION_TOLERANCE = 10 %, e.g. blebbing, excludes
+the cell with that reason) and `outside_calibration`: for the emulator its
+`outside_emulator`; for the paper's law (`law` given) whether K̃_S or γ̃_a lies
+outside the law's grid (the α-table axes; ν then rests on the log law's
+extrapolation; None for a law without a table). The law's table keeps the
+columns and the row order (the recordings') it has always had.
 
-`analyze_each` inverts by the law, cell by cell (`analyze_cell`);
-`analyze_together` inverts all cells at once by an inversion with 95 % intervals
-(the emulator's, `analysis.invert.table.invert_with`); the same filters,
-`outside_calibration` then says the fit left the emulator's grid.
+`summarise(table)`: the population summary (`analysis.afm.population.summary`)
+and, for a table with intervals, each frequency's bootstrap 95 % interval of the
+median ν (`analysis.invert.intervals.median_table`) and its count of ν > 0.5.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.afm.timeseries import segment_moduli
-from analysis.invert.inversion import invert_cell
-from analysis.invert.table import CurveInversion, invert_with
+from analysis.invert.curves import Curves, curves_of
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
-    from analysis.calibration.law import Calibration
-    from analysis.invert.measurement_errors import MeasurementErrors
+    from analysis.calibration.law import Law
 
 TENSION_TOLERANCE = 0.10
+LAW_COLUMNS = ["cell_id", "frequency_hz", "bending", "volume_um3", "tension_mN_per_m", "tension_deviation",
+               "n_segments", "loss_angle_rad", "nu", "ks_tilde", "bulk_mN_per_m", "alpha", "r2", "gamma_tilde",
+               "n_heights", "h_tilde_max", "excluded_reason", "outside_calibration"]
 
 
-def analyze_cell(cell: Cell, calibration: Calibration,
-                 bending: str = "standard") -> tuple[list[dict[str, Any]], pd.DataFrame]:
-    """Returns (per-frequency rows, per-segment rows) for one cell (InputError without oscillations:
+@dataclass(frozen=True)
+class Measured:
+    """The cells as the inversion sees them: `segments` (one row per oscillation segment, the
+    recordings' order), `curves`, per curve `n_segments` and `loss_angle_rad` (their median),
+    per cell `deviation` and `median_tension` (mN/m), and the cells' order."""
+
+    segments: pd.DataFrame
+    curves: Curves
+    n_segments: np.ndarray
+    loss_angle_rad: np.ndarray
+    deviation: dict[str, float]
+    median_tension: dict[str, float]
+    order: list[str]
+
+
+def measure(cells: list[Cell]) -> Measured:
+    """The `Measured` of `cells` (InputError for a cell without oscillations:
     `analysis.afm.analyze_pipeline.read` sets such recordings aside)."""
-    if not cell.oscillations():
-        raise InputError(f"cell '{cell.cell_id}': no oscillation segment to analyse")
-    segs = pd.DataFrame(segment_moduli(cell))
-    segs.insert(0, "cell_id", cell.cell_id)
-    med = float(np.median(segs["tension_mN_per_m"]))
-    dev = float(np.max(np.abs(segs["tension_mN_per_m"] - med)) / med) if med > 0 else np.inf
-    rows = []
-    for f, g in segs.groupby("frequency_hz", sort=True):
-        tension = float(g["tension_mN_per_m"].mean())
-        inv = invert_cell(g["h_tilde"], g["modulus_mN_per_m"], tension, calibration, bending).to_dict()
-        if dev > TENSION_TOLERANCE:
-            inv["excluded_reason"] = (f"average tension not constant: deviates {100 * dev:.0f} % from its "
-                                      f"median {med:.3g} mN/m (limit {100 * TENSION_TOLERANCE:.0f} %)")
-        inv["outside_calibration"] = _outside(calibration[bending], inv.get("ks_tilde"), inv.get("gamma_tilde"))
-        rows.append({"cell_id": cell.cell_id, "frequency_hz": float(f), "bending": bending,
-                     "volume_um3": cell.volume_um3, "tension_mN_per_m": tension,
-                     "tension_deviation": dev, "n_segments": len(g),
-                     "loss_angle_rad": float(g["loss_angle_rad"].median()), **inv})
-    return rows, segs
+    segs, dev, med = [], {}, {}
+    for c in cells:
+        if not c.oscillations():
+            raise InputError(f"cell '{c.cell_id}': no oscillation segment to analyse")
+        s = pd.DataFrame(segment_moduli(c))
+        s.insert(0, "cell_id", c.cell_id)
+        s["volume_um3"] = c.volume_um3
+        med[c.cell_id] = float(np.median(s["tension_mN_per_m"]))
+        dev[c.cell_id] = _deviation(s["tension_mN_per_m"], med[c.cell_id])
+        segs.append(s)
+    rows = pd.concat(segs, ignore_index=True)
+    curves = curves_of(rows)
+    grouped = rows.groupby(["cell_id", "frequency_hz"])
+    idx = pd.MultiIndex.from_frame(curves.keys[["cell_id", "frequency_hz"]])
+    return Measured(rows.drop(columns=["volume_um3"]), curves, grouped.size().reindex(idx).to_numpy(),
+                    grouped["loss_angle_rad"].median().reindex(idx).to_numpy(), dev, med,
+                    [c.cell_id for c in cells])
 
 
-def _outside(law, ks, gamma):
+def _deviation(tension: pd.Series, median: float) -> float:
+    return float(np.max(np.abs(tension - median)) / median) if median > 0 else np.inf
+
+
+def cell_table(measured: Measured, inverted: pd.DataFrame, law: Law | None = None) -> pd.DataFrame:
+    """The cells table of one variant from `inverted` (`Inversion.invert(measured.curves, ...)`);
+    `law`: the variant's law when the paper's law inverted (module docstring)."""
+    table = inverted.copy()
+    table["tension_deviation"] = table["cell_id"].map(measured.deviation)
+    table["n_segments"] = measured.n_segments
+    table["loss_angle_rad"] = measured.loss_angle_rad
+    if law is None:
+        table["outside_calibration"] = table["outside_emulator"]
+    else:
+        table["outside_calibration"] = pd.Series(
+            [_outside(law, k, g) for k, g in zip(table["ks_tilde"], table["gamma_tilde"])], dtype=object)
+    _tension_filter(table, measured.median_tension if law is not None else None)
+    if law is None:
+        return table
+    rank = {c: i for i, c in enumerate(measured.order)}
+    table = table.sort_values("cell_id", key=lambda s: s.map(rank), kind="stable")
+    return table[LAW_COLUMNS].reset_index(drop=True)
+
+
+def _tension_filter(table: pd.DataFrame, median: dict[str, float] | None) -> None:
+    """Exclude, in place, every row of a cell whose tension deviation exceeds TENSION_TOLERANCE
+    (the reason names the median tension when `median` is given)."""
+    bad = table["tension_deviation"] > TENSION_TOLERANCE
+    limit = f"(limit {100 * TENSION_TOLERANCE:.0f} %)"
+    table.loc[bad, "excluded_reason"] = [
+        f"average tension not constant: deviates {100 * d:.0f} % from its median "
+        + (f"{median[c]:.3g} mN/m " if median is not None else "") + limit
+        for c, d in zip(table.loc[bad, "cell_id"], table.loc[bad, "tension_deviation"])]
+
+
+def _outside(law: Law, ks: float, gamma: float) -> bool | None:
     if not law.ks_tilde or not law.gamma_tilde or ks is None or gamma is None:
         return None
     if not (np.isfinite(ks) and np.isfinite(gamma)):
@@ -71,39 +125,22 @@ def _outside(law, ks, gamma):
                 or not min(law.gamma_tilde) <= gamma <= max(law.gamma_tilde))
 
 
-def analyze_each(cells: list[Cell], calibration: Calibration,
-                 bending: str = "standard") -> tuple[pd.DataFrame, pd.DataFrame]:
-    """All cells by the law, one at a time: (per cell-and-frequency DataFrame, per-segment DataFrame)."""
-    rows, segs = [], []
-    for c in cells:
-        r, s = analyze_cell(c, calibration, bending)
-        rows += r
-        segs.append(s)
-    return pd.DataFrame(rows), pd.concat(segs, ignore_index=True)
+def has_intervals(table: pd.DataFrame) -> bool:
+    """Whether the table holds each result's 95 % interval (the emulator's)."""
+    return "nu_lo95" in table
 
 
-def analyze_together(cells: list[Cell], inversion: CurveInversion, bending: str = "standard",
-                     errors: MeasurementErrors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """All cells at once by `inversion` (with intervals): (per cell-and-frequency DataFrame,
-    per-segment DataFrame)."""
-    segs, dev = [], {}
-    for c in cells:
-        s = pd.DataFrame(segment_moduli(c))
-        s.insert(0, "cell_id", c.cell_id)
-        s["volume_um3"] = c.volume_um3
-        med = float(np.median(s["tension_mN_per_m"]))
-        dev[c.cell_id] = float(np.max(np.abs(s["tension_mN_per_m"] - med)) / med) if med > 0 else np.inf
-        segs.append(s)
-    segs = pd.concat(segs, ignore_index=True)
-    table = invert_with(inversion, segs, bending, errors)
-    table["tension_deviation"] = table["cell_id"].map(dev)
-    grouped = segs.groupby(["cell_id", "frequency_hz"])
-    idx = pd.MultiIndex.from_frame(table[["cell_id", "frequency_hz"]])
-    table["n_segments"] = grouped.size().reindex(idx).to_numpy()
-    table["loss_angle_rad"] = grouped["loss_angle_rad"].median().reindex(idx).to_numpy()
-    table["outside_calibration"] = table["outside_emulator"]
-    bad = table["tension_deviation"] > TENSION_TOLERANCE
-    table.loc[bad, "excluded_reason"] = [
-        f"average tension not constant: deviates {100 * d:.0f} % from its median (limit "
-        f"{100 * TENSION_TOLERANCE:.0f} %)" for d in table.loc[bad, "tension_deviation"]]
-    return table, segs.drop(columns=["volume_um3"])
+def summarise(table: pd.DataFrame) -> dict[str, Any]:
+    """The population summary of `table` (module docstring)."""
+    from analysis.afm.population.summary import summary
+    out = summary(table)
+    if not has_intervals(table):
+        return out
+    from analysis.invert.intervals import median_table
+    meds = {r["frequency_hz"]: r for r in median_table(table)}
+    for r in out["frequencies"]:
+        m = meds.get(r["frequency_hz"], {})
+        r["median_nu_lo95"], r["median_nu_hi95"] = m.get("median_nu_lo95"), m.get("median_nu_hi95")
+        r["n_nu_beyond_isotropic"] = int(((table["frequency_hz"] == r["frequency_hz"])
+                                          & table["excluded_reason"].isna() & table["nu_beyond_isotropic"]).sum())
+    return out

@@ -5,11 +5,14 @@
                                              calibration file (read once) serves;
                                              recordings without any oscillation
                                              segment are set aside (`skipped`);
-    fit(recordings, settings)                every cell analysed with every bending
-                                             variant (`analysis.afm.analyze`) and
-                                             each variant's population summary;
+    fit(recordings, settings)                every cell's curves, once
+                                             (`analysis.afm.analyze.measure`), inverted
+                                             with every bending variant (`Inversion.invert`),
+                                             each variant's cells table and population
+                                             summary (`analysis.afm.analyze`);
     write(out, recordings, fitted, settings) the files below, figures and report.md
-                                             (`analysis.afm.analyze_report`).
+                                             (`analysis.afm.analyze_report`), read
+                                             from the tables.
 
 DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
@@ -40,16 +43,17 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import pandas as pd
 
+from analysis.afm.analyze import cell_table, measure, summarise
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
-from analysis.afm.population.summary import summary
-from analysis.invert.method import INVERSIONS, Inversion
+from analysis.invert.method import INVERSIONS, Inversion, LawInversion
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
+    from analysis.afm.analyze import Measured
     from analysis.calibration.file import CalibrationFile
     from analysis.invert.measurement_errors import MeasurementErrors
 
@@ -121,16 +125,21 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
                       inversion=inversion, calibration=calibration, variants=variants)
 
 
+def _variant(inversion: Inversion, measured: Measured, bending: str,
+             errors: MeasurementErrors | None) -> pd.DataFrame:
+    """The cells table of the curves of `measured` inverted with variant `bending`."""
+    law = inversion.calibration[bending] if isinstance(inversion, LawInversion) else None
+    return cell_table(measured, inversion.invert(measured.curves, bending, errors), law)
+
+
 def fit(rec: Recordings, settings: Settings) -> Fitted:
     """Every cell of `rec` with every variant: a `Fitted`."""
-    from analysis.afm import analyze as cell_analyses
-    fitted = Fitted()
+    measured = measure(rec.cells)
+    fitted = Fitted(segments=measured.segments)
     for variant in rec.variants:
-        tab, segs = rec.inversion.analyze_cells(rec.cells, variant, settings.errors, cell_analyses)
+        tab = _variant(rec.inversion, measured, variant, settings.errors)
         fitted.tables[variant] = tab
-        fitted.sums[variant] = rec.inversion.summarise(summary(tab), tab)
-        if variant == settings.bending:
-            fitted.segments = segs
+        fitted.sums[variant] = summarise(tab)
     from analysis.afm.population.answer import answer
     fitted.population = answer(fitted.tables[settings.bending])
     if settings.phase:
@@ -168,6 +177,7 @@ def _csv(table):
 
 def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -> Path:
     """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
+    from analysis.afm.analyze import has_intervals
     from analysis.afm.analyze_report import markdown, markdown_skipped
     from analysis.afm.population.figures import figures, nu_intervals      # matplotlib: only now
     bending = settings.bending
@@ -181,10 +191,11 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
-    figs += rec.inversion.figures(fitted.tables[bending], out, nu_intervals)
+    if has_intervals(fitted.tables[bending]):
+        figs.append(nu_intervals(fitted.tables[bending], out))
     from analysis.afm.population.answer_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
-    text = markdown(rec.name, bending, rec.inversion, fitted.tables, fitted.sums, figs,
+    text = markdown(rec.name, bending, settings.method, fitted.tables, fitted.sums, figs,
                     fitted.population) + markdown_skipped(None, rec.skipped)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown

@@ -2,8 +2,8 @@
 
 Sections: the method and variant, the population answer (the trend's sentence
 first, the deconvolved populations, the paired tests: `analysis.afm.population.report`),
-what the inversion adds (`Inversion.report`: the emulator's median ν per frequency
-with its bootstrap 95 % interval), the population table of every
+for a table with intervals (the emulator's) the median ν per frequency with its
+bootstrap 95 % interval, the population table of every
 variant (median and IQR of ν, the lognormal fit of K̃_S), the Mann-Whitney
 p-values, the count of results outside the calibration grid, the excluded
 cells, the figures; and the recordings not analysed (`markdown_skipped`).
@@ -12,14 +12,12 @@ cells, the figures; and the recordings not analysed (`markdown_skipped`).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
-if TYPE_CHECKING:
-    from analysis.invert.method import Inversion
-
+from analysis.afm.analyze import has_intervals
 
 def markdown_skipped(name: str | None, skipped: dict[str, str]) -> str:
     lines = [f"# Measured cells: {name}", "", "No recording could be analysed."] if name else []
@@ -53,18 +51,33 @@ def _outside(tab: pd.DataFrame) -> list[str]:
             "`outside_calibration` in cells.csv)."]
 
 
-def markdown(name: str, bending: str, inversion: Inversion, tables: dict[str, pd.DataFrame],
+def _intervals(bending: str, summary: dict[str, Any]) -> list[str]:
+    """The median ν per frequency with its interval, and what a cell's interval includes."""
+    lines = [f"Median ν per frequency with its bootstrap 95 % interval (variant `{bending}`):", "",
+             "| f (Hz) | cells | median ν | 95 % interval | cells with ν > 0.5 |", "|---|---|---|---|---|"]
+    for r in summary["frequencies"]:
+        lo, hi = r.get("median_nu_lo95"), r.get("median_nu_hi95")
+        ci = f"[{lo:.3f}, {hi:.3f}]" if lo is not None and np.isfinite(lo) else "–"
+        med = f"{r['median_nu']:.3f}" if r["median_nu"] is not None else "–"
+        lines.append(f"| {r['frequency_hz']:g} | {r['n_cells']} | {med} | {ci} | "
+                     f"{r.get('n_nu_beyond_isotropic', 0)} |")
+    return lines + ["", "Each cell's 95 % interval (`nu_lo95`, `nu_hi95` in cells.csv) includes the volume "
+                    "and height errors and the fit's residuals (parametric bootstrap through the emulator).", ""]
+
+
+def markdown(name: str, bending: str, method: str, tables: dict[str, pd.DataFrame],
              sums: dict[str, dict[str, Any]], figs: list[Path], population: dict[str, Any] | None = None) -> str:
-    """The report of the cells analysed by `inversion`: `tables` and `sums` per variant, `figs` the
+    """The report of the cells analysed by the inversion `method` names: `tables` and `sums` per variant, `figs` the
     figures' paths, `population` the selected variant's population.json."""
     tab = tables[bending]
     lines = [f"# Measured cells: {name}", "",
-             f"Method: `{inversion.name}`. Calibration variant: `{bending}`. "
+             f"Method: `{method}`. Calibration variant: `{bending}`. "
              f"{tab['cell_id'].nunique()} cells.", ""]
     if population is not None:
         from analysis.afm.population.report import markdown_population
         lines += markdown_population(population, sums[bending]["mann_whitney_p"])
-    lines += inversion.report(bending, sums[bending])
+    if has_intervals(tab):
+        lines += _intervals(bending, sums[bending])
     lines += _populations(sums)
     lines += ["", "Two-sided Mann-Whitney p-values (variant `%s`):" % bending, ""]
     lines += [f"- {k}: {p:.3g}" for k, p in sums[bending]["mann_whitney_p"].items()]

@@ -63,6 +63,20 @@ def _tensor_spline(coords: list[Any], values: npt.ArrayLike, degrees: tuple[int,
 tensor_spline = _tensor_spline       # public: `analysis.calibration.viscoelastic_table` splines its coefficients alike
 
 
+def evaluate(spline: NdBSpline, x: npt.NDArray[np.float64], where: Any = None,
+             nu: tuple[int, ...] | None = None) -> Any:
+    """`spline(x, nu)` at the points (rows of x) `where` selects (a mask of the points'
+    shape; None: all), NaN at the others: each point's value is its own, so a fit that
+    masks points out need not pay for them."""
+    nu = nu or (0,) * x.shape[-1]
+    if where is None:
+        return spline(x, nu=nu)
+    where = np.asarray(where, bool).ravel()
+    out = np.full((len(x),) + spline.c.shape[len(spline.k):], np.nan)
+    out[where] = spline(x[where], nu=nu)
+    return out
+
+
 @dataclass
 class Table:
     """One bending variant's grid of K/K_B (shape: len of each axis in AXES order)."""
@@ -97,10 +111,11 @@ class Table:
 
     def log_excess(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
                    volume_um3: npt.ArrayLike,
-                   nu: tuple[int, int, int, int] = (0, 0, 0, 0)) -> Any:
-        """y = ln(K/K_B - 1 + s) (or its partial derivative `nu` in the spline's coordinates)."""
+                   nu: tuple[int, int, int, int] = (0, 0, 0, 0), where: Any = None) -> Any:
+        """y = ln(K/K_B - 1 + s) (or its partial derivative `nu` in the spline's coordinates);
+        `where`: the points wanted (`evaluate`; NaN at the others)."""
         x, shape = self._points(h_tilde, ks_tilde, gamma_tilde, volume_um3)
-        return self._spline(x.reshape(-1, 4), nu=nu).reshape(shape)
+        return evaluate(self._spline, x.reshape(-1, 4), where, nu).reshape(shape)
 
     def at_volume(self, volume_um3: float) -> VolumeSlice:
         """The spline at one volume: a 3-D `NdBSpline` in (h̃, ln K̃_S, ln γ̃_a) (the V
@@ -133,18 +148,19 @@ class VolumeSlice:
     spline: NdBSpline
 
     def grad_log(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
-                 values_only: bool = False) -> Any:
-        """ln(K/K_B) and (unless `values_only`) its derivatives by ln K̃_S and ln γ̃_a."""
+                 values_only: bool = False, where: Any = None) -> Any:
+        """ln(K/K_B) and (unless `values_only`) its derivatives by ln K̃_S and ln γ̃_a;
+        `where`: the points wanted (`evaluate`; NaN at the others)."""
         h, ks, g = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde)))
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.stack([h.ravel(), np.log(ks).ravel(), np.log(g).ravel()], axis=-1)
-        ey = np.exp(self.spline(x)).reshape(h.shape)
+        ey = np.exp(evaluate(self.spline, x, where)).reshape(h.shape)
         ratio = 1.0 - OFFSET + ey
         if values_only:
             return np.log(ratio)
         share = ey / ratio
-        return (np.log(ratio), share * self.spline(x, nu=(0, 1, 0)).reshape(h.shape),
-                share * self.spline(x, nu=(0, 0, 1)).reshape(h.shape))
+        return (np.log(ratio), share * evaluate(self.spline, x, where, (0, 1, 0)).reshape(h.shape),
+                share * evaluate(self.spline, x, where, (0, 0, 1)).reshape(h.shape))
 
 
 @dataclass
@@ -161,9 +177,11 @@ class Emulator:
 
     def ratio(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
               volume_um3: npt.ArrayLike,
-              bending: str = "standard") -> Any:
-        """K/K_B = 1 - s + exp(y) at the given points (arrays broadcast)."""
-        return 1.0 - OFFSET + np.exp(self[bending].log_excess(h_tilde, ks_tilde, gamma_tilde, volume_um3))
+              bending: str = "standard", where: Any = None) -> Any:
+        """K/K_B = 1 - s + exp(y) at the given points (arrays broadcast; `where`: the points
+        wanted, NaN at the others)."""
+        return 1.0 - OFFSET + np.exp(self[bending].log_excess(h_tilde, ks_tilde, gamma_tilde, volume_um3,
+                                                              where=where))
 
     def modulus(self, h_tilde: npt.ArrayLike, bulk: npt.ArrayLike, ks_tilde: npt.ArrayLike, tension: npt.ArrayLike,
                 volume_um3: npt.ArrayLike,

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import BSpline, NdBSpline
 
-from analysis.calibration.emulator import tensor_spline
+from analysis.calibration.emulator import evaluate, tensor_spline
 from common.errors import InputError
 
 H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)
@@ -122,9 +122,10 @@ class ComplexTable:
 
     def log_factor(self, h_tilde: npt.ArrayLike, ks_tilde: npt.ArrayLike, gamma_tilde: npt.ArrayLike,
                    db: npt.ArrayLike, ds: npt.ArrayLike, volume_um3: npt.ArrayLike,
-                   derivatives: bool = False) -> Any:
+                   derivatives: bool = False, where: Any = None) -> Any:
         """ln C at the points (arrays broadcast); with `derivatives` also its derivatives by
-        ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape)."""
+        ln K̃_S, ln γ̃_a, δ_B and δ_S (each complex, same shape); `where`: the points wanted
+        (`analysis.calibration.emulator.evaluate`; NaN at the others)."""
         h, ks, g, db, ds, v = np.broadcast_arrays(*(np.asarray(x, float) for x in (h_tilde, ks_tilde, gamma_tilde,
                                                                                   db, ds, volume_um3)))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -134,15 +135,16 @@ class ComplexTable:
         n = len(TERMS)
         m, mb, ms = (a.reshape(-1, n) for a in _monomials(db.ravel(), ds.ravel()))
 
-        def contract(c: Any) -> list[Any]:
+        def contract(c: Any, weights: Any) -> list[Any]:
             c = c[:, :n] + 1j * c[:, n:]
-            return [np.sum(c * w, axis=1).reshape(h.shape) for w in (m, mb, ms)]
+            return [np.sum(c * w, axis=1).reshape(h.shape) for w in weights]
 
-        value, d_b, d_s = contract(self.spline(x))
+        c0 = evaluate(self.spline, x, where)
         if not derivatives:
-            return value
-        d_ks = contract(self.spline(x, nu=lead + (0, 1, 0)))[0]
-        d_g = contract(self.spline(x, nu=lead + (0, 0, 1)))[0]
+            return contract(c0, (m,))[0]
+        value, d_b, d_s = contract(c0, (m, mb, ms))
+        d_ks = contract(evaluate(self.spline, x, where, lead + (0, 1, 0)), (m,))[0]
+        d_g = contract(evaluate(self.spline, x, where, lead + (0, 0, 1)), (m,))[0]
         return value, d_ks, d_g, d_b, d_s
 
 

@@ -33,6 +33,7 @@ import pandas as pd
 from scipy import sparse
 from scipy.optimize import least_squares
 
+from analysis.calibration.emulator import OFFSET
 from analysis.invert.inversion import exclusions, used_heights
 from solver.elasticity import poisson_of_ratio
 
@@ -77,10 +78,10 @@ def _start(emulator: Emulator, bending: str, curves: Curves) -> Any:
     for lks in np.linspace(lo + 1e-6, hi - 1e-6, START_POINTS):
         bulk = mean_k.copy()
         for _ in range(3):
-            f = emulator.ratio(h, np.exp(lks), tension[:, None] / bulk[:, None], volume[:, None], bending)
+            f = emulator.ratio(h, np.exp(lks), tension[:, None] / bulk[:, None], volume[:, None], bending, use)
             bulk = np.sum(np.where(use, k * f, 0), axis=1) / np.sum(np.where(use, f * f, 0), axis=1)
             bulk = np.clip(np.nan_to_num(bulk, nan=1.0), 1e-3, 1e4)
-        f = emulator.ratio(h, np.exp(lks), tension[:, None] / bulk[:, None], volume[:, None], bending)
+        f = emulator.ratio(h, np.exp(lks), tension[:, None] / bulk[:, None], volume[:, None], bending, use)
         ss = np.sum(np.where(use, (bulk[:, None] * f - k) ** 2, 0), axis=1)
         better = ss < best_ss
         best_ss[better] = ss[better]
@@ -98,6 +99,37 @@ def model(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], h: n
     return K, K * (1.0 - d_g), K * d_ks
 
 
+class _Model:
+    """`model` split for the least squares: K at θ (the spline's value only) for the residuals,
+    its derivatives for the Jacobian, which the solver asks at the θ it has just evaluated K at,
+    so that evaluation is kept; only at the heights used (NaN at the others, masked out); the
+    same arithmetic as `model`, number for number."""
+
+    def __init__(self, table: Any, h: Any, use: Any, tension: Any, volume: Any) -> None:
+        self.table, self.h, self.use, self.tension, self.volume = table, h, use, tension, volume
+        self.key: bytes | None = None
+
+    def moduli(self, theta: npt.NDArray[np.float64]) -> Any:
+        """K (mN/m) at θ (cells, 2)."""
+        key = theta.tobytes()
+        if key != self.key:
+            bulk, ks = np.exp(theta[:, 0])[:, None], np.exp(theta[:, 1])[:, None]
+            self.args = (self.h, ks, self.tension[:, None] / bulk, self.volume[:, None])
+            self.ey = np.exp(self.table.log_excess(*self.args, where=self.use))
+            self.ratio = 1.0 - OFFSET + self.ey
+            self.K = bulk * np.exp(np.log(self.ratio))
+            self.key = key
+        return self.K
+
+    def slopes(self, theta: npt.NDArray[np.float64]) -> tuple[Any, Any]:
+        """∂K/∂ln K_B and ∂K/∂ln K̃_S at θ."""
+        K = self.moduli(theta)
+        share = self.ey / self.ratio
+        d_ks = share * self.table.log_excess(*self.args, nu=(0, 0, 1, 0), where=self.use)
+        d_g = share * self.table.log_excess(*self.args, nu=(0, 0, 0, 1), where=self.use)
+        return K * (1.0 - d_g), K * d_ks
+
+
 def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.float64]:
     """θ = (ln K_B, ln K̃_S) per cell (rows of `Curves`), least squares over all
     cells at once. Cells without usable heights get NaN."""
@@ -113,12 +145,13 @@ def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.floa
     rows = np.repeat(np.arange(cells * m), 2)
     cols = (np.repeat(np.arange(cells), m)[:, None] * 2 + np.arange(2)).ravel()
 
+    at = _Model(emulator[bending], hs, us, ts, vs)
+
     def residuals(x: Any) -> Any:
-        K, _, _ = model(emulator, bending, x.reshape(-1, 2), hs, ts, vs)
-        return np.where(us, K - ks, 0.0).ravel()
+        return np.where(us, at.moduli(x.reshape(-1, 2)) - ks, 0.0).ravel()
 
     def jacobian(x: Any) -> Any:
-        _, dkb, dks = model(emulator, bending, x.reshape(-1, 2), hs, ts, vs)
+        dkb, dks = at.slopes(x.reshape(-1, 2))
         vals = np.stack([np.where(us, dkb, 0.0), np.where(us, dks, 0.0)], axis=-1).ravel()
         return sparse.csr_matrix((vals, (rows, cols)), shape=(cells * m, cells * 2))
 

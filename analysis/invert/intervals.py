@@ -161,7 +161,7 @@ def _gauss_newton(table: Any, x: Any, curves: Curves, *, steps: int, bounds: Any
         xr, hr, kr, ur, tr = x[rows], h[rows], k[rows], use[rows], tension[rows]
         for _ in range(steps):
             bulk = np.exp(xr[:, 0])[:, None]
-            lr, d_ks, d_g = sl.grad_log(hr, np.exp(xr[:, 1])[:, None], tr[:, None] / bulk)
+            lr, d_ks, d_g = sl.grad_log(hr, np.exp(xr[:, 1])[:, None], tr[:, None] / bulk, where=ur)
             K = bulk * np.exp(lr)
             r = np.nan_to_num(np.where(ur, kr - K, 0.0))
             J = np.stack([np.where(ur, K * (1.0 - d_g), 0.0), np.where(ur, K * d_ks, 0.0)], axis=-1)
