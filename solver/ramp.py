@@ -75,10 +75,10 @@ def ramp_forces_nN(volume_um3: float, depths_um: npt.ArrayLike, bulk_mN_per_m: f
     if shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0:    # tension-only: each depth on its own
         return np.array([fast.solve(_at(shell, top - d)).force_nN for d in depths])
     lag = fast.problem(shell)
-    u, h, step = fast.reference_state(lag), h0, None
+    u, h, step, last = fast.reference_state(lag), h0, None, None
     forces = np.empty(depths.size)
     for i, depth in enumerate(depths):
-        u, _, step = fast.advance(lag, shell, u, h, top - depth, step)
+        u, _, step, last = fast.advance(lag, shell, u, h, top - depth, step, last)
         h = top - depth
         forces[i] = fast.plate_force_nN(lag, u, h)
     return forces

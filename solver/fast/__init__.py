@@ -21,7 +21,8 @@ near the free sphere, or a deep compression) an adaptive continuation
 (`advance`) follows the plate from h0 to h1 with the contact label found at
 every step: steps of CONTINUE_STEP / H_d at most, halved on a rejected step
 (down to CONTINUE_LEAST / H_d), grown by half after an accepted one, each
-started from the last equilibrium squeezed to the new gap.
+started from the secant through the last two equilibria (the first from the
+last one squeezed to the new gap, its contact label raised as the droplet's).
 
 Constraints:
 - contact: material on the plate may not lift off, so l ≥ log ψ_min, and the
@@ -181,18 +182,20 @@ def _follow(lag, shell, steps):
 
 
 def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: float, h_to: float,
-            step: float | None = None) -> tuple[npt.NDArray[np.float64], int, float]:
+            step: float | None = None, last: tuple[float, npt.NDArray[np.float64]] | None = None
+            ) -> tuple[npt.NDArray[np.float64], int, float, tuple[float, npt.NDArray[np.float64]] | None]:
     """The equilibrium at gap h_to (µm) from the equilibrium u at h_from ≥
     h_to, by the adaptive continuation of the module docstring; `step` the
-    first plate step (µm, default the largest). Returns the unknowns, the
-    Newton iterations and the step to go on with; SolverError if a step
-    halved below CONTINUE_LEAST / H_d still fails."""
+    first plate step (µm, default the largest), `last` the equilibrium before
+    u as (gap, unknowns), if any. Returns the unknowns, the Newton iterations,
+    the step and `last` to go on with; SolverError if a step halved below
+    CONTINUE_LEAST / H_d still fails."""
     largest, least = CONTINUE_STEP / lag.ref.H, CONTINUE_LEAST / lag.ref.H
     step, h, iterations = min(step or largest, largest), h_from, 0
     while h > h_to:
         h_next = max(h - step, h_to)
         try:
-            v, it = _contact(lag, _squeezed(lag, shell, u, h, h_next), 0.5 * h_next)
+            v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next)
             if not (_gap(lag, v, 0.5 * h_next) <= _slack(lag, v, 0.5 * h_next)
                     and _admissible(lag, v, 0.5 * h_next)):
                 raise SolverError("the free surface crossed the plate")
@@ -201,17 +204,24 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
             if step < least:
                 raise SolverError(f"continuation stalled at h = {h:.6g} um: {err}") from None
             continue
-        u, h, iterations = v, h_next, iterations + it
+        last, u, h, iterations = (h, u), v, h_next, iterations + it
         step = min(1.5 * step, largest)
-    return u, iterations, step
+    return u, iterations, step, last
 
 
-def _squeezed(lag, shell, u, h, h_next):
-    """The equilibrium u at gap h squeezed to h_next: the free nodes' heights
-    scaled, the contact label at least the droplet's prediction."""
+def _predicted(lag, shell, u, h, h_next, last):
+    """The start at gap h_next from the equilibrium u at h: the secant through
+    `last` (gap, unknowns) and u, if there is one and it gives an admissible
+    shape; else u squeezed (the free nodes' heights scaled) with its contact
+    label raised by the droplet's increase between h and h_next."""
+    if last is not None:
+        v = u + (u - last[1]) * ((h_next - h) / (h - last[0]))
+        v[-2] = max(v[-2], LOG_PSI_MIN)
+        if _admissible(lag, v, 0.5 * h_next):
+            return v
     v = u.copy()
     v[lag.N: -2] *= h_next / h
-    v[-2] = max(v[-2], _predicted_label(lag, shell, h_next))
+    v[-2] += max(_predicted_label(lag, shell, h_next) - _predicted_label(lag, shell, h), 0.0)
     return v
 
 
@@ -254,7 +264,7 @@ def equilibrium(shell: Shell) -> tuple[Lagrangian, npt.NDArray[np.float64], int]
         failure = SolverError("the free surface crossed the plate")
     if lag.elastic:
         try:
-            u, iterations, _ = advance(lag, shell, reference_state(lag), shell.h0_um, shell.h1_um)
+            u, iterations = advance(lag, shell, reference_state(lag), shell.h0_um, shell.h1_um)[:2]
             return lag, u, iterations
         except SolverError as err:
             failure = err

@@ -32,7 +32,7 @@ from solver.fast.newton import CONVERGED, block_solve, newton, nodes, shape_ok
 from solver.jit import njit
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
-LOG_PSI_MAX = np.log(1.0)    # at most a radian of the free surface on the plate
+LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate (< π/2: the equator stays free)
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 
