@@ -116,16 +116,17 @@ def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
-def _contact(lag, u, zp, tol=1e-6, maxit=40):
+def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
-    `solver.fast.contact.contact`, whose docstring has the search). Returns
+    `solver.fast.contact.contact`, whose docstring has the search and
+    `retreat`). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
-        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT)
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat))
     if status == contact.FOUND:
         return u, iterations
     if status == contact.TANGENT_SINGULAR:
@@ -195,7 +196,8 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
     while h > h_to:
         h_next = max(h - step, h_to)
         try:
-            v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next)
+            v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next,
+                             retreat=True)
             if not (_gap(lag, v, 0.5 * h_next) <= _slack(lag, v, 0.5 * h_next)
                     and _admissible(lag, v, 0.5 * h_next)):
                 raise SolverError("the free surface crossed the plate")
