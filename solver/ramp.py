@@ -9,13 +9,14 @@ solver (`solver.fast`). At δ → 0, F → 0; a tension-only shell gives the
 droplet's F = 2 γ_a H(h) A_c(h) (SPEC section 1).
 
 Reference height. The fast solver labels material by the droplet at h0, whose
-contact disc has radius a0 → 0 at the sphere, so the reference is the droplet
-at h0 = 2R (1 - SPHERE_GAP): ε = 2 R · SPHERE_GAP = 2e-6 R below the sphere
-(a0 ≈ 2e-4 R... 1e-3 R), a sphere with flattened poles of depth ε/2. Each
-depth is measured from the sphere, h = 2R - δ, so the shell is compressed by
-δ - ε from its reference. Measured effect of ε (ten times larger against
-this one): 0.1 % on F at δ/R = 0.005, 5e-5 at δ/R = 0.1, falling as ε/δ; at
-this ε it is ten times smaller.
+contact disc has radius a0 = R_c(h0) → 0 at the sphere (and the mesh with
+it), so the reference is the droplet at h0 = 2R (1 - SPHERE_GAP),
+ε = 2R · SPHERE_GAP = 2e-6 R below the sphere: a sphere with flattened poles
+of radius a0 ≈ 3e-4 R. Each depth is measured from the sphere, h = 2R - δ, so
+the shell is compressed by δ - ε from its reference. Measured effect of ε
+(R = 6.8 µm, K_B = 10, K_S = 5, γ_a = 0.5 mN/m): ten times this ε lowers F by
+1.0e-3 at δ/R = 0.005, 4.6e-4 at 0.01, 1.6e-4 at 0.03, 4.5e-5 at 0.1 (about
+as ε/δ), so this ε is within ~1e-4 of the exact sphere from δ/R = 0.005 on.
 
 Continuation. The equilibria at the depths, in increasing order, are one path
 of `solver.fast.advance` (adaptive plate steps of at most 0.015/H_d ≈ 0.015 R,
@@ -34,6 +35,10 @@ from solver.model import Shell
 
 SPHERE_GAP = 1e-6     # reference gap h0 = 2R (1 - SPHERE_GAP)
 RESOLUTION = 2.0      # the ramp's default mesh resolution (1 is the compressions' default)
+# the length (× 1/H_d ≈ R) in the ramp's scale of a converged nodal force, three times that of
+# a compression near the sphere (`solver.fast.lagrangian.SCALE_LEAST`): a ramp to δ ≈ R on a
+# fine mesh has round-off in its residual above the smaller one (F changes by ~1e-5)
+RESIDUAL_LENGTH = 0.3
 
 
 def reference_height_um(volume_um3: float) -> float:
@@ -75,6 +80,8 @@ def ramp_forces_nN(volume_um3: float, depths_um: npt.ArrayLike, bulk_mN_per_m: f
     if shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0:    # tension-only: each depth on its own
         return np.array([fast.solve(_at(shell, top - d)).force_nN for d in depths])
     lag = fast.problem(shell)
+    lag.force_scale = max(lag.force_scale,
+                          (lag.gamma + lag.KB + lag.KS) * RESIDUAL_LENGTH / lag.ref.H * 0.1)
     u, h, step, last = fast.reference_state(lag), h0, None, None
     forces = np.empty(depths.size)
     for i, depth in enumerate(depths):
