@@ -35,10 +35,6 @@ from solver.model import Shell
 
 SPHERE_GAP = 1e-6     # reference gap h0 = 2R (1 - SPHERE_GAP)
 RESOLUTION = 2.0      # the ramp's default mesh resolution (1 is the compressions' default)
-# the length (× 1/H_d ≈ R) in the ramp's scale of a converged nodal force, three times that of
-# a compression near the sphere (`solver.fast.lagrangian.SCALE_LEAST`): a ramp to δ ≈ R on a
-# fine mesh has round-off in its residual above the smaller one (F changes by ~1e-5)
-RESIDUAL_LENGTH = 0.3
 
 
 def reference_height_um(volume_um3: float) -> float:
@@ -80,8 +76,6 @@ def ramp_forces_nN(volume_um3: float, depths_um: npt.ArrayLike, bulk_mN_per_m: f
     if shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0:    # tension-only: each depth on its own
         return np.array([fast.solve(_at(shell, top - d)).force_nN for d in depths])
     lag = fast.problem(shell)
-    lag.force_scale = max(lag.force_scale,
-                          (lag.gamma + lag.KB + lag.KS) * RESIDUAL_LENGTH / lag.ref.H * 0.1)
     u, h, step, last = fast.reference_state(lag), h0, None, None
     forces = np.empty(depths.size)
     for i, depth in enumerate(depths):

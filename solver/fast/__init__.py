@@ -61,6 +61,10 @@ STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
 NEWTON_MAXIT = 30            # Newton iterations at one contact label at most
 CONTINUE_STEP = 0.015        # `advance`: largest plate step, in units of 1/H_d (≈ R near the sphere)
 CONTINUE_LEAST = 1e-6        # `advance`: a step halved below this (× 1/H_d) gives up
+# `advance`: the length (× 1/H_d) in the scale of a converged nodal force at least, three times
+# `lagrangian.SCALE_LEAST`: a path to δ ≈ R on a fine mesh has round-off in its residual above
+# the smaller one (F changes by ~1e-5)
+CONTINUE_SCALE = 0.3
 
 
 def _admissible(lag, u, zp):
@@ -190,8 +194,10 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
     first plate step (µm, default the largest), `last` the equilibrium before
     u as (gap, unknowns), if any. Returns the unknowns, the Newton iterations,
     the step and `last` to go on with; SolverError if a step halved below
-    CONTINUE_LEAST / H_d still fails."""
+    CONTINUE_LEAST / H_d still fails. Sets lag's force scale to at least
+    (γ_a + K_B + K_S) · 0.1 CONTINUE_SCALE / H_d."""
     largest, least = CONTINUE_STEP / lag.ref.H, CONTINUE_LEAST / lag.ref.H
+    lag.force_scale = max(lag.force_scale, (lag.gamma + lag.KB + lag.KS) * CONTINUE_SCALE / lag.ref.H * 0.1)
     step, h, iterations = min(step or largest, largest), h_from, 0
     while h > h_to:
         h_next = max(h - step, h_to)
