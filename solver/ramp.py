@@ -5,8 +5,9 @@ the free sphere is squeezed between plates at gap h = 2R - δ; δ (µm) is the
 deformation, from 0 to about R. The shell is that of SPEC section 2 (energy
 E = γ_a A + ∫ w dA0 + 2B ∫ (H - H0)² dA at constant volume, frictionless
 contact), its plate force F(δ) = -dE*/dh the envelope derivative of the fast
-solver (`solver.fast`). At δ → 0, F → 0; a tension-only shell gives the
-droplet's F = 2 γ_a H(h) A_c(h) (SPEC section 1).
+solver (`solver.fast`). At δ → 0, F → 0; a tension-only shell (K_B = K_S =
+B = 0) is the droplet, F = 2 γ_a H(h) A_c(h) (SPEC section 1), returned as
+that (`solver.droplet_table`).
 
 Reference height. The fast solver labels material by the droplet at h0, whose
 contact disc has radius a0 = R_c(h0) → 0 at the sphere (and the mesh with
@@ -26,10 +27,13 @@ deepest. Mesh: `resolution` (of `solver.model.Shell`; RESOLUTION by default)
 changes F by < 0.5 % against twice that resolution over δ/R 0.01-1 (docs/ramp.md).
 """
 
+import dataclasses
+
 import numpy as np
 import numpy.typing as npt
 
 from common.errors import InputError
+from solver.droplet_table import force_per_tension_um
 from solver.geometry import cell_radius
 from solver.model import Shell
 
@@ -73,7 +77,9 @@ def ramp_forces_nN(volume_um3: float, depths_um: npt.ArrayLike, bulk_mN_per_m: f
                   tension_mN_per_m=float(tension_mN_per_m), bending=bending,
                   bending_pN_um=bending_pN_um, thickness_um=float(thickness_um),
                   resolution=float(resolution))
-    if shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0:    # tension-only: each depth on its own
+    if shell.bulk_mN_per_m + shell.shear_mN_per_m == 0.0:
+        if shell.bending_stiffness == 0.0:      # tension only: the droplet, exactly
+            return shell.tension_mN_per_m * force_per_tension_um(shell.volume_um3, top - depths)
         return np.array([fast.solve(_at(shell, top - d)).force_nN for d in depths])
     lag = fast.problem(shell)
     u, h, step, last = fast.reference_state(lag), h0, None, None
@@ -87,4 +93,4 @@ def ramp_forces_nN(volume_um3: float, depths_um: npt.ArrayLike, bulk_mN_per_m: f
 
 def _at(shell: Shell, h1_um: float) -> Shell:
     """`shell` compressed to the gap h1 instead."""
-    return Shell(**{**shell.to_dict(), "dh_um": shell.h0_um - h1_um})
+    return dataclasses.replace(shell, dh_um=shell.h0_um - h1_um)
