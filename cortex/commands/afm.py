@@ -141,7 +141,8 @@ def _add_analyze(s: Commands) -> None:
 def _add_tension(s: Commands) -> None:
     t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
-                                 "ramp onto the free cell fitted by the exact droplet model and by the "
+                                 "ramp onto the free cell fitted by the elastic shell pressed from its free "
+                                 "sphere (active tension and bulk modulus), by the exact droplet model and by the "
                                  "small-deformation formula (contact point, T, R², the automatic fit window), "
                                  "each pause from its force and the droplet shape at its height, with 95 % "
                                  "intervals. Recordings that cannot be analysed are listed (exit status 1). "
@@ -150,8 +151,18 @@ def _add_tension(s: Commands) -> None:
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
     _jpk_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
-    t.add_argument("--model", choices=RAMP_MODELS, default="droplet", metavar="MODEL",
-                   help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
+    t.add_argument("--model", choices=RAMP_MODELS, default="shell", metavar="MODEL",
+                   help="ramp model, %(choices)s (default shell: the active tension and bulk modulus of an elastic "
+                        "cortex; the droplet and small-deformation apparent tensions beside it)")
+    t.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, metavar="KS_OVER_KB",
+                   help="K_S/K_B of the shell model (default 1/3: Poisson ratio 0.5); from the same cell's "
+                        "oscillations where known")
+    t.add_argument("--bulk-mN-per-m", type=float, default=None, metavar="KB",
+                   help="the shell's area bulk modulus K_B in mN/m when known from the same cell's oscillations "
+                        "(default: fitted)")
+    t.add_argument("--max-depth-um", type=float, default=None, metavar="D",
+                   help="deepest deformation of the fit window, um (default: the deepest reached, at most R; "
+                        "for the shell at most 0.15 R, its table's depth)")
     t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
     t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",
@@ -320,7 +331,8 @@ def tension(args: argparse.Namespace) -> int:
     for name, value in (("--volume-sd", args.volume_sd), ("--height-sd", args.height_sd)):
         if not value >= 0:
             raise InputError(f"{name} must be >= 0 (got {value})")
-    options = Options(model=args.model, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
+    options = Options(model=args.model, shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
+                      max_depth_um=args.max_depth_um, volume_um3=args.volume, volumes_csv=args.volumes, radius_um=args.radius_um,
                       dish_um=args.dish_height_um, dish_curve=args.dish_curve,
                       spring_constant_N_per_m=args.spring_constant,
                       errors=ErrorModel(volume_sd=args.volume_sd, height_sd_um=args.height_sd))
@@ -350,6 +362,10 @@ def _tension_line(r: dict[str, Any]) -> str:
             f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
             f"h {r['height_um']:.4g} um")
     if r["part"] == "approach":
+        if r["model"] == "shell":
+            text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "
+                     f"{r['bulk_modulus_hi95_mN_per_m']:.3g}], droplet T {r['droplet_tension_mN_per_m']:.4g}, "
+                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m")
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     return text
