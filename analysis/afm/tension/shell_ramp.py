@@ -96,18 +96,18 @@ def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float,
 
 def from_document(doc: dict, where: str = "shell ramp table") -> ShellTable:
     """A `ShellTable` from the table's JSON dict (`shell_table.build`); InputError if it has holes."""
-    axes = [np.asarray(doc[k], float) for k in ("depth_over_radius", "gamma_tilde", "shear_tilde", "radius_um")]
-    depths, gammas = axes[:2]
+    depths, gammas, shears, radii = (np.asarray(doc[k], float)
+                                     for k in ("depth_over_radius", "gamma_tilde", "shear_tilde", "radius_um"))
     f = np.asarray(doc["force_over_kb_r"], float)
-    if np.any(f < 0):
-        raise InputError(f"{where}: {int(np.sum(f < 0))} of {f.size} forces not solved")
+    if not np.all(np.isfinite(f)) or f.shape != (depths.size, gammas.size, shears.size, radii.size):
+        raise InputError(f"{where}: the forces do not fill the table's axes")
     d0 = float(doc["d0"])
     e = f - gammas[None, :, None, None] * unit_force_per_tension(depths)[:, None, None, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         q = e / ((depths - d0) ** 2)[:, None, None, None]
     q[0] = q[1]
-    spline = RegularGridInterpolator([depths] + [np.log(a) for a in axes[1:]], q, method="cubic")
-    return ShellTable(d0, *axes, spline, str(doc.get("bending", "standard")))
+    spline = RegularGridInterpolator((depths, np.log(gammas), np.log(shears), np.log(radii)), q, method="cubic")
+    return ShellTable(d0, depths, gammas, shears, radii, spline, str(doc.get("bending", "standard")))
 
 
 def read(path: str | Path) -> ShellTable:
