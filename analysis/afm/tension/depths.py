@@ -3,7 +3,7 @@ and whether the active tension still moves with it.
 
 For window depths D_j = FRACTIONS_j · D (D the full window's deepest deformation)
 every model is fitted again on deformations up to D_j: the shell (`shell_fit`:
-γ_a, K_B) and the two tension-only readings (`ramp.fit_ramp`: their apparent
+γ_a, K_B, started from the full window's fit) and the two tension-only readings (`ramp.fit_ramp`: their apparent
 tension T). A model that describes the ramp gives the same γ_a at every depth;
 the tension-only readings of an elastic cell climb with D (the elastic stress
 grows like δ²). The recording is flagged when a shallower window's γ_a differs
@@ -51,7 +51,7 @@ def depth_rows(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, f
     for frac in FRACTIONS:
         cap = frac * fit.depth_um
         try:
-            s = fit if frac == 1.0 else fit_shell(x_um, force_nN, radius_um, fixed, cap_um=cap)
+            s = fit if frac == 1.0 else fit_shell(x_um, force_nN, radius_um, fixed, cap_um=cap, near=fit)
             g, sd, k = s.tension_mN_per_m, s.tension_sd_mN_per_m, s.bulk_mN_per_m
         except InputError:
             g = sd = k = float("nan")

@@ -37,7 +37,7 @@ from common.errors import InputError
 from solver.geometry import cell_radius
 
 SHEAR_TILDE = 1.0 / 3.0          # K_S/K_B of an isotropic sheet with ν = 0.5 (SPEC 2)
-START_GAMMAS = np.geomspace(0.002, 1.0, 25)
+START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 
@@ -94,7 +94,7 @@ def _starts(x, f, x0, span, radius, shear):
     found = []
     for gt in np.append(START_GAMMAS, np.inf):
         res = minimize_scalar(lambda c: _linear(x, f, c, radius, shear, gt)[0], bounds=(x0 - span, x0 + span),
-                              method="bounded", options={"xatol": 1e-4 * span})
+                              method="bounded", options={"xatol": 1e-3 * span})
         found.append((float(res.x),) + _linear(x, f, float(res.x), radius, shear, gt))
     sse = np.array([s[1] for s in found])
     if not np.any(np.isfinite(sse)):
@@ -136,17 +136,20 @@ def _errors(sse, jac, n):
 
 
 def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fixed: Fixed = Fixed(),
-              cap_um: float | None = None) -> ShellFit:
-    """γ_a and K_B of one approach ramp (module doc); InputError for a ramp
-    without contact or a window too short."""
+              cap_um: float | None = None, near: "ShellFit | None" = None) -> ShellFit:
+    """γ_a and K_B of one approach ramp (module doc); `near` a fit of the same ramp
+    to start from instead of the starts' grid (a nested window). InputError for a
+    ramp without contact or a window too short."""
     x, f = np.asarray(x_um, float), np.asarray(force_nN, float)
     cap = shell_ramp.shipped().max_depth * radius_um
     cap = cap if cap_um is None else min(cap, cap_um)
     drop = fit_ramp(x, f, radius_um, "droplet", cap_um=cap)
     xs, fs = x[drop.window], f[drop.window]
     span = SPAN * (drop.window_hi_um - drop.window_lo_um)
+    starts = [(near.contact_um, near.baseline_nN, near.tension_mN_per_m, near.bulk_mN_per_m)] if near else \
+        _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)
     tries = [_solve(xs, fs, radius_um, fixed, (x0, fb, ga, kb if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m))
-             for x0, fb, ga, kb in _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)]
+             for x0, fb, ga, kb in starts]
     p, sse, jac = min(tries, key=lambda t: t[1])
     sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
     sst = float(np.sum((fs - fs.mean()) ** 2))

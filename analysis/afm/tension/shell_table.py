@@ -9,18 +9,19 @@ free sphere itself has no plate contact), and pressed to h = 2R - δ. Its force
 
 is `solver.compress` (the fast solver) of `Shell(V, h0, dh = δ - d0 R)` at each
 grid depth, on its own from h0 (at a finer or coarser mesh, RESOLUTIONS, where
-the default one finds no equilibrium: they agree to 0.2 %). The scaling is exact but for the bending
-stiffness B = t_c² (K_B + K_S)/24 with t_c = 0.2 µm, whose weight B/(K_B R²)
+the default one finds no equilibrium: they agree to 0.2 %). The scaling is
+exact but for the bending stiffness B = t_c² (K_B + K_S)/24 with t_c = 0.2 µm, whose weight B/(K_B R²)
 falls with R, and it is not small on a ramp: near the contact the boundary
 layer sqrt(B/γ_a) is as wide as the contact itself, and the force of R = 5 µm
 differs from that of R = 6.8 µm by 15 % at δ/R = 0.02 and 4 % at 0.15 (standard
 bending). So f has a fourth axis, RADII R (µm, at t_c = 0.2 µm).
 
 The grid: DEPTHS δ/R from D0 to 0.15 (the deepest the solver reaches from h0
-for every cell of the grid; denser near D0, where the force bends most), GAMMAS γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both
-log-spaced. `build` returns the table
-as a JSON-ready dict (f[depth][gamma][shear][radius]; depths no mesh solves
-filled in, `fill`); `python -m analysis.afm.tension.shell_table FILE` writes it.
+for every cell of the grid; denser near D0, where the force bends most), GAMMAS
+γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both log-spaced. `build` returns the
+table as a JSON-ready dict (f[depth][gamma][shear][radius]; the depths no mesh
+solves, 23 of 21,600, filled in by `fill`); `python -m
+analysis.afm.tension.shell_table FILE` writes it (about 4 minutes).
 """
 
 import json
