@@ -16,7 +16,13 @@ Newton search for the admissible local minimum of E*(l) (`_contact`,
 compiled whole in `solver.fast.contact`). The
 start is the reference state, followed along h0 → h1 in 1, 2, 4 or 8 steps
 (the contact predicted from the droplet on the way), or, for a tension-only
-shell, the droplet at h1 (its exact answer).
+shell, the droplet at h1 (its exact answer). Where those fail (a reference
+near the free sphere, or a deep compression) an adaptive continuation
+(`advance`) follows the plate from h0 to h1 with the contact label found at
+every step: steps of CONTINUE_STEP / H_d at most, halved on a rejected step
+(down to CONTINUE_LEAST / H_d), grown by half after an accepted one, each
+started from the secant through the last two equilibria (the first from the
+last one squeezed to the new gap, its contact label raised as the droplet's).
 
 Constraints:
 - contact: material on the plate may not lift off, so l ≥ log ψ_min, and the
@@ -53,6 +59,8 @@ from solver.solution import Solution
 
 STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
 NEWTON_MAXIT = 30            # Newton iterations at one contact label at most
+CONTINUE_STEP = 0.015        # `advance`: largest plate step, in units of 1/H_d (≈ R near the sphere)
+CONTINUE_LEAST = 1e-6        # `advance`: a step halved below this (× 1/H_d) gives up
 
 
 def _admissible(lag, u, zp):
@@ -108,16 +116,17 @@ def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
-def _contact(lag, u, zp, tol=1e-6, maxit=40):
+def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
-    `solver.fast.contact.contact`, whose docstring has the search). Returns
+    `solver.fast.contact.contact`, whose docstring has the search and
+    `retreat`). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
-        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT)
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat))
     if status == contact.FOUND:
         return u, iterations
     if status == contact.TANGENT_SINGULAR:
@@ -128,7 +137,7 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40):
     _newton_failed(status, g, last, NEWTON_MAXIT)
 
 
-def _reference_state(lag):
+def reference_state(lag: Lagrangian) -> npt.NDArray[np.float64]:
     """The unknowns of the reference droplet at h0: least contact, p = 2 γ_a H_d."""
     r0, z0 = lag.ref.positions(LOG_PSI_MIN)[:2]
     return np.concatenate([r0[1:], z0[lag.kc + 1: lag.N], [LOG_PSI_MIN, 2.0 * lag.gamma * lag.ref.H]])
@@ -158,7 +167,7 @@ def _follow(lag, shell, steps):
     """From the reference state along h0 → h1 in `steps` equal steps, the
     contact label predicted from the droplet on the way, found at h1."""
     h0, iterations = shell.h0_um, 0
-    u = _reference_state(lag)
+    u = reference_state(lag)
     h_last = h0
     for i in range(1, steps + 1):
         h = h0 - shell.dh_um * i / steps
@@ -171,6 +180,51 @@ def _follow(lag, shell, steps):
             u, it = _contact(lag, u, 0.5 * h)
         iterations, h_last = iterations + it, h
     return u, iterations
+
+
+def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: float, h_to: float,
+            step: float | None = None, last: tuple[float, npt.NDArray[np.float64]] | None = None
+            ) -> tuple[npt.NDArray[np.float64], int, float, tuple[float, npt.NDArray[np.float64]] | None]:
+    """The equilibrium at gap h_to (µm) from the equilibrium u at h_from ≥
+    h_to, by the adaptive continuation of the module docstring; `step` the
+    first plate step (µm, default the largest), `last` the equilibrium before
+    u as (gap, unknowns), if any. Returns the unknowns, the Newton iterations,
+    the step and `last` to go on with; SolverError if a step halved below
+    CONTINUE_LEAST / H_d still fails."""
+    largest, least = CONTINUE_STEP / lag.ref.H, CONTINUE_LEAST / lag.ref.H
+    step, h, iterations = min(step or largest, largest), h_from, 0
+    while h > h_to:
+        h_next = max(h - step, h_to)
+        try:
+            v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next,
+                             retreat=True)
+            if not (_gap(lag, v, 0.5 * h_next) <= _slack(lag, v, 0.5 * h_next)
+                    and _admissible(lag, v, 0.5 * h_next)):
+                raise SolverError("the free surface crossed the plate")
+        except (SolverError, np.linalg.LinAlgError) as err:
+            step *= 0.5
+            if step < least:
+                raise SolverError(f"continuation stalled at h = {h:.6g} um: {err}") from None
+            continue
+        last, u, h, iterations = (h, u), v, h_next, iterations + it
+        step = min(1.5 * step, largest)
+    return u, iterations, step, last
+
+
+def _predicted(lag, shell, u, h, h_next, last):
+    """The start at gap h_next from the equilibrium u at h: the secant through
+    `last` (gap, unknowns) and u, if there is one and it gives an admissible
+    shape; else u squeezed (the free nodes' heights scaled) with its contact
+    label raised by the droplet's increase between h and h_next."""
+    if last is not None:
+        v = u + (u - last[1]) * ((h_next - h) / (h - last[0]))
+        v[-2] = max(v[-2], LOG_PSI_MIN)
+        if _admissible(lag, v, 0.5 * h_next):
+            return v
+    v = u.copy()
+    v[lag.N: -2] *= h_next / h
+    v[-2] += max(_predicted_label(lag, shell, h_next) - _predicted_label(lag, shell, h), 0.0)
+    return v
 
 
 @lru_cache(maxsize=256)
@@ -210,8 +264,14 @@ def equilibrium(shell: Shell) -> tuple[Lagrangian, npt.NDArray[np.float64], int]
         if _gap(lag, u, zp) <= _slack(lag, u, zp) and _admissible(lag, u, zp):
             return lag, u, iterations
         failure = SolverError("the free surface crossed the plate")
+    if lag.elastic:
+        try:
+            u, iterations = advance(lag, shell, reference_state(lag), shell.h0_um, shell.h1_um)[:2]
+            return lag, u, iterations
+        except SolverError as err:
+            failure = err
     raise SolverError(f"no admissible equilibrium found (continuation up to {STEPS[-1]} "
-                      f"steps): {failure}")
+                      f"steps, then adaptive): {failure}")
 
 
 def energy(shell: Shell) -> float:
@@ -223,11 +283,16 @@ def energy(shell: Shell) -> float:
     return value + u[-1] * (lag.volume(u, zp) - lag.V0)
 
 
+def plate_force_nN(lag: Lagrangian, u: npt.NDArray[np.float64], h_um: float) -> float:
+    """F_tot = -∂L/∂h = -(1/2) ∂L/∂z_p at the equilibrium u at gap h (nN)."""
+    return float(-0.5 * lag.evaluate(u, 0.5 * h_um, hessian=False)[2])
+
+
 def solve(shell: Shell) -> Solution:
     """Compressed equilibrium of `shell` (a `solver.model.Shell`): a `Solution`."""
     lag, u, iterations = equilibrium(shell)
     zp = 0.5 * shell.h1_um
-    force = -0.5 * lag.evaluate(u, zp, hessian=False)[2]
+    force = plate_force_nN(lag, u, shell.h1_um)
     if not np.isfinite(force):
         raise SolverError("non-finite plate force")
     r, z, psic, p = lag.nodes(u, zp)

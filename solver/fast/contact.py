@@ -17,7 +17,11 @@ G > 0, the admissible minimum is the label at which the free surface
 touches the plate (the secant of the gap through the last two labels above
 it), and that is the answer. Each new label starts from the last
 equilibrium moved along its tangent dx/dl (kept only if that leaves the
-admissible shapes).
+admissible shapes). With `retreat`, a label at which Newton's method fails
+is not the end: the next label is halfway back to the last one it solved
+(until they are TOL_L apart), so a trust step too long for the iteration
+is shortened instead of failing the search (the continuation of
+`solver.fast.advance` asks for that; a single compression does not).
 
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
 returns a status, which `solver.fast` turns into its errors.
@@ -32,7 +36,7 @@ from solver.fast.newton import CONVERGED, block_solve, newton, nodes, shape_ok
 from solver.jit import njit
 
 LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled on)
-LOG_PSI_MAX = np.log(1.0)    # at most a radian of the free surface on the plate
+LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate (< π/2: the equator stays free)
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 
@@ -93,7 +97,7 @@ def _step(G, k):
 @njit(cache=True)
 def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]], shape: npt.NDArray[np.float64], terms: Terms,
             order: npt.NDArray[np.int64], keep: npt.NDArray[np.int64], N: int, V0: float, force_scale: float, tol: float, maxit: int,
-            newton_maxit: int) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
+            newton_maxit: int, retreat: bool) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
     """The contact search from u at z_p (module docstring): at most `maxit`
     labels, Newton's method at each for at most `newton_maxit` steps; labels
     and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`).
@@ -104,10 +108,15 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     lo, hi, iterations, kc = LOG_PSI_MIN, LOG_PSI_MAX, 0, terms.kc
     touching, t0_l, t0_gap, t0_u, t1_l, t1_gap = 0, 0.0, 0.0, u, 0.0, 0.0
     tangent, G = np.empty(0), 0.0
+    solved, solved_tangent = np.empty(0), np.empty(0)     # the last label solved (`retreat`)
     for _ in range(maxit):
         ref = label_positions(u[-2], labels, shape)
+        tried = u[-2]
         status, u, g, band, lp, it = newton(u, zp, ref, terms, order, N, V0, force_scale, 1e-6, newton_maxit)
         if status != CONVERGED:
+            if retreat and solved.size and abs(tried - solved[-2]) > TOL_L:
+                u = _moved(solved, zp, N, kc, keep, solved_tangent, 0.5 * (tried + solved[-2]))
+                continue
             return status, u, g, iterations, it, lo, hi
         iterations += it
         l, above = u[-2], gap(u, zp, N, kc)
@@ -139,5 +148,6 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             return FOUND, t0_u, g, iterations, 0, lo, hi
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
-        u = _moved(u, zp, N, kc, keep, tangent if above <= 0 else np.empty(0), max(target, LOG_PSI_MIN))
+        solved, solved_tangent = u, tangent if above <= 0 else np.empty(0)
+        u = _moved(u, zp, N, kc, keep, solved_tangent, max(target, LOG_PSI_MIN))
     return NO_CONTACT, u, np.empty(0), iterations, maxit, lo, hi

@@ -39,6 +39,7 @@ from solver.fast.newton import block_solve, nodes
 from solver.model import Shell
 
 BAND = 5    # half-bandwidth of the position block in node order
+SCALE_LEAST = 0.1    # the force scale's length at least this times 1/H_d (a0 -> 0 at the free sphere)
 
 # The Newton matrix (the Hessian of L in the unknowns) in the parts the solve
 # uses: `band`, the position block in LAPACK band storage in node order
@@ -82,8 +83,10 @@ class Lagrangian:
         self.terms = Terms(cten=self.cten, KB=float(self.KB), KS=float(self.KS), B=float(self.B),
                            Hd=float(ref.H), kc=int(self.kc), elem_idx=self.elem_idx,
                            bend_idx=self.bend_idx, slot=self.slot, band=BAND)
-        # natural size of a nodal force: tension times a typical element length
-        self.force_scale = (self.gamma + self.KB + self.KS) * ref.a0 * 0.1
+        # natural size of a nodal force: tension times a typical element length (a tenth
+        # of the contact radius a0, or of SCALE_LEAST / H_d where a0 is smaller: a reference
+        # near the free sphere, whose a0 -> 0 would ask for residuals below round-off)
+        self.force_scale = (self.gamma + self.KB + self.KS) * max(ref.a0, SCALE_LEAST / ref.H) * 0.1
 
     def solve(self, H: NewtonMatrix | npt.NDArray[np.float64], rhs: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Solve the Newton system for the positions and p at fixed l:
