@@ -90,6 +90,13 @@ def _run(*args):
     return time.perf_counter() - t0, proc
 
 
+def _cpu_s():
+    """CPU seconds (user + system) of the finished child processes so far."""
+    import resource
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         exp = Path(tmp) / "experiment.h5"
@@ -99,7 +106,9 @@ def main():
         ramps = np.array([r["tension_mN_per_m"] for r in rows if r["part"] == "approach"])
         pauses = np.array([r["tension_mN_per_m"] for r in rows if r["part"] == "pause"])
         wall_out, proc_out = _run(exp, "--json", "--model", "droplet", "--out", Path(tmp) / "out")
+        cpu0 = _cpu_s()
         shell_wall, shell_proc = _run(exp, "--json")
+        shell_cpu = _cpu_s() - cpu0
         shell = np.array([r["tension_mN_per_m"] for r in json.loads(shell_proc.stdout)["rows"]
                           if r["part"] == "approach"])
     print(json.dumps({"recordings": N, "rows": len(rows), "status": proc.returncode,
@@ -108,6 +117,7 @@ def main():
                       "ramp_max_rel_error": float(np.max(np.abs(ramps / truth - 1))),
                       "pause_max_rel_error": float(np.max(np.abs(pauses / truth - 1))),
                       "target_wall_s": 10.0, "shell_wall_s": round(shell_wall, 3),
+                      "shell_cpu_s": round(shell_cpu, 3),
                       "shell_status": shell_proc.returncode, "shell_target_wall_s": 30.0,
                       "shell_ramp_max_rel_error": float(np.max(np.abs(shell / truth - 1))),
                       "shell_ramp_median_rel_error": float(np.median(np.abs(shell / truth - 1))),

@@ -162,7 +162,7 @@ def _add_tension(s: Commands) -> None:
                         "(default: fitted)")
     t.add_argument("--max-depth-um", type=float, default=None, metavar="D",
                    help="deepest deformation of the fit window, um (default: the deepest reached, at most R; "
-                        "for the shell at most 0.15 R, its table's depth)")
+                        "for the shell at most 0.3 R, its table's depth)")
     t.add_argument("--volume-sd", type=float, default=VOLUME_SD, metavar="REL",
                    help="relative SD of the cell volume in the 95 %% intervals (default %(default)s)")
     t.add_argument("--height-sd", type=float, default=HEIGHT_SD_UM, metavar="UM",

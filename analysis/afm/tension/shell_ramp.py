@@ -9,13 +9,13 @@ deformation δ of its free sphere (δ ≥ 0; 0 above the contact):
 
 with ĝ the droplet's unit force (`solver.droplet_table`: the tension alone,
 exact) and f = F/(K_B R) the table's. e, the elastic stress's share, is 0 at the
-table's first depth D0 (the shell is stress-free there) and grows like
+free sphere (D0 = 0: the shell is stress-free there) and grows like
 (δ/R - D0)²: it is interpolated as q = e / (δ/R - D0)² by cubic splines in
 (δ/R, ln γ̃_a, ln K̃_S, ln R) (scipy RegularGridInterpolator; R for the
 bending's weight, `shell_table`), once per (K̃_S, R) onto the table's
 (δ/R, ln γ̃_a) grid, which a bicubic spline (RectBivariateSpline) then reads at
-every sample: a fit varies γ̃_a at fixed K̃_S and R, taken as 0 above
-D0's depth (δ < D0 R, where the elastic share is below 1e-4 of the tension's).
+every sample (a fit varies γ̃_a at fixed K̃_S and R); e is 0 above the
+contact, and q is held at the table's first depth (δ/R = 0.0013) below it.
 γ̃_a, K̃_S and R are held at the table's edges outside it: a cell stiffer than the
 table (γ̃_a < 0.003) is read with the table's stiffest shape, a softer one
 (γ̃_a > 0.5, nearly tension-only) with its softest; deeper than the table
@@ -78,7 +78,8 @@ class ShellTable:
         d = np.asarray(depth_over_radius, float)
         g = np.clip(np.log(gamma_tilde) if gamma_tilde > 0 else -np.inf, *np.log(self.gammas[[0, -1]]))
         dc = np.clip(d, self.d0, self.max_depth)
-        q = self.slice(shear_tilde, radius_um)(dc.ravel(), np.full(dc.size, g), grid=False).reshape(d.shape)
+        dq = np.clip(dc, self.depths[0], None)
+        q = self.slice(shear_tilde, radius_um)(dq.ravel(), np.full(dq.size, g), grid=False).reshape(d.shape)
         return np.where(d > self.d0, q * (dc - self.d0) ** 2, 0.0)
 
 
@@ -103,9 +104,7 @@ def from_document(doc: dict, where: str = "shell ramp table") -> ShellTable:
         raise InputError(f"{where}: the forces do not fill the table's axes")
     d0 = float(doc["d0"])
     e = f - gammas[None, :, None, None] * unit_force_per_tension(depths)[:, None, None, None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = e / ((depths - d0) ** 2)[:, None, None, None]
-    q[0] = q[1]
+    q = e / ((depths - d0) ** 2)[:, None, None, None]
     spline = RegularGridInterpolator((depths, np.log(gammas), np.log(shears), np.log(radii)), q, method="cubic")
     return ShellTable(d0, depths, gammas, shears, radii, spline, str(doc.get("bending", "standard")))
 
