@@ -19,7 +19,10 @@ and keeps the best.
 
 Errors: σ² = SSE / (n - p) from the residuals, Cov θ = σ² (JᵀJ)⁻¹ (J the
 Jacobian at the optimum); `sd` holds the SDs of γ_a and K_B and `correlation`
-their correlation. `shear_profile` refits at each K̃_S of a grid: Δχ² = ΔSSE/σ²
+their correlation. At the bound K_B = 0 the Jacobian's SDs do not hold (a ramp
+that cannot tell γ_a from K_B often lands there): the fit is redone at
+K_B = γ_a · PROFILE and the SDs widened to the span of the accepted ones
+(`_bound_sds`). `shear_profile` refits at each K̃_S of a grid: Δχ² = ΔSSE/σ²
 against K̃_S says how much one ramp tells about K̃_S. `shell_interval`: the 95 %
 intervals with the volume error.
 """
@@ -39,6 +42,8 @@ from solver.geometry import cell_radius
 SHEAR_TILDE = 1.0 / 3.0          # K_S/K_B of an isotropic sheet with ν = 0.5 (SPEC 2)
 START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
+BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
+PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 
 
@@ -135,6 +140,18 @@ def _errors(sse, jac, n):
     return np.sqrt(sigma2), float(sd[2]), float(sd[3]), float(corr)
 
 
+def _bound_sds(x, f, radius, fixed, p, sse, sigma, sd_g, sd_k):
+    """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold:
+    refits at K_B = γ_a · PROFILE; the K_B whose SSE stays within Z95² σ² of the
+    best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
+    theta, lo_g, hi_g, hi_k = tuple(p), p[2], p[2], 0.0
+    for k in p[2] * PROFILE:
+        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
+        if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
+            lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
+    return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
+
+
 def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fixed: Fixed = Fixed(),
               cap_um: float | None = None, near: "ShellFit | None" = None) -> ShellFit:
     """γ_a and K_B of one approach ramp (module doc); `near` a fit of the same ramp
@@ -152,6 +169,8 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
              for x0, fb, ga, kb in starts]
     p, sse, jac = min(tries, key=lambda t: t[1])
     sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
+    if fixed.bulk_mN_per_m is None and p[3] < BOUND * p[2]:
+        sd_g, sd_k = _bound_sds(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k)
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                     bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
