@@ -62,8 +62,10 @@ def _ramp_axes(ax, plot, radius):
     ax.plot(depth, f - fit.baseline_nN, ".", ms=2, color="0.7", label="data")
     ax.plot(depth[fit.window], f[fit.window] - fit.baseline_nN, ".", ms=2, color="tab:blue", label="fit window")
     d = np.linspace(-fit.depth_um, fit.depth_um, 300)
+    what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
+            else f"T = {fit.tension_mN_per_m:.3g} mN/m")
     ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_nN, color="tab:red",
-            label=f"{fit.model}: T = {fit.tension_mN_per_m:.3g} mN/m, R² = {fit.r2:.4f}")
+            label=f"{fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
         ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_nN, "--", color="tab:green",
                 label=f"{cmp.model}: T = {cmp.tension_mN_per_m:.3g} mN/m, R² = {cmp.r2:.4f}")
