@@ -25,6 +25,12 @@ def test_a_tension_dominated_shell_gives_the_droplet_force():
     assert abs(F[0] / droplet[0] - 1.0) < 0.01
 
 
+def test_a_tension_only_shell_is_the_droplet():
+    R, x = 5.0, np.array([0.01, 0.5])
+    F = ramp_forces_nN(volume(R), x * R, 0.0, 0.0, 1.5, "none")
+    np.testing.assert_allclose(F, 1.5 * force_per_tension_um(volume(R), 2.0 * R - x * R), rtol=1e-12)
+
+
 def test_the_ramp_equals_single_compressions_from_the_sphere():
     R, bulk, shear, gamma = 5.0, 5.0, 0.5, 2.0
     x = np.array([0.02, 0.05, 0.3, 1.0])

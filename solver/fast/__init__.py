@@ -50,7 +50,7 @@ import numpy.typing as npt
 from solver.fast import contact, newton
 from common.errors import SolverError
 from solver.fast.contact import LOG_PSI_MIN
-from solver.fast.lagrangian import Lagrangian, NewtonMatrix
+from solver.fast.lagrangian import SCALE_LEAST, Lagrangian, NewtonMatrix
 from solver.fast.mesh import reference
 from solver.frustum import enclosed_volume, nodal_stretches, surface_area
 from solver.geometry import droplet, meridian
@@ -190,11 +190,13 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
     first plate step (µm, default the largest), `last` the equilibrium before
     u as (gap, unknowns), if any. Returns the unknowns, the Newton iterations,
     the step and `last` to go on with; SolverError if a step halved below
-    CONTINUE_LEAST / H_d still fails."""
+    CONTINUE_LEAST / H_d still fails. Sets lag's force scale at each step
+    (`_follow_scale`)."""
     largest, least = CONTINUE_STEP / lag.ref.H, CONTINUE_LEAST / lag.ref.H
     step, h, iterations = min(step or largest, largest), h_from, 0
     while h > h_to:
         h_next = max(h - step, h_to)
+        _follow_scale(lag, shell, h_next)
         try:
             v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next,
                              retreat=True)
@@ -209,6 +211,15 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
         last, u, h, iterations = (h, u), v, h_next, iterations + it
         step = min(1.5 * step, largest)
     return u, iterations, step, last
+
+
+def _follow_scale(lag, shell, h):
+    """lag's scale of a converged nodal force at gap h: that of `Lagrangian`
+    with the contact radius of the droplet at h in place of a0 where larger
+    (a deep compression from the sphere has round-off in its residual above
+    the scale of its small a0)."""
+    contact_um = max(lag.ref.a0, SCALE_LEAST / lag.ref.H, float(droplet(shell.volume_um3, h).contact_radius_um))
+    lag.force_scale = (lag.gamma + lag.KB + lag.KS) * contact_um * 0.1
 
 
 def _predicted(lag, shell, u, h, h_next, last):
