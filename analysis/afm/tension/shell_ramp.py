@@ -34,7 +34,7 @@ import numpy.typing as npt
 from scipy.interpolate import RectBivariateSpline, RegularGridInterpolator
 
 from common.errors import InputError
-from solver.droplet_table import unit_force_per_tension
+from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 
 SHIPPED_NAME = "shell_ramp_table.json"
 
@@ -88,7 +88,7 @@ def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float,
     """F (nN) of the shell (module doc) at deformations δ (µm; ≤ 0: no contact)."""
     t = shipped() if table is None else table
     d = np.clip(np.asarray(depth_um, float), 0.0, None) / radius_um
-    out = tension_mN_per_m * radius_um * unit_force_per_tension(d)
+    out = tension_mN_per_m * radius_um * unit_force_per_tension(np.minimum(d, DEPTH_MAX))   # as `ramp`
     if bulk_mN_per_m > 0:
         out = out + bulk_mN_per_m * radius_um * t.elastic(d, tension_mN_per_m / bulk_mN_per_m, shear_tilde,
                                                                radius_um)
