@@ -8,7 +8,13 @@ figures). Prints one JSON object; target: the analysis of 100 recordings
 It also prints docs/tension.md's known-truth tables (`depth_table`): ramps of a
 droplet of V = 4300 µm³ and T = 1 mN/m down to h̃ from 0.98 to 0.5 (1000 samples,
 force noise 0.02 nN, height noise 1 nm, 8 seeds), fitted by both models: T / T_true
-(mean, largest error), contact error, R²."""
+(mean, largest error), contact error, R²; and the bias table of an elastic cell
+(`bias_table`): the droplet's apparent tension / γ_a of noise-free shell ramps
+(R = 6.8 µm, γ_a = 0.5 mN/m, K_S/K_B = 1/3, `synth.shell_ramp`) against K_B/γ_a
+and the window's depth.
+
+The 100 recordings are analysed twice: `--model droplet` (target 10 s) and the
+default shell model (`shell_wall_s`, target 30 s)."""
 
 import json
 import subprocess
@@ -22,7 +28,7 @@ import numpy as np
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.formats.instruments import to_cell, wedge_height_um
 from analysis.afm.tension.ramp import fit_ramp
-from analysis.afm.tension.synth import droplet_recording
+from analysis.afm.tension.synth import droplet_recording, shell_ramp
 from solver.geometry import cell_radius
 
 N = 100
@@ -65,6 +71,16 @@ def _depth_table(volume=4300.0, tension=1.0, seeds=8):
     return rows
 
 
+def _bias_table(radius=6.8, tension=0.5, depths=(0.25, 0.5, 0.75, 1.0)):
+    rows = []
+    for ratio in (5, 10, 20, 40, 80):
+        x, f = shell_ramp(radius, tension, ratio * tension, ratio * tension / 3.0, max(depths), noise_nN=0.0)
+        rows.append({"kb_over_gamma": ratio, "droplet_T_over_gamma": {
+            str(d): round(fit_ramp(x, f, radius, "droplet", cap_um=d).tension_mN_per_m / tension, 3)
+            for d in depths}})
+    return rows
+
+
 def _run(*args):
     t0 = time.perf_counter()
     proc = subprocess.run([str(Path(sys.executable).parent / "cortex"), "afm", "tension", *map(str, args)],
@@ -72,21 +88,40 @@ def _run(*args):
     return time.perf_counter() - t0, proc
 
 
+def _cpu_s():
+    """CPU seconds (user + system) of the finished child processes so far."""
+    import resource
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         exp = Path(tmp) / "experiment.h5"
         truth = _experiment(exp)
-        wall, proc = _run(exp, "--json")
+        wall, proc = _run(exp, "--json", "--model", "droplet")
         rows = json.loads(proc.stdout)["rows"]
         ramps = np.array([r["tension_mN_per_m"] for r in rows if r["part"] == "approach"])
         pauses = np.array([r["tension_mN_per_m"] for r in rows if r["part"] == "pause"])
-        wall_out, proc_out = _run(exp, "--json", "--out", Path(tmp) / "out")
+        wall_out, proc_out = _run(exp, "--json", "--model", "droplet", "--out", Path(tmp) / "out")
+        cpu0 = _cpu_s()
+        shell_wall, shell_proc = _run(exp, "--json")
+        shell_cpu = _cpu_s() - cpu0
+        shell_doc = json.loads(shell_proc.stdout)
+        shell = np.array([r["tension_mN_per_m"] / truth[int(r["cell_id"][1:])] - 1.0 for r in shell_doc["rows"]
+                          if r["part"] == "approach"])
     print(json.dumps({"recordings": N, "rows": len(rows), "status": proc.returncode,
                       "wall_s": round(wall, 3), "wall_with_out_s": round(wall_out, 3),
                       "status_with_out": proc_out.returncode,
                       "ramp_max_rel_error": float(np.max(np.abs(ramps / truth - 1))),
                       "pause_max_rel_error": float(np.max(np.abs(pauses / truth - 1))),
-                      "target_wall_s": 10.0, "depth_table": _depth_table()}))
+                      "target_wall_s": 10.0, "shell_wall_s": round(shell_wall, 3),
+                      "shell_cpu_s": round(shell_cpu, 3),
+                      "shell_status": shell_proc.returncode, "shell_target_wall_s": 30.0,
+                      "shell_ramp_max_rel_error": float(np.max(np.abs(shell))),
+                      "shell_ramp_median_rel_error": float(np.median(np.abs(shell))),
+                      "shell_not_analysed": shell_doc["not_analysed"],
+                      "bias_table": _bias_table(), "depth_table": _depth_table()}))
 
 
 if __name__ == "__main__":

@@ -6,4 +6,5 @@ them (`solver.model`, `solver.compression`, `analysis.invert.table`,
 BENDINGS = ("standard", "double", "none")             # bending variants of the shell (SPEC 2)
 SOLVERS = ("fast", "explicit")                       # shell solvers (`--solver`, `[solver] method`)
 INVERSION_METHODS = ("emulator", "law")              # forward models of the per-cell inversion
-RAMP_MODELS = ("droplet", "small-deformation")       # force-ramp models of the tension fit
+TENSION_ONLY_RAMP_MODELS = ("droplet", "small-deformation")       # ramp models of a tension-only cell
+RAMP_MODELS = ("shell",) + TENSION_ONLY_RAMP_MODELS     # force-ramp models of the tension fit (shell: SPEC 2)

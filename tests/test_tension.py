@@ -115,7 +115,7 @@ def test_a_recording_pause_height_from_the_contact_point(h_tilde):
                             seed=2)
     parts = [(i, s.kind, s.time_s, s.force_nN, wedge_height_um(s, rec.spring_constant_N_per_m) + 30.0)
              for i, s in enumerate(rec.segments)]
-    done = analyse(Trace("c", "synthetic", volume, "known", parts, dish_known=False), Options())
+    done = analyse(Trace("c", "synthetic", volume, "known", parts, dish_known=False), Options(model="droplet"))
     ramp, pause = done.rows
     assert (ramp["part"], pause["part"]) == ("approach", "pause")
     assert pause["height_reference"] == "contact point"

@@ -41,7 +41,8 @@ def test_jpk_archives_give_back_the_tensions(tmp_path, capsys):
     for cid, t in truth.items():
         write_force(tmp_path / f"{cid}.jpk-force", _cell(cid, t), dish_um=20.0)
     out = tmp_path / "out"
-    status, doc = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volume", VOLUME, "--out", out)
+    status, doc = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volume", VOLUME, "--out", out,
+                        "--model", "droplet")
     assert status == 0 and doc["not_analysed"] == {}
     for row in doc["rows"]:
         assert row["tension_mN_per_m"] == pytest.approx(truth[row["cell_id"]], rel=0.01)
@@ -54,12 +55,14 @@ def test_jpk_archives_give_back_the_tensions(tmp_path, capsys):
     table = pd.read_csv(out / "tension.csv")
     assert "pressure_Pa" in table and "tension_mN_per_m" in table and len(table) == 4
     # the same recordings with the dish given: the pause heights are the recorded gaps
-    status, dish = _json(capsys, tmp_path / "a.jpk-force", "--volume", VOLUME, "--dish-height-um", 20.0)
+    status, dish = _json(capsys, tmp_path / "a.jpk-force", "--volume", VOLUME, "--dish-height-um", 20.0,
+                         "--model", "droplet")
     pause = next(r for r in dish["rows"] if r["part"] == "pause")
     assert pause["height_reference"] == "dish" and pause["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
     # volumes from a table (a wrong one for b: its tension comes out otherwise)
     (tmp_path / "v.csv").write_text(f"cell_id,volume_um3\na,{VOLUME}\nb,{2 * VOLUME}\n")
-    status, table = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volumes", tmp_path / "v.csv")
+    status, table = _json(capsys, tmp_path / "a.jpk-force", tmp_path / "b.jpk-force", "--volumes", tmp_path / "v.csv",
+                          "--model", "droplet")
     by = {(r["cell_id"], r["part"]): r for r in table["rows"]}
     assert by["a", "approach"]["tension_mN_per_m"] == pytest.approx(0.5, rel=0.01)
     assert by["b", "approach"]["volume_um3"] == 2 * VOLUME
@@ -97,6 +100,8 @@ def test_bad_input_is_one_line_and_exit_2_with_nothing_written(tmp_path, capsys)
     write_force(tmp_path / "ok.jpk-force", _cell("ok", 1.0))
     assert "no volume" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force")
     assert "--radius-um" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force", "--radius-um", -3)
+    for option in ("--shear-ratio", "--bulk-mN-per-m", "--max-depth-um"):
+        assert option in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force", "--volume", VOLUME, option, 0)
     assert "apply to instrument files only" in _bad(tmp_path, capsys, flat, "--volume", VOLUME)
     assert "no such file" in _bad(tmp_path, capsys, tmp_path / "missing.txt", "--volume", VOLUME)
 
@@ -159,6 +164,9 @@ def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
     assert status == 0 and doc["not_analysed"] == {}
     binary, text = doc["rows"]
     assert binary["part"] == text["part"] == "approach" and binary["r2"] > 0.95 and text["r2"] > 0.95
-    assert text["tension_mN_per_m"] == pytest.approx(binary["tension_mN_per_m"], rel=0.02)
+    assert text["droplet_tension_mN_per_m"] == pytest.approx(binary["droplet_tension_mN_per_m"], rel=0.02)
+    for row in (binary, text):         # the shell's γ_a at most the droplet's apparent T (docs/tension.md)
+        assert row["model"] == "shell" and row["tension_mN_per_m"] <= 1.01 * row["droplet_tension_mN_per_m"]
+        assert row["tension_lo95_mN_per_m"] < row["tension_mN_per_m"] < row["tension_hi95_mN_per_m"]
     assert text["depth_um"] == pytest.approx(binary["depth_um"], abs=0.05)
     assert text["compare_tension_mN_per_m"] == pytest.approx(binary["compare_tension_mN_per_m"], rel=0.03)

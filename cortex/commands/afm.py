@@ -139,7 +139,8 @@ def _add_analyze(s: Commands) -> None:
 def _add_tension(s: Commands) -> None:
     t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
-                                 "ramp onto the free cell fitted by the exact droplet model and by the "
+                                 "ramp onto the free cell fitted by the elastic shell pressed from its free "
+                                 "sphere (active tension and bulk modulus), by the exact droplet model and by the "
                                  "small-deformation formula (contact point, T, R², the automatic fit window), "
                                  "each pause from its relaxed force (its relaxation fitted, exponential or "
                                  "power law, and extrapolated; too short a pause flagged; the last half's mean "
@@ -150,8 +151,18 @@ def _add_tension(s: Commands) -> None:
                    help="instrument files (JPK, Bruker NanoScope and their text exports) or folders of them, "
                         "experiments (.h5) or single-cell CSV files")
     _import_options(t, free_radius=True, dish_default="the first ramp's contact point less 2R")
-    t.add_argument("--model", choices=RAMP_MODELS, default="droplet", metavar="MODEL",
-                   help="ramp model, %(choices)s (default droplet; the other is fitted for comparison)")
+    t.add_argument("--model", choices=RAMP_MODELS, default="shell", metavar="MODEL",
+                   help="ramp model, %(choices)s (default shell: the active tension and bulk modulus of an elastic "
+                        "cortex; the droplet and small-deformation apparent tensions beside it)")
+    t.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, metavar="KS_OVER_KB",
+                   help="K_S/K_B of the shell model (default 1/3: Poisson ratio 0.5); from the same cell's "
+                        "oscillations where known")
+    t.add_argument("--bulk-mN-per-m", type=float, default=None, metavar="KB",
+                   help="the shell's area bulk modulus K_B in mN/m when known from the same cell's oscillations "
+                        "(default: fitted)")
+    t.add_argument("--max-depth-um", type=float, default=None, metavar="D",
+                   help="deepest deformation of the fit window, um (default: the deepest reached, at most R; "
+                        "for the shell at most 0.3 R, its table's depth)")
     add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
@@ -329,7 +340,8 @@ def tension(args: argparse.Namespace) -> int:
     from analysis.afm.tension.pause import DRAWS
     from analysis.afm.tension.pipeline import Options, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    options = Options(model=args.model, import_options=import_options(args, contact_heights=True),
+    options = Options(model=args.model, shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
+                      max_depth_um=args.max_depth_um, import_options=import_options(args, contact_heights=True),
                       errors=measurement_errors(args, DRAWS))
     result = run(args.files, options, args.out)
     if args.json:
@@ -357,6 +369,10 @@ def _tension_line(r: dict[str, Any]) -> str:
             f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
             f"h {r['height_um']:.4g} um")
     if r["part"] == "approach":
+        if r["model"] == "shell":
+            text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "
+                     f"{r['bulk_modulus_hi95_mN_per_m']:.3g}], droplet T {r['droplet_tension_mN_per_m']:.4g}, "
+                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m")
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     elif r["part"] == "pause":

@@ -7,9 +7,14 @@ read     every FILE on its own by the one reader, `formats.open`: an experiment
          the contact point, `ImportOptions.contact_heights`), each recording with
          its volume (`--volume`, `--volumes` or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
-         fitted (`ramp`: the selected model and, for comparison, the other
-         one, each on its own automatic window; the interval from the volume
-         error, `pause.ramp_interval`), every pause's tension and pressure
+         fitted by the selected model: `shell` (`shell_fit`: γ_a and K_B of the
+         elastic cortex, window capped at the shell table's depth and
+         `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
+         tensions of the droplet and small-deformation readings on the same
+         window beside it; each model against the window's depth, `depths`),
+         or a tension-only one (`ramp`, with the other for comparison, each on
+         its own automatic window; the interval from the volume error,
+         `pause.ramp_interval`), every pause's tension and pressure
          (`pause.pause_tension`) from its relaxed force (`relaxation`; the
          last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
@@ -37,20 +42,27 @@ import numpy as np
 from analysis.afm.cell import Cell
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
+from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
+from analysis.afm.tension.shell_fit import Fixed, fit_shell, shell_interval
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.errors import InputError
+from common.names import RAMP_MODELS
 from solver.geometry import cell_radius
 
 @dataclass(frozen=True)
 class Options:
-    """What to analyse with: the ramp model, how to read the files (one of the volume sources,
-    the dish reference; heights refer to the approach's contact point without one), the errors."""
+    """What to analyse with: the ramp model (and for the shell: K̃_S, K_B if known, the deepest
+    deformation), how to read the files (one of the volume sources, the dish reference; heights
+    refer to the approach's contact point without one), the errors."""
 
-    model: str = "droplet"
+    model: str = "shell"
+    shear_tilde: float = Fixed().shear_tilde
+    bulk_mN_per_m: float | None = None
+    max_depth_um: float | None = None
     import_options: ImportOptions = ImportOptions(contact_heights=True)
     errors: MeasurementErrors = TENSION_ERRORS
 
@@ -78,8 +90,12 @@ def _trace(cell: Cell) -> Trace:
 def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
     """(traces, {file or cell: reason}) of FILES, each read on its own by `formats.open`;
     InputError for bad options (the volume table and the dish curve are read first)."""
-    if options.model not in MODELS:
-        raise InputError(f"--model {options.model!r}: not one of {', '.join(MODELS)}")
+    if options.model not in RAMP_MODELS:
+        raise InputError(f"--model {options.model!r}: not one of {', '.join(RAMP_MODELS)}")
+    for name, value in (("--shear-ratio", options.shear_tilde), ("--bulk-mN-per-m", options.bulk_mN_per_m),
+                        ("--max-depth-um", options.max_depth_um)):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a positive number (got {value})")
     reading = options.import_options.check()
     if reading.volumes_csv is not None:
         from analysis.afm.formats.instruments import read_volumes
@@ -101,13 +117,60 @@ def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], di
     return traces, skipped
 
 
+def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: float | None) -> float:
+    """The apparent tension of a tension-only `model` on deformations up to `cap` (NaN if it fails)."""
+    try:
+        return fit_ramp(x, f, radius, model, cap_um=cap).tension_mN_per_m
+    except InputError:
+        return float("nan")
+
+
+def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
+               ) -> tuple[dict[str, Any], tuple[Any, ...]]:
+    """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same window)."""
+    fixed = Fixed(options.shear_tilde, options.bulk_mN_per_m)
+    fit = fit_shell(x, f, radius, fixed, cap_um=options.max_depth_um)
+    t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
+    rows = depth_rows(x, f, radius, fit, fixed)
+    try:
+        cmp = fit_ramp(x, f, radius, "droplet", cap_um=fit.depth_um)
+    except InputError:
+        cmp = None
+    g = fit.tension_mN_per_m
+    row = {"part": "approach", "segment": index, "model": "shell", "tension_mN_per_m": g,
+           "tension_lo95_mN_per_m": t_lo, "tension_hi95_mN_per_m": t_hi,
+           "pressure_Pa": float(pressure_Pa(g, 1.0 / radius)), "pressure_lo95_Pa": float(pressure_Pa(t_lo, 1.0 / radius)),
+           "pressure_hi95_Pa": float(pressure_Pa(t_hi, 1.0 / radius)),
+           "bulk_modulus_mN_per_m": fit.bulk_mN_per_m, "bulk_modulus_lo95_mN_per_m": k_lo,
+           "bulk_modulus_hi95_mN_per_m": k_hi, "shear_ratio": fit.shear_tilde,
+           "tension_bulk_correlation": fit.correlation,
+           "droplet_tension_mN_per_m": rows[-1].droplet_tension_mN_per_m,
+           "small_deformation_tension_mN_per_m": rows[-1].small_deformation_tension_mN_per_m,
+           "depth_flag": depth_flag(rows),
+           "force_nN": float(fit.force_nN(fit.contact_um - fit.depth_um, radius)) - fit.baseline_nN,
+           **_window(fit, radius), "compare_model": "droplet",
+           "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
+           "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
+    return row, ("approach", index, x, f, fit, cmp, rows)
+
+
+def _window(fit: Any, radius: float) -> dict[str, Any]:
+    """The row's columns of a fit's window and contact."""
+    return {"height_um": 2.0 * radius - fit.depth_um, "h_tilde": 1.0 - fit.depth_um / (2.0 * radius),
+            "height_reference": "contact point", "contact_um": fit.contact_um, "baseline_nN": fit.baseline_nN,
+            "depth_um": fit.depth_um, "window_lo_um": fit.window_lo_um, "window_hi_um": fit.window_hi_um,
+            "window_samples": int(fit.window.sum()), "r2": fit.r2}
+
+
 def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
               ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp (the selected model, the other for comparison)."""
-    fit = fit_ramp(x, f, radius, options.model)
+    if options.model == "shell":
+        return _shell_row(trace, index, x, f, options, radius)
+    fit = fit_ramp(x, f, radius, options.model, cap_um=options.max_depth_um)
     other = next(m for m in MODELS if m != options.model)
     try:
-        cmp = fit_ramp(x, f, radius, other)
+        cmp = fit_ramp(x, f, radius, other, cap_um=options.max_depth_um)
     except InputError:
         cmp = None
     t_lo, t_hi, p_lo, p_hi = ramp_interval(fit, x, f, trace.volume_um3, options.errors)
@@ -115,14 +178,13 @@ def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: O
            "tension_lo95_mN_per_m": t_lo, "tension_hi95_mN_per_m": t_hi,
            "pressure_Pa": float(pressure_Pa(fit.tension_mN_per_m, 1.0 / radius)),
            "pressure_lo95_Pa": p_lo, "pressure_hi95_Pa": p_hi,
+           "droplet_tension_mN_per_m": _apparent(x, f, radius, "droplet", fit.depth_um),
+           "small_deformation_tension_mN_per_m": _apparent(x, f, radius, "small-deformation", fit.depth_um),
            "force_nN": fit.tension_mN_per_m * float(force_per_tension_um(fit.model, fit.depth_um, radius)),
-           "height_um": 2.0 * radius - fit.depth_um, "h_tilde": 1.0 - fit.depth_um / (2.0 * radius),
-           "height_reference": "contact point", "contact_um": fit.contact_um, "baseline_nN": fit.baseline_nN,
-           "depth_um": fit.depth_um, "window_lo_um": fit.window_lo_um, "window_hi_um": fit.window_hi_um,
-           "window_samples": int(fit.window.sum()), "r2": fit.r2, "compare_model": other,
+           **_window(fit, radius), "compare_model": other,
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
-    return row, ("approach", index, x, f, fit, cmp)
+    return row, ("approach", index, x, f, fit, cmp, None)
 
 
 def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.ndarray,
@@ -156,7 +218,7 @@ def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.nda
            "h_tilde": p_half.h_tilde, "height_reference": ref, "contact_um": contact, "baseline_nN": base,
            **relaxation_columns(relax), "last_half_force_nN": half,
            "last_half_tension_mN_per_m": p_half.tension_mN_per_m}
-    return row, ("pause", index, t, f - base, half, relax)
+    return row, ("pause", index, t, f - base, half, relax, None)
 
 
 def analyse(trace: Trace, options: Options) -> Analysed:

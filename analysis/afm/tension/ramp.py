@@ -42,9 +42,9 @@ from scipy.optimize import minimize_scalar
 
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 from common.errors import InputError
-from common.names import RAMP_MODELS
+from common.names import TENSION_ONLY_RAMP_MODELS
 
-MODELS = RAMP_MODELS
+MODELS = TENSION_ONLY_RAMP_MODELS
 GRID = 41
 ROUNDS = 8
 BASELINE_FRACTION = 0.3

@@ -2,10 +2,12 @@
 `COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
-and the comparison model; each pause's force over time with its fitted
+and the comparison model; for the shell model a panel of each model's tension
+against the window's depth (`depths`); each pause's force over time with its fitted
 relaxation, the relaxed force F_∞ and the mean of its last half) and report.md
-(the table in short, the window rule, each pause's relaxation and flag, what was
-not analysed)."""
+(the table in short, the window rule, the tensions against depth with the recordings
+whose active tension moves with it, each pause's relaxation and flag, what was not
+analysed)."""
 
 import re
 from collections.abc import Iterable
@@ -25,7 +27,9 @@ if TYPE_CHECKING:
 
 TABLE, REPORT = "tension.csv", "report.md"
 COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
-           "tension_hi95_mN_per_m", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
+           "tension_hi95_mN_per_m", "bulk_modulus_mN_per_m", "bulk_modulus_lo95_mN_per_m",
+           "bulk_modulus_hi95_mN_per_m", "shear_ratio", "tension_bulk_correlation", "droplet_tension_mN_per_m",
+           "small_deformation_tension_mN_per_m", "depth_flag", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
@@ -59,13 +63,15 @@ def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
 
 
 def _ramp_axes(ax, plot, radius):
-    _, index, x, f, fit, cmp = plot
+    _, index, x, f, fit, cmp, _ = plot
     depth = fit.contact_um - x
     ax.plot(depth, f - fit.baseline_nN, ".", ms=2, color="0.7", label="data")
     ax.plot(depth[fit.window], f[fit.window] - fit.baseline_nN, ".", ms=2, color="tab:blue", label="fit window")
     d = np.linspace(-fit.depth_um, fit.depth_um, 300)
+    what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
+            else f"T = {fit.tension_mN_per_m:.3g} mN/m")
     ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_nN, color="tab:red",
-            label=f"{fit.model}: T = {fit.tension_mN_per_m:.3g} mN/m, R² = {fit.r2:.4f}")
+            label=f"{fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
         ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_nN, "--", color="tab:green",
                 label=f"{cmp.model}: T = {cmp.tension_mN_per_m:.3g} mN/m, R² = {cmp.r2:.4f}")
@@ -78,8 +84,25 @@ def _ramp_axes(ax, plot, radius):
     ax.legend(fontsize=7, loc="upper left")
 
 
+def _depth_axes(ax, plot):
+    """Each model's tension against the window's depth (the shell's with its 95 % bar)."""
+    _, index, _, _, fit, _, rows = plot
+    d = np.array([r.depth_um for r in rows])
+    g = np.array([r.tension_mN_per_m for r in rows])
+    ax.errorbar(d, g, yerr=1.96 * np.array([r.tension_sd_mN_per_m for r in rows]), fmt="o-", color="tab:red",
+                label="shell: active tension γ_a")
+    ax.plot(d, [r.droplet_tension_mN_per_m for r in rows], "s--", color="tab:green", label="droplet (apparent)")
+    ax.plot(d, [r.small_deformation_tension_mN_per_m for r in rows], "^:", color="tab:purple",
+            label="small-deformation (apparent)")
+    ax.set_xlabel("window depth (um)")
+    ax.set_ylabel("tension (mN/m)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(f"tension against depth (segment {index})")
+    ax.legend(fontsize=7, loc="upper left")
+
+
 def _pause_axes(ax, plot):
-    _, index, t, f, half, relax = plot
+    _, index, t, f, half, relax, _ = plot
     ax.plot(t, f, ".", ms=2, color="tab:blue")
     if relax.model != NONE:
         ax.plot(t, relax.force_nN(t - t[0]), color="tab:green", label=f"{relax.model}: {relax.time_s:.3g} s")
@@ -96,11 +119,17 @@ def _pause_axes(ax, plot):
 def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
     """One recording's figure: a panel per analysed part."""
     from matplotlib.figure import Figure      # no pyplot: no figure manager to make and close
-    n = len(analysed.plots)
+    panels = [(p, "part") for p in analysed.plots] + [(p, "depth") for p in analysed.plots if p[6] is not None]
+    n = len(panels)
     fig = Figure(figsize=(4.6 * n, 3.6))
     axes = fig.subplots(1, n, squeeze=False)
-    for ax, plot in zip(axes[0], analysed.plots):
-        _ramp_axes(ax, plot, analysed.radius_um) if plot[0] == "approach" else _pause_axes(ax, plot)
+    for ax, (plot, what) in zip(axes[0], panels):
+        if what == "depth":
+            _depth_axes(ax, plot)
+        elif plot[0] == "approach":
+            _ramp_axes(ax, plot, analysed.radius_um)
+        else:
+            _pause_axes(ax, plot)
     fig.suptitle(cell_id, fontsize=9)
     fig.subplots_adjust(left=0.14 / n ** 0.8, right=0.98, bottom=0.15, top=0.84, wspace=0.3)
     fig.savefig(path, dpi=80)
@@ -136,11 +165,33 @@ def _pause_lines(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
+def depth_lines(done: dict[str, Analysed]) -> list[str]:
+    """report.md's section of each shell-fitted ramp's tensions against the window's depth."""
+    lines: list[str] = []
+    for cell_id, analysed in done.items():
+        for plot in analysed.plots:
+            if plot[0] != "approach" or plot[6] is None:
+                continue
+            lines += ["", f"### {cell_id}, approach {plot[1]}: tension (mN/m) against the window's depth", "",
+                      "| depth (um) | shell γ_a | 95 % | K_B (mN/m) | droplet T | small-deformation T |",
+                      "|---|---|---|---|---|---|"]
+            for r in plot[6]:
+                h = 1.96 * r.tension_sd_mN_per_m
+                lines.append(f"| {r.depth_um:.3g} | {r.tension_mN_per_m:.4g} | ±{h:.2g} | {r.bulk_mN_per_m:.4g} | "
+                             f"{r.droplet_tension_mN_per_m:.4g} | {r.small_deformation_tension_mN_per_m:.4g} |")
+            flag = next((r["depth_flag"] for r in analysed.rows
+                         if r["part"] == "approach" and r["segment"] == plot[1]), "")
+            lines += ["", f"**Flagged**: {flag}." if flag else "The active tension holds across the windows."]
+    return (["", "## Tension against the window's depth"] + lines) if lines else []
+
+
 def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, errors: MeasurementErrors,
-             figures: list[Path]) -> str:
+             figures: list[Path], done: dict[str, Analysed] | None = None) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
-             f"Ramp model: **{model}** (the other model for comparison). Volume errors: relative SD "
+             f"Ramp model: **{model}** (shell: the active tension γ_a and bulk modulus K_B of the elastic "
+             "cortex, with the droplet's apparent tension for comparison; droplet or small-deformation: the "
+             "other for comparison). Volume errors: relative SD "
              f"{errors.volume_rel_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
              "Fit window: deformations up to the deepest one reached (at most R), and as much baseline above "
              "the contact; see docs/tension.md.", "",
@@ -153,6 +204,7 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
                      f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
                      f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
     lines += _pause_lines(rows)
+    lines += depth_lines(done or {})
     lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]
     if skipped:
         lines += ["## Not analysed", ""] + [f"- {k}: {v}" for k, v in skipped.items()] + [""]
@@ -169,7 +221,7 @@ def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analy
         with folder.writing(names[cell_id]) as path:
             figure(path, cell_id, analysed)
         figures.append(path)
-    text = markdown(rows, skipped, model, errors, figures)
+    text = markdown(rows, skipped, model, errors, figures, done)
     with folder.writing(REPORT) as report:
         report.write_text(text)
     return table, report

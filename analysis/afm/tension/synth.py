@@ -67,3 +67,24 @@ def droplet_recording(volume_um3: float, tension_mN_per_m: float, depth_um: floa
         t0 += segs[-1].duration_s
     return Recording(cell_id=cell_id, spring_constant_N_per_m=spring_N_per_m, segments=segs,
                      source=f"synthetic droplet V={volume_um3:g} um^3, T={tension_mN_per_m:g} mN/m")
+
+
+def shell_ramp(radius_um: float, tension_mN_per_m: float, bulk_mN_per_m: float, shear_mN_per_m: float,
+               depth_um: float, *, n: int = 2000, solved: int = 45, noise_nN: float = 0.02,
+               baseline_nN: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(x, F) of an approach ramp onto an elastic cell (SPEC 2: the shell stress-free
+    as its free sphere) with x = 2R - δ (the dish at 0), δ evenly from -`depth_um`
+    to `depth_um` over n samples, plus white noise of SD `noise_nN`. The force is
+    solved (`solver.ramp.ramp_forces_nN`, one continuation) at `solved` depths
+    evenly to `depth_um` and read between them by a cubic spline in δ through
+    F(0) = 0."""
+    from scipy.interpolate import CubicSpline
+
+    from solver.ramp import ramp_forces_nN
+    knots = np.linspace(0.0, depth_um, solved + 1)
+    solved_nN = ramp_forces_nN(4.0 * np.pi * radius_um ** 3 / 3.0, knots[1:], bulk_mN_per_m, shear_mN_per_m,
+                               tension_mN_per_m)
+    delta = np.linspace(-depth_um, depth_um, n)
+    force = np.where(delta > 0, CubicSpline(knots, np.r_[0.0, solved_nN])(np.clip(delta, 0.0, None)), 0.0)
+    rng = np.random.default_rng(seed)
+    return 2.0 * radius_um - delta, baseline_nN + force + noise_nN * rng.standard_normal(n)

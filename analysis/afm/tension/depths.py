@@ -1,0 +1,74 @@
+"""Each ramp model's tension against the depth of the fit window (nested windows),
+and whether the active tension still moves with it.
+
+For window depths D_j = FRACTIONS_j · D (D the full window's deepest deformation)
+every model is fitted again on deformations up to D_j: the shell (`shell_fit`:
+γ_a, K_B, started from the full window's fit) and the two tension-only readings (`ramp.fit_ramp`: their apparent
+tension T). A model that describes the ramp gives the same γ_a at every depth;
+the tension-only readings of an elastic cell climb with D (the elastic stress
+grows like δ²). The recording is flagged when a shallower window's γ_a differs
+from the full window's by more than Z95 · sqrt(sd_j² + sd²) (their statistical
+SDs; the volume error moves every window alike and is left out).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from analysis.afm.tension.pause import Z95
+from analysis.afm.tension.ramp import fit_ramp
+from analysis.afm.tension.shell_fit import Fixed, ShellFit, fit_shell
+from common.errors import InputError
+
+FRACTIONS = (0.4, 0.6, 0.8, 1.0)
+
+
+@dataclass(frozen=True)
+class DepthRow:
+    """One window: its depth (µm), the shell's γ_a, its SD and K_B, and the apparent
+    tensions of the droplet and small-deformation readings (mN/m; NaN where a fit failed)."""
+
+    depth_um: float
+    tension_mN_per_m: float
+    tension_sd_mN_per_m: float
+    bulk_mN_per_m: float
+    droplet_tension_mN_per_m: float
+    small_deformation_tension_mN_per_m: float
+
+
+def _apparent(x, f, radius, model, cap):
+    try:
+        return fit_ramp(x, f, radius, model, cap_um=cap).tension_mN_per_m
+    except InputError:
+        return float("nan")
+
+
+def depth_rows(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fit: ShellFit,
+               fixed: Fixed) -> list[DepthRow]:
+    """The nested windows of `fit` (module doc), the full one (the fit itself) last."""
+    rows = []
+    for frac in FRACTIONS:
+        cap = frac * fit.depth_um
+        try:
+            s = fit if frac == 1.0 else fit_shell(x_um, force_nN, radius_um, fixed, cap_um=cap, near=fit)
+            g, sd, k = s.tension_mN_per_m, s.tension_sd_mN_per_m, s.bulk_mN_per_m
+        except InputError:
+            g = sd = k = float("nan")
+        rows.append(DepthRow(cap, g, sd, k, _apparent(x_um, force_nN, radius_um, "droplet", cap),
+                             _apparent(x_um, force_nN, radius_um, "small-deformation", cap)))
+    return rows
+
+
+def depth_flag(rows: list[DepthRow]) -> str:
+    """Why the active tension moves with the window's depth ('' when it does not)."""
+    full = rows[-1]
+    moved = [r for r in rows[:-1] if np.isfinite(r.tension_mN_per_m) and abs(r.tension_mN_per_m - full.tension_mN_per_m)
+             > Z95 * np.hypot(r.tension_sd_mN_per_m, full.tension_sd_mN_per_m)]
+    if not moved:
+        return ""
+    worst = max(moved, key=lambda r: abs(r.tension_mN_per_m - full.tension_mN_per_m))
+    return (f"active tension moves with the window's depth: {worst.tension_mN_per_m:.3g} mN/m to "
+            f"{worst.depth_um:.2g} um against {full.tension_mN_per_m:.3g} mN/m to {full.depth_um:.2g} um, beyond "
+            "their 95 % intervals (the shell with this K_S/K_B does not describe the ramp: relaxation during the "
+            "ramp, a cell that is not a free sphere, or a different K_S/K_B)")

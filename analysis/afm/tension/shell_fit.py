@@ -1,0 +1,219 @@
+"""The active tension γ_a and bulk modulus K_B of one approach ramp by the shell
+model (`shell_ramp`: the cortex of SPEC 2 pressed from its free sphere).
+
+The model of the window's samples (x_i, F_i), δ_i = max(x0 - x_i, 0):
+
+    F_i = F_b + F_shell(δ_i; R, γ_a, K_B, K̃_S),
+
+fitted by least squares in θ = (x0, F_b, γ_a, K_B) (scipy least_squares, γ_a > 0,
+K_B ≥ 0: K_B = 0 is the tension-only droplet), K̃_S fixed (`Fixed.shear_tilde`,
+default 1/3: ν = 0.5, SPEC 2), and K_B too where a lab knows it from the same
+cell's oscillations (`Fixed.bulk_mN_per_m`).
+
+Window: the droplet fit's (`ramp.fit_ramp`) with its depth capped at the
+table's deepest δ/R (and at `cap_um`); its contact and baseline start the fit.
+Starts: for each γ̃_a of a log grid (and K_B = 0) the model is linear in
+(F_b, K_B) at a given contact, which a Brent search finds near the droplet's;
+the fit runs from each local minimum of their SSE over γ̃_a (at most STARTS)
+and keeps the best.
+
+Errors: σ² = SSE / (n - p) from the residuals, Cov θ = σ² (JᵀJ)⁻¹ (J the
+Jacobian at the optimum); `sd` holds the SDs of γ_a and K_B and `correlation`
+their correlation. At the bound K_B = 0 the Jacobian's SDs do not hold (a ramp
+that cannot tell γ_a from K_B often lands there): the fit is redone at
+K_B = γ_a · PROFILE and the SDs widened to the span of the accepted ones
+(`_bound_sds`). `shear_profile` refits at each K̃_S of a grid: Δχ² = ΔSSE/σ²
+against K̃_S says how much one ramp tells about K̃_S. `shell_interval`: the 95 %
+intervals with the volume error.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import least_squares, minimize_scalar
+
+from analysis.afm.tension import shell_ramp
+from analysis.afm.tension.pause import TENSION_ERRORS, Z95
+from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.afm.tension.ramp import fit_ramp
+from common.errors import InputError
+from solver.geometry import cell_radius
+
+SHEAR_TILDE = 1.0 / 3.0          # K_S/K_B of an isotropic sheet with ν = 0.5 (SPEC 2)
+START_GAMMAS = np.geomspace(0.002, 1.0, 13)
+STARTS = 3
+BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
+PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
+SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
+
+
+@dataclass(frozen=True)
+class Fixed:
+    """What the fit does not fit: K̃_S, and K_B (mN/m) when known (None: fitted)."""
+
+    shear_tilde: float = SHEAR_TILDE
+    bulk_mN_per_m: float | None = None
+
+
+@dataclass(frozen=True)
+class ShellFit:
+    """The fitted shell: γ_a, K_B (mN/m) with their SDs and correlation, contact x0
+    (µm), baseline F_b (nN), R² and noise SD (nN) on the window (the droplet fit's,
+    `window`), the deepest deformation in it (µm), K̃_S used."""
+
+    tension_mN_per_m: float
+    bulk_mN_per_m: float
+    tension_sd_mN_per_m: float
+    bulk_sd_mN_per_m: float
+    correlation: float
+    contact_um: float
+    baseline_nN: float
+    r2: float
+    noise_nN: float
+    window_lo_um: float
+    window_hi_um: float
+    window: npt.NDArray[np.bool_]
+    depth_um: float
+    shear_tilde: float
+    model: str = "shell"
+
+    def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
+        """The fitted force at wedge heights x (µm)."""
+        return self.baseline_nN + shell_ramp.force_nN(self.contact_um - np.asarray(x_um, float), radius_um,
+                                                      self.tension_mN_per_m, self.bulk_mN_per_m, self.shear_tilde)
+
+
+def _linear(x, f, x0, radius, shear, gt):
+    """(SSE, F_b, γ_a, K_B) of the fit linear in (F_b, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0)."""
+    b = shell_ramp.force_nN(np.clip(x0 - x, 0.0, None), radius, 1.0, 0.0 if np.isinf(gt) else 1.0 / gt, shear)
+    a = np.stack([np.ones_like(b), b], axis=1)
+    coef, *_ = np.linalg.lstsq(a, f, rcond=None)
+    sse = float(np.sum((f - a @ coef) ** 2)) if coef[1] > 0 else np.inf
+    return sse, float(coef[0]), float(coef[1]), 0.0 if np.isinf(gt) else float(coef[1] / gt)
+
+
+def _starts(x, f, x0, span, radius, shear):
+    """[(x0, F_b, γ_a, K_B)]: for each γ̃_a of START_GAMMAS and K_B = 0 the best contact
+    within `span` of x0 (Brent; the rest linear), the local minima of their SSE
+    over γ̃_a, best first, at most STARTS."""
+    found = []
+    for gt in np.append(START_GAMMAS, np.inf):
+        res = minimize_scalar(lambda c: _linear(x, f, c, radius, shear, gt)[0], bounds=(x0 - span, x0 + span),
+                              method="bounded", options={"xatol": 1e-3 * span})
+        found.append((float(res.x),) + _linear(x, f, float(res.x), radius, shear, gt))
+    sse = np.array([s[1] for s in found])
+    if not np.any(np.isfinite(sse)):
+        raise InputError("approach ramp: no rise the shell model can fit")
+    padded = np.concatenate([[np.inf], sse, [np.inf]])
+    minima = [i for i in range(sse.size) if np.isfinite(sse[i]) and sse[i] <= padded[i] and sse[i] <= padded[i + 2]]
+    return [(found[i][0],) + found[i][2:] for i in sorted(minima, key=lambda i: sse[i])[:STARTS]]
+
+
+def _solve(x, f, radius, fixed, theta0):
+    """least_squares from θ0 = (x0, F_b, γ_a, K_B); K_B fixed when `fixed` says so."""
+    free_k = fixed.bulk_mN_per_m is None
+    kb = fixed.bulk_mN_per_m
+
+    def model(p):
+        k = p[3] if free_k else kb
+        return p[1] + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
+
+    p0 = np.asarray(theta0 if free_k else theta0[:3], float)
+    p0[2] = max(p0[2], 1e-6)
+    lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else [])
+    scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else [])
+    res = least_squares(lambda p: model(p) - f, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
+                        diff_step=1e-6, xtol=1e-12, ftol=1e-12)
+    p = np.append(res.x, [] if free_k else [kb])
+    return p, float(2.0 * res.cost), res.jac
+
+
+def _errors(sse, jac, n):
+    """(σ, SD of γ_a, SD of K_B, their correlation) from the Jacobian (module doc)."""
+    p = jac.shape[1]
+    sigma2 = sse / max(n - p, 1)
+    cov = sigma2 * np.linalg.pinv(jac.T @ jac)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if p < 4:
+        return np.sqrt(sigma2), float(sd[2]), 0.0, float("nan")
+    corr = cov[2, 3] / (sd[2] * sd[3]) if sd[2] > 0 and sd[3] > 0 else float("nan")
+    return np.sqrt(sigma2), float(sd[2]), float(sd[3]), float(corr)
+
+
+def _bound_sds(x, f, radius, fixed, p, sse, sigma, sd_g, sd_k):
+    """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold:
+    refits at K_B = γ_a · PROFILE; the K_B whose SSE stays within Z95² σ² of the
+    best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
+    theta, lo_g, hi_g, hi_k = tuple(p), p[2], p[2], 0.0
+    for k in p[2] * PROFILE:
+        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
+        if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
+            lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
+    return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
+
+
+def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fixed: Fixed = Fixed(),
+              cap_um: float | None = None, near: "ShellFit | None" = None) -> ShellFit:
+    """γ_a and K_B of one approach ramp (module doc); `near` a fit of the same ramp
+    to start from instead of the starts' grid (a nested window). InputError for a
+    ramp without contact or a window too short."""
+    x, f = np.asarray(x_um, float), np.asarray(force_nN, float)
+    cap = shell_ramp.shipped().max_depth * radius_um
+    cap = cap if cap_um is None else min(cap, cap_um)
+    drop = fit_ramp(x, f, radius_um, "droplet", cap_um=cap)
+    xs, fs = x[drop.window], f[drop.window]
+    span = SPAN * (drop.window_hi_um - drop.window_lo_um)
+    starts = [(near.contact_um, near.baseline_nN, near.tension_mN_per_m, near.bulk_mN_per_m)] if near else \
+        _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)
+    tries = [_solve(xs, fs, radius_um, fixed, (x0, fb, ga, kb if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m))
+             for x0, fb, ga, kb in starts]
+    p, sse, jac = min(tries, key=lambda t: t[1])
+    sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
+    if fixed.bulk_mN_per_m is None and p[3] < BOUND * p[2]:
+        sd_g, sd_k = _bound_sds(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k)
+    sst = float(np.sum((fs - fs.mean()) ** 2))
+    return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
+                    bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
+                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
+                    window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
+                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde)
+
+
+def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
+                fixed: Fixed) -> ShellFit:
+    """`fit` refitted on its own window for another radius or another fixed K̃_S / K_B."""
+    xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
+    kb = fit.bulk_mN_per_m if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
+    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb))
+    sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
+    sst = float(np.sum((fs - fs.mean()) ** 2))
+    return replace(fit, tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
+                   bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
+                   r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
+                   depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde)
+
+
+def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
+                  shears: npt.ArrayLike) -> list[tuple[float, float, float, float]]:
+    """[(K̃_S, Δχ², γ_a, K_B)] of the fit refitted at each K̃_S of `shears` (module doc)."""
+    n = int(fit.window.sum())
+    fits = [refit_shell(fit, x_um, force_nN, radius_um, Fixed(float(s))) for s in np.asarray(shears, float)]
+    sse = np.array([(g.noise_nN ** 2) * (n - 4) for g in fits])
+    return [(g.shear_tilde, float((s - sse.min()) / fit.noise_nN ** 2), g.tension_mN_per_m, g.bulk_mN_per_m)
+            for g, s in zip(fits, sse)]
+
+
+def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
+                   fixed: Fixed, errors: MeasurementErrors = TENSION_ERRORS) -> tuple[float, float, float, float]:
+    """(γ_lo, γ_hi, K_B lo, K_B hi): 95 % intervals of γ_a and K_B, the statistical
+    half-width Z95 · sd and the volume error's shift (refits at V (1 ± Z95 σ_V) on
+    the same window, as `pause.ramp_interval`) added in quadrature on each side."""
+    shifted = [refit_shell(fit, x_um, force_nN, float(cell_radius(volume_um3 * (1.0 + s * Z95 * errors.volume_rel_sd))),
+                           fixed) for s in (-1.0, 1.0)]
+    out = []
+    for value, sd, ends in ((fit.tension_mN_per_m, fit.tension_sd_mN_per_m, [g.tension_mN_per_m for g in shifted]),
+                            (fit.bulk_mN_per_m, fit.bulk_sd_mN_per_m, [g.bulk_mN_per_m for g in shifted])):
+        down, up = max(value - min(ends), 0.0), max(max(ends) - value, 0.0)
+        out += [max(value - float(np.hypot(Z95 * sd, down)), 0.0), value + float(np.hypot(Z95 * sd, up))]
+    return out[0], out[1], out[2], out[3]
