@@ -39,7 +39,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -49,13 +49,12 @@ from analysis.emulator import tensor_spline
 from campaign.store.schema import TABLE_DEGREE as DEGREE, TABLE_RESULTS, TABLE_TERMS as TERMS
 from common.errors import InputError
 
+if TYPE_CHECKING:
+    from solver.model import Shell
+
 DATA = Path(__file__).parent / "data" / "viscoelastic_table.json"
-H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)
-KS_TILDE = (0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56, 5.12)
-GAMMA_TILDE = (0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
 ANGLES = tuple(np.linspace(0.0, 1.0, 7))
-VOLUMES_UM3 = (3000.0, 4300.0, 6500.0)
-BULK_MN_PER_M = 25.0
+BULK_MN_PER_M = 25.0        # K_B of `node_coefficients`'s shells (C depends on the ratios only)
 TASK = "viscoelastic_table"        # the campaign task (`campaign.config.TASKS`) that computes a node
 
 
@@ -82,8 +81,8 @@ def node_coefficients(volume_um3: float, h_tilde: float, ks_tilde: float, gamma_
     return shell_coefficients(shell)
 
 
-def shell_coefficients(shell: Any) -> npt.NDArray[np.complex128]:
-    """Complex coefficients (len(TERMS),) of ln C for `shell` (a `solver.model.Shell`):
+def shell_coefficients(shell: Shell) -> npt.NDArray[np.complex128]:
+    """Complex coefficients (len(TERMS),) of ln C for `shell`:
     linearise the solver once at h_m = h0 - Δh/2, solve every (δ_B, δ_S) of ANGLES²,
     least squares in the monomials."""
     from solver.viscoelastic import correction, hessian_parts
@@ -94,7 +93,7 @@ def shell_coefficients(shell: Any) -> npt.NDArray[np.complex128]:
     return coef
 
 
-def node_results(shell: Any) -> dict[str, float]:
+def node_results(shell: Shell) -> dict[str, float]:
     """One campaign task: `shell_coefficients` as the store's result columns
     (TABLE_RESULTS: the real parts, then the imaginary parts, in TERMS order)."""
     coef = shell_coefficients(shell)
@@ -119,15 +118,16 @@ def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     γ̃_a, the last fastest). InputError unless every node is done."""
     import tomllib
 
+    from campaign.config import DEFAULTS
     from campaign.store.reader import read_provenance, read_results
     text = read_provenance(path).get("config_text", "")        # the campaign file, as run
     doc = tomllib.loads(text) if text else {}
-    grid = doc.get("grid", {})
-    if doc.get("campaign", {}).get("task") != TASK or grid.get("bending", "standard") != "standard":
-        raise InputError(f"{path}: not a store of a viscoelastic-table campaign of the standard bending "
-                         f"variant ([campaign] task = \"{TASK}\": campaigns/viscoelastic.toml)")
-    axes = [np.atleast_1d(np.asarray(grid.get(k, 4300.0 if k == "volume_um3" else np.nan), float))
-            for k in ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")]
+    grid = {**DEFAULTS, **doc.get("grid", {})}
+    keys = ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")
+    if doc.get("campaign", {}).get("task") != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
+        raise InputError(f"{path}: not a store of a viscoelastic-table campaign over h_tilde, ks_tilde and "
+                         f"gamma_tilde, standard bending ([campaign] task = \"{TASK}\": campaigns/viscoelastic.toml)")
+    axes = [np.atleast_1d(np.asarray(grid[k], float)) for k in keys]
     rows = read_results(path)
     undone = int((rows["state"] != "done").sum())
     if undone:
@@ -202,12 +202,13 @@ def shipped() -> ComplexTable:
 
 
 def main() -> None:
-    """The table is no longer built in one process: say how it is built."""
+    """The table is built by the campaign engine, not here: say how."""
     import sys
-    sys.exit("the viscoelastic table is built by the campaign engine:\n"
-             "  mpiexec -n N cortex campaign run campaigns/viscoelastic.toml --store results/viscoelastic.h5\n"
-             "  cortex analysis build-viscoelastic-table results/viscoelastic.h5 --out DIR\n"
-             "(or make viscoelastic-table)")
+    print("the viscoelastic table is built by the campaign engine:\n"
+          "  mpiexec -n N cortex campaign run campaigns/viscoelastic.toml --store results/viscoelastic.h5\n"
+          "  cortex analysis build-viscoelastic-table results/viscoelastic.h5 --out DIR\n"
+          "(or make viscoelastic-table)", file=sys.stderr)
+    sys.exit(2)
 
 
 if __name__ == "__main__":

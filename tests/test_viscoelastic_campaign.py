@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 
+import h5py
 import numpy as np
 import pytest
 
@@ -110,6 +111,8 @@ def test_unfinished_or_foreign_store_is_refused(stores, tmp_path, cortex):
     text = SUBGRID.replace('task = "viscoelastic_table"', "").replace("[0.43, 0.835]", "0.835")
     text = text.replace("[3000.0, 6500.0]", "4300.0")
     assert cortex("campaign", "run", write(tmp_path, text, "e.toml"), "--store", elastic, "--quiet").returncode == 0
+    with h5py.File(elastic, "r") as f:          # a compression store keeps its layout: no table columns
+        assert "force_nN" in f and not set(TABLE_RESULTS) & set(f)
     done = cortex("analysis", "build-viscoelastic-table", elastic, "--out", tmp_path / "t")
     assert done.returncode == 2 and "not a store of a viscoelastic-table campaign" in done.stderr
     assert not (tmp_path / "t").exists()
