@@ -106,7 +106,7 @@ def test_table_from_the_store_is_the_one_process_table(stores, tmp_path, cortex)
     assert abs(series - c) < 1e-4 and abs(c) > 1e-2
 
 
-def test_unfinished_or_foreign_store_is_refused(stores, tmp_path, cortex):
+def test_unfinished_or_foreign_store_is_refused_and_a_rerun_finishes_it(stores, tmp_path, cortex):
     elastic = tmp_path / "e.h5"
     text = SUBGRID.replace('task = "viscoelastic_table"', "").replace("[0.43, 0.835]", "0.835")
     text = text.replace("[3000.0, 6500.0]", "4300.0")
@@ -121,3 +121,8 @@ def test_unfinished_or_foreign_store_is_refused(stores, tmp_path, cortex):
     assert cortex("campaign", "run", path, "--store", failed, "--quiet").returncode == 1
     done = cortex("analysis", "build-viscoelastic-table", failed, "--out", tmp_path / "t")
     assert done.returncode == 2 and "4 of 4 nodes not done" in done.stderr, done.stderr
+    # the same store resumed with time enough: its failed nodes redone, the table as from a clean run
+    done = cortex("campaign", "run", write(tmp_path, SUBGRID, "g.toml"), "--store", failed, "--retry-failed", "--quiet")
+    assert done.returncode == 0, done.stderr
+    np.testing.assert_array_equal(read_results(failed)[list(TABLE_RESULTS)].to_numpy(),
+                                  read_results(stores[1])[list(TABLE_RESULTS)].to_numpy())
