@@ -7,6 +7,7 @@
 #   make test            the type checker, then the whole suite, MPI tests on both stacks
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
 #   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
+#   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
 #   make bench-full      every script in bench/; the others take minutes to an hour and more each
 #                        (the solver-forward round trip and error sources, the Monte-Carlo study by
@@ -109,6 +110,15 @@ calibration: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/emulator.toml --store results/emulator.h5 || [ $$? = 1 ]  # a failed point is solved again by build-calibration
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/paper.toml --store results/paper.h5
 	$(BIN)/cortex analysis build-calibration --emulator-store results/emulator.h5 --law-store results/paper.h5 --out $(CALIBRATION)
+
+# The shipped viscoelastic table: its campaign under mpiexec (1440 nodes; see
+# docs/performance.md for its time; reruns resume), then the table from the store
+# (results/viscoelastic-table/), copied into the package.
+.PHONY: viscoelastic-table
+viscoelastic-table: setup
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/viscoelastic.toml --store results/viscoelastic.h5
+	$(BIN)/cortex analysis build-viscoelastic-table results/viscoelastic.h5 --out results/viscoelastic-table
+	cp results/viscoelastic-table/viscoelastic_table.json $(CALIBRATION)/viscoelastic_table.json
 
 # Benchmarks: one JSON object each on stdout; every script runs as `python bench/X.py` (no script
 # is named like a package: tests/test_bench_scripts.py) and the target fails if one did.

@@ -1,7 +1,14 @@
 """Campaign files (TOML): the grid of compressions and the solver settings.
 
     [campaign]  name, store (default path of the HDF5 store), max_tasks
-                (the largest campaign accepted, default MAX_TASKS = 100,000)
+                (the largest campaign accepted, default MAX_TASKS = 100,000),
+                task (what one grid point computes, TASKS): `compression`
+                (the default) or `viscoelastic_table`, one node of the
+                complex correspondence table (`analysis.calibration.viscoelastic_table`:
+                one linearisation, the 7 x 7 loss angles, ln C's polynomial
+                coefficients as the results TABLE_RESULTS of
+                `campaign.store.schema`); that needs the fast solver and an
+                elastic grid without [montecarlo]
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
@@ -66,7 +73,9 @@ from solver.model import BENDING_VARIANTS
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 MAX_TASKS = 100_000
-SECTIONS = {"campaign": {"name", "store", "max_tasks"}, "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
+TASKS = ("compression", "viscoelastic_table")
+SECTIONS = {"campaign": {"name", "store", "max_tasks", "task"},
+            "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
@@ -89,16 +98,20 @@ class Campaign:
     trial_cells: int = 0   # N, cells per study
     memory_limit_mb: float | None = None   # per task process; None: the node's share (`campaign.isolation`)
     retries: int = 0       # of a task that crashed its process or did not answer
+    task: str = "compression"   # what one grid point computes (TASKS)
 
     @cached_property
     def fingerprint(self):
         """What identifies the campaign's compressions: refuses a store made from another grid.
         sha256 of repr([shell.to_dict(), ...]) + method + repr(resolution), fed to the hash
-        4,096 shells at a time so that a million tasks never make one long text."""
+        4,096 shells at a time so that a million tasks never make one long text;
+        a task other than `compression` is hashed after them."""
         h, texts = hashlib.sha256(b"["), self.shells.reprs()
         for i, chunk in enumerate(iter(lambda: list(itertools.islice(texts, 4096)), [])):
             h.update(((", " if i else "") + ", ".join(chunk)).encode())
         h.update(("]" + self.method + repr(self.resolution)).encode())
+        if self.task != "compression":
+            h.update(self.task.encode())
         return h.hexdigest()
 
     @cached_property
@@ -134,6 +147,7 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     method, resolution, timeout = _solver_section(path, data.get("solver", {}))
     memory_limit_mb, retries = _isolation_settings(path, data.get("solver", {}))
     meta = _campaign_section(path, data.get("campaign", {}))
+    task = _task(path, meta, grid, method, "montecarlo" in data)
     limit = _max_tasks(path, meta)
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
@@ -144,7 +158,7 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=resolution, timeout_s=timeout, shells=shells,
                     text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0,
-                    memory_limit_mb=memory_limit_mb, retries=retries)
+                    memory_limit_mb=memory_limit_mb, retries=retries, task=task)
 
 
 def _read_toml(path):
@@ -228,6 +242,21 @@ def _campaign_section(path, meta):
         if key in meta and not isinstance(meta[key], str):
             raise InputError(f"{path}: [campaign] {key} must be a string")
     return meta
+
+
+def _task(path, meta, grid, method, montecarlo):
+    """[campaign] task (one of TASKS); a viscoelastic-table node needs the fast
+    solver (its linearisation) and an elastic cell, and has no trials."""
+    task = meta.get("task", "compression")
+    if task not in TASKS:
+        raise InputError(f"{path}: [campaign] task must be one of {', '.join(TASKS)} (got {task!r})")
+    if task == "viscoelastic_table":
+        if method != "fast":
+            raise InputError(f"{path}: [campaign] task viscoelastic_table needs [solver] method = \"fast\"")
+        if montecarlo or any(key in grid for key in OPTIONAL):
+            raise InputError(f"{path}: [campaign] task viscoelastic_table takes elastic cells without "
+                             "[montecarlo] (drop viscosity_Pa_s, frequency_hz and [montecarlo])")
+    return task
 
 
 def _check_montecarlo_grid(path, mc, grid, ratios):

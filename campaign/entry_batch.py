@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from campaign.store.schema import RESULTS, STATES, results_table
+from campaign.store.schema import ALL_RESULTS, STATES, results_table
 from campaign.task_key import (COMPRESSION, CompressionEntry, Entry, TaskKey, TrialEntry, compression_entry,
                                is_compression)
 
@@ -129,7 +129,7 @@ def compression_columns(chunks: Sequence[Chunk], names: Sequence[str] | None = N
     """The columns of compression entries and batches `chunks`, in order:
     row, state, attempts, rank, started, converged (arrays), `results`
     ({name: float64 array, NaN where a task lacks it} for `names`, by default
-    the RESULTS some task has) and `errors` ({position: message}). A run of
+    the ALL_RESULTS some task has) and `errors` ({position: message}). A run of
     entries is taken apart as one (a pass per column), a batch as it is."""
     pieces: list[dict[str, Any]] = []
     run: list[CompressionEntry] = []
@@ -144,7 +144,7 @@ def compression_columns(chunks: Sequence[Chunk], names: Sequence[str] | None = N
     if run:
         pieces.append(_entry_columns(run))
     if names is None:
-        names = [k for k in RESULTS if any(p["has"](k) for p in pieces)]
+        names = [k for k in ALL_RESULTS if any(p["has"](k) for p in pieces)]
     out: dict[str, Any] = {"errors": {}}
     at = 0
     for p in pieces:

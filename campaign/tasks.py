@@ -1,6 +1,8 @@
 """One task, computed where it runs (a rank's task process,
 `campaign.task_process`): a compression or a Monte-Carlo trial task, under
-the per-task timeout, and its journal entry.
+the per-task timeout, and its journal entry. In a viscoelastic-table
+campaign (`[campaign] task`) a grid point is one node of that table instead
+(`compute_node`).
 
 A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
@@ -65,6 +67,20 @@ def compute(shell: Shell, method: str, timeout_s: float, row: int = 0,
         else:
             result = hooks.compression(row, shell, lambda: compress(shell, method).to_dict())
         result.pop("method", None)
+        if not _finite(result.values()):
+            raise _NonFinite()
+        return result
+    return _guarded(work, timeout_s)
+
+
+def compute_node(shell: Shell, timeout_s: float) -> Outcome:
+    """One node of the viscoelastic table at `shell` (`analysis.calibration.viscoelastic_table.node_results`:
+    ln C's coefficients, TABLE_RESULTS of `campaign.store.schema`), with its `wall_s`."""
+    def work():
+        from analysis.calibration.viscoelastic_table import node_results    # here: a compression campaign never loads it
+        start = time.perf_counter()
+        result = node_results(shell)
+        result.update(converged=True, wall_s=time.perf_counter() - start)
         if not _finite(result.values()):
             raise _NonFinite()
         return result
@@ -156,6 +172,8 @@ def execute(campaign: "Campaign", task: int, payload: Any) -> Outcome:
     """Task number `task`: (state, results, error, started); `payload` is a trial
     task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
     (kind, i), test = campaign.numbers.key(task), campaign.test
+    if kind == COMPRESSION and campaign.task == "viscoelastic_table":
+        return compute_node(campaign.shells[i], campaign.timeout_s)
     if kind == COMPRESSION:
         return compute(campaign.shells[i], campaign.method, campaign.timeout_s, i, test)
     forces, errors = payload

@@ -24,30 +24,33 @@ points between the nodes.
 
 Only the `standard` bending variant is tabulated (the factor C changes with B by far
 less than with the angles: B/(K_B R²) ~ 1e-5).
+
+The table is built by the campaign engine: `campaigns/viscoelastic.toml` (`[campaign]
+task = "viscoelastic_table"`) runs one task per node (`node_results`, any number of
+ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
+the table's document from the finished store.
 """
 
 from __future__ import annotations
 
-import json
-from collections.abc import Callable
+import os
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import BSpline, NdBSpline
 
 from analysis.calibration.emulator import evaluate, tensor_spline
+from campaign.store.schema import TABLE_DEGREE as DEGREE, TABLE_RESULTS, TABLE_TERMS as TERMS
 from common.errors import InputError
 
-H_TILDE = (0.43, 0.475, 0.52, 0.565, 0.61, 0.655, 0.7, 0.745, 0.79, 0.835)
-KS_TILDE = (0.04, 0.08, 0.16, 0.32, 0.64, 1.28, 2.56, 5.12)
-GAMMA_TILDE = (0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
+if TYPE_CHECKING:
+    from solver.model import Shell
 ANGLES = tuple(np.linspace(0.0, 1.0, 7))
-DEGREE = 4
-VOLUMES_UM3 = (3000.0, 4300.0, 6500.0)
-BULK_MN_PER_M = 25.0
-TERMS = tuple((i, j) for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i) if i + j > 0)
+BULK_MN_PER_M = 25.0        # K_B of `node_coefficients`'s shells (C depends on the ratios only)
+TASK = "viscoelastic_table"        # the campaign task (`campaign.config.TASKS`) that computes a node
 
 
 def _monomials(db: npt.ArrayLike, ds: npt.ArrayLike) -> tuple[Any, Any, Any]:
@@ -62,15 +65,22 @@ def _monomials(db: npt.ArrayLike, ds: npt.ArrayLike) -> tuple[Any, Any, Any]:
 
 def node_coefficients(volume_um3: float, h_tilde: float, ks_tilde: float, gamma_tilde: float,
                       bending: str = "standard") -> npt.NDArray[np.complex128]:
-    """Complex coefficients (len(TERMS),) of ln C at one grid node: linearise the solver once,
-    solve every (δ_B, δ_S) of ANGLES², least squares in the monomials."""
+    """Complex coefficients (len(TERMS),) of ln C at one grid node (`shell_coefficients`
+    of its shell, made as the campaign's grid makes it: h0 = 2 R_cell h̃ + Δh/2)."""
     from solver.geometry import cell_radius
     from solver.model import Shell
-    from solver.viscoelastic import correction, hessian_parts
     h_m = h_tilde * 2.0 * float(cell_radius(volume_um3))
     shell = Shell(volume_um3=volume_um3, h0_um=h_m + 0.25, bulk_mN_per_m=BULK_MN_PER_M,
                   shear_mN_per_m=BULK_MN_PER_M * ks_tilde, tension_mN_per_m=BULK_MN_PER_M * gamma_tilde,
                   bending=bending)
+    return shell_coefficients(shell)
+
+
+def shell_coefficients(shell: Shell) -> npt.NDArray[np.complex128]:
+    """Complex coefficients (len(TERMS),) of ln C for `shell`:
+    linearise the solver once at h_m = h0 - Δh/2, solve every (δ_B, δ_S) of ANGLES²,
+    least squares in the monomials."""
+    from solver.viscoelastic import correction, hessian_parts
     parts = hessian_parts(shell)
     db, ds = (a.ravel() for a in np.meshgrid(ANGLES, ANGLES, indexing="ij"))
     lnc = np.array([np.log(correction(parts, a, b, 1.0)) for a, b in zip(db, ds)])
@@ -78,19 +88,51 @@ def node_coefficients(volume_um3: float, h_tilde: float, ks_tilde: float, gamma_
     return coef
 
 
-def build(volumes: tuple[float, ...] = VOLUMES_UM3,
-          progress: Callable[[tuple[int, ...]], None] | None = None) -> dict[str, Any]:
-    """The table's coefficients on the grid: a dict ready for json (`ComplexTable.from_json`)."""
-    shape = (len(volumes), len(H_TILDE), len(KS_TILDE), len(GAMMA_TILDE))
-    coef = np.zeros(shape + (len(TERMS),), complex)
-    for idx in np.ndindex(shape):
-        coef[idx] = node_coefficients(volumes[idx[0]], H_TILDE[idx[1]], KS_TILDE[idx[2]], GAMMA_TILDE[idx[3]])
-        if progress:
-            progress(idx)
-    return {"volume_um3": [float(v) for v in volumes], "h_tilde": list(H_TILDE), "ks_tilde": list(KS_TILDE),
-            "gamma_tilde": list(GAMMA_TILDE), "angles_rad": [float(a) for a in ANGLES], "degree": DEGREE,
+def node_results(shell: Shell) -> dict[str, float]:
+    """One campaign task: `shell_coefficients` as the store's result columns
+    (TABLE_RESULTS: the real parts, then the imaginary parts, in TERMS order)."""
+    coef = shell_coefficients(shell)
+    return dict(zip(TABLE_RESULTS, map(float, np.concatenate([coef.real, coef.imag]))))
+
+
+def table_document(volumes: Sequence[float], h_tilde: Sequence[float], ks_tilde: Sequence[float],
+                   gamma_tilde: Sequence[float], coef: npt.NDArray[np.complex128]) -> dict[str, Any]:
+    """The table's JSON document (`ComplexTable.from_json`) from its axes and the
+    coefficients `coef` of shape (V, h̃, K̃_S, γ̃_a, len(TERMS))."""
+    return {"volume_um3": [float(v) for v in volumes], "h_tilde": [float(v) for v in h_tilde],
+            "ks_tilde": [float(v) for v in ks_tilde], "gamma_tilde": [float(v) for v in gamma_tilde],
+            "angles_rad": [float(a) for a in ANGLES], "degree": DEGREE,
             "bending": "standard", "terms": [list(t) for t in TERMS],
             "ln_c_real": coef.real.tolist(), "ln_c_imag": coef.imag.tolist()}
+
+
+def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The table's document from a finished viscoelastic-table campaign store
+    (`campaigns/viscoelastic.toml`): its axes from the campaign file the store
+    keeps, each node's coefficients from its row (rows in grid order: V, h̃, K̃_S,
+    γ̃_a, the last fastest). InputError unless every node is done."""
+    import tomllib
+
+    from campaign.config import DEFAULTS
+    from campaign.store.reader import read_provenance, read_results
+    text = read_provenance(path).get("config_text", "")        # the campaign file, as run
+    doc = tomllib.loads(text) if text else {}
+    grid = {**DEFAULTS, **doc.get("grid", {})}
+    keys = ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")
+    if doc.get("campaign", {}).get("task") != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
+        raise InputError(f"{path}: not a store of a viscoelastic-table campaign over h_tilde, ks_tilde and "
+                         f"gamma_tilde, standard bending ([campaign] task = \"{TASK}\": campaigns/viscoelastic.toml)")
+    axes = [np.atleast_1d(np.asarray(grid[k], float)) for k in keys]
+    rows = read_results(path)
+    undone = int((rows["state"] != "done").sum())
+    if undone:
+        raise InputError(f"{path}: {undone} of {len(rows)} nodes not done; finish the campaign "
+                         "(run it again: it resumes)")
+    shape = tuple(len(a) for a in axes)
+    values = rows[list(TABLE_RESULTS)].to_numpy()
+    n = len(TERMS)
+    coef = (values[:, :n] + 1j * values[:, n:]).reshape(shape + (n,))
+    return table_document(axes[0].tolist(), axes[1].tolist(), axes[2].tolist(), axes[3].tolist(), coef)
 
 
 @dataclass
@@ -149,17 +191,13 @@ class ComplexTable:
 
 
 def main() -> None:
-    """Rebuild the shipped table, `analysis/calibration/data/viscoelastic_table.json` (about 15 min
-    on one core); `analysis.calibration.file.load_calibration` reads it."""
+    """The table is built by the campaign engine, not here: say how."""
     import sys
-    done = [0]
-
-    def progress(idx: tuple[int, ...]) -> None:
-        done[0] += 1
-        if done[0] % 40 == 0:
-            print(f"{done[0]} nodes", file=sys.stderr)
-    from analysis.calibration.file import TABLE_NAME, shipped_path
-    shipped_path(TABLE_NAME).write_text(json.dumps(build(progress=progress)) + "\n")
+    print("the viscoelastic table is built by the campaign engine:\n"
+          "  mpiexec -n N cortex campaign run campaigns/viscoelastic.toml --store results/viscoelastic.h5\n"
+          "  cortex analysis build-viscoelastic-table results/viscoelastic.h5 --out DIR\n"
+          "(or make viscoelastic-table)", file=sys.stderr)
+    sys.exit(2)
 
 
 if __name__ == "__main__":

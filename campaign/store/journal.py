@@ -34,7 +34,7 @@ import numpy as np
 
 from campaign.entry_batch import COLUMNS, CompressionBatch, compression_columns
 from campaign.entry_batch import split as split_chunks
-from campaign.store.schema import RESULTS, STATES
+from campaign.store.schema import ALL_RESULTS, STATES
 from campaign.task_key import Entry, compression_entry, is_compression, trial_entry
 
 MAGIC = b"\x00cxj"
@@ -76,7 +76,7 @@ def encode(entries: Sequence[Entry | CompressionBatch]) -> bytes:
 
 def _compression_arrays(chunks, arrays, errors):
     """The compressions' arrays (entries and `CompressionBatch`es, in order): `COLUMNS`,
-    then each of RESULTS some task has; their messages by position."""
+    then each of ALL_RESULTS some task has; their messages by position."""
     columns = compression_columns(chunks)
     for key in COLUMNS:
         arrays[f"c.{key}"] = columns[key]
@@ -114,7 +114,7 @@ def _compression_entries(arrays, errors):
     if "c.row" not in arrays:
         return []
     c = {key: arrays[f"c.{key}"].tolist() for key in COLUMNS}
-    r = {key: arrays[f"r.{key}"].tolist() for key in RESULTS if f"r.{key}" in arrays}
+    r = {key: arrays[f"r.{key}"].tolist() for key in ALL_RESULTS if f"r.{key}" in arrays}
     out = []
     for i in range(len(c["row"])):
         results = {key: values[i] for key, values in r.items()}

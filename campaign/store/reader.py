@@ -26,8 +26,8 @@ import numpy as np
 
 from campaign.store import journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (DONE, FAILED, PARAMS, RESULTS, STATES, TRIAL_PER_CELL, TRIAL_PER_HEIGHT,
-                                   trial_rows)
+from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, RESULTS, STATES, TABLE_RESULTS,
+                                   TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
 from common.errors import InputError
@@ -50,11 +50,11 @@ def _open_store(path):
 
 
 def _task_columns(path, names):
-    """The compression rows' columns `names` (any of PARAMS, RESULTS,
+    """The compression rows' columns `names` (any of PARAMS, ALL_RESULTS,
     started_unix_s, converged, rank, error; state and attempts always), journal
     overlaid. The float columns are rows of one array, `cols[FLOATS]` (so a
     DataFrame takes them without a copy)."""
-    floats = [k for k in names if k in PARAMS + RESULTS + ("started_unix_s",)]
+    floats = [k for k in names if k in PARAMS + ALL_RESULTS + ("started_unix_s",)]
     with _open_store(path) as f:
         n = len(f["state"])
         block = np.empty((len(floats), n))
@@ -80,7 +80,7 @@ def _overlay(cols, entry):
             cols[name][i] = STATES.index(value) if key == "state" else value
     results = entry.get("results") or {}
     for key, value in results.items():
-        if key in cols and key in RESULTS:
+        if key in cols and key in ALL_RESULTS:
             cols[key][i] = value
     if "converged" in cols:
         cols["converged"][i] = bool(results.get("converged", False))
@@ -110,12 +110,14 @@ def _strings(dset, few=False):
 
 def read_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     """One row per compression task: parameters, state and results (NaN where
-    not done), with the journal of a running campaign overlaid."""
+    not done; a viscoelastic-table store's also its TABLE_RESULTS), with the
+    journal of a running campaign overlaid."""
     import pandas as pd           # here: a campaign run need not load it
-    cols = _task_columns(path, PARAMS + RESULTS + ("converged", "rank", "error"))
     with _open_store(path) as f:
         ids, bending = _strings(f["task_id"]), _strings(f["bending"], few=True)
-    frame = pd.DataFrame(cols[FLOATS].T, columns=list(PARAMS + RESULTS), copy=False)
+        results = RESULTS + (TABLE_RESULTS if TABLE_RESULTS[0] in f else ())
+    cols = _task_columns(path, PARAMS + results + ("converged", "rank", "error"))
+    frame = pd.DataFrame(cols[FLOATS].T, columns=list(PARAMS + results), copy=False)
     for i, (key, values) in enumerate((("task_id", ids), ("state", np.array(STATES, object)[cols["state"]]),
                                        ("bending", bending))):
         frame.insert(i, key, values)

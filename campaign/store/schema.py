@@ -1,7 +1,8 @@
 """The store's schema, written once: its datasets, their dtypes, and how a new file is laid out.
 
 One row per compression task (the grid, `campaign.config`): its parameters
-(PARAMS), its results (RESULTS, NaN until done), `converged`, `state` (an
+(PARAMS), its results (RESULTS, NaN until done; a viscoelastic-table
+campaign's rows also TABLE_RESULTS, the node's coefficients), `converged`, `state` (an
 index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
 (fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
 variable-length strings; the journal keeps a message whole); `task_id` and
@@ -44,6 +45,14 @@ RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_
            # a viscous cell's (solver.viscous; NaN for an elastic one)
            "compression_modulus_mN_per_m", "storage_modulus_mN_per_m", "loss_modulus_mN_per_m",
            "loss_angle_rad", "elastic_modulus_mN_per_m", "viscous_wall_s")
+# a viscoelastic-table node's results instead (`[campaign] task = "viscoelastic_table"`,
+# `analysis.calibration.viscoelastic_table`; their datasets only in such a store): the complex coefficients
+# of ln C's polynomial in the loss angles, the real and the imaginary part of the term
+# δ_B^i δ_S^j (0 < i + j <= TABLE_DEGREE) as ln_c_re_b{i}_s{j} and ln_c_im_b{i}_s{j} (dimensionless)
+TABLE_DEGREE = 4
+TABLE_TERMS = tuple((i, j) for i in range(TABLE_DEGREE + 1) for j in range(TABLE_DEGREE + 1 - i) if i + j > 0)
+TABLE_RESULTS = tuple(f"ln_c_{part}_b{i}_s{j}" for part in ("re", "im") for i, j in TABLE_TERMS)
+ALL_RESULTS = RESULTS + TABLE_RESULTS      # what a journal record or a row may hold
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 ERROR_BYTES = 256           # an error message's room in its row
@@ -165,13 +174,19 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
         f[key] = columns[key]
     for key, values in (("bending", columns["bending"]), ("task_id", task_ids(campaign.shells, campaign.method))):
         f.create_dataset(key, data=fixed_strings(values))
-    for key in RESULTS:
+    for key in result_names(campaign):
         f.create_dataset(key, data=np.full(n, np.nan))
     f["converged"] = np.zeros(n, np.int8)
     _bookkeeping(f, n)
     if campaign.studies:
         fill_trials(f.create_group("trials"), campaign)
     f.attrs.update(attrs, format=FORMAT)
+
+
+def result_names(campaign: StoredCampaign) -> tuple[str, ...]:
+    """The result columns of `campaign`'s rows: RESULTS, and TABLE_RESULTS for a
+    viscoelastic-table campaign (`campaign.config.TASKS`)."""
+    return RESULTS + (TABLE_RESULTS if getattr(campaign, "task", "compression") == "viscoelastic_table" else ())
 
 
 def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:

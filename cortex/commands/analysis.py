@@ -1,6 +1,7 @@
 """`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
-viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR` and
-`cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
+viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR`,
+`cortex analysis build-viscoelastic-table STORE --out DIR` and `cortex analysis
+invert TABLE.csv --out DIR` (argparse only; the work is
 imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
@@ -13,6 +14,7 @@ from cortex.options import OUT_HELP, Commands, add_inversion_options, inversion_
 from cortex.results import plain, say_result
 
 CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
+TABLE_FILE = "viscoelastic_table.json"    # what build-viscoelastic-table writes into its --out folder
 
 
 def register(sub: Commands) -> None:
@@ -20,7 +22,7 @@ def register(sub: Commands) -> None:
                        description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
-    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_invert):
+    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_build_table, _add_invert):
         add(s)
 
 
@@ -64,6 +66,18 @@ def _add_build_calibration(s: Commands) -> None:
                    "calibration.json cortex wrote (like analysis/calibration/data) is accepted")
     b.add_argument("--json", action="store_true", help="one JSON object: calibration, emulator and law variants")
     b.set_defaults(handler=build_calibration)
+
+
+def _add_build_table(s: Commands) -> None:
+    b = s.add_parser("build-viscoelastic-table", help="the complex correspondence table from its campaign's store",
+                     description="Build DIR/viscoelastic_table.json (the factor C of SPEC 10: ln C's polynomial "
+                                 "coefficients per node, analysis/calibration/viscoelastic_table.py) from a finished store "
+                                 "of campaigns/viscoelastic.toml. `make viscoelastic-table` rebuilds the one "
+                                 "shipped in the package this way.")
+    b.add_argument("store", metavar="STORE", help="store of a viscoelastic-table campaign (HDF5), every node done")
+    b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    b.add_argument("--json", action="store_true", help="one JSON object: table file, nodes, volumes")
+    b.set_defaults(handler=build_viscoelastic_table)
 
 
 def _add_invert(s: Commands) -> None:
@@ -112,6 +126,23 @@ def build_calibration(args: argparse.Namespace) -> int:
     say_result(args, {"calibration": str(path), "emulator_variants": list(doc["emulator"]),
                       "law_variants": list(doc["variants"])},
                f"wrote {path} (emulator: {', '.join(doc['emulator'])}; law: {', '.join(doc['variants']) or 'none'})")
+    return 0
+
+
+def build_viscoelastic_table(args: argparse.Namespace) -> int:
+    import json
+
+    from analysis.calibration.viscoelastic_table import from_store
+    from outputs.ownership import OutputDir
+    from outputs.writing import write_atomically
+    out = OutputDir(args.out)
+    out.check([TABLE_FILE])                         # refused before any work if not ours
+    doc = from_store(args.store)
+    with out.writing(TABLE_FILE) as path:
+        write_atomically(path, (json.dumps(doc) + "\n").encode())
+    nodes = len(doc["volume_um3"]) * len(doc["h_tilde"]) * len(doc["ks_tilde"]) * len(doc["gamma_tilde"])
+    say_result(args, {"table": str(path), "nodes": nodes, "volume_um3": doc["volume_um3"]},
+               f"wrote {path} ({nodes} nodes)")
     return 0
 
 
