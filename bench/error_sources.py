@@ -33,7 +33,7 @@ import numpy as np
 
 
 from analysis.afm.synth import cells as synth
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.calibration.file import load_calibration
 
@@ -63,7 +63,7 @@ def run_seed(seed, cal, emu, forward):
             synth.ERRORS.update(ALL)
         row = {"seed": seed, "errors_on": name}
         for method in ("emulator", "law"):
-            table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
+            table, _ = analyze_cells(cells, choose(method, cal, emu), "standard", None)
             s = score(table, truth)
             row[method] = {"n_included": s["n_included"], "n_curves": s["n_curves"],
                            "coverage_95": s.get("coverage_95"),

@@ -23,7 +23,7 @@ import numpy as np
 
 
 from analysis.afm.synth import cells as synth
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.calibration.file import load_calibration
@@ -39,8 +39,7 @@ def curves(seeds, emu, draws):
         for seed in seeds:
             cells, truth = synth.generate(85, seed, errors=True, forward=emulator_forward(emu))
             offset = {c.cell_id: float(c.height_um[0] - 0.78 * t["diameter_um"]) for c, t in zip(cells, truth["cells"])}
-            table, _ = choose("emulator", None, emu).analyze_cells(cells, "standard", MeasurementErrors(draws=draws, seed=seed),
-                                                                   cell_analyses)
+            table, _ = analyze_cells(cells, choose("emulator", None, emu), "standard", MeasurementErrors(draws=draws, seed=seed))
             for r in table[table["excluded_reason"].isna()].itertuples():
                 t = truth["frequencies"][str(float(r.frequency_hz))]["cells"][r.cell_id]
                 rows.append((np.log(r.ks_tilde), np.log(t["ks_tilde"]), np.log(r.ks_lo95), np.log(r.ks_hi95),

@@ -65,7 +65,7 @@ ALPHA = 0.05
 
 def run_full(seed, errors):
     from analysis.afm.synth import cells as synth
-    from analysis.afm import analyze as cell_analyses
+    from analysis.afm.analyze import analyze_cells
     from analysis.invert.method import choose
     from analysis.invert.measurement_errors import MeasurementErrors
     from analysis.calibration.file import load_calibration
@@ -75,7 +75,7 @@ def run_full(seed, errors):
     cells, truth = synth.generate(85, seed=seed, errors=errors)
     t1 = time.perf_counter()
     err = MeasurementErrors() if errors else MeasurementErrors(volume_rel_sd=0.0, height_sd_um=0.0)
-    table, _ = choose("emulator", cal, emu).analyze_cells(cells, "standard", err, cell_analyses)
+    table, _ = analyze_cells(cells, choose("emulator", cal, emu), "standard", err)
     doc = answer(table)
     t2 = time.perf_counter()
     true = {(c["cell_id"], float(f)): float(np.log(v["ks_tilde"])) for c in truth["cells"]

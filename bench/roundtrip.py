@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.afm.synth.cells import generate, solver_forward
 from analysis.calibration.file import load_calibration
@@ -85,7 +85,7 @@ def main():
             run = {"seed": seed, "errors": errors, "synth_s": round(synth_s, 1)}
             for method in ("emulator", "law"):
                 start = time.perf_counter()
-                table, _ = choose(method, cal, emu).analyze_cells(cells, "standard", None, cell_analyses)
+                table, _ = analyze_cells(cells, choose(method, cal, emu), "standard", None)
                 run[method] = {**score(table, truth), "analyze_s": round(time.perf_counter() - start, 2)}
             out["runs"].append(run)
             print(json.dumps(run), file=sys.stderr, flush=True)

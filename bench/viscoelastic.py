@@ -25,7 +25,7 @@ import numpy as np
 
 
 from analysis.afm.synth import cells as sy
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.afm.rheology import analyze as rheology
 from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex
@@ -65,7 +65,7 @@ def experiment(bulk, shear, errors, n_cells=85, seed=1):
 
 def analyse(cells):
     model = load_calibration().viscoelastic
-    table, segs = choose("emulator", None, model.emulator).analyze_cells(cells, "standard", MeasurementErrors(), cell_analyses)
+    table, segs = analyze_cells(cells, choose("emulator", None, model.emulator), "standard", MeasurementErrors())
     start = time.perf_counter()
     table, rheo, summ = rheology(table, segs, model, "standard", MeasurementErrors())
     return table, rheo, summ, time.perf_counter() - start

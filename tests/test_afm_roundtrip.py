@@ -8,7 +8,7 @@ forward model and a solver-built calibration is
 import numpy as np
 import pytest
 
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, law_forward
@@ -23,7 +23,7 @@ def calibration():
 
 def _run(errors, calibration, seed=11):
     cells, truth = generate(85, seed=seed, errors=errors, forward=law_forward(reference_law()))
-    table, _ = choose("law", calibration, None).analyze_cells(cells, "standard", None, cell_analyses)
+    table, _ = analyze_cells(cells, choose("law", calibration, None), "standard", None)
     return table, summary(table), truth
 
 
@@ -57,5 +57,5 @@ def test_round_trip_with_errors_and_variants(calibration):
         assert abs(r["median_nu"] - true) < 0.2, (r, true)
     assert table.loc[table["excluded_reason"].notna(), "excluded_reason"].map(len).min() > 10
     cells, _ = generate(20, seed=3, errors=True, forward=law_forward(reference_law()))
-    med = {b: np.nanmedian(choose("law", calibration, None).analyze_cells(cells, b, None, cell_analyses)[0]["nu"]) for b in ("double", "standard", "none")}
+    med = {b: np.nanmedian(analyze_cells(cells, choose("law", calibration, None), b, None)[0]["nu"]) for b in ("double", "standard", "none")}
     assert med["double"] != med["standard"] != med["none"]

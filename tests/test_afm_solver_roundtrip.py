@@ -12,7 +12,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, solver_forward
@@ -56,7 +56,7 @@ def calibration(tmp_path_factory):
 @pytest.mark.slow
 def test_solver_round_trip_without_errors(calibration):
     cells, truth = generate(40, seed=5, errors=False, forward=solver_forward("standard"))
-    table, _ = choose("law", calibration, None).analyze_cells(cells, "standard", None, cell_analyses)
+    table, _ = analyze_cells(cells, choose("law", calibration, None), "standard", None)
     s = summary(table)
     assert [r["frequency_hz"] for r in s["frequencies"]] == [0.02, 0.1, 1.0, 10.0]
     for r in s["frequencies"]:

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from analysis.afm import rheology
-from analysis.afm import analyze as cell_analyses
+from analysis.afm.analyze import analyze_cells
 from analysis.invert.method import choose
 from analysis.afm.cell import Cell, Segment
 from analysis.afm.synth.cells import generate
@@ -24,8 +24,7 @@ def solver_round_trip():
     cells, truth = generate(3, seed=4, errors=False,
                             forward=ViscoelasticForward(0.1, 0.3, solver_complex(), seed=4))
     model = load_calibration(None).viscoelastic
-    table, segs = choose("emulator", None, model.emulator).analyze_cells(cells, "standard", MeasurementErrors(draws=20),
-                                                                        cell_analyses)
+    table, segs = analyze_cells(cells, choose("emulator", None, model.emulator), "standard", MeasurementErrors(draws=20))
     return truth, rheology.analyze(table, segs, model, "standard", MeasurementErrors(draws=20))
 
 

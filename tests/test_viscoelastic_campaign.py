@@ -40,7 +40,7 @@ def write(tmp_path, text, name="c.toml"):
 def one_process(nodes):
     """`node_coefficients` at `nodes` in a fresh process on one BLAS thread, as a
     campaign rank computes (`cortex campaign run` sets OPENBLAS_NUM_THREADS=1)."""
-    code = ("import json, sys; from analysis.viscoelastic_table import node_coefficients as f; "
+    code = ("import json, sys; from analysis.calibration.viscoelastic_table import node_coefficients as f; "
             "c = [f(*n) for n in json.loads(sys.argv[1])]; "
             "print(json.dumps([[x.real for x in a] + [x.imag for x in a] for a in c]))")
     done = subprocess.run([sys.executable, "-c", code, json.dumps(nodes)], capture_output=True, text=True,

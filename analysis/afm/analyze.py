@@ -17,6 +17,10 @@ outside the law's grid (the α-table axes; ν then rests on the log law's
 extrapolation; None for a law without a table). The law's table keeps the
 columns and the row order (the recordings') it has always had.
 
+`inverted(measured, inversion, bending, errors)`: the cells table of one variant (the
+curves inverted, then `cell_table`); `analyze_cells(cells, inversion, bending, errors)`:
+`measure` and `inverted` at once -> (cells table, segments table).
+
 `summarise(table)`: the population summary (`analysis.afm.population.summary`)
 and, for a table with intervals, each frequency's bootstrap 95 % interval of the
 median ν (`analysis.invert.intervals.median_table`) and its count of ν > 0.5.
@@ -37,6 +41,8 @@ from common.errors import InputError
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
     from analysis.calibration.law import Law
+    from analysis.invert.measurement_errors import MeasurementErrors
+    from analysis.invert.method import Inversion
 
 TENSION_TOLERANCE = 0.10
 LAW_COLUMNS = ["cell_id", "frequency_hz", "bending", "volume_um3", "tension_mN_per_m", "tension_deviation",
@@ -144,3 +150,18 @@ def summarise(table: pd.DataFrame) -> dict[str, Any]:
         r["n_nu_beyond_isotropic"] = int(((table["frequency_hz"] == r["frequency_hz"])
                                           & table["excluded_reason"].isna() & table["nu_beyond_isotropic"]).sum())
     return out
+
+
+def inverted(measured: Measured, inversion: Inversion, bending: str,
+             errors: MeasurementErrors | None = None) -> pd.DataFrame:
+    """The cells table of the curves of `measured` inverted with variant `bending`."""
+    from analysis.invert.method import LawInversion
+    law = inversion.calibration[bending] if isinstance(inversion, LawInversion) else None
+    return cell_table(measured, inversion.invert(measured.curves, bending, errors), law)
+
+
+def analyze_cells(cells: list[Cell], inversion: Inversion, bending: str = "standard",
+                  errors: MeasurementErrors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """`cells` measured and inverted with variant `bending`: (cells table, segments table)."""
+    measured = measure(cells)
+    return inverted(measured, inversion, bending, errors), measured.segments

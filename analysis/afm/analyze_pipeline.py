@@ -43,17 +43,16 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import pandas as pd
 
-from analysis.afm.analyze import cell_table, measure, summarise
+from analysis.afm.analyze import inverted, measure, summarise
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
-from analysis.invert.method import INVERSIONS, Inversion, LawInversion
+from analysis.invert.method import INVERSIONS, Inversion
 from outputs.ownership import OutputDir
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from analysis.afm.cell import Cell
-    from analysis.afm.analyze import Measured
     from analysis.calibration.file import CalibrationFile
     from analysis.invert.measurement_errors import MeasurementErrors
 
@@ -125,19 +124,13 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
                       inversion=inversion, calibration=calibration, variants=variants)
 
 
-def _variant(inversion: Inversion, measured: Measured, bending: str,
-             errors: MeasurementErrors | None) -> pd.DataFrame:
-    """The cells table of the curves of `measured` inverted with variant `bending`."""
-    law = inversion.calibration[bending] if isinstance(inversion, LawInversion) else None
-    return cell_table(measured, inversion.invert(measured.curves, bending, errors), law)
-
 
 def fit(rec: Recordings, settings: Settings) -> Fitted:
     """Every cell of `rec` with every variant: a `Fitted`."""
     measured = measure(rec.cells)
     fitted = Fitted(segments=measured.segments)
     for variant in rec.variants:
-        tab = _variant(rec.inversion, measured, variant, settings.errors)
+        tab = inverted(measured, rec.inversion, variant, settings.errors)
         fitted.tables[variant] = tab
         fitted.sums[variant] = summarise(tab)
     from analysis.afm.population.answer import answer
