@@ -14,14 +14,11 @@ import itertools
 import json
 import sys
 import time
-from pathlib import Path
 
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from common.errors import SolverError  # noqa: E402
-from solver.ramp import RESOLUTION, ramp_forces_nN  # noqa: E402
+from common.errors import SolverError
+from solver.ramp import RESOLUTION, ramp_forces_nN
 
 DEPTHS = np.geomspace(0.005, 1.0, 50)     # δ/R
 CHECKED = DEPTHS >= 0.01                   # where refinement is judged

@@ -21,9 +21,7 @@ import sys
 import tempfile
 import time
 
-sys.path[0] = str(pathlib.Path(__file__).resolve().parents[1])   # not bench/ (its solver.py)
-
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BIN = pathlib.Path(sys.executable).parent
