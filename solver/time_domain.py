@@ -45,6 +45,8 @@ from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
 from solver.prony import Prony
 
+CORRECTIONS = 0     # solves again with the history carried to the solved label
+
 
 @dataclass(frozen=True)
 class Cortex:
@@ -102,6 +104,8 @@ class TimeShell:
     h_um: float = field(init=False)
     channels: tuple[_Channel, _Channel] = field(init=False)
     _steps: dict = field(init=False, default_factory=dict)
+    _label: float = field(init=False)
+    _last_label: float = field(init=False)
 
     def __post_init__(self) -> None:
         if self.cortex.bulk.relaxation(0.0) + self.cortex.shear.relaxation(0.0) <= 0:
@@ -111,6 +115,7 @@ class TimeShell:
         r0, z0 = base.ref.positions(LOG_PSI_MIN)[:2]
         self.u = np.concatenate([r0[1:], z0[base.kc + 1: base.N], [LOG_PSI_MIN, 2.0 * base.gamma * base.ref.H]])
         self.h_um = float(self.shell.h0_um)
+        self._label = self._last_label = float(LOG_PSI_MIN)   # where the internal variables sit
         n = base.N
         self.channels = tuple(_Channel(p, np.zeros(n), np.zeros((len(p.weights), n)))
                               for p in (self.cortex.bulk, self.cortex.shear))
@@ -138,20 +143,33 @@ class TimeShell:
             raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
         lag = self._step_lagrangian(dt_s)
         bulk, shear = self.channels
-        lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
         u = self.u.copy()
         u[lag.N: -2] *= h_um / self.h_um              # the last shape squeezed to the new gap
-        old = self.labels()
-        u, _ = _contact(lag, u, 0.5 * h_um)
+        u[-2] = max(2.0 * u[-2] - self._last_label, LOG_PSI_MIN)   # l extrapolated
+        self._last_label = float(self.u[-2])
+        self._carry(u[-2])
+        for _ in range(1 + CORRECTIONS):
+            lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
+            u, _ = _contact(lag, u, 0.5 * h_um)
+            moved = self._carry(u[-2])
+            if not moved:
+                break
         self.u, self.h_um, self.lag = u, float(h_um), lag
-        new = self.labels()
-        if not np.array_equal(old, new):
-            for ch in self.channels:
-                ch.remap(old, new, lag.nd)
         a, s = self.strains()
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
         return self.force_nN()
+
+    def _carry(self, label: float) -> bool:
+        """Carry the internal variables from the elements' material at `self._label` to that at
+        contact label `label`; whether anything moved."""
+        if label == self._label:
+            return False
+        old, new = self.labels(self._label), self.labels(label)
+        for ch in self.channels:
+            ch.remap(old, new, self.lag.nd)
+        self._label = float(label)
+        return True
 
     def force_nN(self) -> float:
         """The plate force -(1/2) ∂L/∂z_p (nN) at the current state and the last step's prestress."""
@@ -166,9 +184,10 @@ class TimeShell:
         e2 = (r[1:] + r[:-1]) / (r0[1:] + r0[:-1]) - 1.0
         return e1 + e2, e1 - e2
 
-    def labels(self) -> npt.NDArray[np.float64]:
-        """The reference angle ψ0 at the middle of every element from the disc's edge on."""
-        ref, psic = self.lag.ref, np.exp(self.u[-2])
+    def labels(self, label: float) -> npt.NDArray[np.float64]:
+        """The reference angle ψ0 at the middle of every element from the disc's edge on, at
+        contact label l = `label`."""
+        ref, psic = self.lag.ref, np.exp(label)
         psi = np.concatenate([[0.0], psic * ref.zeta, psic + (0.5 * np.pi - psic) * ref.xi])
         return 0.5 * (psi[1:] + psi[:-1])
 
