@@ -26,22 +26,14 @@ import numpy.typing as npt
 
 from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
+from solver.time_domain import element_strains
 from solver.viscous import Linearised, full_hessian, hold_label, linearise, respond
 
 
-def _strains(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float) -> tuple[np.ndarray, np.ndarray]:
-    """(e1 + e2, e1 - e2) of every element at u."""
-    r, z = lag.nodes(u, zp)[:2]
-    r0, z0 = lag.ref.positions(u[-2])[:2]
-    e1 = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0)) - 1.0
-    e2 = (r[1:] + r[:-1]) / (r0[1:] + r0[:-1]) - 1.0
-    return e1 + e2, e1 - e2
-
-
-def _like(lag: Lagrangian, shell: Shell, **moduli: float) -> Lagrangian:
-    """A Lagrangian on `lag`'s mesh with `shell`'s B held and the moduli changed."""
+def _like(lag: Lagrangian, shell: Shell, bulk: float, shear: float) -> Lagrangian:
+    """A Lagrangian on `lag`'s mesh with `shell`'s B held and moduli (K_B, K_S)."""
     other = Lagrangian(replace(shell, bending_pN_um=shell.bending_stiffness * PN_UM_PER_MN_PER_M_UM2,
-                               **moduli), lag.ref)
+                               bulk_mN_per_m=bulk, shear_mN_per_m=shear), lag.ref)
     other.V0, other.area0 = lag.V0, lag.area0
     return other
 
@@ -49,13 +41,13 @@ def _like(lag: Lagrangian, shell: Shell, **moduli: float) -> Lagrangian:
 def material_parts(lin: Linearised, shell: Shell) -> tuple[np.ndarray, np.ndarray]:
     """(M_B, M_S): the material stiffness per unit K_B and K_S at the linearised state."""
     lag, u, zp = lin.lag, lin.u, lin.zp
-    a, s = _strains(lag, u, zp)
+    a, s = element_strains(lag, u, zp)
     bulk, shear = shell.bulk_mN_per_m, shell.shear_mN_per_m
     parts = []
-    for step, pre in ((dict(bulk_mN_per_m=bulk + 1.0), dict(pa=a)), (dict(shear_mN_per_m=shear + 1.0), dict(ps=s))):
-        geometric = _like(lag, shell)
+    for unit, pre in (((bulk + 1.0, shear), dict(pa=a)), ((bulk, shear + 1.0), dict(ps=s))):
+        geometric = _like(lag, shell, bulk, shear)
         geometric.terms = geometric.terms._replace(**pre)
-        M = full_hessian(_like(lag, shell, **step), u, zp) - full_hessian(geometric, u, zp)
+        M = full_hessian(_like(lag, shell, *unit), u, zp) - full_hessian(geometric, u, zp)
         if lin.held:
             hold_label(M, 0.0)
         parts.append(M)

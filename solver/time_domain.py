@@ -108,17 +108,19 @@ class TimeShell:
     _last_label: float = field(init=False)
 
     def __post_init__(self) -> None:
-        if self.cortex.bulk.relaxation(0.0) + self.cortex.shear.relaxation(0.0) <= 0:
+        bulk0, shear0 = (float(p.relaxation(0.0)) for p in (self.cortex.bulk, self.cortex.shear))
+        if bulk0 + shear0 <= 0:
             raise InputError("the cortex needs a nonzero instantaneous modulus")
-        base = self._elastic(self.cortex.bulk.relaxation(0.0)[()], self.cortex.shear.relaxation(0.0)[()])
+        base = self._elastic(bulk0, shear0)
         self.lag = base
         r0, z0 = base.ref.positions(LOG_PSI_MIN)[:2]
         self.u = np.concatenate([r0[1:], z0[base.kc + 1: base.N], [LOG_PSI_MIN, 2.0 * base.gamma * base.ref.H]])
         self.h_um = float(self.shell.h0_um)
         self._label = self._last_label = float(LOG_PSI_MIN)   # where the internal variables sit
         n = base.N
-        self.channels = tuple(_Channel(p, np.zeros(n), np.zeros((len(p.weights), n)))
-                              for p in (self.cortex.bulk, self.cortex.shear))
+        bulk, shear = (_Channel(p, np.zeros(n), np.zeros((len(p.weights), n)))
+                       for p in (self.cortex.bulk, self.cortex.shear))
+        self.channels = (bulk, shear)
 
     def _elastic(self, bulk: float, shear: float) -> Lagrangian:
         """The elastic Lagrangian on the shell's mesh with moduli (K_B, K_S) and the shell's B."""
@@ -176,13 +178,8 @@ class TimeShell:
         return float(-0.5 * self.lag.newton_system(self.u, 0.5 * self.h_um, hessian=False)[2])
 
     def strains(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """(e1 + e2, e1 - e2) of every element (λ1 = ds/dS, λ2 = r̄/r̄0, as the kernel has them)."""
-        lag = self.lag
-        r, z = lag.nodes(self.u, 0.5 * self.h_um)[:2]
-        r0, z0 = lag.ref.positions(self.u[-2])[:2]
-        e1 = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0)) - 1.0
-        e2 = (r[1:] + r[:-1]) / (r0[1:] + r0[:-1]) - 1.0
-        return e1 + e2, e1 - e2
+        """(e1 + e2, e1 - e2) of every element now (`element_strains`)."""
+        return element_strains(self.lag, self.u, 0.5 * self.h_um)
 
     def labels(self, label: float) -> npt.NDArray[np.float64]:
         """The reference angle ψ0 at the middle of every element from the disc's edge on, at
@@ -190,6 +187,17 @@ class TimeShell:
         ref, psic = self.lag.ref, np.exp(label)
         psi = np.concatenate([[0.0], psic * ref.zeta, psic + (0.5 * np.pi - psic) * ref.xi])
         return 0.5 * (psi[1:] + psi[:-1])
+
+
+def element_strains(lag: Lagrangian, u: npt.NDArray[np.float64],
+                    zp: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(e1 + e2, e1 - e2) of every element at the unknowns u and plate z_p (λ1 = ds/dS,
+    λ2 = r̄/r̄0 against the reference at u's contact label, as the kernel has them)."""
+    r, z = lag.nodes(u, zp)[:2]
+    r0, z0 = lag.ref.positions(u[-2])[:2]
+    e1 = np.hypot(np.diff(r), np.diff(z)) / np.hypot(np.diff(r0), np.diff(z0)) - 1.0
+    e2 = (r[1:] + r[:-1]) / (r0[1:] + r0[:-1]) - 1.0
+    return e1 + e2, e1 - e2
 
 
 def simulate(shell: Shell, cortex: Cortex, t_s: npt.ArrayLike, h_um: npt.ArrayLike) -> npt.NDArray[np.float64]:
