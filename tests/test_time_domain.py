@@ -116,3 +116,15 @@ def test_relaxed_state_of_the_frequency_model_is_the_one_the_wait_reaches():
     before = rec.force_nN[rec.oscillation.start - 1]
     lin = linearise(relaxed(replace(shell, bulk_mN_per_m=1e-9, shear_mN_per_m=1e-9)))
     assert before == pytest.approx(lin.force_nN, rel=3e-3)
+
+
+def test_bad_protocols_and_histories_are_refused():
+    """One clear InputError each: a zero frequency, a gap the protocol would close, times
+    that do not increase."""
+    with pytest.raises(InputError, match="frequency_hz"):
+        Protocol(frequency_hz=0.0)
+    cortex = Cortex(Prony(25.0), Prony(8.33))
+    with pytest.raises(InputError, match="close the gap"):
+        run(replace(SHELL, h0_um=0.4, dh_um=0.1), cortex, Protocol())
+    with pytest.raises(InputError, match="increasing"):
+        simulate(SHELL, cortex, [0.0, 1.0, 1.0], [12.0, 11.9, 11.8])
