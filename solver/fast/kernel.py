@@ -8,6 +8,9 @@ e = (k, k+1), in the local unknowns (r_k, z_k, r_k+1, z_k+1, l, p):
     f_e = 4π [c_e r̄ ds + w(e1, e2) r̄0 dS] - 2 p V_e,
     V_e = π (z_k - z_k+1)(r_k² + r_k r_k+1 + r_k+1²)/3     (`solver.frustum`),
 
+w(e1, e2) with the element's linear prestress term P_a (e1+e2) + P_s (e1-e2)
+(`Terms.pa`, `Terms.ps`; zeros for the elastic shell, where adding them changes no bit),
+
 through the intermediate quantities a = (ds, r̄, dS, r̄0) with Jacobian J:
 ∇f = (∂f/∂a) J and ∇²f = J^T (∂²f/∂a²) J + Σ ∂f/∂a ∇²a. Per free node k
 (and, with half weight and the mirror symmetry θ_b = π - θ_a, the equator)
@@ -32,8 +35,10 @@ from solver.jit import njit
 # what `evaluate` needs besides the state: per-element tension c_e, moduli,
 # H_d, contact node k_c, the global indices of each element's (r, z, r, z, l, p)
 # and each bending node's (r, z) × 3, and where each global index goes in the
-# Newton matrix (`slot`: its column in the band, or L_SLOT, P_SLOT, NO_SLOT)
-Terms = namedtuple("Terms", "cten KB KS B Hd kc elem_idx bend_idx slot band")
+# Newton matrix (`slot`: its column in the band, or L_SLOT, P_SLOT, NO_SLOT); per
+# element a prestress linear in the strain, w += pa (e1+e2) + ps (e1-e2) (zero for the
+# elastic shell; `solver.time_domain` carries a viscoelastic cortex's history in it)
+Terms = namedtuple("Terms", "cten KB KS B Hd kc elem_idx bend_idx slot band pa ps")
 L_SLOT, P_SLOT, NO_SLOT = -1, -2, -3
 # per-element lengths and angles with their derivatives, and scratch buffers
 # (allocated once per evaluation: small allocations would dominate)
@@ -155,10 +160,10 @@ def _surface(e, x, ref, t, w, want_h):
     r0m_l, r0m_ll = 0.5 * (Rl[e + 1] + Rl[e]), 0.5 * (Rll[e + 1] + Rll[e])
     l1, l2 = ds / dS, rm / r0m
     e1, e2 = l1 - 1.0, l2 - 1.0
-    KB, KS, c = t.KB, t.KS, t.cten[e]
-    wv = 0.5 * KB * (e1 + e2) ** 2 + 0.5 * KS * (e1 - e2) ** 2
-    w1 = KB * (e1 + e2) + KS * (e1 - e2)
-    w2 = KB * (e1 + e2) - KS * (e1 - e2)
+    KB, KS, c, pa, ps = t.KB, t.KS, t.cten[e], t.pa[e], t.ps[e]
+    wv = 0.5 * KB * (e1 + e2) ** 2 + 0.5 * KS * (e1 - e2) ** 2 + (pa * (e1 + e2) + ps * (e1 - e2))
+    w1 = KB * (e1 + e2) + KS * (e1 - e2) + (pa + ps)
+    w2 = KB * (e1 + e2) - KS * (e1 - e2) + (pa - ps)
     wa, wb, k4 = KB + KS, KB - KS, 4.0 * np.pi
     fa0, fa1 = k4 * (c * rm + w1 * r0m), k4 * (c * ds + w2 * dS)
     fa2, fa3 = k4 * (r0m * (wv - w1 * l1)), k4 * (dS * (wv - w2 * l2))

@@ -14,7 +14,9 @@ Discrete Lagrangian of the whole cell (twice the half), elements e = (k, k+1):
 
 with ds, dS the current and reference element lengths, r̄ and r̄0 the mid
 radii, λ1 = ds/dS, λ2 = r̄/r̄0, e_i = λ_i - 1,
-w = (K_B/2)(e1+e2)² + (K_S/2)(e1-e2)², and c_e = γ_a, plus 2 B H_d² on the
+w = (K_B/2)(e1+e2)² + (K_S/2)(e1-e2)² (plus a prestress linear in the
+strain per element, P_a,e (e1+e2) + P_s,e (e1-e2), `Terms.pa`, `Terms.ps`: zero
+unless set, as `solver.time_domain` does), and c_e = γ_a, plus 2 B H_d² on the
 strip of material that has newly come onto the plate (reference curvature
 H_d, now flat). At a free node H = (1/2)[(θ_b - θ_a)/ℓ + sin((θ_a+θ_b)/2)/r]
 with θ the elements' tangent angles to the plate (zero on the plate),
@@ -82,7 +84,8 @@ class Lagrangian:
         self.elastic = shell.bulk_mN_per_m + shell.shear_mN_per_m > 0.0
         self.terms = Terms(cten=self.cten, KB=float(self.KB), KS=float(self.KS), B=float(self.B),
                            Hd=float(ref.H), kc=int(self.kc), elem_idx=self.elem_idx,
-                           bend_idx=self.bend_idx, slot=self.slot, band=BAND)
+                           bend_idx=self.bend_idx, slot=self.slot, band=BAND,
+                           pa=np.zeros(N), ps=np.zeros(N))
         # natural size of a nodal force: tension times a typical element length (a tenth
         # of the contact radius a0, or of SCALE_LEAST / H_d where a0 is smaller: a reference
         # near the free sphere, whose a0 -> 0 would ask for residuals below round-off)
