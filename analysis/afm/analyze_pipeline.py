@@ -39,7 +39,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import pandas as pd
 
@@ -140,7 +140,7 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     return fitted
 
 
-def _viscoelastic(rec, settings, fitted):
+def _viscoelastic(rec: Recordings, settings: Settings, fitted: Fitted) -> None:
     """The viscoelastic reading of the selected variant (`analysis.afm.rheology`) with the
     calibration file's complex forward model: its cells table gains the per-frequency
     columns; `fitted.rheology` = (table, summary)."""
@@ -153,18 +153,18 @@ def _viscoelastic(rec, settings, fitted):
     fitted.rheology = rheo
 
 
-def _write(out, name, write):
+def _write(out: OutputDir, name: str, write: Callable[[Path], object]) -> Path:
     """`write(path)` for file `name` of the output folder `out` (`OutputDir`); its path."""
     with out.writing(name) as path:
         write(path)
     return path
 
 
-def _json(document):
+def _json(document: dict[str, Any]) -> Callable[[Path], int]:
     return lambda p: p.write_text(json.dumps(document, indent=1) + "\n")
 
 
-def _csv(table):
+def _csv(table: pd.DataFrame) -> Callable[[Path], None]:
     return lambda p: table.to_csv(p, index=False)
 
 

@@ -67,7 +67,8 @@ class PauseTension:
     h_tilde: float
 
 
-def _tension_pressure(force, volume, height):
+def _tension_pressure(force: npt.ArrayLike, volume: npt.ArrayLike,
+                      height: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     g = force_per_tension_um(volume, height)
     with np.errstate(divide="ignore"):
         gamma = np.where(g > 0, force / np.where(g > 0, g, 1.0), np.inf)

@@ -35,6 +35,7 @@ so has a fit with fewer than MIN_BASELINE window samples above the contact
 """
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -86,7 +87,8 @@ class RampFit:
             self.model, self.contact_um - np.asarray(x_um, float), radius_um)
 
 
-def _sse(x, f, x0s, model, radius):
+def _sse(x: np.ndarray, f: np.ndarray, x0s: np.ndarray, model: str,
+         radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(residual sum of squares, T, F_b) of the linear fit at every contact candidate x0s."""
     g = force_per_tension_um(model, x0s[:, None] - x[None, :], radius)
     n = x.size
@@ -99,7 +101,8 @@ def _sse(x, f, x0s, model, radius):
     return sst - t * cov, t, f.mean() - t * gm
 
 
-def _fit_window(x, f, lo, hi, model, radius, near=None):
+def _fit_window(x: np.ndarray, f: np.ndarray, lo: float, hi: float, model: str, radius: float,
+                near: float | None = None) -> tuple[float, float, float, float]:
     """The best contact in [lo, hi] for the samples x, f: (x0, T, F_b, sse); a grid
     of GRID candidates then Brent between the best one's neighbours, or, given
     `near` (a contact found before), Brent alone within a quarter of the window of it."""
@@ -179,7 +182,8 @@ def refit(fit: RampFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um:
     return _result(fit.model, f, fit.window, lo_hi, solved[0] - x.min(), solved)
 
 
-def _result(model, f, mask, lo_hi, depth, solved):
+def _result(model: str, f: np.ndarray, mask: Any, lo_hi: Any, depth: float,
+            solved: tuple[float, float, float, float]) -> RampFit:
     """The `RampFit` of a solved window (x0, T, F_b, sse) with forces f in it."""
     x0, t, fb, sse = solved
     sst = float(np.sum((f - f.mean()) ** 2))

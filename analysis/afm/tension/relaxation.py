@@ -111,21 +111,21 @@ def _linear(phi: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return f.mean() - amp * phi.mean(axis=0), amp, fc @ fc - amp * cov
 
 
-def _blocks(t, f):
+def _blocks(t: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Block means of (t, F): at most GRID_SAMPLES points for the start grid."""
     size = max(1, int(np.ceil(t.size / GRID_SAMPLES)))
     m = t.size // size * size
     return t[:m].reshape(-1, size).mean(axis=1), f[:m].reshape(-1, size).mean(axis=1)
 
 
-def _bounds(model, step, span):
+def _bounds(model: str, step: float, span: float) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of (F_∞, A, ln τ[, ln β]): τ from a quarter sampling step to 100 pauses."""
     lo = [-np.inf, -np.inf, np.log(step / 4.0)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[0])])
     hi = [np.inf, np.inf, np.log(100.0 * span)] + ([] if model == EXPONENTIAL else [np.log(BETA_RANGE[1])])
     return np.array(lo), np.array(hi)
 
 
-def _start(model, t, f, lo, hi):
+def _start(model: str, t: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(F_∞, A, ln τ[, ln β]) of the best point of a grid within the bounds."""
     tb, fb = _blocks(t, f)
     taus = np.exp(np.linspace(lo[2], hi[2], 32))
@@ -139,12 +139,12 @@ def _start(model, t, f, lo, hi):
     return np.array([f_inf[j], amp[j], np.log(tau[j])] + ([] if model == EXPONENTIAL else [np.log(beta[j])]))
 
 
-def _residuals(p, model, t, f):
+def _residuals(p: np.ndarray, model: str, t: np.ndarray, f: np.ndarray) -> np.ndarray:
     tau = np.exp(p[2])
     return p[0] + p[1] * shape(model, t, tau, np.exp(p[3]) if model == POWER else np.nan) - f
 
 
-def _jacobian(p, model, t, f):
+def _jacobian(p: np.ndarray, model: str, t: np.ndarray, f: np.ndarray) -> np.ndarray:
     tau = np.exp(p[2])
     if model == EXPONENTIAL:
         phi = shape(model, t, tau)
@@ -156,7 +156,8 @@ def _jacobian(p, model, t, f):
                             -p[1] * phi * beta * np.log1p(x)])
 
 
-def _fit(model, t, f, step, span):
+def _fit(model: str, t: np.ndarray, f: np.ndarray, step: float,
+         span: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least-squares parameters, residuals and the unscaled covariance (JᵀJ)⁻¹."""
     lo, hi = _bounds(model, step, span)
     p0 = np.clip(_start(model, t, f, lo, hi), lo + 1e-9, hi - 1e-9)
@@ -166,14 +167,14 @@ def _fit(model, t, f, step, span):
     return res.x, res.fun, np.linalg.pinv(jac.T @ jac)
 
 
-def _lag1(r):
+def _lag1(r: np.ndarray) -> float:
     """The residuals' lag-1 autocorrelation, clipped to [0, 0.99]."""
     r = r - r.mean()
     denom = float(r @ r)
     return float(np.clip((r[1:] @ r[:-1]) / denom, 0.0, 0.99)) if denom > 0 else 0.0
 
 
-def _bic(rss, n, k, rho):
+def _bic(rss: float, n: int, k: int, rho: float) -> float:
     n_e = n * (1.0 - rho) / (1.0 + rho)
     return float(n_e * np.log(max(rss, 1e-300) / n) + k * np.log(n_e))
 
@@ -208,7 +209,7 @@ def fit_relaxation(t_s: npt.ArrayLike, force_nN: npt.ArrayLike) -> Relaxation:
     return _flagged(out)
 
 
-def _constant(f, span, rho, bic, flag):
+def _constant(f: np.ndarray, span: float, rho: float, bic: dict[str, float], flag: str) -> Relaxation:
     """No relaxation: F_∞ the pause's mean force, its SD σ_F/√n_e."""
     mean = float(np.mean(f)) if f.size else float("nan")
     n_e = f.size * (1.0 - rho) / (1.0 + rho)

@@ -62,7 +62,7 @@ def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
     return names
 
 
-def _ramp_axes(ax, plot, radius):
+def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     _, index, x, f, fit, cmp, _ = plot
     depth = fit.contact_um - x
     ax.plot(depth, f - fit.baseline_nN, ".", ms=2, color="0.7", label="data")
@@ -84,7 +84,7 @@ def _ramp_axes(ax, plot, radius):
     ax.legend(fontsize=7, loc="upper left")
 
 
-def _depth_axes(ax, plot):
+def _depth_axes(ax: Any, plot: tuple[Any, ...]) -> None:
     """Each model's tension against the window's depth (the shell's with its 95 % bar)."""
     _, index, _, _, fit, _, rows = plot
     d = np.array([r.depth_um for r in rows])
@@ -101,7 +101,7 @@ def _depth_axes(ax, plot):
     ax.legend(fontsize=7, loc="upper left")
 
 
-def _pause_axes(ax, plot):
+def _pause_axes(ax: Any, plot: tuple[Any, ...]) -> None:
     _, index, t, f, half, relax, _ = plot
     ax.plot(t, f, ".", ms=2, color="tab:blue")
     if relax.model != NONE:
@@ -135,7 +135,7 @@ def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
     fig.savefig(path, dpi=80)
 
 
-def _num(row, key, spec):
+def _num(row: dict[str, Any], key: str, spec: str) -> str:
     """row[key] formatted, '—' where it is missing or NaN."""
     value = row.get(key, float("nan"))
     return "—" if value != value else format(value, spec)
