@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from analysis.invert.method import Inversion
 
 METHODS = INVERSION_METHODS
-__all__ = ["METHODS", "MeasurementErrors", "invert_with"]
+__all__ = ["METHODS", "invert_with"]
 
 
 def invert_with(inversion: Inversion, rows: pd.DataFrame, bending: str = "standard",
