@@ -18,23 +18,19 @@ the segment fits against the relaxed-state frequency-domain model. Prints one JS
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import replace
-from pathlib import Path
 
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from analysis.afm.synth.time_domain import segment_fit  # noqa: E402
-from solver.compression import compress  # noqa: E402
-from solver.geometry import cell_radius  # noqa: E402
-from solver.model import Shell  # noqa: E402
-from solver.prony import fit_power_law  # noqa: E402
-from solver.time_domain import Cortex  # noqa: E402
-from solver.time_protocol import Protocol, run  # noqa: E402
-from solver.viscoelastic import viscoelastic_keys  # noqa: E402
+from analysis.afm.synth.time_domain import segment_fit
+from solver.compression import compress
+from solver.geometry import cell_radius
+from solver.model import Shell
+from solver.prony import fit_power_law
+from solver.time_domain import Cortex
+from solver.time_protocol import Protocol, run
+from solver.viscoelastic import viscoelastic_keys
 
 V, TENSION, BULK, SHEAR, H_TILDE = 4300.0, 1.5, 25.0, 8.33, 0.6
 

@@ -44,8 +44,10 @@ IMPORT_ALL = """
 import importlib, json, pathlib, sys
 bench = pathlib.Path(sys.argv[1])
 sys.path[0] = str(bench)                    # as `python bench/X.py` sets it
+path_then = list(sys.path)
 failed = {}
 for path in sorted(bench.glob("*.py")):
+    sys.path[:] = path_then                 # each script as if run alone (some put tests/ on the path)
     try:
         importlib.import_module(path.stem)  # its imports and definitions; main() runs only as __main__
     except BaseException as err:
