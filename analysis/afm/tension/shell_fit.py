@@ -129,11 +129,11 @@ def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float,
     return [(found[i][0],) + found[i][2:] for i in sorted(minima, key=lambda i: sse[i])[:STARTS]]
 
 
-def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float]
+def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray
            ) -> tuple[np.ndarray, float, np.ndarray]:
     """least_squares from θ0 = (x0, F_b, γ_a, K_B); K_B fixed when `fixed` says so."""
     free_k = fixed.bulk_mN_per_m is None
-    kb = fixed.bulk_mN_per_m
+    kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
 
     def model(p: np.ndarray) -> np.ndarray:
         k = p[3] if free_k else kb
@@ -166,7 +166,7 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
     """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold:
     refits at K_B = γ_a · PROFILE; the K_B whose SSE stays within Z95² σ² of the
     best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    theta, lo_g, hi_g, hi_k = tuple(p), p[2], p[2], 0.0
+    theta, lo_g, hi_g, hi_k = np.asarray(p, float), p[2], p[2], 0.0
     for k in p[2] * PROFILE:
         theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
         if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
@@ -175,7 +175,7 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
 
 
 def _select(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.ndarray, sse: float, sigma: float,
-            sd_g: float, sd_k: float, corr: float, starts: list[Sequence[float]]
+            sd_g: float, sd_k: float, corr: float, starts: list[tuple[float, ...]]
             ) -> tuple[np.ndarray, float, float, float, float, str, float]:
     """(θ, SSE, SD γ_a, SD K_B, correlation, elastic term, Λ): the shell's fit or, where
     its elastic term is not significant, the droplet's (the best from the shell's
