@@ -218,9 +218,9 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
         sd_g, sd_k = _bound_sds(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k)
     term, lr = GIVEN, float("nan")
     if fixed.bulk_mN_per_m is None:
+        droplet_start = (drop.contact_um, drop.baseline_nN, drop.tension_mN_per_m, 0.0)
         p, sse, sd_g, sd_k, corr, term, lr = _select(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k, corr,
-                                                         [(drop.contact_um, drop.baseline_nN, drop.tension_mN_per_m, 0.0)]
-                                                         + list(starts))
+                                                     [droplet_start] + list(starts))
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                     bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
