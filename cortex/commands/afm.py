@@ -154,7 +154,7 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--model", choices=RAMP_MODELS, default="shell", metavar="MODEL",
                    help="ramp model, %(choices)s (default shell: the active tension and bulk modulus of an elastic "
                         "cortex; the droplet and small-deformation apparent tensions beside it)")
-    t.add_argument("--shear-ratio", type=float, default=1.0 / 3.0, metavar="KS_OVER_KB",
+    t.add_argument("--shear-ratio", type=float, default=None, metavar="KS_OVER_KB",
                    help="K_S/K_B of the shell model (default 1/3: Poisson ratio 0.5); from the same cell's "
                         "oscillations where known")
     t.add_argument("--bulk-mN-per-m", type=float, default=None, metavar="KB",

@@ -37,7 +37,8 @@ class DepthRow:
     small_deformation_tension_mN_per_m: float
 
 
-def _apparent(x, f, radius, model, cap):
+def _apparent(x: npt.ArrayLike, f: npt.ArrayLike, radius: float, model: str, cap: float) -> float:
+    """The apparent tension of a tension-only `model` on deformations up to `cap` (NaN if it fails)."""
     try:
         return fit_ramp(x, f, radius, model, cap_um=cap).tension_mN_per_m
     except InputError:

@@ -44,7 +44,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
-from analysis.afm.tension.shell_fit import Fixed, fit_shell, shell_interval
+from analysis.afm.tension.shell_fit import SHEAR_TILDE, Fixed, fit_shell, shell_interval
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
@@ -60,7 +60,7 @@ class Options:
     refer to the approach's contact point without one), the errors."""
 
     model: str = "shell"
-    shear_tilde: float = Fixed().shear_tilde
+    shear_tilde: float | None = None          # None: the default SHEAR_TILDE, fixed
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
     import_options: ImportOptions = ImportOptions(contact_heights=True)
@@ -76,7 +76,7 @@ class Trace:
     source: str
     volume_um3: float
     volume_source: str
-    parts: list
+    parts: list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]
     dish_known: bool
 
 
@@ -128,7 +128,8 @@ def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: floa
 def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
                ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same window)."""
-    fixed = Fixed(options.shear_tilde, options.bulk_mN_per_m)
+    given = options.shear_tilde is not None
+    fixed = Fixed(options.shear_tilde if options.shear_tilde is not None else SHEAR_TILDE, options.bulk_mN_per_m)
     fit = fit_shell(x, f, radius, fixed, cap_um=options.max_depth_um)
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
@@ -143,6 +144,8 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "pressure_hi95_Pa": float(pressure_Pa(t_hi, 1.0 / radius)),
            "bulk_modulus_mN_per_m": fit.bulk_mN_per_m, "bulk_modulus_lo95_mN_per_m": k_lo,
            "bulk_modulus_hi95_mN_per_m": k_hi, "shear_ratio": fit.shear_tilde,
+           "shear_ratio_source": "given" if given else "fixed (default)", "elastic_term": fit.elastic_term,
+           "elastic_term_lr": fit.elastic_lr,
            "tension_bulk_correlation": fit.correlation,
            "droplet_tension_mN_per_m": rows[-1].droplet_tension_mN_per_m,
            "small_deformation_tension_mN_per_m": rows[-1].small_deformation_tension_mN_per_m,

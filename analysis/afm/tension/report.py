@@ -28,7 +28,8 @@ if TYPE_CHECKING:
 TABLE, REPORT = "tension.csv", "report.md"
 COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
            "tension_hi95_mN_per_m", "bulk_modulus_mN_per_m", "bulk_modulus_lo95_mN_per_m",
-           "bulk_modulus_hi95_mN_per_m", "shear_ratio", "tension_bulk_correlation", "droplet_tension_mN_per_m",
+           "bulk_modulus_hi95_mN_per_m", "shear_ratio", "shear_ratio_source", "elastic_term", "elastic_term_lr",
+           "tension_bulk_correlation", "droplet_tension_mN_per_m",
            "small_deformation_tension_mN_per_m", "depth_flag", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",

@@ -25,8 +25,25 @@ K_B = γ_a · PROFILE and the SDs widened to the span of the accepted ones
 (`_bound_sds`). `shear_profile` refits at each K̃_S of a grid: Δχ² = ΔSSE/σ²
 against K̃_S says how much one ramp tells about K̃_S. `shell_interval`: the 95 %
 intervals with the volume error.
+
+Elastic term (K_B free only): the droplet (K_B = 0) is nested in the shell, so
+on the same window Λ = (SSE_0 - SSE_1) / σ² (σ² the shell's) tests K_B = 0.
+K_B = 0 sits on the boundary of K_B ≥ 0, so under the droplet Λ follows the
+50:50 mixture of χ²_0 and χ²_1 (Self & Liang 1987), whose 5 % threshold is the
+χ²_1 0.90 quantile, LR_THRESHOLD = 2.71. The contact x0 is not a regular
+parameter (the force has a kink there), and a droplet's ramp often finds a
+second valley (x0 a few nm deeper, K_B > 0, γ_a lower): on tension-only ramps
+Λ exceeded 2.71 in 3 of 24 (up to 7.6). The term is therefore tested at the
+BIC's threshold ln n (n the window's samples; ≈ 8 for a few thousand, a
+false-alarm rate under 0.3 % by the mixture), and never below 2.71. Below it
+the elastic term is "not significant" and the fit returned is the droplet's (γ_a its tension, K_B = 0),
+with intervals that still cover the shell's: the SD of γ_a such that
+γ_0 ± Z95 sd holds γ_1 ± Z95 sd_1, and K_B's upper 95 % bound that of the
+shell (its profile where it sits at the bound), so the selection never makes
+an interval narrower than the shell's (`_select`).
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -46,6 +63,9 @@ STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
 PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
+LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
+                         # and at least ln n (BIC; module doc)
+SIGNIFICANT, NOT_SIGNIFICANT, GIVEN = "significant", "not significant", "K_B given"
 
 
 @dataclass(frozen=True)
@@ -60,7 +80,8 @@ class Fixed:
 class ShellFit:
     """The fitted shell: γ_a, K_B (mN/m) with their SDs and correlation, contact x0
     (µm), baseline F_b (nN), R² and noise SD (nN) on the window (the droplet fit's,
-    `window`), the deepest deformation in it (µm), K̃_S used."""
+    `window`), the deepest deformation in it (µm), K̃_S used; `elastic_term` whether the
+    droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ."""
 
     tension_mN_per_m: float
     bulk_mN_per_m: float
@@ -77,6 +98,8 @@ class ShellFit:
     depth_um: float
     shear_tilde: float
     model: str = "shell"
+    elastic_term: str = GIVEN
+    elastic_lr: float = float("nan")
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
@@ -84,7 +107,8 @@ class ShellFit:
                                                       self.tension_mN_per_m, self.bulk_mN_per_m, self.shear_tilde)
 
 
-def _linear(x, f, x0, radius, shear, gt):
+def _linear(x: np.ndarray, f: np.ndarray, x0: float, radius: float, shear: float, gt: float
+            ) -> tuple[float, float, float, float]:
     """(SSE, F_b, γ_a, K_B) of the fit linear in (F_b, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0)."""
     b = shell_ramp.force_nN(np.clip(x0 - x, 0.0, None), radius, 1.0, 0.0 if np.isinf(gt) else 1.0 / gt, shear)
     a = np.stack([np.ones_like(b), b], axis=1)
@@ -93,7 +117,8 @@ def _linear(x, f, x0, radius, shear, gt):
     return sse, float(coef[0]), float(coef[1]), 0.0 if np.isinf(gt) else float(coef[1] / gt)
 
 
-def _starts(x, f, x0, span, radius, shear):
+def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float, shear: float
+            ) -> list[tuple[float, ...]]:
     """[(x0, F_b, γ_a, K_B)]: for each γ̃_a of START_GAMMAS and K_B = 0 the best contact
     within `span` of x0 (Brent; the rest linear), the local minima of their SSE
     over γ̃_a, best first, at most STARTS."""
@@ -110,12 +135,13 @@ def _starts(x, f, x0, span, radius, shear):
     return [(found[i][0],) + found[i][2:] for i in sorted(minima, key=lambda i: sse[i])[:STARTS]]
 
 
-def _solve(x, f, radius, fixed, theta0):
+def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray
+           ) -> tuple[np.ndarray, float, np.ndarray]:
     """least_squares from θ0 = (x0, F_b, γ_a, K_B); K_B fixed when `fixed` says so."""
     free_k = fixed.bulk_mN_per_m is None
-    kb = fixed.bulk_mN_per_m
+    kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
 
-    def model(p):
+    def model(p: np.ndarray) -> np.ndarray:
         k = p[3] if free_k else kb
         return p[1] + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
 
@@ -129,28 +155,46 @@ def _solve(x, f, radius, fixed, theta0):
     return p, float(2.0 * res.cost), res.jac
 
 
-def _errors(sse, jac, n):
+def _errors(sse: float, jac: np.ndarray, n: int) -> tuple[float, float, float, float]:
     """(σ, SD of γ_a, SD of K_B, their correlation) from the Jacobian (module doc)."""
     p = jac.shape[1]
     sigma2 = sse / max(n - p, 1)
     cov = sigma2 * np.linalg.pinv(jac.T @ jac)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     if p < 4:
-        return np.sqrt(sigma2), float(sd[2]), 0.0, float("nan")
+        return float(np.sqrt(sigma2)), float(sd[2]), 0.0, float("nan")
     corr = cov[2, 3] / (sd[2] * sd[3]) if sd[2] > 0 and sd[3] > 0 else float("nan")
-    return np.sqrt(sigma2), float(sd[2]), float(sd[3]), float(corr)
+    return float(np.sqrt(sigma2)), float(sd[2]), float(sd[3]), float(corr)
 
 
-def _bound_sds(x, f, radius, fixed, p, sse, sigma, sd_g, sd_k):
+def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.ndarray, sse: float, sigma: float,
+               sd_g: float, sd_k: float) -> tuple[float, float]:
     """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold:
     refits at K_B = γ_a · PROFILE; the K_B whose SSE stays within Z95² σ² of the
     best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    theta, lo_g, hi_g, hi_k = tuple(p), p[2], p[2], 0.0
+    theta, lo_g, hi_g, hi_k = np.asarray(p, float), p[2], p[2], 0.0
     for k in p[2] * PROFILE:
         theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
         if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
             lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
+
+
+def _select(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.ndarray, sse: float, sigma: float,
+            sd_g: float, sd_k: float, corr: float, starts: list[tuple[float, ...]]
+            ) -> tuple[np.ndarray, float, float, float, float, str, float]:
+    """(θ, SSE, SD γ_a, SD K_B, correlation, elastic term, Λ): the shell's fit or, where
+    its elastic term is not significant, the droplet's (the best from the shell's
+    optimum and each start) with the widened SDs (module doc)."""
+    drop = Fixed(fixed.shear_tilde, 0.0)
+    p0, sse0, jac0 = min((_solve(x, f, radius, drop, t) for t in [p] + starts), key=lambda t: t[1])
+    lr = max(sse0 - sse, 0.0) / sigma ** 2
+    if lr > max(LR_THRESHOLD, float(np.log(x.size))):
+        return p, sse, sd_g, sd_k, corr, SIGNIFICANT, float(lr)
+    _, sd_g0, _, _ = _errors(sse0, jac0, x.size)
+    wide_g = max(sd_g0, (abs(p[2] - p0[2]) + Z95 * sd_g) / Z95)
+    wide_k = max(sd_k, (p[3] + Z95 * sd_k) / Z95)
+    return p0, sse0, wide_g, wide_k, float("nan"), NOT_SIGNIFICANT, float(lr)
 
 
 def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fixed: Fixed = Fixed(),
@@ -172,12 +216,18 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
     sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
     if fixed.bulk_mN_per_m is None and p[3] < BOUND * p[2]:
         sd_g, sd_k = _bound_sds(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k)
+    term, lr = GIVEN, float("nan")
+    if fixed.bulk_mN_per_m is None:
+        droplet_start = (drop.contact_um, drop.baseline_nN, drop.tension_mN_per_m, 0.0)
+        p, sse, sd_g, sd_k, corr, term, lr = _select(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k, corr,
+                                                     [droplet_start] + list(starts))
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                     bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
                     r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                     window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
-                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde)
+                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
+                    elastic_term=term, elastic_lr=lr)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
@@ -208,7 +258,10 @@ def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, 
                    fixed: Fixed, errors: MeasurementErrors = TENSION_ERRORS) -> tuple[float, float, float, float]:
     """(γ_lo, γ_hi, K_B lo, K_B hi): 95 % intervals of γ_a and K_B, the statistical
     half-width Z95 · sd and the volume error's shift (refits at V (1 ± Z95 σ_V) on
-    the same window, as `pause.ramp_interval`) added in quadrature on each side."""
+    the same window, as `pause.ramp_interval`) added in quadrature on each side;
+    the refits of a fit that chose the droplet keep K_B = 0."""
+    if fit.elastic_term == NOT_SIGNIFICANT and fixed.bulk_mN_per_m is None:
+        fixed = Fixed(fixed.shear_tilde, 0.0)
     shifted = [refit_shell(fit, x_um, force_nN, float(cell_radius(volume_um3 * (1.0 + s * Z95 * errors.volume_rel_sd))),
                            fixed) for s in (-1.0, 1.0)]
     out = []
