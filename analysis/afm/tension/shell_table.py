@@ -147,3 +147,10 @@ def _index(axis: np.ndarray, values: Any) -> np.ndarray:
     """Each value's position on `axis` (its nearest node, relative)."""
     values = np.asarray(values, float)
     return np.abs(values[:, None] / axis[None, :] - 1.0).argmin(axis=1)
+
+
+if __name__ == "__main__":
+    import sys
+    print("the shell ramp table is built by the campaign engine: make ramp-table "
+          "(campaigns/ramp.toml, then cortex analysis build-ramp-table; docs/ramp.md)", file=sys.stderr)
+    sys.exit(2)
