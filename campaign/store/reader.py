@@ -26,7 +26,7 @@ import numpy as np
 
 from campaign.store import journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, RESULTS, STATES, stored_results,
+from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, STATES, stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
