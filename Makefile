@@ -8,6 +8,7 @@
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
 #   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
 #   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
+#   make ramp-table      rebuild the shipped shell ramp table (analysis/calibration/data/shell_ramp_table.json)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
 #   make bench-full      every script in bench/; the others take minutes to an hour and more each
 #                        (the solver-forward round trip and error sources, the Monte-Carlo study by
@@ -119,6 +120,15 @@ viscoelastic-table: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/viscoelastic.toml --store results/viscoelastic.h5
 	$(BIN)/cortex analysis build-viscoelastic-table results/viscoelastic.h5 --out results/viscoelastic-table
 	cp results/viscoelastic-table/viscoelastic_table.json $(CALIBRATION)/viscoelastic_table.json
+
+# The shipped shell ramp table: its campaign under mpiexec (540 nodes; see
+# docs/performance.md for its time; reruns resume), then the table from the store
+# (results/ramp-table/), copied into the package.
+.PHONY: ramp-table
+ramp-table: setup
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/ramp.toml --store results/ramp.h5
+	$(BIN)/cortex analysis build-ramp-table results/ramp.h5 --out results/ramp-table
+	cp results/ramp-table/shell_ramp_table.json $(CALIBRATION)/shell_ramp_table.json
 
 # Benchmarks: one JSON object each on stdout; every script runs as `python bench/X.py` (no script
 # is named like a package: tests/test_bench_scripts.py) and the target fails if one did.

@@ -7,8 +7,11 @@
                 complex correspondence table (`analysis.calibration.viscoelastic_table`:
                 one linearisation, the 7 x 7 loss angles, ln C's polynomial
                 coefficients as the results TABLE_RESULTS of
-                `campaign.store.schema`); that needs the fast solver and an
-                elastic grid without [montecarlo]
+                `campaign.store.schema`), or `ramp_table`, one node of the
+                shell ramp table (`analysis.afm.tension.shell_table`: one
+                continuation from the free sphere over the table's depths,
+                F/(K_B R) as RAMP_RESULTS; h0 and dh play no part); both
+                need the fast solver and an elastic grid without [montecarlo]
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
@@ -73,7 +76,7 @@ from solver.model import BENDING_VARIANTS
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 MAX_TASKS = 100_000
-TASKS = ("compression", "viscoelastic_table")
+TASKS = ("compression", "viscoelastic_table", "ramp_table")
 SECTIONS = {"campaign": {"name", "store", "max_tasks", "task"},
             "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
@@ -245,16 +248,16 @@ def _campaign_section(path, meta):
 
 
 def _task(path, meta, grid, method, montecarlo):
-    """[campaign] task (one of TASKS); a viscoelastic-table node needs the fast
-    solver (its linearisation) and an elastic cell, and has no trials."""
+    """[campaign] task (one of TASKS); a table node (viscoelastic or ramp) needs
+    the fast solver (its linearisation, its continuation) and an elastic cell, and has no trials."""
     task = meta.get("task", "compression")
     if task not in TASKS:
         raise InputError(f"{path}: [campaign] task must be one of {', '.join(TASKS)} (got {task!r})")
-    if task == "viscoelastic_table":
+    if task != "compression":
         if method != "fast":
-            raise InputError(f"{path}: [campaign] task viscoelastic_table needs [solver] method = \"fast\"")
+            raise InputError(f"{path}: [campaign] task {task} needs [solver] method = \"fast\"")
         if montecarlo or any(key in grid for key in OPTIONAL):
-            raise InputError(f"{path}: [campaign] task viscoelastic_table takes elastic cells without "
+            raise InputError(f"{path}: [campaign] task {task} takes elastic cells without "
                              "[montecarlo] (drop viscosity_Pa_s, frequency_hz and [montecarlo])")
     return task
 

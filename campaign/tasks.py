@@ -1,8 +1,8 @@
 """One task, computed where it runs (a rank's task process,
 `campaign.task_process`): a compression or a Monte-Carlo trial task, under
 the per-task timeout, and its journal entry. In a viscoelastic-table
-campaign (`[campaign] task`) a grid point is one node of that table instead
-(`compute_node`).
+or ramp-table campaign (`[campaign] task`) a grid point is one node of that
+table instead (`compute_node`).
 
 A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
@@ -73,11 +73,17 @@ def compute(shell: Shell, method: str, timeout_s: float, row: int = 0,
     return _guarded(work, timeout_s)
 
 
-def compute_node(shell: Shell, timeout_s: float) -> Outcome:
-    """One node of the viscoelastic table at `shell` (`analysis.calibration.viscoelastic_table.node_results`:
-    ln C's coefficients, TABLE_RESULTS of `campaign.store.schema`), with its `wall_s`."""
+def compute_node(shell: Shell, timeout_s: float, task: str = "viscoelastic_table") -> Outcome:
+    """One node of the table of `task` at `shell`, with its `wall_s`: the viscoelastic table's
+    (`analysis.calibration.viscoelastic_table.node_results`: ln C's coefficients, TABLE_RESULTS
+    of `campaign.store.schema`) or the shell ramp table's (`analysis.afm.tension.shell_table.node_results`:
+    F/(K_B R) over its depths, RAMP_RESULTS)."""
     def work():
-        from analysis.calibration.viscoelastic_table import node_results    # here: a compression campaign never loads it
+        # here: a compression campaign never loads them
+        if task == "ramp_table":
+            from analysis.afm.tension.shell_table import node_results
+        else:
+            from analysis.calibration.viscoelastic_table import node_results
         start = time.perf_counter()
         result = node_results(shell)
         result.update(converged=True, wall_s=time.perf_counter() - start)
@@ -172,8 +178,8 @@ def execute(campaign: "Campaign", task: int, payload: Any) -> Outcome:
     """Task number `task`: (state, results, error, started); `payload` is a trial
     task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
     (kind, i), test = campaign.numbers.key(task), campaign.test
-    if kind == COMPRESSION and campaign.task == "viscoelastic_table":
-        return compute_node(campaign.shells[i], campaign.timeout_s)
+    if kind == COMPRESSION and campaign.task != "compression":
+        return compute_node(campaign.shells[i], campaign.timeout_s, campaign.task)
     if kind == COMPRESSION:
         return compute(campaign.shells[i], campaign.method, campaign.timeout_s, i, test)
     forces, errors = payload

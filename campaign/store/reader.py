@@ -26,7 +26,7 @@ import numpy as np
 
 from campaign.store import journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, RESULTS, STATES, TABLE_RESULTS,
+from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, STATES, stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
@@ -110,12 +110,12 @@ def _strings(dset, few=False):
 
 def read_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     """One row per compression task: parameters, state and results (NaN where
-    not done; a viscoelastic-table store's also its TABLE_RESULTS), with the
+    not done; a table campaign's store also its task's, `stored_results`), with the
     journal of a running campaign overlaid."""
     import pandas as pd           # here: a campaign run need not load it
     with _open_store(path) as f:
         ids, bending = _strings(f["task_id"]), _strings(f["bending"], few=True)
-        results = RESULTS + (TABLE_RESULTS if TABLE_RESULTS[0] in f else ())
+        results = stored_results(f)
     cols = _task_columns(path, PARAMS + results + ("converged", "rank", "error"))
     frame = pd.DataFrame(cols[FLOATS].T, columns=list(PARAMS + results), copy=False)
     for i, (key, values) in enumerate((("task_id", ids), ("state", np.array(STATES, object)[cols["state"]]),

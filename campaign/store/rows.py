@@ -1,8 +1,8 @@
 """Journal entries into HDF5 rows: the one place a store's rows are written.
 
 A compression's entry (`row`) fills its task row (state, attempts, rank,
-error, converged, started, RESULTS and, in a viscoelastic-table store,
-TABLE_RESULTS); a trial task's entry (`task` j) fills
+error, converged, started, RESULTS and, in a table campaign's store,
+its task's own: `schema.stored_results`); a trial task's entry (`task` j) fills
 its study's N trial rows j N .. j N + N - 1 (`trial_columns`). Rows are
 written one HDF5 write per column and run of consecutive rows (on the rank0
 path one scattered write per column where the runs are many; `put`); the
@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from campaign.entry_batch import CompressionBatch, compression_columns, split
-from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, RESULTS, STATES, TABLE_RESULTS, clip, trial_rows
+from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, STATES, clip, stored_results, trial_rows
 from campaign.task_key import Entry, TrialEntry
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ def write_entries(f: h5py.File, entries: Sequence[Entry | CompressionBatch], cel
     _write_trials(f, {e["task"]: e for e in trials}, cells)
     if not compressions:
         return
-    c = compression_columns(compressions, RESULTS + (TABLE_RESULTS if TABLE_RESULTS[0] in f else ()))
+    c = compression_columns(compressions, stored_results(f))
     rows, last = np.unique(c["row"][::-1], return_index=True)
     last = len(c["row"]) - 1 - last                # each row's last entry, rows in order
     errors = np.full(len(c["row"]), "", object)

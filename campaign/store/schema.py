@@ -2,7 +2,8 @@
 
 One row per compression task (the grid, `campaign.config`): its parameters
 (PARAMS), its results (RESULTS, NaN until done; a viscoelastic-table
-campaign's rows also TABLE_RESULTS, the node's coefficients), `converged`, `state` (an
+campaign's rows also TABLE_RESULTS, the node's coefficients, a ramp-table
+campaign's RAMP_RESULTS, the node's forces), `converged`, `state` (an
 index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
 (fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
 variable-length strings; the journal keeps a message whole); `task_id` and
@@ -52,7 +53,14 @@ RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_
 TABLE_DEGREE = 4
 TABLE_TERMS = tuple((i, j) for i in range(TABLE_DEGREE + 1) for j in range(TABLE_DEGREE + 1 - i) if i + j > 0)
 TABLE_RESULTS = tuple(f"ln_c_{part}_b{i}_s{j}" for part in ("re", "im") for i, j in TABLE_TERMS)
-ALL_RESULTS = RESULTS + TABLE_RESULTS      # what a journal record or a row may hold
+# a shell-ramp-table node's results instead (`[campaign] task = "ramp_table"`,
+# `analysis.afm.tension.shell_table`; their datasets only in such a store): F/(K_B R) at each of the
+# table's RAMP_DEPTHS depths δ/R as force_over_kb_r_d{i:02d} (dimensionless, a stalled depth filled
+# along depth), and `filled_depths`, how many were filled
+RAMP_DEPTHS = 48
+RAMP_RESULTS = tuple(f"force_over_kb_r_d{i:02d}" for i in range(RAMP_DEPTHS)) + ("filled_depths",)
+TASK_RESULTS = {"compression": (), "viscoelastic_table": TABLE_RESULTS, "ramp_table": RAMP_RESULTS}
+ALL_RESULTS = RESULTS + TABLE_RESULTS + RAMP_RESULTS      # what a journal record or a row may hold
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 ERROR_BYTES = 256           # an error message's room in its row
@@ -184,9 +192,14 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
 
 
 def result_names(campaign: StoredCampaign) -> tuple[str, ...]:
-    """The result columns of `campaign`'s rows: RESULTS, and TABLE_RESULTS for a
-    viscoelastic-table campaign (`campaign.config.TASKS`)."""
-    return RESULTS + (TABLE_RESULTS if getattr(campaign, "task", "compression") == "viscoelastic_table" else ())
+    """The result columns of `campaign`'s rows: RESULTS, and its task's own
+    (TASK_RESULTS: TABLE_RESULTS, RAMP_RESULTS) for a table campaign (`campaign.config.TASKS`)."""
+    return RESULTS + TASK_RESULTS[getattr(campaign, "task", "compression")]
+
+
+def stored_results(f: h5py.File | h5py.Group) -> tuple[str, ...]:
+    """The result columns of the open store `f`: RESULTS and the task's own its rows hold."""
+    return RESULTS + next((own for own in TASK_RESULTS.values() if own and own[0] in f), ())
 
 
 def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:

@@ -1,7 +1,7 @@
 """`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
 viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR`,
-`cortex analysis build-viscoelastic-table STORE --out DIR` and `cortex analysis
-invert TABLE.csv --out DIR` (argparse only; the work is
+`cortex analysis build-viscoelastic-table STORE --out DIR`, `cortex analysis
+build-ramp-table STORE --out DIR` and `cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
 imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
@@ -9,12 +9,15 @@ manifest rules of `outputs.ownership.OutputDir`."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import Any
 
 from cortex.options import OUT_HELP, Commands, add_inversion_options, inversion_settings
 from cortex.results import plain, say_result
 
 CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
 TABLE_FILE = "viscoelastic_table.json"    # what build-viscoelastic-table writes into its --out folder
+RAMP_TABLE_FILE = "shell_ramp_table.json"  # what build-ramp-table writes into its --out folder
 
 
 def register(sub: Commands) -> None:
@@ -22,7 +25,8 @@ def register(sub: Commands) -> None:
                        description="Analyse a campaign store: calibration laws (SPEC 4), reconstruction "
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
-    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_build_table, _add_invert):
+    for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_build_table, _add_build_ramp_table,
+                _add_invert):
         add(s)
 
 
@@ -80,6 +84,18 @@ def _add_build_table(s: Commands) -> None:
     b.set_defaults(handler=build_viscoelastic_table)
 
 
+def _add_build_ramp_table(s: Commands) -> None:
+    b = s.add_parser("build-ramp-table", help="the shell ramp table from its campaign's store",
+                     description="Build DIR/shell_ramp_table.json (F/(K_B R) of the shell pressed from its free "
+                                 "sphere per depth and node, analysis/afm/tension/shell_table.py) from a finished "
+                                 "store of campaigns/ramp.toml. `make ramp-table` rebuilds the one shipped in the "
+                                 "package this way.")
+    b.add_argument("store", metavar="STORE", help="store of a ramp-table campaign (HDF5), every node done")
+    b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    b.add_argument("--json", action="store_true", help="one JSON object: table file, nodes, depths filled")
+    b.set_defaults(handler=build_ramp_table)
+
+
 def _add_invert(s: Commands) -> None:
     i = s.add_parser("invert", help="nu per cell (and frequency) from a table of K(h~), with 95 %% intervals",
                      description="Invert a CSV table with columns cell_id, h_tilde, modulus_mN_per_m, "
@@ -129,20 +145,37 @@ def build_calibration(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_viscoelastic_table(args: argparse.Namespace) -> int:
+def _write_table(args: argparse.Namespace, name: str, from_store: Callable[[str], dict[str, Any]]) -> dict[str, Any]:
+    """DIR/`name` (DIR = --out) from the store's document `from_store(STORE)`: that document,
+    with the file written as its `path`."""
     import json
 
-    from analysis.calibration.viscoelastic_table import from_store
     from outputs.ownership import OutputDir
     from outputs.writing import write_atomically
     out = OutputDir(args.out)
-    out.check([TABLE_FILE])                         # refused before any work if not ours
+    out.check([name])                         # refused before any work if not ours
     doc = from_store(args.store)
-    with out.writing(TABLE_FILE) as path:
+    with out.writing(name) as path:
         write_atomically(path, (json.dumps(doc) + "\n").encode())
+    return {**doc, "path": path}
+
+
+def build_viscoelastic_table(args: argparse.Namespace) -> int:
+    from analysis.calibration.viscoelastic_table import from_store
+    doc = _write_table(args, TABLE_FILE, from_store)
+    path = doc.pop("path")
     nodes = len(doc["volume_um3"]) * len(doc["h_tilde"]) * len(doc["ks_tilde"]) * len(doc["gamma_tilde"])
     say_result(args, {"table": str(path), "nodes": nodes, "volume_um3": doc["volume_um3"]},
                f"wrote {path} ({nodes} nodes)")
+    return 0
+
+
+def build_ramp_table(args: argparse.Namespace) -> int:
+    from analysis.afm.tension.shell_table import from_store
+    doc = _write_table(args, RAMP_TABLE_FILE, from_store)
+    nodes = len(doc["radius_um"]) * len(doc["gamma_tilde"]) * len(doc["shear_tilde"])
+    say_result(args, {"table": str(doc["path"]), "nodes": nodes, "filled": doc["filled"]},
+               f"wrote {doc['path']} ({nodes} nodes, {doc['filled']} depths filled)")
     return 0
 
 

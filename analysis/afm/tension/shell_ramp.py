@@ -96,7 +96,7 @@ def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float,
 
 
 def from_document(doc: dict, where: str = "shell ramp table") -> ShellTable:
-    """A `ShellTable` from the table's JSON dict (`shell_table.build`); InputError if it has holes."""
+    """A `ShellTable` from the table's JSON dict (`shell_table.from_store`); InputError if it has holes."""
     depths, gammas, shears, radii = (np.asarray(doc[k], float)
                                      for k in ("depth_over_radius", "gamma_tilde", "shear_tilde", "radius_um"))
     f = np.asarray(doc["force_over_kb_r"], float)

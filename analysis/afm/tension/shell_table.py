@@ -16,74 +16,141 @@ bending). So f has a fourth axis, RADII R (µm, at t_c = 0.2 µm).
 
 The grid: DEPTHS δ/R to 0.3 (48, denser near the sphere, where the force bends
 most), GAMMAS γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both log-spaced, RADII
-4-13.5 µm. `build` returns the table as a JSON-ready dict
-(f[depth][gamma][shear][radius]; a cell whose continuation stalls is filled in
-along depth by `fill`); `python -m analysis.afm.tension.shell_table FILE`
-writes it.
+4-13.5 µm. The table is built by the campaign engine: `campaigns/ramp.toml`
+(`[campaign] task = "ramp_table"`) runs one task per node (γ̃_a, K̃_S, R) over
+any number of ranks, resumably (`node_results`: f at every depth, a depth
+whose continuation stalls filled in along depth by `fill`), and `from_store`
+(`cortex analysis build-ramp-table`) makes the table's document
+(f[depth][gamma][shear][radius]) from the finished store.
 """
 
-import json
-import sys
-import time
-from typing import Any
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
-from common.errors import SolverError
+from campaign.store.schema import RAMP_DEPTHS, RAMP_RESULTS
+from common.errors import InputError, SolverError
+
+if TYPE_CHECKING:
+    from solver.model import Shell
 
 D0 = 0.0        # the reference: the free sphere itself
 RADII_UM = np.geomspace(4.0, 13.5, 5)
 BULK_MN_PER_M = 10.0
-DEPTHS = 0.3 * np.linspace(0.0, 1.0, 49)[1:] ** 1.4
+DEPTHS = 0.3 * np.linspace(0.0, 1.0, RAMP_DEPTHS + 1)[1:] ** 1.4
 GAMMAS = np.geomspace(0.003, 0.5, 12)
 SHEARS = np.geomspace(0.08, 2.5, 9)
 FORMAT = "cortex-shell-ramp-table"
+TASK = "ramp_table"        # the campaign task (`campaign.config.TASKS`) that computes a node
+
+
+def radius_um(volume_um3: float) -> float:
+    """The free sphere's radius R (µm) of volume V: (3 V / 4π)^(1/3)."""
+    return float(np.cbrt(3.0 * volume_um3 / (4.0 * np.pi)))
 
 
 def unit_forces(gamma_tilde: float, shear_tilde: float, depths: np.ndarray = DEPTHS,
                 radius_um: float = 6.8, bending: str = "standard") -> np.ndarray:
     """F/(K_B R) of one cell at deformations δ/R = `depths` (increasing) of its
     free sphere: one continuation of `solver.ramp.ramp_forces_nN`; NaN where it stalls."""
-    from solver.ramp import ramp_forces_nN
     volume = 4.0 * np.pi * radius_um ** 3 / 3.0
+    return _forces(volume, radius_um, np.asarray(depths, float), BULK_MN_PER_M, shear_tilde * BULK_MN_PER_M,
+                   gamma_tilde * BULK_MN_PER_M, bending)
+
+
+def _forces(volume_um3: float, radius_um: float, depths: np.ndarray, bulk: float, shear: float,
+            tension: float, bending: str, thickness_um: float = 0.2, resolution: float | None = None) -> np.ndarray:
+    from solver.ramp import RESOLUTION, ramp_forces_nN
     try:
-        forces = ramp_forces_nN(volume, np.asarray(depths, float) * radius_um, BULK_MN_PER_M,
-                                shear_tilde * BULK_MN_PER_M, gamma_tilde * BULK_MN_PER_M, bending)
+        forces = ramp_forces_nN(volume_um3, depths * radius_um, bulk, shear, tension, bending, thickness_um,
+                                RESOLUTION if resolution is None else resolution)
     except SolverError:
         return np.full(len(depths), np.nan)
-    return forces / (BULK_MN_PER_M * radius_um)
+    return forces / (bulk * radius_um)
 
 
-def fill(f: np.ndarray) -> tuple[np.ndarray, int]:
-    """f with each depth no mesh solved interpolated along the depth axis from its
-    column's solved ones (f[depth][gamma][shear][radius]), and how many there were:
+def fill(f: np.ndarray, gamma_tilde: float) -> tuple[np.ndarray, int]:
+    """One node's f over DEPTHS with each depth no mesh solved interpolated along
+    depth from the solved ones (these kept as they are), and how many there were:
     the elastic share q = (f - γ̃ ĝ)/(δ/R - D0)² is smooth in δ/R (`shell_ramp`)."""
     from solver.droplet_table import unit_force_per_tension
-    tension = GAMMAS[None, :, None, None] * unit_force_per_tension(DEPTHS)[:, None, None, None]
-    scale = np.maximum(DEPTHS - D0, 1e-12)[:, None, None, None] ** 2
+    missing = ~np.isfinite(f)
+    if not missing.any():
+        return f, 0
+    tension = gamma_tilde * unit_force_per_tension(DEPTHS)
+    scale = np.maximum(DEPTHS - D0, 1e-12) ** 2
     q = (f - tension) / scale
-    missing = ~np.isfinite(q)
-    for j, k, m in zip(*np.nonzero(missing.any(axis=0))):
-        col = q[:, j, k, m]
-        ok = np.isfinite(col)
-        col[~ok] = np.interp(DEPTHS[~ok], DEPTHS[ok], col[ok])
-    return tension + q * scale, int(missing.sum())
+    out = f.copy()
+    out[missing] = tension[missing] + np.interp(DEPTHS[missing], DEPTHS[~missing], q[~missing]) * scale[missing]
+    return out, int(missing.sum())
 
 
-def build(bending: str = "standard") -> dict[str, Any]:
-    """The table (module doc) as a dict: its axes and f."""
-    f = np.full((DEPTHS.size, GAMMAS.size, SHEARS.size, RADII_UM.size), np.nan)
-    for j, g in enumerate(GAMMAS):
-        for k, s in enumerate(SHEARS):
-            for m, r in enumerate(RADII_UM):
-                f[:, j, k, m] = unit_forces(float(g), float(s), radius_um=float(r), bending=bending)
-    f, filled = fill(f)
-    return {"format": FORMAT, "bending": bending, "d0": D0, "radius_um": RADII_UM.tolist(),
-            "depth_over_radius": DEPTHS.tolist(), "gamma_tilde": GAMMAS.tolist(), "shear_tilde": SHEARS.tolist(),
-            "force_over_kb_r": f.tolist(), "filled": filled,
-            "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+def node_results(shell: Shell) -> dict[str, float]:
+    """One campaign task: the node (γ̃_a = γ_a/K_B, K̃_S = K_S/K_B, R of V, bending) of
+    `shell` (its h0 and dh play no part), f at every depth filled (`fill`), as the
+    store's result columns RAMP_RESULTS."""
+    radius = radius_um(shell.volume_um3)
+    f = _forces(shell.volume_um3, radius, DEPTHS, shell.bulk_mN_per_m, shell.shear_mN_per_m,
+                shell.tension_mN_per_m, shell.bending, shell.thickness_um, shell.resolution)
+    if not np.isfinite(f).any():
+        raise SolverError("the continuation stalled at every depth")
+    f, filled = fill(f, shell.tension_mN_per_m / shell.bulk_mN_per_m)
+    return dict(zip(RAMP_RESULTS, [*map(float, f), float(filled)]))
+
+
+def table_document(radii_um: npt.ArrayLike, gammas: npt.ArrayLike, shears: npt.ArrayLike,
+                   f: np.ndarray, filled: int, bending: str = "standard") -> dict[str, Any]:
+    """The table's JSON document (`shell_ramp.ShellTable`) from its axes and f of shape
+    (depth, gamma, shear, radius)."""
+    return {"format": FORMAT, "bending": bending, "d0": D0, "radius_um": np.asarray(radii_um, float).tolist(),
+            "depth_over_radius": DEPTHS.tolist(), "gamma_tilde": np.asarray(gammas, float).tolist(),
+            "shear_tilde": np.asarray(shears, float).tolist(), "force_over_kb_r": f.tolist(), "filled": filled}
+
+
+def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The table's document from a finished ramp-table campaign store
+    (`campaigns/ramp.toml`): the axes γ̃_a, K̃_S and R (of V) from the campaign file the
+    store keeps, each node's forces from the row of its parameters. InputError for a
+    store of another campaign, or unless every node is done."""
+    import tomllib
+
+    from campaign.config import DEFAULTS
+    from campaign.store.reader import read_provenance, read_results
+    text = read_provenance(path).get("config_text", "")        # the campaign file, as run
+    doc = tomllib.loads(text) if text else {}
+    grid = {**DEFAULTS, **doc.get("grid", {})}
+    keys = ("volume_um3", "gamma_tilde", "ks_tilde")
+    if doc.get("campaign", {}).get("task") != TASK or not isinstance(grid["bending"], str) \
+            or not set(keys) <= set(grid):
+        raise InputError(f"{path}: not a store of a ramp-table campaign over volume_um3, gamma_tilde and "
+                         f"ks_tilde, one bending ([campaign] task = \"{TASK}\": campaigns/ramp.toml)")
+    volumes, gammas, shears = (np.atleast_1d(np.asarray(grid[k], float)) for k in keys)
+    rows = read_results(path)
+    undone = int((rows["state"] != "done").sum())
+    if undone:
+        raise InputError(f"{path}: {undone} of {len(rows)} nodes not done; finish the campaign "
+                         "(run it again: it resumes)")
+    bulk = rows["bulk_mN_per_m"].to_numpy()
+    at = [_index(volumes, rows["volume_um3"]), _index(gammas, rows["tension_mN_per_m"] / bulk),
+          _index(shears, rows["shear_mN_per_m"] / bulk)]
+    f = np.full((DEPTHS.size, gammas.size, shears.size, volumes.size), np.nan)
+    f[:, at[1], at[2], at[0]] = rows[list(RAMP_RESULTS[:-1])].to_numpy().T
+    radii = [radius_um(v) for v in volumes]
+    return table_document(radii, gammas, shears, f, int(rows["filled_depths"].sum()), grid["bending"])
+
+
+def _index(axis: np.ndarray, values: Any) -> np.ndarray:
+    """Each value's position on `axis` (its nearest node, relative)."""
+    values = np.asarray(values, float)
+    return np.abs(values[:, None] / axis[None, :] - 1.0).argmin(axis=1)
 
 
 if __name__ == "__main__":
-    with open(sys.argv[1], "w") as fh:
-        json.dump(build(), fh)
+    import sys
+    print("the shell ramp table is built by the campaign engine: make ramp-table "
+          "(campaigns/ramp.toml, then cortex analysis build-ramp-table; docs/ramp.md)", file=sys.stderr)
+    sys.exit(2)
