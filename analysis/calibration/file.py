@@ -20,7 +20,8 @@ viscoelastic reading's `ComplexModel`: the complex-modulus table of the solver a
 (`viscoelastic_table`, no campaign behind it, so one table shipped in the package,
 `TABLE_NAME`) with the file's emulator, or the shipped emulator for a law-only file.
 Every command reads the file here once and hands its parts on; no other code opens it.
-The droplet ramp table of the tension analysis is to become one more part of this file.
+The shell ramp table of the tension analysis (`analysis/calibration/data/shell_ramp_table.json`) is
+not yet a part of this object: `analysis.afm.tension.shell_ramp` reads it on its first use.
 """
 
 import json
@@ -135,5 +136,5 @@ def _complex_table(path: Path) -> ComplexTable:
     """The complex-modulus table at `path`; InputError (one line) if it is missing."""
     if not path.is_file():
         raise InputError(f"{path}: the viscoelastic table is missing "
-                         "(rebuild: python -m analysis.calibration.viscoelastic_table)")
+                         "(rebuild: make viscoelastic-table)")
     return ComplexTable.from_json(json.loads(path.read_text()), where=str(path))
