@@ -10,8 +10,8 @@ holds it, read once per command.
 - `command/` (`cortex analysis calibrate`: the pipeline fitting a law to a store, the
   reconstruction check, the Monte-Carlo error study, figures, report.md).
 
-The droplet ramp table of the tension analysis is to land here too, as one more part of
-the file.
+The shell ramp table of the tension analysis ships in `data/` too, but its module and loader are
+`analysis.afm.tension.shell_ramp` and `shell_table`, not yet a part of the file.
 
 Public API (imported on first use): `load_calibration(path=None)` -> `CalibrationFile`;
 `calibrate(results)` -> (`Calibration`, ...); `Calibration`, `Law`, `Emulator`,
