@@ -90,7 +90,7 @@ class Later(Generic[T]):
         self._process.join()
         self._process = None
         if ok:
-            return value                 # type: ignore[no-any-return]
+            return value
         err, text = value
         raise err from RemoteTraceback(text)
 
