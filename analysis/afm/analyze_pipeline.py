@@ -9,7 +9,11 @@
                                              (`analysis.afm.analyze.measure`), inverted
                                              with every bending variant (`Inversion.invert`),
                                              each variant's cells table and population
-                                             summary (`analysis.afm.analyze`);
+                                             summary (`analysis.afm.analyze`); the
+                                             variants other than the selected one in a
+                                             forked process beside this one (`common.beside`,
+                                             one process where fork or a second CPU is
+                                             missing), the same numbers;
     write(out, recordings, fitted, settings) the files below, figures and report.md
                                              (`analysis.afm.analyze_report`), read
                                              from the tables.
