@@ -9,7 +9,11 @@
                                              (`analysis.afm.analyze.measure`), inverted
                                              with every bending variant (`Inversion.invert`),
                                              each variant's cells table and population
-                                             summary (`analysis.afm.analyze`);
+                                             summary (`analysis.afm.analyze`); the
+                                             variants other than the selected one in a
+                                             forked process beside this one (`common.beside`,
+                                             one process where fork or a second CPU is
+                                             missing), the same numbers;
     write(out, recordings, fitted, settings) the files below, figures and report.md
                                              (`analysis.afm.analyze_report`), read
                                              from the tables.
@@ -43,12 +47,13 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import pandas as pd
 
-from analysis.afm.analyze import inverted, measure, summarise
+from analysis.afm.analyze import Measured, inverted, measure, summarise
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.invert.method import INVERSIONS, Inversion
 from outputs.ownership import OutputDir
+from common.beside import beside
 from common.errors import InputError
 
 if TYPE_CHECKING:
@@ -125,19 +130,40 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
 
 
 
+def _variants(measured: Measured, inversion: Inversion, variants: list[str],
+              errors: MeasurementErrors | None) -> list[tuple[pd.DataFrame, dict[str, Any]]]:
+    """Per variant of `variants`: its cells table and summary."""
+    tables = [inverted(measured, inversion, v, errors) for v in variants]
+    return [(t, summarise(t)) for t in tables]
+
+
 def fit(rec: Recordings, settings: Settings) -> Fitted:
-    """Every cell of `rec` with every variant: a `Fitted`."""
+    """Every cell of `rec` with every variant: a `Fitted`. The other variants are inverted in
+    a process beside this one (`common.beside`: forked, where two CPUs serve) while this one
+    inverts the selected variant and reads its population and viscoelastic behaviour: the
+    numbers, and the first error, of one step after the other."""
     measured = measure(rec.cells)
     fitted = Fitted(segments=measured.segments)
-    for variant in rec.variants:
-        tab = inverted(measured, rec.inversion, variant, settings.errors)
-        fitted.tables[variant] = tab
-        fitted.sums[variant] = summarise(tab)
+    selected, others = rec.variants[0], rec.variants[1:]
+    with beside(_variants, measured, rec.inversion, others, settings.errors) as rest:
+        [(fitted.tables[selected], fitted.sums[selected])] = _variants(measured, rec.inversion, [selected],
+                                                                       settings.errors)
+        try:
+            _readings(rec, settings, fitted)
+        except Exception:
+            rest.result()               # the other variants' error first, as in one step after the other
+            raise
+        for variant, (table, summary) in zip(others, rest.result()):
+            fitted.tables[variant], fitted.sums[variant] = table, summary
+    return fitted
+
+
+def _readings(rec: Recordings, settings: Settings, fitted: Fitted) -> None:
+    """The selected variant's population answer and, when on, its viscoelastic reading, into `fitted`."""
     from analysis.afm.population.answer import answer
     fitted.population = answer(fitted.tables[settings.bending])
     if settings.phase:
         _viscoelastic(rec, settings, fitted)
-    return fitted
 
 
 def _viscoelastic(rec: Recordings, settings: Settings, fitted: Fitted) -> None:
