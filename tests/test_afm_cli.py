@@ -144,3 +144,18 @@ def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
                  "--out", str(tmp_path / "out")]) == 0
     assert [str(p) for p in reads] == [str(cal)]
+
+
+def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys):
+    """afm analyze inverts the other bending variants in a forked child (`common.beside`)
+    where two CPUs serve: every table and summary is byte for byte the serial run's."""
+    import common.beside
+    assert common.beside.forking(), "this test needs fork and two CPUs"
+    d, _, good, _ = setup
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "forked")]) == 0
+    monkeypatch.setattr(common.beside, "forking", lambda: False)
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "serial")]) == 0
+    names = sorted(p.name for p in (tmp_path / "serial").iterdir() if p.suffix in (".csv", ".json", ".md"))
+    assert {"cells_double.csv", "cells_none.csv", "summary_double.json", "population.json"} <= set(names)
+    for name in names:
+        assert (tmp_path / "forked" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes(), name
