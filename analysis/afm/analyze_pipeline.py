@@ -51,7 +51,7 @@ from analysis.afm.analyze import Measured, inverted, measure, summarise
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
-from analysis.invert.method import INVERSIONS, Inversion
+from analysis.invert.method import Inversion, choose
 from outputs.ownership import OutputDir
 from common.beside import beside
 from common.errors import InputError
@@ -105,11 +105,9 @@ class Fitted:
 
 
 def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
-    """The `method` inversion of the calibration file; InputError if the file cannot serve it."""
-    kind = INVERSIONS[method]
-    inversion = kind.of(file.calibration, file.emulator)
-    if inversion is None:
-        raise InputError(f"{file.where}: holds no {kind.needs}; use --method {kind.instead}")
+    """The `method` inversion of the calibration file (`analysis.invert.method.choose`) with the
+    bending variant `bending`; InputError if the file cannot serve them."""
+    inversion = choose(method, file.calibration, file.emulator, file.where)
     variants = inversion.variants()
     if bending not in variants:
         raise InputError(f"{file.where}: no bending variant '{bending}' (has {', '.join(variants)})")

@@ -153,14 +153,17 @@ INVERSIONS: dict[str, type[Inversion]] = {c.name: c for c in (EmulatorInversion,
 assert tuple(INVERSIONS) == INVERSION_METHODS, "one implementation per name of common.names"
 
 
-def choose(method: str, calibration: Calibration | None, emulator: Emulator | None) -> Inversion:
+def choose(method: str, calibration: Calibration | None, emulator: Emulator | None,
+           where: str | None = None) -> Inversion:
     """The `method` inversion of a calibration file's parts; InputError (one line) for another
-    name, or the method's `refusal` if the file lacks the part it needs."""
+    name, or, if the file lacks the part it needs, the method's `refusal` (`where` given: the
+    file's name, what it lacks and the method it serves instead)."""
     if method not in INVERSIONS:
         raise InputError(f"method must be one of {', '.join(INVERSIONS)} (got {method!r})")
-    inversion = INVERSIONS[method].of(calibration, emulator)
+    kind = INVERSIONS[method]
+    inversion = kind.of(calibration, emulator)
     if inversion is None:
-        raise InputError(INVERSIONS[method].refusal)
+        raise InputError(kind.refusal if where is None else f"{where}: holds no {kind.needs}; use --method {kind.instead}")
     return inversion
 
 
