@@ -72,28 +72,32 @@ def _add_build_calibration(s: Commands) -> None:
     b.set_defaults(handler=build_calibration)
 
 
-def _add_build_table(s: Commands) -> None:
-    b = s.add_parser("build-viscoelastic-table", help="the complex correspondence table from its campaign's store",
-                     description="Build DIR/viscoelastic_table.json (the factor C of SPEC 10: ln C's polynomial "
-                                 "coefficients per node, analysis/calibration/viscoelastic_table.py) from a finished store "
-                                 "of campaigns/viscoelastic.toml. `make viscoelastic-table` rebuilds the one "
-                                 "shipped in the package this way.")
-    b.add_argument("store", metavar="STORE", help="store of a viscoelastic-table campaign (HDF5), every node done")
+def _add_table_builder(s: Commands, name: str, help: str, description: str, what: str, json_help: str,
+                       handler: Callable[[argparse.Namespace], int]) -> None:
+    """`cortex analysis NAME STORE --out DIR [--json]`: a shipped table from its campaign's store."""
+    b = s.add_parser(name, help=help, description=description)
+    b.add_argument("store", metavar="STORE", help=f"store of a {what} campaign (HDF5), every node done")
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
-    b.add_argument("--json", action="store_true", help="one JSON object: table file, nodes, volumes")
-    b.set_defaults(handler=build_viscoelastic_table)
+    b.add_argument("--json", action="store_true", help=json_help)
+    b.set_defaults(handler=handler)
+
+
+def _add_build_table(s: Commands) -> None:
+    _add_table_builder(
+        s, "build-viscoelastic-table", "the complex correspondence table from its campaign's store",
+        "Build DIR/viscoelastic_table.json (the factor C of SPEC 10: ln C's polynomial coefficients per node, "
+        "analysis/calibration/viscoelastic_table.py) from a finished store of campaigns/viscoelastic.toml. "
+        "`make viscoelastic-table` rebuilds the one shipped in the package this way.",
+        "viscoelastic-table", "one JSON object: table file, nodes, volumes", build_viscoelastic_table)
 
 
 def _add_build_ramp_table(s: Commands) -> None:
-    b = s.add_parser("build-ramp-table", help="the shell ramp table from its campaign's store",
-                     description="Build DIR/shell_ramp_table.json (F/(K_B R) of the shell pressed from its free "
-                                 "sphere per depth and node, analysis/afm/tension/shell_table.py) from a finished "
-                                 "store of campaigns/ramp.toml. `make ramp-table` rebuilds the one shipped in the "
-                                 "package this way.")
-    b.add_argument("store", metavar="STORE", help="store of a ramp-table campaign (HDF5), every node done")
-    b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
-    b.add_argument("--json", action="store_true", help="one JSON object: table file, nodes, depths filled")
-    b.set_defaults(handler=build_ramp_table)
+    _add_table_builder(
+        s, "build-ramp-table", "the shell ramp table from its campaign's store",
+        "Build DIR/shell_ramp_table.json (F/(K_B R) of the shell pressed from its free sphere per depth and "
+        "node, analysis/afm/tension/shell_table.py) from a finished store of campaigns/ramp.toml. `make "
+        "ramp-table` rebuilds the one shipped in the package this way.",
+        "ramp-table", "one JSON object: table file, nodes, depths filled", build_ramp_table)
 
 
 def _add_invert(s: Commands) -> None:
