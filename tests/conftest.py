@@ -60,6 +60,28 @@ def poll_until(condition, timeout_s, what, proc=None, every_s=POLL_S):
         time.sleep(every_s)
 
 
+def on_one_and_two_ranks(tmp, config, name):
+    """The campaign file `config` run into TMP/NAME1.h5 on 1 rank and TMP/NAME2.h5 under
+    `mpiexec -n 2`: {ranks: store}."""
+    out = {}
+    for ranks in (1, 2):
+        store = tmp / f"{name}{ranks}.h5"
+        done = cortex("campaign", "run", config, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
+        assert done.returncode == 0, done.stderr
+        out[ranks] = store
+    return out
+
+
+def in_one_thread(code, arg):
+    """The JSON that `python -c code arg` prints, in a fresh process on one BLAS thread (as a
+    campaign rank computes)."""
+    import json
+    done = subprocess.run([sys.executable, "-c", code, arg], capture_output=True, text=True,
+                          cwd=ROOT, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"}, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
 def journal_counts(store):
     """(compression entries, trial-task entries) in the journal of `store`
     as it is on disk now (0, 0 before it exists)."""

@@ -5,9 +5,6 @@ small sub-grid run on 1 and 2 ranks, the table built from the store
 being the table's."""
 
 import json
-import os
-import subprocess
-import sys
 
 import h5py
 import numpy as np
@@ -17,7 +14,7 @@ from analysis.afm.tension.shell_table import DEPTHS, GAMMAS, RADII_UM, SHEARS
 from campaign.config import load
 from campaign.store.reader import read_results
 from campaign.store.schema import RAMP_RESULTS, TABLE_RESULTS
-from tests.conftest import ROOT
+from tests.conftest import ROOT, in_one_thread, on_one_and_two_ranks
 
 VOLUMES = [float(4.0 * np.pi * r ** 3 / 3.0) for r in RADII_UM[[0, 3]]]
 SUBGRID = f"""[campaign]
@@ -46,25 +43,14 @@ def one_process(nodes):
     """`unit_forces` at `nodes` (γ̃_a, K̃_S, R) in a fresh process on one BLAS thread, as a rank computes."""
     code = ("import json, sys; from analysis.afm.tension.shell_table import unit_forces as f; "
             "print(json.dumps([f(g, s, radius_um=r).tolist() for g, s, r in json.loads(sys.argv[1])]))")
-    done = subprocess.run([sys.executable, "-c", code, json.dumps(nodes)], capture_output=True, text=True,
-                          cwd=ROOT, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"}, timeout=300)
-    assert done.returncode == 0, done.stderr
-    return np.array(json.loads(done.stdout))
+    return np.array(in_one_thread(code, json.dumps(nodes)))
 
 
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory):
     """The sub-grid run on 1 rank and on 2 ranks: {ranks: store}."""
-    from tests.conftest import cortex
     tmp = tmp_path_factory.mktemp("ramp")
-    out = {}
-    for ranks in (1, 2):
-        store = tmp / f"ramp{ranks}.h5"
-        done = cortex("campaign", "run", write(tmp, SUBGRID), "--store", store, "--quiet",
-                      mpi=ranks if ranks > 1 else 0)
-        assert done.returncode == 0, done.stderr
-        out[ranks] = store
-    return out
+    return on_one_and_two_ranks(tmp, write(tmp, SUBGRID), "ramp")
 
 
 def test_rows_hold_the_forces_whatever_the_ranks(stores):

@@ -4,9 +4,6 @@ from the store (`cortex analysis build-viscoelastic-table`) against the
 one-process node computation and the solver itself."""
 
 import json
-import os
-import subprocess
-import sys
 
 import h5py
 import numpy as np
@@ -16,7 +13,7 @@ from analysis.calibration.viscoelastic_table import ANGLES, TERMS
 from campaign.config import load
 from campaign.store.reader import read_results
 from campaign.store.schema import TABLE_RESULTS
-from tests.conftest import ROOT
+from tests.conftest import in_one_thread, on_one_and_two_ranks
 
 SUBGRID = """[campaign]
 task = "viscoelastic_table"
@@ -43,10 +40,7 @@ def one_process(nodes):
     code = ("import json, sys; from analysis.calibration.viscoelastic_table import node_coefficients as f; "
             "c = [f(*n) for n in json.loads(sys.argv[1])]; "
             "print(json.dumps([[x.real for x in a] + [x.imag for x in a] for a in c]))")
-    done = subprocess.run([sys.executable, "-c", code, json.dumps(nodes)], capture_output=True, text=True,
-                          cwd=ROOT, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"}, timeout=300)
-    assert done.returncode == 0, done.stderr
-    return np.array(json.loads(done.stdout))
+    return np.array(in_one_thread(code, json.dumps(nodes)))
 
 
 def test_the_task_is_checked_and_changes_the_fingerprint(tmp_path, cortex):
@@ -66,16 +60,8 @@ def test_the_task_is_checked_and_changes_the_fingerprint(tmp_path, cortex):
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory):
     """The sub-grid run on 1 rank and on 2 ranks: {ranks: store}."""
-    from tests.conftest import cortex
     tmp = tmp_path_factory.mktemp("ve")
-    out = {}
-    for ranks in (1, 2):
-        store = tmp / f"ve{ranks}.h5"
-        done = cortex("campaign", "run", write(tmp, SUBGRID), "--store", store, "--quiet",
-                      mpi=ranks if ranks > 1 else 0)
-        assert done.returncode == 0, done.stderr
-        out[ranks] = store
-    return out
+    return on_one_and_two_ranks(tmp, write(tmp, SUBGRID), "ve")
 
 
 def test_rows_hold_the_coefficients_whatever_the_ranks(stores):
