@@ -13,7 +13,6 @@ from dataclasses import MISSING, dataclass, fields
 from functools import lru_cache
 
 import numpy as np
-import numpy.typing as npt
 
 from solver.elasticity import bending_stiffness, poisson_ratio
 from common.errors import InputError

@@ -34,7 +34,6 @@ f in Hz, moduli in Pa (a 3D modulus: the layer's, not the shell's 2D one).
 """
 
 import numpy as np
-import numpy.typing as npt
 
 from common.errors import InputError
 

@@ -22,7 +22,6 @@ H(prestress a(u_m)) at the state, both on the same mesh. The response to the pla
 from dataclasses import replace
 
 import numpy as np
-import numpy.typing as npt
 
 from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell

@@ -47,7 +47,6 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-import numpy.typing as npt
 
 from common.errors import InputError
 from solver.fast.lagrangian import Lagrangian

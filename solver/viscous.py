@@ -126,7 +126,7 @@ def hold_label(H: npt.NDArray[np.float64], diagonal: float) -> None:
 def _node_jacobian(lin):
     """J (2(N+1), n+1): material displacement (δr_k, δz_k) of node k per δq."""
     lag, u, zp = lin.lag, lin.u, lin.zp
-    n, N, nd, kc = lag.size, lag.N, len(lag.ref.eta), lag.kc
+    n, N, nd = lag.size, lag.N, len(lag.ref.eta)
     r, z, psic, _ = lag.nodes(u, zp)
     rows, cols, vals = [], [], []
     for comp, idx in ((0, lag.ridx), (1, lag.zidx)):

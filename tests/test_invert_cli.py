@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from analysis.calibration.file import load_calibration
-from conftest import ROOT, cortex
+from conftest import cortex
 
 KEYS = ["cell_id", "frequency_hz", "nu", "nu_lo95", "nu_hi95", "ks_tilde", "bulk_mN_per_m", "r2", "method",
         "excluded_reason"]
@@ -128,6 +128,6 @@ def test_a_table_without_volumes_needs_one_volume_given_and_there_is_no_default(
     run = cortex("analysis", "invert", str(path), "--volume", "-3", "--out", str(tmp_path / "out"))
     assert run.returncode == 2 and "--volume must be a number > 0" in run.stderr
     file = load_calibration()
-    cal, emu = file.calibration, file.emulator
+    emu = file.emulator
     with pytest.raises(TypeError):
         emu.ratio(0.6, 0.5, 0.04)          # no default volume below the reader

@@ -1,7 +1,6 @@
 """Viscosity and frequency as campaign grid axes (campaign/config.py), the
 store's viscous columns, and `cortex analysis viscosity` on a small campaign."""
 
-import json
 import subprocess
 
 import numpy as np
