@@ -234,7 +234,8 @@ def _exit_status(left, failed, store_path):
 
 class _Master:
     """Rank 0's state: the policy's queue, the attempts, the trials' inputs, the
-    messages (`_Link`), the progress and the count of failed tasks."""
+    messages (`_Link`), the progress and the count of failed tasks (this run's, and the
+    store's earlier ones it does not retry)."""
 
     def __init__(self, comm, store, campaign, retry_failed, progress, tasks):
         import numpy as np
@@ -247,7 +248,9 @@ class _Master:
         self.link = _Link(comm, store)
         done0 = int(np.sum(states == DONE)) + self.inputs.done0
         self.bar = Progress(self.numbers.count, done0, enabled=progress)
-        self.failed, self.last_flush = 0, time.time()
+        # failed tasks a rerun without --retry-failed leaves as they are still fail the run
+        self.failed = 0 if retry_failed else int(np.sum(states == FAILED))
+        self.last_flush = time.time()
 
     def handing_out(self):
         return bool(self.policy.todo) and not _stop["flag"]

@@ -147,6 +147,10 @@ def test_injected_faults_are_recorded_and_the_rest_completes(tmp_path):
     assert np.isnan(frame["force_nN"][:3]).all() and np.isfinite(frame["force_nN"][3])
     status = cortex("campaign", "status", str(store))
     assert "3 failed" in status.stdout and "injected fault" in status.stdout
+    # a plain rerun leaves the failed three alone and still says so: exit status 1, nothing rerun
+    out = cortex("campaign", "run", str(tmp_path / "f.toml"), "--store", str(store), "--quiet")
+    assert out.returncode == 1 and "3 tasks failed" in out.stderr, out.stderr
+    assert list(read_results(store)["attempts"]) == [1, 1, 1, 1]
     # --retry-failed runs the three again (still faulty): attempts become 2, the done one stays 1
     out = cortex("campaign", "run", str(tmp_path / "f.toml"), "--store", str(store), "--quiet",
                  "--retry-failed")

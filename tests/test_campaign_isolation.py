@@ -101,10 +101,11 @@ def test_a_task_that_kills_or_wedges_its_process_fails_alone(undisturbed, tmp_pa
         for task in listed:
             assert f"| {task['task_id']} | 12 | 8.33 | {task['tension_mN_per_m']:g} | standard | process died of " \
                    "SIGSEGV" in report
-    # a rerun leaves the failed tasks alone: nothing computed again
+    # a rerun leaves the failed tasks alone (nothing computed again) and still ends with status 1
     rerun = cortex("campaign", "run", path, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
     again = read_results(store)
-    assert rerun.returncode == 0 and (again["attempts"] == 1).all(), rerun.stderr
+    assert rerun.returncode == 1 and "4 tasks failed" in rerun.stderr, rerun.stderr
+    assert (again["attempts"] == 1).all()
     assert again["state"].tolist() == frame["state"].tolist()
 
 
