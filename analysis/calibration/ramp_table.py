@@ -11,17 +11,17 @@ droplet's unit force (`solver.droplet_table`: the tension alone, exact),
 e the elastic stress's share, 0 at the free sphere (D0 = 0: the shell is
 stress-free there). As δ → 0, e grows linearly: the shell's bending-stretching
 response at each pole (Reissner), F ≈ 4 sqrt(B Y) δ / R for the two poles in
-series, Y = 4 K_B K_S/(K_B + K_S) (the solver at γ̃_a = 0.003 and δ/R 0.0013-0.002
-is within 1 % of it), and like δ² only deeper, so q is finite and smooth down to
-the sphere (not e/δ², which grows like 1/δ there and which a spline between
-the first depths misses by up to 10 %). q is interpolated by cubic splines in
-(δ/R, ln γ̃_a, ln K̃_S, ln R) (scipy RegularGridInterpolator; R for the bending's
-weight), once per (K̃_S, R) onto the table's (δ/R, ln γ̃_a) grid, which a bicubic
-spline (RectBivariateSpline) then reads at every sample (a fit varies γ̃_a at
-fixed K̃_S and R); e is 0 above the contact, and q is held at the table's first
-depth below it (e ∝ δ: the asymptote). γ̃_a, K̃_S and R are held at the table's
-edges outside it; deeper than the table (δ/R > `max_depth`) is the caller's to
-refuse, never extrapolated.
+series, Y = 4 K_B K_S/(K_B + K_S) (the table at γ̃_a = 0.003: 0.96-1.11 of it over
+K̃_S 0.1-2, R 5-12 µm, the tension stiffening the larger, softer cells), and faster
+only deeper, so q is finite and smooth down to the sphere (not e/δ², which grows
+like 1/δ there and which a spline between the first depths misses by up to 10 %).
+q is interpolated by cubic splines in (δ/R, ln γ̃_a, ln K̃_S, ln R) (scipy
+RegularGridInterpolator; R for the bending's weight), once per (K̃_S, R) onto the
+table's (δ/R, ln γ̃_a) grid, which a bicubic spline (RectBivariateSpline) then
+reads at every sample (a fit varies γ̃_a at fixed K̃_S and R); e is 0 above the
+contact, and q is held at the table's first depth below it (e ∝ δ: the
+asymptote). γ̃_a, K̃_S and R are held at the table's edges outside it; deeper
+than the table (δ/R > `max_depth`) is the caller's to refuse, never extrapolated.
 
 The shipped table is `data/shell_ramp_table.json` (`NAME`, standard bending), read
 through the calibration file (`analysis.calibration.file.CalibrationFile.shell_ramp`).
