@@ -15,8 +15,9 @@ Public API (imported on first use):
 - `calibrate(results)` -> `Calibration` (a `Law` per bending variant), from
   `campaign.read_results(store)`.
 - `load_calibration(path=None)` -> `CalibrationFile` (its `calibration`, `emulator`,
-  `provenance` and the viscoelastic reading's `viscoelastic`): a calibration file, by
-  default the one shipped in the package (`shipped_path()`).
+  `provenance`, the viscoelastic reading's `viscoelastic` and the tension analysis's
+  `shell_ramp`): a calibration file, by default the one shipped in the package
+  (`shipped_path()`).
 - `invert_cell(h_tilde, K, gamma_a, calibration, bending)` -> `CellInversion`
   (ν of one cell by the law); `invert_rows(rows, method, ...)`: a table of
   K(h̃) per cell by either method, with 95 % intervals (`MeasurementErrors`); `METHODS`,

@@ -5,13 +5,13 @@ holds it, read once per command.
   (the law K(h̃) = K_B (1 + α exp(h̃/c)) and its least-squares fits);
 - `emulator` (SPEC 9: the spline of the solver's K/K_B);
 - `viscoelastic_table` (SPEC 10: the complex-modulus correspondence factor C tabulated);
+- `ramp_table` (the shell ramp table of `cortex afm tension` as read: the elastic share of
+  the force of the cortex pressed from its free sphere, interpolated; built by
+  `analysis.afm.tension.shell_table`);
 - `file` (the calibration file: `CalibrationFile` with every part above, `load_calibration`
   its one loader, `build` for `make calibration`); the shipped files are in `data/`;
 - `command/` (`cortex analysis calibrate`: the pipeline fitting a law to a store, the
   reconstruction check, the Monte-Carlo error study, figures, report.md).
-
-The shell ramp table of the tension analysis ships in `data/` too, but its module and loader are
-`analysis.afm.tension.shell_ramp` and `shell_table`, not yet a part of the file.
 
 Public API (imported on first use): `load_calibration(path=None)` -> `CalibrationFile`;
 `calibrate(results)` -> (`Calibration`, ...); `Calibration`, `Law`, `Emulator`,

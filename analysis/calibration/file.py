@@ -18,10 +18,10 @@ Layout of the file (a JSON document, versioned):
 file), the provenance and where it came from, and (read on its first use) the
 viscoelastic reading's `ComplexModel`: the complex-modulus table of the solver alone
 (`viscoelastic_table`, no campaign behind it, so one table shipped in the package,
-`TABLE_NAME`) with the file's emulator, or the shipped emulator for a law-only file.
+`TABLE_NAME`) with the file's emulator, or the shipped emulator for a law-only file;
+and (read on its first use) the tension analysis's shell ramp table (`ramp_table`, built
+by its own campaign, shipped in the package as `ramp_table.NAME`).
 Every command reads the file here once and hands its parts on; no other code opens it.
-The shell ramp table of the tension analysis (`analysis/calibration/data/shell_ramp_table.json`) is
-not yet a part of this object: `analysis.afm.tension.shell_ramp` reads it on its first use.
 """
 
 import json
@@ -36,6 +36,9 @@ from typing import Any, Callable
 
 from analysis.calibration.emulator import Emulator, from_results
 from analysis.calibration.law import FORMAT, Calibration, _nan_to_none, read_document
+from analysis.calibration.ramp_table import NAME as RAMP_TABLE_NAME
+from analysis.calibration.ramp_table import ShellTable
+from analysis.calibration.ramp_table import read as read_ramp_table
 from analysis.calibration.viscoelastic_table import ComplexTable
 from common.errors import InputError
 
@@ -73,6 +76,11 @@ class CalibrationFile:
         emulator = self.emulator if self.emulator is not None else load_calibration(None).emulator
         assert emulator is not None, "the shipped calibration holds the emulator"
         return ComplexModel(emulator, _complex_table(shipped_path(TABLE_NAME)))
+
+    @cached_property
+    def shell_ramp(self) -> ShellTable:
+        """The shell ramp table of `cortex afm tension` (read on first use): the shipped one."""
+        return read_ramp_table(shipped_path(RAMP_TABLE_NAME))
 
 
 def shipped_path(name: str = SHIPPED_NAME) -> Path:

@@ -1,5 +1,6 @@
-"""The table behind the shell ramp model (`shell_ramp`): the force of the shell of
-SPEC 2 pressed from its free sphere, in units of K_B R.
+"""The table behind the shell ramp model (`shell_ramp`; read by
+`analysis.calibration.ramp_table`): the force of the shell of SPEC 2 pressed
+from its free sphere, in units of K_B R.
 
 A cell of radius R with active tension γ_a and moduli K_B, K_S = K̃_S K_B,
 stress-free as the free sphere, pressed to the gap h = 2R - δ:
@@ -76,13 +77,14 @@ def _forces(volume_um3: float, radius_um: float, depths: np.ndarray, bulk: float
 def fill(f: np.ndarray, gamma_tilde: float) -> tuple[np.ndarray, int]:
     """One node's f over DEPTHS with each depth no mesh solved interpolated along
     depth from the solved ones (these kept as they are), and how many there were:
-    the elastic share q = (f - γ̃ ĝ)/(δ/R - D0)² is smooth in δ/R (`shell_ramp`)."""
+    the elastic share q = (f - γ̃ ĝ)/(δ/R - D0) is smooth in δ/R (`ramp_table`)."""
+    from analysis.calibration.ramp_table import elastic_scale
     from solver.droplet_table import unit_force_per_tension
     missing = ~np.isfinite(f)
     if not missing.any():
         return f, 0
     tension = gamma_tilde * unit_force_per_tension(DEPTHS)
-    scale = np.maximum(DEPTHS - D0, 1e-12) ** 2
+    scale = np.maximum(elastic_scale(DEPTHS, D0), 1e-12)
     q = (f - tension) / scale
     out = f.copy()
     out[missing] = tension[missing] + np.interp(DEPTHS[missing], DEPTHS[~missing], q[~missing]) * scale[missing]
@@ -104,7 +106,7 @@ def node_results(shell: Shell) -> dict[str, float]:
 
 def table_document(radii_um: npt.ArrayLike, gammas: npt.ArrayLike, shears: npt.ArrayLike,
                    f: np.ndarray, filled: int, bending: str = "standard") -> dict[str, Any]:
-    """The table's JSON document (`shell_ramp.ShellTable`) from its axes and f of shape
+    """The table's JSON document (`analysis.calibration.ramp_table.ShellTable`) from its axes and f of shape
     (depth, gamma, shear, radius)."""
     return {"format": FORMAT, "bending": bending, "d0": D0, "radius_um": np.asarray(radii_um, float).tolist(),
             "depth_over_radius": DEPTHS.tolist(), "gamma_tilde": np.asarray(gammas, float).tolist(),
