@@ -81,7 +81,10 @@ class ShellFit:
     """The fitted shell: γ_a, K_B (mN/m) with their SDs and correlation, contact x0
     (µm), baseline F_b (nN), R² and noise SD (nN) on the window (the droplet fit's,
     `window`), the deepest deformation in it (µm), K̃_S used; `elastic_term` whether the
-    droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ."""
+    droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ; `sse_nN2`
+    the residual sum of squares (nN²). The bands are the statistical 95 % ends of γ_a,
+    K_B and K̃_S where they are not value ± Z95 · sd (K̃_S profiled: `shell_shear`); None
+    otherwise (K̃_S fixed)."""
 
     tension_mN_per_m: float
     bulk_mN_per_m: float
@@ -100,6 +103,10 @@ class ShellFit:
     model: str = "shell"
     elastic_term: str = GIVEN
     elastic_lr: float = float("nan")
+    sse_nN2: float = float("nan")
+    tension_band_mN_per_m: tuple[float, float] | None = None
+    bulk_band_mN_per_m: tuple[float, float] | None = None
+    shear_band: tuple[float, float] | None = None
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
@@ -227,7 +234,7 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
                     r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                     window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
                     depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
-                    elastic_term=term, elastic_lr=lr)
+                    elastic_term=term, elastic_lr=lr, sse_nN2=sse)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
@@ -241,7 +248,8 @@ def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, rad
     return replace(fit, tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                    bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
-                   depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde)
+                   depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde, sse_nN2=sse,
+                   tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None)
 
 
 def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
@@ -257,16 +265,20 @@ def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, r
 def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
                    fixed: Fixed, errors: MeasurementErrors = TENSION_ERRORS) -> tuple[float, float, float, float]:
     """(γ_lo, γ_hi, K_B lo, K_B hi): 95 % intervals of γ_a and K_B, the statistical
-    half-width Z95 · sd and the volume error's shift (refits at V (1 ± Z95 σ_V) on
-    the same window, as `pause.ramp_interval`) added in quadrature on each side;
+    half-width (Z95 · sd, or the distance to the fit's band where it has one: K̃_S
+    profiled) and the volume error's shift (refits at V (1 ± Z95 σ_V) on the same
+    window with `fixed`, as `pause.ramp_interval`) added in quadrature on each side;
     the refits of a fit that chose the droplet keep K_B = 0."""
     if fit.elastic_term == NOT_SIGNIFICANT and fixed.bulk_mN_per_m is None:
         fixed = Fixed(fixed.shear_tilde, 0.0)
     shifted = [refit_shell(fit, x_um, force_nN, float(cell_radius(volume_um3 * (1.0 + s * Z95 * errors.volume_rel_sd))),
                            fixed) for s in (-1.0, 1.0)]
     out = []
-    for value, sd, ends in ((fit.tension_mN_per_m, fit.tension_sd_mN_per_m, [g.tension_mN_per_m for g in shifted]),
-                            (fit.bulk_mN_per_m, fit.bulk_sd_mN_per_m, [g.bulk_mN_per_m for g in shifted])):
+    for value, sd, band, ends in ((fit.tension_mN_per_m, fit.tension_sd_mN_per_m, fit.tension_band_mN_per_m,
+                                   [g.tension_mN_per_m for g in shifted]),
+                                  (fit.bulk_mN_per_m, fit.bulk_sd_mN_per_m, fit.bulk_band_mN_per_m,
+                                   [g.bulk_mN_per_m for g in shifted])):
+        below, above = (Z95 * sd, Z95 * sd) if band is None else (value - band[0], band[1] - value)
         down, up = max(value - min(ends), 0.0), max(max(ends) - value, 0.0)
-        out += [max(value - float(np.hypot(Z95 * sd, down)), 0.0), value + float(np.hypot(Z95 * sd, up))]
+        out += [max(value - float(np.hypot(below, down)), 0.0), value + float(np.hypot(above, up))]
     return out[0], out[1], out[2], out[3]
