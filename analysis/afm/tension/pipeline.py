@@ -44,7 +44,8 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
-from analysis.afm.tension.shell_fit import SHEAR_TILDE, Fixed, fit_shell, shell_interval
+from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
+from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
@@ -60,7 +61,7 @@ class Options:
     refer to the approach's contact point without one), the errors."""
 
     model: str = "shell"
-    shear_tilde: float | None = None          # None: the default SHEAR_TILDE, fixed
+    shear_tilde: float | None = None          # None: unknown, fitted (`shell_shear`)
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
     import_options: ImportOptions = ImportOptions(contact_heights=True)
@@ -128,9 +129,11 @@ def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: floa
 def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
                ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same window)."""
-    given = options.shear_tilde is not None
-    fixed = Fixed(options.shear_tilde if options.shear_tilde is not None else SHEAR_TILDE, options.bulk_mN_per_m)
-    fit = fit_shell(x, f, radius, fixed, cap_um=options.max_depth_um)
+    if options.shear_tilde is not None:
+        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m), cap_um=options.max_depth_um)
+    else:
+        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um)
+    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m)       # the volume refits and nested windows: at the fit's
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
     try:
@@ -143,8 +146,7 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "pressure_Pa": float(pressure_Pa(g, 1.0 / radius)), "pressure_lo95_Pa": float(pressure_Pa(t_lo, 1.0 / radius)),
            "pressure_hi95_Pa": float(pressure_Pa(t_hi, 1.0 / radius)),
            "bulk_modulus_mN_per_m": fit.bulk_mN_per_m, "bulk_modulus_lo95_mN_per_m": k_lo,
-           "bulk_modulus_hi95_mN_per_m": k_hi, "shear_ratio": fit.shear_tilde,
-           "shear_ratio_source": "given" if given else "fixed (default)", "elastic_term": fit.elastic_term,
+           "bulk_modulus_hi95_mN_per_m": k_hi, **_shear_columns(fit), "elastic_term": fit.elastic_term,
            "elastic_term_lr": fit.elastic_lr,
            "tension_bulk_correlation": fit.correlation,
            "droplet_tension_mN_per_m": rows[-1].droplet_tension_mN_per_m,
@@ -155,6 +157,17 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
     return row, ("approach", index, x, f, fit, cmp, rows)
+
+
+def _shear_columns(fit: ShellFit) -> dict[str, Any]:
+    """The row's K̃_S: given, or fitted with its 95 % interval and whether the ramp identifies
+    it (`shell_shear`; no value where the droplet was returned: the force does not depend on it)."""
+    if fit.shear_band is None:
+        return {"shear_ratio": fit.shear_tilde, "shear_ratio_lo95": fit.shear_tilde,
+                "shear_ratio_hi95": fit.shear_tilde, "shear_ratio_source": "given", "shear_ratio_identified": "given"}
+    value = float("nan") if fit.elastic_term == NOT_SIGNIFICANT else fit.shear_tilde
+    return {"shear_ratio": value, "shear_ratio_lo95": fit.shear_band[0], "shear_ratio_hi95": fit.shear_band[1],
+            "shear_ratio_source": "fitted", "shear_ratio_identified": identification(fit)}
 
 
 def _window(fit: Any, radius: float) -> dict[str, Any]:

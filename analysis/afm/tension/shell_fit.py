@@ -62,6 +62,8 @@ START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
 PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
+TOL = 1e-12              # least_squares' xtol and ftol of a fit
+PROFILE_TOL = 1e-8       # and of the bound's profile, which only asks which K_B stay within Z95² σ² of the best
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
                          # and at least ln n (BIC; module doc)
@@ -142,9 +144,10 @@ def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float,
     return [(found[i][0],) + found[i][2:] for i in sorted(minima, key=lambda i: sse[i])[:STARTS]]
 
 
-def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray
-           ) -> tuple[np.ndarray, float, np.ndarray]:
-    """least_squares from θ0 = (x0, F_b, γ_a, K_B); K_B fixed when `fixed` says so."""
+def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray,
+           tol: float = TOL) -> tuple[np.ndarray, float, np.ndarray]:
+    """least_squares from θ0 = (x0, F_b, γ_a, K_B) to `tol` (relative, in θ and SSE); K_B fixed when
+    `fixed` says so."""
     free_k = fixed.bulk_mN_per_m is None
     kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
 
@@ -157,7 +160,7 @@ def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Se
     lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else [])
     scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else [])
     res = least_squares(lambda p: model(p) - f, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
-                        diff_step=1e-6, xtol=1e-12, ftol=1e-12)
+                        diff_step=1e-6, xtol=tol, ftol=tol)
     p = np.append(res.x, [] if free_k else [kb])
     return p, float(2.0 * res.cost), res.jac
 
@@ -181,7 +184,7 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
     best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
     theta, lo_g, hi_g, hi_k = np.asarray(p, float), p[2], p[2], 0.0
     for k in p[2] * PROFILE:
-        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
+        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta, PROFILE_TOL)
         if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
             lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
