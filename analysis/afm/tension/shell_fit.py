@@ -63,7 +63,7 @@ STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
 PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
 TOL = 1e-12              # least_squares' xtol and ftol of a fit
-PROFILE_TOL = 1e-8       # and of the bound's profile, which only asks which K_B stay within Z95² σ² of the best
+PROFILE_TOL = 1e-8       # and of a profile's (over K_B at the bound, over K̃_S: `shell_shear`): Δχ² to 1e-3
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
                          # and at least ln n (BIC; module doc)
@@ -241,11 +241,12 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
-                fixed: Fixed) -> ShellFit:
-    """`fit` refitted on its own window for another radius or another fixed K̃_S / K_B."""
+                fixed: Fixed, tol: float = TOL) -> ShellFit:
+    """`fit` refitted on its own window for another radius or another fixed K̃_S / K_B
+    (least squares to `tol`)."""
     xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
     kb = fit.bulk_mN_per_m if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
-    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb))
+    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb), tol)
     sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return replace(fit, tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,

@@ -33,7 +33,8 @@ from scipy.optimize import minimize_scalar
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.pause import Z95
-from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, SHEAR_TILDE, Fixed, ShellFit, fit_shell, refit_shell
+from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit, fit_shell,
+                                            refit_shell)
 
 NODES = 9
 XATOL = 0.02             # Brent's tolerance in ln K̃_S
@@ -66,7 +67,7 @@ def profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_
     done: dict[float, ShellFit] = {}
 
     def at(s: float, near: ShellFit) -> ShellFit:
-        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m))
+        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m), PROFILE_TOL)
         return done[s]
 
     start = int(np.argmin(np.abs(np.log(nodes / fit.shear_tilde))))
