@@ -14,8 +14,8 @@ fit's parameters, K̃_S the extra one),
 
     Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ²,
 
-read linearly in ln K̃_S between the profile's points (on FINE points over the
-range). The point estimate is the fit at the best K̃_S (all its columns). The
+read between the profile's points (on FINE points over the range) by its root
+√Δχ² linearly in ln K̃_S: exact where the profile is a parabola in ln K̃_S. The point estimate is the fit at the best K̃_S (all its columns). The
 95 % interval of K̃_S is the profile likelihood's, {K̃_S : Δχ² ≤ χ²_1(0.95) = 3.84};
 that of γ_a (and of K_B) the union over it of the conditional intervals
 γ_a(K̃_S) ± Z95 sd(K̃_S): an interval that holds the truth whenever K̃_S's does and
@@ -98,8 +98,7 @@ def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tup
     u = np.log(prof.shears)
     grid = np.linspace(u[0], u[-1], FINE) if u.size > 1 else u
     grid = np.union1d(grid, u)
-    chi2 = np.interp(grid, u, prof.chi2)
-    ok = chi2 <= CHI2_95
+    ok = np.interp(grid, u, np.sqrt(prof.chi2)) <= np.sqrt(CHI2_95)
     out = [(float(np.exp(grid[ok].min())), float(np.exp(grid[ok].max())))]
     for value, sd in (("tension_mN_per_m", "tension_sd_mN_per_m"), ("bulk_mN_per_m", "bulk_sd_mN_per_m")):
         v = np.interp(grid, u, [getattr(g, value) for g in prof.fits])[ok]
