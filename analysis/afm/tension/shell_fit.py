@@ -86,7 +86,7 @@ class ShellFit:
     droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ; `sse_nN2`
     the residual sum of squares (nN²). The bands are the statistical 95 % ends of γ_a,
     K_B and K̃_S where they are not value ± Z95 · sd (K̃_S profiled: `shell_shear`); None
-    otherwise (K̃_S fixed)."""
+    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window."""
 
     tension_mN_per_m: float
     bulk_mN_per_m: float
@@ -109,6 +109,7 @@ class ShellFit:
     tension_band_mN_per_m: tuple[float, float] | None = None
     bulk_band_mN_per_m: tuple[float, float] | None = None
     shear_band: tuple[float, float] | None = None
+    droplet_tension_mN_per_m: float = float("nan")
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
@@ -237,7 +238,7 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
                     r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                     window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
                     depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
-                    elastic_term=term, elastic_lr=lr, sse_nN2=sse)
+                    elastic_term=term, elastic_lr=lr, sse_nN2=sse, droplet_tension_mN_per_m=drop.tension_mN_per_m)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
