@@ -8,7 +8,8 @@ read     every FILE on its own by the one reader, `formats.open`: an experiment
          its volume (`--volume`, `--volumes` or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
          fitted by the selected model: `shell` (`shell_fit`: γ_a and K_B of the
-         elastic cortex, window capped at the shell table's depth and
+         elastic cortex at the given K_S/K_B, or `shell_shear` with K_S/K_B fitted
+         by its profile, window capped at the shell table's depth and
          `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),

@@ -7,8 +7,8 @@ The model of the window's samples (x_i, F_i), δ_i = max(x0 - x_i, 0):
 
 fitted by least squares in θ = (x0, F_b, γ_a, K_B) (scipy least_squares, γ_a > 0,
 K_B ≥ 0: K_B = 0 is the tension-only droplet), K̃_S fixed (`Fixed.shear_tilde`,
-default 1/3: ν = 0.5, SPEC 2), and K_B too where a lab knows it from the same
-cell's oscillations (`Fixed.bulk_mN_per_m`).
+default 1/3: ν = 0.5, SPEC 2; unknown: `shell_shear` profiles it), and K_B too where a
+lab knows it from the same cell's oscillations (`Fixed.bulk_mN_per_m`).
 
 Window: the droplet fit's (`ramp.fit_ramp`) with its depth capped at the
 table's deepest δ/R (and at `cap_um`); its contact and baseline start the fit.
