@@ -24,6 +24,8 @@ analyse  per recording, in order until its first retract: every approach ramp
          `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
          ramp's contact x0, else the height channel (Z = 0), each the last
          half's mean;
+         Recordings are analysed in two halves, the later in a forked process
+         beside this one (`common.beside`) where there are two CPUs.
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
          recording (`report`), report.md, which also lists what was not
          analysed.
@@ -51,6 +53,7 @@ from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_P
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from analysis.invert.measurement_errors import MeasurementErrors
+from common.beside import beside
 from common.errors import InputError
 from common.names import RAMP_MODELS
 from solver.geometry import cell_radius
@@ -265,6 +268,29 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
+def _analyse_all(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:
+    """({cell: analysed}, {cell: reason it could not be}) of `traces`, in order."""
+    done, skipped = {}, {}
+    for t in traces:
+        try:
+            done[t.cell_id] = analyse(t, options)
+        except InputError as err:
+            skipped[t.cell_id] = f"{t.source}: {err}"
+    return done, skipped
+
+
+def _analyse_beside(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:
+    """`_analyse_all`, the later half of the traces in a forked process beside this one
+    (`common.beside`, where there are two CPUs): the same values, in the same order."""
+    if len(traces) < 2:
+        return _analyse_all(traces, options)
+    half = (len(traces) + 1) // 2
+    with beside(_analyse_all, traces[half:], options) as rest:
+        done, skipped = _analyse_all(traces[:half], options)
+        more, more_skipped = rest.result()
+    return {**done, **more}, {**skipped, **more_skipped}
+
+
 def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
@@ -274,12 +300,8 @@ def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Pa
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:
         folder.check([TABLE, REPORT] + list(file_names(t.cell_id for t in traces).values()))
-    done = {}
-    for t in traces:
-        try:
-            done[t.cell_id] = analyse(t, options)
-        except InputError as err:
-            skipped[t.cell_id] = f"{t.source}: {err}"
+    done, failed = _analyse_beside(traces, options)
+    skipped.update(failed)
     if not done:
         more = f" (and {len(skipped) - 1} more not analysed)" if len(skipped) > 1 else ""
         raise InputError(next(iter(skipped.values()), "nothing to analyse") + more)
