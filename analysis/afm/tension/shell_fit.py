@@ -260,9 +260,8 @@ def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, rad
 def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
                   shears: npt.ArrayLike) -> list[tuple[float, float, float, float]]:
     """[(K̃_S, Δχ², γ_a, K_B)] of the fit refitted at each K̃_S of `shears` (module doc)."""
-    n = int(fit.window.sum())
     fits = [refit_shell(fit, x_um, force_nN, radius_um, Fixed(float(s))) for s in np.asarray(shears, float)]
-    sse = np.array([(g.noise_nN ** 2) * (n - 4) for g in fits])
+    sse = np.array([g.sse_nN2 for g in fits])
     return [(g.shear_tilde, float((s - sse.min()) / fit.noise_nN ** 2), g.tension_mN_per_m, g.bulk_mN_per_m)
             for g, s in zip(fits, sse)]
 
