@@ -9,6 +9,7 @@ import pytest
 
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.instruments import to_cell
+from analysis.afm.tension.shell_shear import shear_range
 from analysis.afm.tension.synth import droplet_recording
 from conftest import ROOT
 from cortex.cli import main
@@ -119,6 +120,16 @@ def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
     assert "without contact" in doc["not_analysed"]["flat"]
     report = (out / "report.md").read_text()
     assert "Not analysed" in report and "flat" in report
+    # the shell's K_S/K_B: fitted by default (a droplet: no elastic term, so not identified), or given
+    row = doc["rows"][0]
+    assert row["elastic_term"] == "not significant" and row["shear_ratio"] is None
+    assert (row["shear_ratio_source"], row["shear_ratio_identified"]) == ("fitted", "not identified")
+    assert (row["shear_ratio_lo95"], row["shear_ratio_hi95"]) == pytest.approx(shear_range())
+    assert "| not identified |" in report
+    status, given = _json(capsys, tmp_path / "good.jpk-force", "--volume", VOLUME, "--shear-ratio", 0.5)
+    row = given["rows"][0]
+    assert status == 0 and (row["shear_ratio"], row["shear_ratio_source"], row["shear_ratio_identified"]) == (
+        0.5, "given", "given")
 
 
 def test_figure_names_are_files_and_never_shared():

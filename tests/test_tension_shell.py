@@ -1,6 +1,7 @@
-"""The shell ramp reading (`analysis.afm.tension.shell_fit`) against elastic ramps
-made by the solver itself (`synth.shell_ramp`: the shell of SPEC 2 pressed from
-0.05 µm below its free sphere, each depth solved), and tension-only droplets."""
+"""The shell ramp reading (`analysis.afm.tension.shell_fit`, and `shell_shear` with
+K_S/K_B unknown) against elastic ramps made by the solver itself
+(`synth.shell_ramp`: the shell of SPEC 2 pressed from 0.05 µm below its free
+sphere, each depth solved), and tension-only droplets."""
 
 import numpy as np
 import pytest
@@ -9,7 +10,10 @@ from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.ramp import fit_ramp
-from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, SIGNIFICANT, Fixed, fit_shell, shear_profile, shell_interval
+from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, SHEAR_TILDE, SIGNIFICANT, Fixed, fit_shell, shear_profile,
+                                            shell_interval)
+from analysis.afm.tension.shell_shear import (BOUNDED, IDENTIFIED, NOT_IDENTIFIED, fit_unknown_shear, identification,
+                                              shear_range)
 from analysis.afm.tension.shell_table import unit_forces
 from analysis.afm.tension.synth import droplet_force_nN, shell_ramp as elastic_ramp
 
@@ -24,18 +28,42 @@ def _cells():
 
 
 @pytest.fixture(scope="module")
-def fitted():
-    """(truth γ_a, K_B, K̃_S, R; fitted γ_a, K_B, interval, droplet T) of every cell, K̃_S
-    known (as from the cell's oscillations: one ramp does not tell it, see below)."""
+def ramps():
+    """[((γ_a, K_B, K̃_S, R, seed), x, F)] of the 40 cells."""
     out = []
     for gamma, bulk, shear, radius, seed in _cells():
         x, f = elastic_ramp(radius, gamma, bulk, shear * bulk, 0.14 * radius, n=SAMPLES, noise_nN=0.02, seed=seed)
+        out.append(((gamma, bulk, shear, radius, seed), x, f))
+    return out
+
+
+@pytest.fixture(scope="module")
+def fitted(ramps):
+    """(truth γ_a, K_B, K̃_S, R; fitted γ_a, K_B, interval, droplet T) of every cell, K̃_S
+    known (as from the cell's oscillations)."""
+    out = []
+    for (gamma, bulk, shear, radius, seed), x, f in ramps:
         fixed = Fixed(shear_tilde=shear)
         fit = fit_shell(x, f, radius, fixed)
         lo, hi, _, _ = shell_interval(fit, x, f, 4.0 * np.pi * radius ** 3 / 3.0, fixed, MeasurementErrors(volume_rel_sd=0.0))
         droplet = fit_ramp(x, f, radius, "droplet", cap_um=fit.depth_um).tension_mN_per_m
         assert fit.elastic_term == SIGNIFICANT, fit.elastic_lr
         out.append((gamma, bulk, shear, radius, fit.tension_mN_per_m, fit.bulk_mN_per_m, lo, hi, droplet))
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def unknown(ramps):
+    """(truth γ_a, K_B, K̃_S; fitted γ_a, its interval, K_B, its interval, K̃_S, its interval) of
+    every cell read with K̃_S unknown (the command's default)."""
+    out = []
+    for (gamma, bulk, shear, radius, seed), x, f in ramps:
+        fit = fit_unknown_shear(x, f, radius)
+        assert fit.elastic_term == SIGNIFICANT, fit.elastic_lr
+        lo, hi, k_lo, k_hi = shell_interval(fit, x, f, 4.0 * np.pi * radius ** 3 / 3.0, Fixed(fit.shear_tilde),
+                                            MeasurementErrors(volume_rel_sd=0.0))
+        out.append((gamma, bulk, shear, fit.tension_mN_per_m, lo, hi, fit.bulk_mN_per_m, k_lo, k_hi, fit.shear_tilde,
+                    *fit.shear_band))
     return np.array(out)
 
 
@@ -64,6 +92,52 @@ def test_active_tension_of_elastic_cells(fitted):
 def test_bulk_modulus_of_elastic_cells(fitted):
     """K_B of the cells with K̃_S known: median error below 5 %."""
     assert np.median(np.abs(fitted[:, 5] / fitted[:, 1] - 1.0)) < 0.05
+
+
+def test_active_tension_with_the_shear_ratio_unknown(unknown):
+    """K̃_S fitted over the table's range (no --shear-ratio): γ_a within 10 % for every cell,
+    median error ≤ 3 %, its intervals (the union over K̃_S's interval) cover ≥ 90 %, and
+    so do K_B's and K̃_S's own."""
+    gamma, bulk, shear = unknown[:, 0], unknown[:, 1], unknown[:, 2]
+    err = np.abs(unknown[:, 3] / gamma - 1.0)
+    assert np.max(err) < 0.10, np.round(err, 3)
+    assert np.median(err) <= 0.03
+    for truth, lo, hi in ((gamma, 4, 5), (bulk, 7, 8), (shear, 10, 11)):
+        assert np.mean((unknown[:, lo] <= truth) & (truth <= unknown[:, hi])) >= 0.9
+
+
+def test_the_default_covers_a_shear_ratio_far_from_a_third(ramps):
+    """A cell with K̃_S = 1.65 (γ_a 0.44, K_B 14 mN/m): read with K̃_S fixed at 1/3 its γ_a
+    is 17 % high and the interval misses it; with K̃_S unknown γ_a is within 3 %, its
+    interval covers it, and K̃_S's interval holds 1.65 but not 1/3 (bounded: the ramp
+    tells K̃_S from below only)."""
+    (gamma, bulk, shear, radius, _), x, f = ramps[0]
+    assert shear > 1.5
+    volume, exact = 4.0 * np.pi * radius ** 3 / 3.0, MeasurementErrors(volume_rel_sd=0.0)
+    third = fit_shell(x, f, radius, Fixed(SHEAR_TILDE))
+    lo, hi, _, _ = shell_interval(third, x, f, volume, Fixed(SHEAR_TILDE), exact)
+    assert third.tension_mN_per_m / gamma - 1.0 > 0.1 and not lo <= gamma <= hi
+    fit = fit_unknown_shear(x, f, radius)
+    lo, hi, k_lo, k_hi = shell_interval(fit, x, f, volume, Fixed(fit.shear_tilde), exact)
+    assert abs(fit.tension_mN_per_m / gamma - 1.0) < 0.03 and lo <= gamma <= hi and k_lo <= bulk <= k_hi
+    s_lo, s_hi = fit.shear_band
+    assert 1.0 / 3.0 < s_lo < shear < s_hi and identification(fit) == BOUNDED and s_hi == shear_range()[1]
+
+
+def test_the_reported_shear_interval_is_the_profiles(ramps):
+    """A cell whose ramp identifies K̃_S (truth 0.18, K_B 35 mN/m): refitted at the ends of
+    the reported interval the SSE is 3.84 σ² above the best's (within 0.5), a tenth
+    beyond them more, inside less; the truth is inside."""
+    (gamma, bulk, shear, radius, _), x, f = ramps[10]
+    fit = fit_unknown_shear(x, f, radius)
+    s_lo, s_hi = fit.shear_band
+    assert identification(fit) == IDENTIFIED and s_lo < shear < s_hi
+    prof = np.array(shear_profile(fit, x, f, radius, [fit.shear_tilde, s_lo, s_hi, s_lo / 1.1, s_hi * 1.1,
+                                                      np.sqrt(s_lo * fit.shear_tilde)]))
+    chi2 = prof[:, 1] - prof[0, 1]
+    assert chi2[0] == pytest.approx(0.0, abs=0.05) and np.all(chi2 >= -0.05)
+    assert chi2[1] == pytest.approx(3.84, abs=0.5) and chi2[2] == pytest.approx(3.84, abs=0.5)
+    assert chi2[3] > 3.84 and chi2[4] > 3.84 and chi2[5] < 3.84
 
 
 def test_tension_only_cells_read_within_a_percent():

@@ -155,8 +155,10 @@ def _add_tension(s: Commands) -> None:
                    help="ramp model, %(choices)s (default shell: the active tension and bulk modulus of an elastic "
                         "cortex; the droplet and small-deformation apparent tensions beside it)")
     t.add_argument("--shear-ratio", type=float, default=None, metavar="KS_OVER_KB",
-                   help="K_S/K_B of the shell model (default 1/3: Poisson ratio 0.5); from the same cell's "
-                        "oscillations where known")
+                   help="K_S/K_B of the shell model when known from the same cell's oscillations (default: "
+                        "fitted over the ramp table's range by its profile likelihood; the row says "
+                        "whether the ramp identifies it, and the intervals of the active tension and K_B hold "
+                        "every K_S/K_B it allows)")
     t.add_argument("--bulk-mN-per-m", type=float, default=None, metavar="KB",
                    help="the shell's area bulk modulus K_B in mN/m when known from the same cell's oscillations "
                         "(default: fitted)")

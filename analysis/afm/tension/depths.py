@@ -54,10 +54,12 @@ def depth_rows(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, f
         try:
             s = fit if frac == 1.0 else fit_shell(x_um, force_nN, radius_um, fixed, cap_um=cap, near=fit)
             g, sd, k = s.tension_mN_per_m, s.tension_sd_mN_per_m, s.bulk_mN_per_m
+            droplet = s.droplet_tension_mN_per_m if frac < 1.0 else float("nan")   # the same fit as _apparent's
         except InputError:
-            g = sd = k = float("nan")
-        rows.append(DepthRow(cap, g, sd, k, _apparent(x_um, force_nN, radius_um, "droplet", cap),
-                             _apparent(x_um, force_nN, radius_um, "small-deformation", cap)))
+            g = sd = k = droplet = float("nan")
+        if not np.isfinite(droplet):
+            droplet = _apparent(x_um, force_nN, radius_um, "droplet", cap)
+        rows.append(DepthRow(cap, g, sd, k, droplet, _apparent(x_um, force_nN, radius_um, "small-deformation", cap)))
     return rows
 
 

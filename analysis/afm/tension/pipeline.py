@@ -8,7 +8,8 @@ read     every FILE on its own by the one reader, `formats.open`: an experiment
          its volume (`--volume`, `--volumes` or `--radius-um` R: V = 4πR³/3);
 analyse  per recording, in order until its first retract: every approach ramp
          fitted by the selected model: `shell` (`shell_fit`: γ_a and K_B of the
-         elastic cortex, window capped at the shell table's depth and
+         elastic cortex at the given K_S/K_B, or `shell_shear` with K_S/K_B fitted
+         by its profile, window capped at the shell table's depth and
          `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
@@ -23,6 +24,8 @@ analyse  per recording, in order until its first retract: every approach ramp
          `--dish-height-um`, `--dish-curve`), else h = 2R - (x0 - x) from that
          ramp's contact x0, else the height channel (Z = 0), each the last
          half's mean;
+         Recordings are analysed in two halves, the later in a forked process
+         beside this one (`common.beside`) where there are two CPUs.
 write    `--out DIR`: tension.csv (one row per analysed part), one figure per
          recording (`report`), report.md, which also lists what was not
          analysed.
@@ -44,11 +47,13 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
-from analysis.afm.tension.shell_fit import SHEAR_TILDE, Fixed, fit_shell, shell_interval
+from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
+from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
 from analysis.invert.measurement_errors import MeasurementErrors
+from common.beside import beside
 from common.errors import InputError
 from common.names import RAMP_MODELS
 from solver.geometry import cell_radius
@@ -60,7 +65,7 @@ class Options:
     refer to the approach's contact point without one), the errors."""
 
     model: str = "shell"
-    shear_tilde: float | None = None          # None: the default SHEAR_TILDE, fixed
+    shear_tilde: float | None = None          # None: unknown, fitted (`shell_shear`)
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
     import_options: ImportOptions = ImportOptions(contact_heights=True)
@@ -128,9 +133,11 @@ def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: floa
 def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
                ) -> tuple[dict[str, Any], tuple[Any, ...]]:
     """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same window)."""
-    given = options.shear_tilde is not None
-    fixed = Fixed(options.shear_tilde if options.shear_tilde is not None else SHEAR_TILDE, options.bulk_mN_per_m)
-    fit = fit_shell(x, f, radius, fixed, cap_um=options.max_depth_um)
+    if options.shear_tilde is not None:
+        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m), cap_um=options.max_depth_um)
+    else:
+        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um)
+    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m)       # the volume refits and nested windows: at the fit's
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
     try:
@@ -143,8 +150,7 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "pressure_Pa": float(pressure_Pa(g, 1.0 / radius)), "pressure_lo95_Pa": float(pressure_Pa(t_lo, 1.0 / radius)),
            "pressure_hi95_Pa": float(pressure_Pa(t_hi, 1.0 / radius)),
            "bulk_modulus_mN_per_m": fit.bulk_mN_per_m, "bulk_modulus_lo95_mN_per_m": k_lo,
-           "bulk_modulus_hi95_mN_per_m": k_hi, "shear_ratio": fit.shear_tilde,
-           "shear_ratio_source": "given" if given else "fixed (default)", "elastic_term": fit.elastic_term,
+           "bulk_modulus_hi95_mN_per_m": k_hi, **_shear_columns(fit), "elastic_term": fit.elastic_term,
            "elastic_term_lr": fit.elastic_lr,
            "tension_bulk_correlation": fit.correlation,
            "droplet_tension_mN_per_m": rows[-1].droplet_tension_mN_per_m,
@@ -155,6 +161,17 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
     return row, ("approach", index, x, f, fit, cmp, rows)
+
+
+def _shear_columns(fit: ShellFit) -> dict[str, Any]:
+    """The row's K̃_S: given, or fitted with its 95 % interval and whether the ramp identifies
+    it (`shell_shear`; no value where the droplet was returned: the force does not depend on it)."""
+    if fit.shear_band is None:
+        return {"shear_ratio": fit.shear_tilde, "shear_ratio_lo95": fit.shear_tilde,
+                "shear_ratio_hi95": fit.shear_tilde, "shear_ratio_source": "given", "shear_ratio_identified": "given"}
+    value = float("nan") if fit.elastic_term == NOT_SIGNIFICANT else fit.shear_tilde
+    return {"shear_ratio": value, "shear_ratio_lo95": fit.shear_band[0], "shear_ratio_hi95": fit.shear_band[1],
+            "shear_ratio_source": "fitted", "shear_ratio_identified": identification(fit)}
 
 
 def _window(fit: Any, radius: float) -> dict[str, Any]:
@@ -251,6 +268,29 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     return done
 
 
+def _analyse_all(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:
+    """({cell: analysed}, {cell: reason it could not be}) of `traces`, in order."""
+    done, skipped = {}, {}
+    for t in traces:
+        try:
+            done[t.cell_id] = analyse(t, options)
+        except InputError as err:
+            skipped[t.cell_id] = f"{t.source}: {err}"
+    return done, skipped
+
+
+def _analyse_beside(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:
+    """`_analyse_all`, the later half of the traces in a forked process beside this one
+    (`common.beside`, where there are two CPUs): the same values, in the same order."""
+    if len(traces) < 2:
+        return _analyse_all(traces, options)
+    half = (len(traces) + 1) // 2
+    with beside(_analyse_all, traces[half:], options) as rest:
+        done, skipped = _analyse_all(traces[:half], options)
+        more, more_skipped = rest.result()
+    return {**done, **more}, {**skipped, **more_skipped}
+
+
 def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
@@ -260,12 +300,8 @@ def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Pa
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:
         folder.check([TABLE, REPORT] + list(file_names(t.cell_id for t in traces).values()))
-    done = {}
-    for t in traces:
-        try:
-            done[t.cell_id] = analyse(t, options)
-        except InputError as err:
-            skipped[t.cell_id] = f"{t.source}: {err}"
+    done, failed = _analyse_beside(traces, options)
+    skipped.update(failed)
     if not done:
         more = f" (and {len(skipped) - 1} more not analysed)" if len(skipped) > 1 else ""
         raise InputError(next(iter(skipped.values()), "nothing to analyse") + more)

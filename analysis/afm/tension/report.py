@@ -28,7 +28,8 @@ if TYPE_CHECKING:
 TABLE, REPORT = "tension.csv", "report.md"
 COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
            "tension_hi95_mN_per_m", "bulk_modulus_mN_per_m", "bulk_modulus_lo95_mN_per_m",
-           "bulk_modulus_hi95_mN_per_m", "shear_ratio", "shear_ratio_source", "elastic_term", "elastic_term_lr",
+           "bulk_modulus_hi95_mN_per_m", "shear_ratio", "shear_ratio_lo95", "shear_ratio_hi95", "shear_ratio_source",
+           "shear_ratio_identified", "elastic_term", "elastic_term_lr",
            "tension_bulk_correlation", "droplet_tension_mN_per_m",
            "small_deformation_tension_mN_per_m", "depth_flag", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
@@ -142,6 +143,27 @@ def _num(row: dict[str, Any], key: str, spec: str) -> str:
     return "—" if value != value else format(value, spec)
 
 
+def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """report.md's shell readings: γ_a, K_B and K_S/K_B with their 95 % intervals, what one ramp identifies."""
+    ramps = [r for r in rows if r["part"] == "approach" and r["model"] == "shell"]
+    if not ramps:
+        return []
+    lines = ["", "## Approach ramps: the elastic shell", "",
+             "K_S/K_B given, or fitted over the ramp table's range by its profile likelihood: identified (its 95 % "
+             "interval inside the range), bounded (one end inside) or not identified; where fitted, the intervals "
+             "of γ_a and K_B hold every K_S/K_B of its interval (see docs/tension.md).", "",
+             "| cell | part | γ_a (mN/m) | 95 % | K_B (mN/m) | 95 % | K_S/K_B | 95 % | K_S/K_B is | elastic term (Λ) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in ramps:
+        lines.append(f"| {r['cell_id']} | approach {r['segment']} | {_num(r, 'tension_mN_per_m', '.4g')} | "
+                     f"[{_num(r, 'tension_lo95_mN_per_m', '.3g')}, {_num(r, 'tension_hi95_mN_per_m', '.3g')}] | "
+                     f"{_num(r, 'bulk_modulus_mN_per_m', '.4g')} | [{_num(r, 'bulk_modulus_lo95_mN_per_m', '.3g')}, "
+                     f"{_num(r, 'bulk_modulus_hi95_mN_per_m', '.3g')}] | {_num(r, 'shear_ratio', '.3g')} | "
+                     f"[{_num(r, 'shear_ratio_lo95', '.3g')}, {_num(r, 'shear_ratio_hi95', '.3g')}] | "
+                     f"{r['shear_ratio_identified']} | {r['elastic_term']} ({_num(r, 'elastic_term_lr', '.3g')}) |")
+    return lines
+
+
 def _pause_lines(rows: list[dict[str, Any]]) -> list[str]:
     """report.md's pauses: the relaxation preferred, the relaxed and last-half readings, the flags."""
     pauses = [r for r in rows if r["part"] == "pause"]
@@ -204,6 +226,7 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
                      f"{_num(r, 'pressure_Pa', '.4g')} | {_num(r, 'height_um', '.4g')} | {_num(r, 'h_tilde', '.3f')} | "
                      f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
                      f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
+    lines += _shell_lines(rows)
     lines += _pause_lines(rows)
     lines += depth_lines(done or {})
     lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]

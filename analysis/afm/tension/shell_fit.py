@@ -7,8 +7,8 @@ The model of the window's samples (x_i, F_i), δ_i = max(x0 - x_i, 0):
 
 fitted by least squares in θ = (x0, F_b, γ_a, K_B) (scipy least_squares, γ_a > 0,
 K_B ≥ 0: K_B = 0 is the tension-only droplet), K̃_S fixed (`Fixed.shear_tilde`,
-default 1/3: ν = 0.5, SPEC 2), and K_B too where a lab knows it from the same
-cell's oscillations (`Fixed.bulk_mN_per_m`).
+default 1/3: ν = 0.5, SPEC 2; unknown: `shell_shear` profiles it), and K_B too where a
+lab knows it from the same cell's oscillations (`Fixed.bulk_mN_per_m`).
 
 Window: the droplet fit's (`ramp.fit_ramp`) with its depth capped at the
 table's deepest δ/R (and at `cap_um`); its contact and baseline start the fit.
@@ -62,6 +62,8 @@ START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
 PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
+TOL = 1e-12              # least_squares' xtol and ftol of a fit
+PROFILE_TOL = 1e-8       # and of a profile's (over K_B at the bound, over K̃_S: `shell_shear`): Δχ² to 1e-3
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
                          # and at least ln n (BIC; module doc)
@@ -81,7 +83,10 @@ class ShellFit:
     """The fitted shell: γ_a, K_B (mN/m) with their SDs and correlation, contact x0
     (µm), baseline F_b (nN), R² and noise SD (nN) on the window (the droplet fit's,
     `window`), the deepest deformation in it (µm), K̃_S used; `elastic_term` whether the
-    droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ."""
+    droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ; `sse_nN2`
+    the residual sum of squares (nN²). The bands are the statistical 95 % ends of γ_a,
+    K_B and K̃_S where they are not value ± Z95 · sd (K̃_S profiled: `shell_shear`); None
+    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window."""
 
     tension_mN_per_m: float
     bulk_mN_per_m: float
@@ -100,6 +105,11 @@ class ShellFit:
     model: str = "shell"
     elastic_term: str = GIVEN
     elastic_lr: float = float("nan")
+    sse_nN2: float = float("nan")
+    tension_band_mN_per_m: tuple[float, float] | None = None
+    bulk_band_mN_per_m: tuple[float, float] | None = None
+    shear_band: tuple[float, float] | None = None
+    droplet_tension_mN_per_m: float = float("nan")
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
@@ -135,9 +145,10 @@ def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float,
     return [(found[i][0],) + found[i][2:] for i in sorted(minima, key=lambda i: sse[i])[:STARTS]]
 
 
-def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray
-           ) -> tuple[np.ndarray, float, np.ndarray]:
-    """least_squares from θ0 = (x0, F_b, γ_a, K_B); K_B fixed when `fixed` says so."""
+def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray,
+           tol: float = TOL) -> tuple[np.ndarray, float, np.ndarray]:
+    """least_squares from θ0 = (x0, F_b, γ_a, K_B) to `tol` (relative, in θ and SSE); K_B fixed when
+    `fixed` says so."""
     free_k = fixed.bulk_mN_per_m is None
     kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
 
@@ -150,7 +161,7 @@ def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Se
     lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else [])
     scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else [])
     res = least_squares(lambda p: model(p) - f, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
-                        diff_step=1e-6, xtol=1e-12, ftol=1e-12)
+                        diff_step=1e-6, xtol=tol, ftol=tol)
     p = np.append(res.x, [] if free_k else [kb])
     return p, float(2.0 * res.cost), res.jac
 
@@ -174,7 +185,7 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
     best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
     theta, lo_g, hi_g, hi_k = np.asarray(p, float), p[2], p[2], 0.0
     for k in p[2] * PROFILE:
-        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta)
+        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta, PROFILE_TOL)
         if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
             lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
@@ -227,29 +238,30 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
                     r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                     window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
                     depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
-                    elastic_term=term, elastic_lr=lr)
+                    elastic_term=term, elastic_lr=lr, sse_nN2=sse, droplet_tension_mN_per_m=drop.tension_mN_per_m)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
-                fixed: Fixed) -> ShellFit:
-    """`fit` refitted on its own window for another radius or another fixed K̃_S / K_B."""
+                fixed: Fixed, tol: float = TOL) -> ShellFit:
+    """`fit` refitted on its own window for another radius or another fixed K̃_S / K_B
+    (least squares to `tol`)."""
     xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
     kb = fit.bulk_mN_per_m if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
-    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb))
+    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb), tol)
     sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return replace(fit, tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                    bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
-                   depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde)
+                   depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde, sse_nN2=sse,
+                   tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None)
 
 
 def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
                   shears: npt.ArrayLike) -> list[tuple[float, float, float, float]]:
     """[(K̃_S, Δχ², γ_a, K_B)] of the fit refitted at each K̃_S of `shears` (module doc)."""
-    n = int(fit.window.sum())
     fits = [refit_shell(fit, x_um, force_nN, radius_um, Fixed(float(s))) for s in np.asarray(shears, float)]
-    sse = np.array([(g.noise_nN ** 2) * (n - 4) for g in fits])
+    sse = np.array([g.sse_nN2 for g in fits])
     return [(g.shear_tilde, float((s - sse.min()) / fit.noise_nN ** 2), g.tension_mN_per_m, g.bulk_mN_per_m)
             for g, s in zip(fits, sse)]
 
@@ -257,16 +269,20 @@ def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, r
 def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
                    fixed: Fixed, errors: MeasurementErrors = TENSION_ERRORS) -> tuple[float, float, float, float]:
     """(γ_lo, γ_hi, K_B lo, K_B hi): 95 % intervals of γ_a and K_B, the statistical
-    half-width Z95 · sd and the volume error's shift (refits at V (1 ± Z95 σ_V) on
-    the same window, as `pause.ramp_interval`) added in quadrature on each side;
+    half-width (Z95 · sd, or the distance to the fit's band where it has one: K̃_S
+    profiled) and the volume error's shift (refits at V (1 ± Z95 σ_V) on the same
+    window with `fixed`, as `pause.ramp_interval`) added in quadrature on each side;
     the refits of a fit that chose the droplet keep K_B = 0."""
     if fit.elastic_term == NOT_SIGNIFICANT and fixed.bulk_mN_per_m is None:
         fixed = Fixed(fixed.shear_tilde, 0.0)
     shifted = [refit_shell(fit, x_um, force_nN, float(cell_radius(volume_um3 * (1.0 + s * Z95 * errors.volume_rel_sd))),
                            fixed) for s in (-1.0, 1.0)]
     out = []
-    for value, sd, ends in ((fit.tension_mN_per_m, fit.tension_sd_mN_per_m, [g.tension_mN_per_m for g in shifted]),
-                            (fit.bulk_mN_per_m, fit.bulk_sd_mN_per_m, [g.bulk_mN_per_m for g in shifted])):
+    for value, sd, band, ends in ((fit.tension_mN_per_m, fit.tension_sd_mN_per_m, fit.tension_band_mN_per_m,
+                                   [g.tension_mN_per_m for g in shifted]),
+                                  (fit.bulk_mN_per_m, fit.bulk_sd_mN_per_m, fit.bulk_band_mN_per_m,
+                                   [g.bulk_mN_per_m for g in shifted])):
+        below, above = (Z95 * sd, Z95 * sd) if band is None else (value - band[0], band[1] - value)
         down, up = max(value - min(ends), 0.0), max(max(ends) - value, 0.0)
-        out += [max(value - float(np.hypot(Z95 * sd, down)), 0.0), value + float(np.hypot(Z95 * sd, up))]
+        out += [max(value - float(np.hypot(below, down)), 0.0), value + float(np.hypot(above, up))]
     return out[0], out[1], out[2], out[3]

@@ -1,0 +1,138 @@
+"""The shell's K̃_S = K_S/K_B unknown (no `--shear-ratio`): fitted by its profile
+likelihood over the ramp table's range, and γ_a's and K_B's intervals widened by
+what K̃_S leaves open.
+
+The fit at the reference K̃_S = 1/3 (`shell_fit.fit_shell`) tests the elastic
+term. Where it is not significant the row is the droplet's (K_B = 0, where the
+force does not depend on K̃_S: K̃_S is not identified). Otherwise the fit is redone
+at each K̃_S of NODES log-spaced nodes over the table's range [K̃_lo, K̃_hi]
+(0.08-2.5), each started from its neighbour's optimum, then by Brent's method in
+ln K̃_S between the best node's neighbours (to XATOL): the profile SSE(K̃_S),
+each point with its conditional fit θ(K̃_S) = (x0, F_b, γ_a, K_B) and their SDs
+(`shell_fit`: the Jacobian's). With σ² = SSE_min / (n − p − 1) (p the conditional
+fit's parameters, K̃_S the extra one),
+
+    Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ²,
+
+read between the profile's points (on FINE points over the range) by its root
+√Δχ² linearly in ln K̃_S: exact where the profile is a parabola in ln K̃_S. The point estimate is the fit at the best K̃_S (all its columns). The
+95 % interval of K̃_S is the profile likelihood's, {K̃_S : Δχ² ≤ χ²_1(0.95) = 3.84};
+that of γ_a (and of K_B) the union over it of the conditional intervals
+γ_a(K̃_S) ± Z95 sd(K̃_S): an interval that holds the truth whenever K̃_S's does and
+the conditional one does (conservative: the profile likelihood's own interval of
+γ_a is its subset with Δχ² + ((γ − γ_a(K̃_S))/sd)² ≤ 3.84). K̃_S is IDENTIFIED when
+both ends of its interval lie inside the range, BOUNDED when one does (the ramp
+tells one side only), NOT_IDENTIFIED when neither.
+"""
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import minimize_scalar
+
+from analysis.afm.tension import shell_ramp
+from analysis.afm.tension.pause import Z95
+from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit, fit_shell,
+                                            refit_shell)
+
+NODES = 9
+XATOL = 0.02             # Brent's tolerance in ln K̃_S
+FINE = 400               # points of the linear reading of the profile over ln K̃_S
+CHI2_95 = 3.84           # χ²_1 at 0.95
+IDENTIFIED, BOUNDED, NOT_IDENTIFIED, GIVEN = "identified", "bounded", "not identified", "given"
+
+
+@dataclass(frozen=True)
+class Profile:
+    """The profile over K̃_S: its points (sorted), Δχ² and conditional fits, and the best."""
+
+    shears: np.ndarray
+    chi2: np.ndarray
+    fits: list[ShellFit]
+    best: ShellFit
+
+
+def shear_range() -> tuple[float, float]:
+    """[K̃_lo, K̃_hi]: the shipped table's K_S/K_B axis."""
+    shears = shell_ramp.shipped().shears
+    return float(shears[0]), float(shears[-1])
+
+
+def profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
+            bulk_mN_per_m: float | None = None) -> Profile:
+    """The profile of `fit` (a shell fit of the ramp, at any K̃_S) over K̃_S (module doc);
+    K_B fixed at `bulk_mN_per_m` when given."""
+    nodes = np.geomspace(*shear_range(), NODES)
+    done: dict[float, ShellFit] = {}
+
+    def at(s: float, near: ShellFit) -> ShellFit:
+        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m), PROFILE_TOL)
+        return done[s]
+
+    start = int(np.argmin(np.abs(np.log(nodes / fit.shear_tilde))))
+    near = fit
+    for s in nodes[start:]:
+        near = at(float(s), near)
+    near = done[float(nodes[start])]
+    for s in nodes[start - 1::-1] if start > 0 else []:
+        near = at(float(s), near)
+    b = int(np.argmin([done[float(s)].sse_nN2 for s in nodes]))
+    lo, hi = np.log(nodes[max(b - 1, 0)]), np.log(nodes[min(b + 1, NODES - 1)])
+
+    def sse(u: float) -> float:
+        closest = min(done, key=lambda s: abs(np.log(s) - u))
+        return at(float(np.exp(u)), done[closest]).sse_nN2
+
+    minimize_scalar(sse, bounds=(lo, hi), method="bounded", options={"xatol": XATOL})
+    shears = np.array(sorted(done))
+    fits = [done[s] for s in shears]
+    sses = np.array([g.sse_nN2 for g in fits])
+    best = fits[int(np.argmin(sses))]
+    dof = int(best.window.sum()) - (4 if bulk_mN_per_m is None else 3) - 1
+    return Profile(shears, (sses - sses.min()) / (sses.min() / max(dof, 1)), fits, best)
+
+
+def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+    """The 95 % bands of K̃_S, γ_a and K_B from the profile read on FINE points (module doc)."""
+    u = np.log(prof.shears)
+    grid = np.linspace(u[0], u[-1], FINE) if u.size > 1 else u
+    grid = np.union1d(grid, u)
+    ok = np.interp(grid, u, np.sqrt(prof.chi2)) <= np.sqrt(CHI2_95)
+    out = [(float(np.exp(grid[ok].min())), float(np.exp(grid[ok].max())))]
+    for value, sd in (("tension_mN_per_m", "tension_sd_mN_per_m"), ("bulk_mN_per_m", "bulk_sd_mN_per_m")):
+        v = np.interp(grid, u, [getattr(g, value) for g in prof.fits])[ok]
+        w = Z95 * np.interp(grid, u, [getattr(g, sd) for g in prof.fits])[ok]
+        out.append((float(max(np.min(v - w), 0.0)), float(np.max(v + w))))
+    return out[0], out[1], out[2]
+
+
+def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
+                      bulk_mN_per_m: float | None = None, cap_um: float | None = None) -> ShellFit:
+    """The shell fit of one ramp with K̃_S unknown (module doc): the best K̃_S's fit with
+    the bands of K̃_S, γ_a and K_B; the droplet's (`fit_shell` at 1/3) where the elastic
+    term is not significant, its K̃_S band the whole range."""
+    fit = fit_shell(x_um, force_nN, radius_um, Fixed(SHEAR_TILDE, bulk_mN_per_m), cap_um=cap_um)
+    if fit.elastic_term == NOT_SIGNIFICANT:
+        return replace(fit, shear_band=shear_range())
+    prof = profile(fit, x_um, force_nN, radius_um, bulk_mN_per_m)
+    shear, tension, bulk = _bands(prof)
+    best = prof.best
+    lr = fit.elastic_lr
+    if np.isfinite(lr):                          # Λ at the best K̃_S: SSE_0 = SSE(1/3) + Λ σ²(1/3)
+        lr = (fit.sse_nN2 + lr * fit.noise_nN ** 2 - best.sse_nN2) / best.noise_nN ** 2
+    if bulk_mN_per_m is not None:
+        bulk = (bulk_mN_per_m, bulk_mN_per_m)
+    return replace(best, elastic_term=fit.elastic_term, elastic_lr=float(lr), shear_band=shear,
+                   tension_band_mN_per_m=tension, bulk_band_mN_per_m=bulk)
+
+
+def identification(fit: ShellFit) -> str:
+    """IDENTIFIED, BOUNDED or NOT_IDENTIFIED from the fit's K̃_S band (GIVEN without one)."""
+    if fit.shear_band is None:
+        return GIVEN
+    lo, hi = shear_range()
+    inside = [fit.shear_band[0] > lo * (1 + 1e-9), fit.shear_band[1] < hi * (1 - 1e-9)]
+    if fit.elastic_term == NOT_SIGNIFICANT:
+        return NOT_IDENTIFIED
+    return IDENTIFIED if all(inside) else BOUNDED if any(inside) else NOT_IDENTIFIED
