@@ -16,7 +16,7 @@ from that of R = 6.8 µm by 15 % at δ/R = 0.02 and 4 % at 0.15, standard
 bending). So f has a fourth axis, RADII R (µm, at t_c = 0.2 µm).
 
 The mesh: near the sphere the contact spans few elements, and the solver at the
-ramp's resolution r = 2 reads f low (up to 17.5 % at δ/R = 0.0013 against r = 8,
+ramp's resolution r = 2 reads f low (up to 14.9 % below r = 8 at δ/R = 0.0013,
 0.6 % at 0.0126). Each node is therefore computed at r and at MESH_RATIO r = 4,
 and the table holds their Richardson extrapolation
 
@@ -24,10 +24,13 @@ and the table holds their Richardson extrapolation
 
 the error falling as r^(-p). The order was measured with r = 2, 4, 8 at the
 table's corners (`bench/ramp_table.py solver`: p = log2((f4 - f2)/(f8 - f4))
-at δ/R below 0.025, median 2.0; the error of r = 2 falls about fourfold per
-doubling), and the extrapolation of 2 and 4 with it is within 1.3 % of r = 8 at
-δ/R = 0.0013, 0.65 % at 0.0035 and 0.16 % deeper (docs/ramp.md). A depth that
-either mesh does not solve is NaN (filled by `fill`).
+at the depths δ/R 0.0013-0.024, over the 32 corners where r = 8 converges and
+r = 2 is more than 0.1 % off: median 2.0-2.3 at every depth; the error of r = 2
+falls about fourfold per doubling). With it the extrapolation of 2 and 4 is
+within 1.3 % of r = 8 at δ/R = 0.0013, 0.65 % at 0.0035, 0.16 % at 0.006 and
+0.09 % deeper, and a tension-only shell within 0.37 % of the exact droplet at
+0.0013 (docs/ramp.md). A depth that either mesh does not solve is NaN (filled
+by `fill`).
 
 The grid: DEPTHS δ/R to 0.3 (48, denser near the sphere, where the force bends
 most), GAMMAS γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both log-spaced, RADII
