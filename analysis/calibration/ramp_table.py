@@ -3,7 +3,7 @@ pressed from its free sphere, interpolated (`ShellTable`), for the shell ramp mo
 (`analysis.afm.tension.shell_ramp`).
 
 The table (built by `analysis.afm.tension.shell_table`) holds f = F/(K_B R) of the
-solver at depths δ/R and nodes (γ̃_a = γ_a/K_B, K̃_S = K_S/K_B, R). With ĝ the
+solver (two meshes, Richardson-extrapolated) at depths δ/R and nodes (γ̃_a = γ_a/K_B, K̃_S = K_S/K_B, R). With ĝ the
 droplet's unit force (`solver.droplet_table`: the tension alone, exact),
 
     e = f - γ̃_a ĝ(δ/R),          q = e / (δ/R - D0),
