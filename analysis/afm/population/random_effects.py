@@ -1,14 +1,11 @@
 """One frequency's population of ln K̃_S with each cell's measurement error taken out.
 
-Cell i has the fitted y_i = ln K̃_S,i and a measurement SD s_i read off its 95 %
-interval, s_i = (ln hi_i - ln lo_i) / (2 z_c) (`measurement_sd`), with z_c the normal
-quantile of the coverage the per-cell intervals are measured to have, c = 98 %
-(`INTERVAL_COVERAGE`; docs/emulator.md: 97.6-98.0 % of included cells on synthetic
-experiments), z_c = 2.33, not the nominal 1.96: a normal error whose 95 % interval
-holds the truth 98 % of the time has that SD. The SD of the cell's bootstrap draws
-itself (`ln_ks_se` in the cells table), like any scale of the draws or the interval read
-with 1.96, is 1.25-1.45 times the actual errors' of the included cells on the full
-pipeline, and with it τ comes out low (docs/population.md).
+Cell i has the fitted y_i = ln K̃_S,i and its standard error s_i, `ln_ks_se` of the
+cells table: the RMS deviation from y_i of the ln K̃_S refits of its bootstrap draws,
+among the drawn truths the protocol admits (`analysis.invert.intervals`; on the
+included cells of synthetic experiments its RMS is about the RMS of their actual
+errors, docs/population.md).
+
 The normal-normal random-effects model (the one of meta-analysis):
 
     y_i = θ_i + e_i,   θ_i ~ N(μ, τ²) (the cells),   e_i ~ N(0, s_i²) (the measurement),
@@ -37,7 +34,7 @@ adds to the observed spread; its share of the observed variance
 s_m² / (τ² + s_m²), whose interval is the image of τ's (the share falls as τ grows).
 
 Assumptions: θ_i normal (K̃_S lognormal, SPEC 6), errors independent between
-cells and normal on the ln K̃_S scale with the SD of the interval, the cells a
+cells and normal on the ln K̃_S scale with SD s_i, the cells a
 random sample of the population (the quality filters do not select on K̃_S).
 """
 
@@ -51,14 +48,7 @@ from scipy import optimize, stats
 
 LEVEL = 0.95
 CHI2 = float(stats.chi2.ppf(LEVEL, 1))          # 3.84: the likelihood-ratio cut of a 95 % interval
-INTERVAL_COVERAGE = 0.98                        # measured coverage of the per-cell 95 % intervals
-Z_INTERVAL = float(stats.norm.ppf(0.5 + INTERVAL_COVERAGE / 2))   # 2.33
 TAU_MAX_FACTOR = 10.0                           # τ searched in [0, 10 × (SD of y + max s)]
-
-
-def measurement_sd(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """s = (ln hi - ln lo) / (2 z_c): the ln K̃_S SD of a cell's interval [lo, hi] of K̃_S, z_c = `Z_INTERVAL`."""
-    return (np.log(np.asarray(hi, float)) - np.log(np.asarray(lo, float))) / (2.0 * Z_INTERVAL)
 
 
 @dataclass(frozen=True)
