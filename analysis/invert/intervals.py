@@ -62,7 +62,7 @@ import pandas as pd
 from scipy.stats import bootstrap
 
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
-from analysis.invert.inversion import H_TILDE_MAX, H_TILDE_TOP, MIN_HEIGHTS, pass_height_filters, used_heights
+from analysis.invert.inversion import H_TILDE_MAX, pass_height_filters
 from analysis.invert.measurement_errors import DRAWS, HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.droplet_table import unit_area, unit_force_per_tension
@@ -129,16 +129,15 @@ truth_moduli = _truth_moduli
 
 def _in_window(h: Any, k: Any, radius: Any, r_true: Any, h_true: Any, heights: Any) -> Any:
     """Step 4: (c, M) mask of the drawn truths the protocol admits: at the truth's own
-    diameter, every recorded height h̃_j,m = (h_j + offset_m) / (2 R_m) (`h`, `k`: all the
-    cells' recorded h̃ and K, NaN-padded), the highest in (H_TILDE_TOP, H_TILDE_MAX] and at
-    least MIN_HEIGHTS used. `radius`, `heights`: the measured (c, 1, 1) and (c, 1, m) µm;
-    the drawn truths as `_draw_truths` gives them."""
+    diameter, the recorded heights h̃_j,m = (h_j + offset_m) / (2 R_m) (`h`, `k`: all the
+    cells' recorded h̃ and K, NaN-padded) pass the published height filters
+    (`inversion.pass_height_filters`) with none above H_TILDE_MAX. `radius`, `heights`: the
+    measured (c, 1, 1) and (c, 1, m) µm; the drawn truths as `_draw_truths` gives them."""
     c, draws = h_true.shape[:2]
     offset = (h_true - heights)[:, :, :1]                                    # one per draw
     true = np.where(np.isfinite(k)[:, None, :], (h[:, None, :] * 2.0 * radius + offset) / (2.0 * r_true), np.nan)
-    _, n, top = used_heights(true.reshape(c * draws, -1), np.repeat(k, draws, axis=0))
-    highest = np.max(np.nan_to_num(true, nan=-np.inf), axis=2)
-    return (n.reshape(c, draws) >= MIN_HEIGHTS) & (highest > H_TILDE_TOP) & (highest <= H_TILDE_MAX)
+    passes = pass_height_filters(true.reshape(c * draws, -1), np.repeat(k, draws, axis=0)).reshape(c, draws)
+    return passes & (np.max(np.nan_to_num(true, nan=-np.inf), axis=2) <= H_TILDE_MAX)   # no height above the window
 
 
 def _refits(emulator: Emulator, bending: str, rng: np.random.Generator, cells: tuple[Any, ...],

@@ -3,8 +3,9 @@
 Per frequency (the included cells, y = ln K̃_S, s its standard error `ln_ks_se`): the
 random-effects fit (`analysis.afm.population.random_effects`: μ, between-cell SD τ,
 measurement SD s_m and its share of the observed variance, with 95 % intervals), beside
-the raw numbers (mean and SD of y, median and IQR of ν) and the ν the deconvolved population N(μ, τ²) implies (median ν = ν(e^μ); quartiles
-ν(e^(μ ± 0.674 τ)), ν falling as K̃_S rises). The paired tests
+the raw numbers (mean and SD of y, median and IQR of ν) and the ν the deconvolved
+population N(μ, τ²) implies (median ν = ν(e^μ); quartiles ν(e^(μ ± 0.674 τ)), ν falling
+as K̃_S rises). The paired tests
 (`analysis.afm.population.paired`). The trend (`trend`): the least-squares line through
 the per-frequency population means, every frequency weighted alike
 (`analysis.afm.population.mean_trend`, with the line's ν at each measured frequency and on
