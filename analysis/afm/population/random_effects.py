@@ -24,10 +24,10 @@ with 20-60 cells.
 μ is estimated by the plain mean ȳ with the t interval ȳ ± t_{n-1} sd(y)/√n, not by
 the precision-weighted μ̂(τ̂): the var(ȳ) = (τ² + mean s_i²)/n the sample variance
 estimates holds for any pattern of s_i, while the weighted mean is biased when s_i
-depends on θ_i. It does in the emulator's intervals: cells of high K̃_S (flatter
-K(h̃)) have wider ones (about 1.2-1.3 times wider above ln K̃_S = 0 than below;
-correlation 0.23 with the true ln K̃_S on synthetic experiments, docs/population.md),
-and the weighted mean came out 0.05-0.15 lower than the plain one.
+depends on θ_i. It does with these standard errors: cells of high K̃_S (flatter
+K(h̃)) have larger ones (1.4 times larger above ln K̃_S = 0 than below; correlation
+0.28 with the true ln K̃_S over 30 synthetic experiments, docs/population.md), and
+the weighted mean differed from the plain one by -0.09 to +0.14 there.
 
 The measurement part: s_m² = mean_i s_i², the variance measurement error alone
 adds to the observed spread; its share of the observed variance
