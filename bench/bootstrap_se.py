@@ -1,6 +1,6 @@
-"""Whether a cell's bootstrap SD of ln K̃_S (`ln_ks_se` in cells.csv) is the size of its
-actual error, per error source and before / after the published filters. Prints one
-JSON object.
+"""Whether a cell's standard error of ln K̃_S (`ln_ks_se` in cells.csv, from the bootstrap
+draws the protocol admits) is the size of its actual error, per error source and before /
+after the published filters. Prints one JSON object.
 
 Synthetic experiments (`cortex afm synth`'s cells, 85 per seed) with the shipped
 emulator as the forward model (the intervals' own model is the truth's) and one

@@ -4,7 +4,7 @@ Prints one JSON object.
 
     python bench/population_study.py full SEED ... [--no-errors] --cache FILE.jsonl
     python bench/population_study.py simulate --cache FILE.jsonl [--experiments 200] [--reps 400] [--rho 1 0.7]
-    python bench/population_study.py rescore --cache FILE.jsonl [--sd interval|bootstrap]
+    python bench/population_study.py rescore --cache FILE.jsonl
 
 `full`: per seed, the whole pipeline: `cortex afm synth`'s experiment (85 cells,
 the published design, the fast solver as the forward model, errors on unless
@@ -22,8 +22,7 @@ per experiment.
 
 `rescore`: the `full` summary of every cached experiment (errors on and off) with
 the population statistics recomputed by the current code from the cached per-cell
-estimates (the inversion is not rerun); with --sd bootstrap each cell's s is its
-bootstrap SD `ln_ks_se` instead of the one read off its interval.
+estimates (the inversion is not rerun). Every cell's s is its standard error `ln_ks_se`.
 
 `simulate`: the same statistics over many more experiments, without the solver:
 each simulated cell takes a fresh true ln K̃_S(f) = μ_f + σ_f z and the
@@ -83,7 +82,6 @@ def run_full(seed, errors):
     ok = table["excluded_reason"].isna()
     rows = [{"cell_id": r.cell_id, "frequency_hz": float(r.frequency_hz),
              "ln_ks": float(np.log(r.ks_tilde)) if ok[i] else None,
-             "s": float(random_effects.measurement_sd(r.ks_lo95, r.ks_hi95)) if ok[i] else None,
              "ln_ks_se": float(r.ln_ks_se) if ok[i] else None,
              "ks_lo95": float(r.ks_lo95) if ok[i] else None, "ks_hi95": float(r.ks_hi95) if ok[i] else None,
              "true_ln_ks": true[(r.cell_id, float(r.frequency_hz))]} for i, r in zip(table.index, table.itertuples())]
@@ -148,14 +146,12 @@ def actual_errors(records):
     return out
 
 
-def _load(cache, errors=None, sd="interval"):
-    """The cached experiments (of `errors` if given), each cell's s read off its interval by the
-    current `random_effects.measurement_sd`, or (sd="bootstrap") its bootstrap SD `ln_ks_se`."""
+def _load(cache, errors=None):
+    """The cached experiments (of `errors` if given), each cell's s its standard error `ln_ks_se`."""
     recs = [json.loads(line) for line in Path(cache).read_text().splitlines() if line.strip()]
     recs = [r for r in recs if errors is None or r["errors"] == errors]
     for c in (c for r in recs for c in r["cells"] if c["ln_ks"] is not None):
-        c["s"] = (c["ln_ks_se"] if sd == "bootstrap" else
-                  float(random_effects.measurement_sd(c["ks_lo95"], c["ks_hi95"])))
+        c["s"] = c["ln_ks_se"]
     return recs
 
 
@@ -277,7 +273,7 @@ def rescore(args):
     recomputed by the current code from the cached per-cell estimates (the inversion is not rerun)."""
     out = {}
     for errors in (True, False):
-        recs = _load(args.cache, errors, args.sd)
+        recs = _load(args.cache, errors)
         if not recs:
             continue
         t0 = time.perf_counter()
@@ -326,8 +322,6 @@ def main():
                    help="within-cell correlations of the power table (1: the synth's cells)")
     r = sub.add_parser("rescore")
     r.add_argument("--cache", required=True)
-    r.add_argument("--sd", choices=("interval", "bootstrap"), default="interval",
-                   help="each cell's s: read off its 95 %% interval (the model's) or its bootstrap SD ln_ks_se")
     args = p.parse_args()
     {"full": full, "simulate": simulate, "rescore": rescore}[args.cmd](args)
 

@@ -12,6 +12,7 @@ import pytest
 
 from analysis.afm.synth.cells import solver_forward
 from analysis.calibration.emulator import AXES
+from analysis.invert import intervals
 from analysis.invert.emulator_fit import invert_curves_emulator
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.invert.method import invert_rows
@@ -154,19 +155,20 @@ def test_intervals_widen_with_the_errors(shipped, solver_curves):
                                                                       draws=60))
     large = invert_rows(rows, "emulator", cal, emu, "standard", MeasurementErrors(draws=60))
     assert np.all((large["nu_hi95"] - large["nu_lo95"]) > 2 * (small["nu_hi95"] - small["nu_lo95"]))
-    # the standard error of ln K̃_S is the same draws' SD: it widens alike, and a normal error of that SD
-    # has about the percentile interval's width
+    # the standard error of ln K̃_S is the same draws' RMS deviation from the fit: it widens alike, and
+    # is at least the SD of a normal error with the percentile interval's width (the draws the protocol
+    # admits are centred off the fit of a cell recorded at the window's top, h~ = 0.745)
     assert np.all(large["ln_ks_se"] > 2 * small["ln_ks_se"])
     ratio = 2 * 1.96 * large["ln_ks_se"] / np.log(large["ks_hi95"] / large["ks_lo95"])
-    assert np.all((ratio > 0.75) & (ratio < 1.33)), ratio.to_numpy()
+    assert np.all((ratio > 0.85) & (ratio < 2.0)), ratio.to_numpy()
 
 
-def _recorded_with_offset(emu, cid, ks, bulk, tension, offset_um, volume=4300.0, dh=0.5):
-    """Rows of a noise-free cell (emulator moduli at its true heights) whose heights are
-    recorded `offset_um` too high, read as the analysis reads them (SPEC 3): the force at
-    the true gap, the resting force taken as a tension and K from both at the recorded gaps."""
-    h_rec = np.linspace(0.745, 0.5, 8) * 2 * float(cell_radius(volume))
-    h_true = h_rec - offset_um
+def _recorded_with_offset(emu, cid, ks, bulk, tension, offset_um, volume=4300.0, dh=0.5, top=0.73):
+    """Rows of a noise-free cell (emulator moduli at its true heights, h~ from `top` down to 0.5)
+    whose heights are recorded `offset_um` too high, read as the analysis reads them (SPEC 3): the
+    force at the true gap, the resting force taken as a tension and K from both at the recorded gaps."""
+    h_true = np.linspace(top, 0.5, 8) * 2 * float(cell_radius(volume))
+    h_rec = h_true + offset_um
     K = emu.modulus(h_true / (2 * float(cell_radius(volume))), bulk, ks, tension, volume)
     d0, d1 = droplet(volume, h_true + dh / 2), droplet(volume, h_true - dh / 2)
     strain = (d1.surface_area_um2 - d0.surface_area_um2) / d0.surface_area_um2
@@ -180,7 +182,8 @@ def _recorded_with_offset(emu, cid, ks, bulk, tension, offset_um, volume=4300.0,
 def test_intervals_hold_the_truth_of_cells_with_a_height_offset(shipped):
     """Heights recorded 0.8 µm (1.6 SD) too high or too low bias K̃_S by a factor ~2; the
     95 % interval (default errors) must still hold the true K̃_S and ν of every included
-    cell. (The basic bootstrap interval held none of the five recorded too high.)"""
+    cell whose protocol put its highest height at h~ = 0.73 (recorded at 0.77 and 0.69). (The
+    basic bootstrap interval held none of the five recorded too high.)"""
     emu = shipped[1]
     cells = [(0.1, 20.0, 0.8), (0.3, 25.0, 1.5), (0.6, 30.0, 2.4), (1.5, 22.0, 1.0), (3.0, 28.0, 3.0)]
     rows, truth = [], {}
@@ -211,3 +214,22 @@ def test_shipped_files_are_inside_the_package():
     for path in (shipped_path(), shipped_path(TABLE_NAME)):
         assert path.is_file() and path.parent.parent.name == "calibration"
         assert path.parent.parent.parent.name == "analysis"
+
+
+def test_the_draws_keep_the_truths_the_protocol_admits():
+    """A cell recorded at h~ 0.72 down to 0.595 (R_cell 10 µm) and drawn truths whose heights lie
+    -1, -0.5, 0, 0.5, 1 µm from the recorded ones: their highest h~ is 0.67, 0.695, 0.72, 0.745,
+    0.77, and only those inside the published window (0.68, 0.75] are kept."""
+    h = np.array([[0.72, 0.695, 0.67, 0.645, 0.62, 0.595]])
+    radius = np.full((1, 1, 1), 10.0)
+    heights = (h * 2 * 10.0)[:, None, :]
+    h_true = heights + np.array([-1.0, -0.5, 0.0, 0.5, 1.0])[None, :, None]
+    kept = intervals._in_window(h, np.ones_like(h), radius, np.full((1, 5, 1), 10.0), h_true, heights)
+    assert kept.tolist() == [[False, True, True, True, False]]
+    # and at least four heights in use at the truth: recorded at 0.745, 0.72, 0.695, 0.51, a truth 0.5 µm
+    # lower has its last below 0.5 (0.485), only three in use
+    h = np.array([[0.745, 0.72, 0.695, 0.51]])
+    heights = (h * 2 * 10.0)[:, None, :]
+    h_true = heights + np.array([0.0, -0.5])[None, :, None]
+    kept = intervals._in_window(h, np.ones_like(h), radius, np.full((1, 2, 1), 10.0), h_true, heights)
+    assert kept.tolist() == [[True, False]]

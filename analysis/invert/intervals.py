@@ -20,13 +20,26 @@ moduli K_j, tension γ_a, residual RMS s over n used heights), draw m = 1..M:
    GN_STEPS damped Gauss-Newton steps on the 2 x 2 normal equations (vectorised over all
    cells and draws; from θ* they converge well inside the spread of the draws: 12 steps
    give the same intervals). The emulator is taken at the measured V (one slice per
-   cell): at fixed h̃ it changes K by at most 0.2 % over V 3000-6000 µm³.
+   cell): at fixed h̃ it changes K by at most 0.2 % over V 3000-6000 µm³;
+4. keep the draw only if the protocol admits its truth (`_in_window`): a lab sets its
+   heights on the cell it touches, so at the truth's own diameter the highest recorded
+   height lies in the published window, H_TILDE_TOP < max_j h̃_j,m ≤ H_TILDE_MAX (0.68,
+   0.75], with at least MIN_HEIGHTS heights in use (SPEC 6's height filters read on the
+   truth). Only cells whose recording passes those filters are conditioned (the others
+   keep every draw); a cell with fewer than MIN_ADMITTED · M admitted draws gets another
+   round of M, up to ROUNDS rounds (every draw of the first if none is admitted).
 
+Without step 4 the draws take any offset as likely as the error model has it, but a
+recording that passes the filter on its highest h̃ gives its offset partly away (a
+highest h̃ just above 0.68 was recorded low), and the draws' spread overstated the
+actual errors of the included cells by 1.35x (docs/population.md).
 If a draw's offset and noise were the cell's own, its refit would be the truth; the
-interval of ln K̃_S is the percentile one, [q_2.5, q_97.5] of the refitted
+interval of ln K̃_S is the percentile one, [q_2.5, q_97.5] of the kept refits
 l_m = ln K̃_S,m, and ν's is its image through ν = (1 - K̃_S)/(1 + K̃_S) (decreasing:
-the ends swap).  The standard error of ln K̃_S is the SD of the same draws,
-se = sd_m(l_m) (`ln_ks_se` in the cells table).
+the ends swap). The standard error of the estimate l* = ln K̃_S* is the RMS deviation of
+the same refits from it, se = sqrt(mean_m (l_m - l*)²) (`ln_ks_se` in the cells table):
+the admitted truths are centred off l* where the recording gives its offset away, and
+that offset is part of the estimate's error.
 
 The droplet numbers scale with the cell: g(V, h) = R_cell ĝ(δ̂), A(V, h) = R_cell² Â(δ̂),
 δ̂ = 2 (1 - h̃), with ĝ and Â from the droplet's one table (`solver.droplet_table`), so
@@ -49,6 +62,7 @@ import pandas as pd
 from scipy.stats import bootstrap
 
 from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.invert.inversion import H_TILDE_MAX, pass_height_filters
 from analysis.invert.measurement_errors import DRAWS, HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
 from solver.droplet_table import unit_area, unit_force_per_tension
@@ -60,6 +74,8 @@ if TYPE_CHECKING:
 GN_STEPS = 4
 MAX_STEP = 0.5            # largest Gauss-Newton step, in ln K_B and ln K̃_S
 DH_UM = 0.5                  # peak to peak of the oscillation (2 x 0.25 um)
+ROUNDS = 5                   # rounds of draws at most for a cell whose truths the protocol rarely admits
+MIN_ADMITTED = 0.25          # another round while a cell has fewer admitted draws than this share of M
 
 
 def _shape(radius: Any, heights: Any) -> tuple[Any, Any]:
@@ -111,6 +127,42 @@ droplet_shape = _shape
 truth_moduli = _truth_moduli
 
 
+def _in_window(h: Any, k: Any, radius: Any, r_true: Any, h_true: Any, heights: Any) -> Any:
+    """Step 4: (c, M) mask of the drawn truths the protocol admits: at the truth's own
+    diameter, the recorded heights h̃_j,m = (h_j + offset_m) / (2 R_m) (`h`, `k`: all the
+    cells' recorded h̃ and K, NaN-padded) pass the published height filters
+    (`inversion.pass_height_filters`) with none above H_TILDE_MAX. `radius`, `heights`: the
+    measured (c, 1, 1) and (c, 1, m) µm; the drawn truths as `_draw_truths` gives them."""
+    c, draws = h_true.shape[:2]
+    offset = (h_true - heights)[:, :, :1]                                    # one per draw
+    true = np.where(np.isfinite(k)[:, None, :], (h[:, None, :] * 2.0 * radius + offset) / (2.0 * r_true), np.nan)
+    passes = pass_height_filters(true.reshape(c * draws, -1), np.repeat(k, draws, axis=0)).reshape(c, draws)
+    return passes & (np.max(np.nan_to_num(true, nan=-np.inf), axis=2) <= H_TILDE_MAX)   # no height above the window
+
+
+def _refits(emulator: Emulator, bending: str, rng: np.random.Generator, cells: tuple[Any, ...],
+            errors: tuple[float, float, float], draws: int, steps: int) -> tuple[Any, Any]:
+    """Steps 1-4 for `cells` = (θ, h, K, use, γ_a, V, rms) rows (`cell_intervals`):
+    the refitted l_m (c, M) and whether the protocol admits each draw's truth (c, M)."""
+    th, h, k, use, tension, vs, rms = cells
+    volume_sd, height_sd_um, dh_um = errors
+    hs, ks, n_used, (c, m) = filled_heights(h, use), np.where(use, k, 0.0), use.sum(axis=1), h.shape
+    radius = cell_radius(vs)[:, None, None]                                   # (c, 1, 1)
+    heights = (hs * 2.0 * cell_radius(vs)[:, None])[:, None, :]                # (c, 1, m)
+    r_true, h_true, gamma_t = _draw_truths(rng, vs, heights, tension, use, draws=draws, volume_sd=volume_sd,
+                                           height_sd_um=height_sd_um)
+    noise_sd = np.nan_to_num(rms) * np.sqrt(n_used / np.maximum(n_used - 2, 1))
+    k_seen = ks[:, None, :] + noise_sd[:, None, None] * rng.standard_normal((c, draws, m))
+    flat = lambda a: a.reshape(c * draws, *a.shape[2:])                      # noqa: E731
+    measured = (flat(np.broadcast_to(radius, (c, draws, 1))), flat(np.broadcast_to(heights, (c, draws, m))))
+    K_t = _truth_moduli(flat(k_seen), (flat(r_true), flat(h_true)), measured, gamma_t.ravel(), dh=dh_um)
+    drawn = Curves(flat(h_true / (2.0 * r_true)), K_t, np.repeat(use, draws, axis=0), gamma_t.ravel(),
+                   np.repeat(vs, draws))
+    x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), drawn, steps=steps,
+                      bounds=ks_bounds(emulator, bending))
+    return x[:, 1].reshape(c, draws), _in_window(h, k, radius, r_true, h_true, heights)
+
+
 def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
                    rms: npt.NDArray[np.float64], *, draws: int = DRAWS,
                    volume_sd: float = VOLUME_SD, height_sd_um: float = HEIGHT_SD_UM, dh_um: float = DH_UM,
@@ -119,33 +171,30 @@ def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float
     `analysis.invert.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
     NaN where θ is not finite)."""
     h, k, use, tension, volume = curves
-    n_cells, m = h.shape
-    out = np.full((5, n_cells), np.nan)
+    out = np.full((5, h.shape[0]), np.nan)
     ok = np.isfinite(theta).all(axis=1) & (use.sum(axis=1) >= 3)
     if not ok.any():
         return tuple(out)
     rng = np.random.default_rng(seed)
-    th, hs, us, ks = theta[ok], filled_heights(h[ok], use[ok]), use[ok], np.where(use[ok], k[ok], 0.0)
-    vs, n_used = volume[ok], use[ok].sum(axis=1)
-    c = th.shape[0]
-    radius = cell_radius(vs)[:, None, None]                                   # (c, 1, 1)
-    heights = (hs * 2.0 * cell_radius(vs)[:, None])[:, None, :]                # (c, 1, m)
-    r_true, h_true, gamma_t = _draw_truths(rng, vs, heights, tension[ok], us, draws=draws, volume_sd=volume_sd,
-                                           height_sd_um=height_sd_um)
-    noise_sd = np.nan_to_num(rms[ok]) * np.sqrt(n_used / np.maximum(n_used - 2, 1))
-    k_seen = ks[:, None, :] + noise_sd[:, None, None] * rng.standard_normal((c, draws, m))
-    flat = lambda a: a.reshape(c * draws, *a.shape[2:])                      # noqa: E731
-    measured = (flat(np.broadcast_to(radius, (c, draws, 1))), flat(np.broadcast_to(heights, (c, draws, m))))
-    K_t = _truth_moduli(flat(k_seen), (flat(r_true), flat(h_true)), measured, gamma_t.ravel(), dh=dh_um)
-    drawn = Curves(flat(h_true / (2.0 * r_true)), K_t, np.repeat(us, draws, axis=0), gamma_t.ravel(),
-                   np.repeat(vs, draws))
-    x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), drawn, steps=steps,
-                      bounds=ks_bounds(emulator, bending))
-    lks = x[:, 1].reshape(c, draws)
-    lo, hi = np.nanpercentile(lks, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
+    cells = (theta[ok], h[ok], k[ok], use[ok], tension[ok], volume[ok], rms[ok])
+    errors = (volume_sd, height_sd_um, dh_um)
+    lks, admitted = _refits(emulator, bending, rng, cells, errors, draws, steps)
+    conditioned = pass_height_filters(h[ok], k[ok])
+    kept = [np.where(admitted | ~conditioned[:, None], lks, np.nan)]
+    for _ in range(ROUNDS - 1):
+        more = conditioned & (np.sum([np.isfinite(a).sum(axis=1) for a in kept], axis=0) < MIN_ADMITTED * draws)
+        if not more.any():
+            break
+        l_more, a_more = _refits(emulator, bending, rng, tuple(a[more] for a in cells), errors, draws, steps)
+        kept.append(np.full_like(lks, np.nan))
+        kept[-1][more] = np.where(a_more, l_more, np.nan)
+    kept_all = np.concatenate(kept, axis=1)
+    none = ~np.isfinite(kept_all).any(axis=1)                                 # no truth admitted: every draw
+    kept_all[none, :draws] = lks[none]
+    lo, hi = np.nanpercentile(kept_all, [100 * (1 - LEVEL) / 2, 100 * (1 + LEVEL) / 2], axis=1)
     out[0, ok], out[1, ok] = np.exp(lo), np.exp(hi)
     out[2, ok], out[3, ok] = poisson_of_ratio(np.exp(hi)), poisson_of_ratio(np.exp(lo))
-    out[4, ok] = np.nanstd(lks, axis=1, ddof=1)
+    out[4, ok] = np.sqrt(np.nanmean((kept_all - theta[ok, 1:2]) ** 2, axis=1))
     return tuple(out)
 
 

@@ -72,6 +72,13 @@ def used_heights(h: npt.NDArray[np.float64], k: npt.NDArray[np.float64]) -> tupl
     return use, use.sum(axis=1), np.where(use, h, -np.inf).max(axis=1)
 
 
+def pass_height_filters(h: npt.NDArray[np.float64], k: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+    """Per row, whether the curve passes the published filters on its heights: at least
+    MIN_HEIGHTS used heights (`used_heights`), the highest above H_TILDE_TOP."""
+    _, n, top = used_heights(h, k)
+    return (n >= MIN_HEIGHTS) & (top > H_TILDE_TOP)
+
+
 def exclusions(n: npt.NDArray[Any], top: npt.NDArray[Any], *, bulk: npt.NDArray[Any], tension: npt.NDArray[Any],
                nu: npt.NDArray[Any], r2: npt.NDArray[Any],
                extra: Iterable[tuple[Any, Callable[[int], str]]] = ()) -> npt.NDArray[np.object_]:

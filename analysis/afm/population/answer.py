@@ -1,11 +1,11 @@
 """population.json of `cortex afm analyze`: the population answer from the cells table.
 
-Per frequency (the included cells, y = ln K̃_S, s from each cell's 95 % interval,
-`random_effects.measurement_sd`): the random-effects fit (`analysis.afm.population.random_effects`: μ,
-between-cell SD τ, measurement SD s_m and its share of the observed variance, with 95 %
-intervals), beside the raw numbers (mean and SD of y, median and IQR of ν) and the ν the
-deconvolved population N(μ, τ²) implies (median ν = ν(e^μ); quartiles
-ν(e^(μ ± 0.674 τ)), ν falling as K̃_S rises). The paired tests
+Per frequency (the included cells, y = ln K̃_S, s its standard error `ln_ks_se`): the
+random-effects fit (`analysis.afm.population.random_effects`: μ, between-cell SD τ,
+measurement SD s_m and its share of the observed variance, with 95 % intervals), beside
+the raw numbers (mean and SD of y, median and IQR of ν) and the ν the deconvolved
+population N(μ, τ²) implies (median ν = ν(e^μ); quartiles ν(e^(μ ± 0.674 τ)), ν falling
+as K̃_S rises). The paired tests
 (`analysis.afm.population.paired`). The trend (`trend`): the least-squares line through
 the per-frequency population means, every frequency weighted alike
 (`analysis.afm.population.mean_trend`, with the line's ν at each measured frequency and on
@@ -13,7 +13,7 @@ a grid of frequencies for the figure's band); beside it `trend_design_weighted`,
 of the mixed model over all cells and frequencies (`analysis.afm.population.trend`), whose
 weights follow the number of cells measured at each frequency.
 
-Without per-cell intervals (the `law` method) every s is 0: τ is then the raw
+Without standard errors (the `law` method) every s is 0: τ is then the raw
 spread and the measurement fields are null.
 """
 
@@ -31,11 +31,11 @@ Q3 = 0.6744897501960817  # z of the upper quartile
 
 
 def _cells(table: pd.DataFrame) -> tuple[pd.DataFrame, bool]:
-    """Included rows with y = ln K̃_S and s; whether s comes from intervals."""
+    """Included rows with y = ln K̃_S and s; whether the table has standard errors."""
     ok = table[table["excluded_reason"].isna()].copy()
     ok["ln_ks"] = np.log(ok["ks_tilde"].astype(float))
-    has = {"ks_lo95", "ks_hi95"} <= set(ok.columns) and bool(np.isfinite(ok["ks_lo95"].astype(float)).any())
-    ok["s"] = random_effects.measurement_sd(ok["ks_lo95"], ok["ks_hi95"]) if has else 0.0
+    has = "ln_ks_se" in ok.columns and bool(np.isfinite(ok["ln_ks_se"].astype(float)).any())
+    ok["s"] = ok["ln_ks_se"].astype(float) if has else 0.0
     return ok, has
 
 

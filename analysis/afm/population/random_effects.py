@@ -1,14 +1,11 @@
 """One frequency's population of ln K̃_S with each cell's measurement error taken out.
 
-Cell i has the fitted y_i = ln K̃_S,i and a measurement SD s_i read off its 95 %
-interval, s_i = (ln hi_i - ln lo_i) / (2 z_c) (`measurement_sd`), with z_c the normal
-quantile of the coverage the per-cell intervals are measured to have, c = 98 %
-(`INTERVAL_COVERAGE`; docs/emulator.md: 97.6-98.0 % of included cells on synthetic
-experiments), z_c = 2.33, not the nominal 1.96: a normal error whose 95 % interval
-holds the truth 98 % of the time has that SD. The SD of the cell's bootstrap draws
-itself (`ln_ks_se` in the cells table), like any scale of the draws or the interval read
-with 1.96, is 1.25-1.45 times the actual errors' of the included cells on the full
-pipeline, and with it τ comes out low (docs/population.md).
+Cell i has the fitted y_i = ln K̃_S,i and its standard error s_i, `ln_ks_se` of the
+cells table: the RMS deviation from y_i of the ln K̃_S refits of its bootstrap draws,
+among the drawn truths the protocol admits (`analysis.invert.intervals`; on the
+included cells of synthetic experiments its RMS is about the RMS of their actual
+errors, docs/population.md).
+
 The normal-normal random-effects model (the one of meta-analysis):
 
     y_i = θ_i + e_i,   θ_i ~ N(μ, τ²) (the cells),   e_i ~ N(0, s_i²) (the measurement),
@@ -27,17 +24,17 @@ with 20-60 cells.
 μ is estimated by the plain mean ȳ with the t interval ȳ ± t_{n-1} sd(y)/√n, not by
 the precision-weighted μ̂(τ̂): the var(ȳ) = (τ² + mean s_i²)/n the sample variance
 estimates holds for any pattern of s_i, while the weighted mean is biased when s_i
-depends on θ_i. It does in the emulator's intervals: cells of high K̃_S (flatter
-K(h̃)) have wider ones (about 1.2-1.3 times wider above ln K̃_S = 0 than below;
-correlation 0.23 with the true ln K̃_S on synthetic experiments, docs/population.md),
-and the weighted mean came out 0.05-0.15 lower than the plain one.
+depends on θ_i. It does with these standard errors: cells of high K̃_S (flatter
+K(h̃)) have larger ones (1.4 times larger above ln K̃_S = 0 than below; correlation
+0.28 with the true ln K̃_S over 30 synthetic experiments, docs/population.md), and
+the weighted mean differed from the plain one by -0.09 to +0.14 there.
 
 The measurement part: s_m² = mean_i s_i², the variance measurement error alone
 adds to the observed spread; its share of the observed variance
 s_m² / (τ² + s_m²), whose interval is the image of τ's (the share falls as τ grows).
 
 Assumptions: θ_i normal (K̃_S lognormal, SPEC 6), errors independent between
-cells and normal on the ln K̃_S scale with the SD of the interval, the cells a
+cells and normal on the ln K̃_S scale with SD s_i, the cells a
 random sample of the population (the quality filters do not select on K̃_S).
 """
 
@@ -51,14 +48,7 @@ from scipy import optimize, stats
 
 LEVEL = 0.95
 CHI2 = float(stats.chi2.ppf(LEVEL, 1))          # 3.84: the likelihood-ratio cut of a 95 % interval
-INTERVAL_COVERAGE = 0.98                        # measured coverage of the per-cell 95 % intervals
-Z_INTERVAL = float(stats.norm.ppf(0.5 + INTERVAL_COVERAGE / 2))   # 2.33
 TAU_MAX_FACTOR = 10.0                           # τ searched in [0, 10 × (SD of y + max s)]
-
-
-def measurement_sd(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """s = (ln hi - ln lo) / (2 z_c): the ln K̃_S SD of a cell's interval [lo, hi] of K̃_S, z_c = `Z_INTERVAL`."""
-    return (np.log(np.asarray(hi, float)) - np.log(np.asarray(lo, float))) / (2.0 * Z_INTERVAL)
 
 
 @dataclass(frozen=True)
