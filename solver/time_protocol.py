@@ -118,7 +118,7 @@ def oscillate(state: TimeShell, t0_s: float, frequency_hz: float, amplitude_um: 
     number of steps."""
     h_m, f0 = state.h_um, state.force_nN()
     n_samples = int(round(cycles / (frequency_hz * sample_s)))
-    t_samples = sample_s * np.arange(1, n_samples + 1)
+    t_samples = sample_s * np.arange(1.0, n_samples + 1.0)
     t_steps = _step_times(t_samples[-1], 1.0 / (frequency_hz * STEPS_PER_PERIOD), sample_s)
     h_steps = h_m + amplitude_um * np.sin(2 * np.pi * frequency_hz * t_steps)
     f_steps = np.array([state.step(h, dt) for h, dt in zip(h_steps, np.diff(t_steps, prepend=0.0))])
