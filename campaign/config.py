@@ -39,10 +39,10 @@
                 values a model cell draws from, default all of the grid's),
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
-    [protocol]  a protocol_bias campaign's (and only its): bulk_exponent,
-                shear_exponent, wait_s, frequency_hz, each a number or a list
-                (`campaign.protocol_grid`); the campaign's tasks are the
-                grid's shells times this product, the protocol fastest
+    [protocol]  a protocol_bias campaign's (and only its): exponents (pairs
+                [β_B, β_S]), wait_s, frequency_hz (a number or a list each;
+                `campaign.protocol_grid`); the campaign's tasks are the grid's
+                shells times their product, the protocol fastest
     [test]      for the test suite only: read by the module the environment
                 variable CORTEX_TASK_HOOKS names (`campaign.task_hooks`; the
                 suite's `tests/faults.py`: injected faults, no-op tasks, a

@@ -90,7 +90,8 @@ def summary(table: pd.DataFrame) -> dict[str, Any]:
 def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The map's document: each axis's values, every node's row (`nodes`) and the `summary`."""
     table = nodes(path)
-    axes = {k: sorted(set(table[k].tolist())) for k in AXES}
+    axes: dict[str, Any] = {k: sorted(set(table[k].tolist())) for k in AXES}
+    axes["exponents"] = sorted(set(zip(table["bulk_exponent"].tolist(), table["shear_exponent"].tolist())))
     return {"axes": axes, "summary": summary(table), "nodes": table.to_dict("records")}
 
 
