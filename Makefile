@@ -135,7 +135,7 @@ ramp-table: setup
 # docs/performance.md for its time; reruns resume), then the JSON table and figures from the store.
 .PHONY: protocol-map
 protocol-map: setup
-	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/protocol.toml --store results/protocol.h5
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/protocol.toml --store results/protocol.h5 || [ $$? = 1 ]
 	$(BIN)/cortex analysis build-protocol-map results/protocol.h5 --out results/protocol-map
 
 # Benchmarks: one JSON object each on stdout; every script runs as `python bench/X.py` (no script

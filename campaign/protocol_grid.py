@@ -86,7 +86,7 @@ class ProtocolGrid(Sequence):
     def __len__(self) -> int:
         return len(self.shells) * self.m
 
-    def __getitem__(self, i):  # type: ignore[override]
+    def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self)))]
         i = operator.index(i)

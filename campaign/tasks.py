@@ -20,6 +20,7 @@ import signal
 import socket
 import time
 import traceback
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from campaign.task_hooks import TaskHooks
@@ -81,10 +82,12 @@ def compute_node(shell: Any, timeout_s: float, task: str = "viscoelastic_table")
     recording's bias (`analysis.afm.synth.protocol_bias.node_results`: PROTOCOL_RESULTS and more)."""
     def work():
         # here: a compression campaign never loads them
+        node_results: Callable[[Any], dict[str, float]]
         if task == "ramp_table":
             from analysis.afm.tension.shell_table import node_results
         elif task == "protocol_bias":
-            from analysis.afm.synth.protocol_bias import node_results
+            from analysis.afm.synth.protocol_bias import node_results as protocol_node
+            node_results = protocol_node
         else:
             from analysis.calibration.viscoelastic_table import node_results
         start = time.perf_counter()

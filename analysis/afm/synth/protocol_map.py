@@ -8,7 +8,8 @@ the relaxed-state model:
 
 h̃ = h_m / (2 R_cell(V)) with h_m = h0 - Δh/2, K̃_S = K_S/K_B, γ̃_a = γ_a/K_B. The model is called
 off where |δ_td - δ_model| > LOSS_ANGLE_TOLERANCE_RAD or |modulus_ratio - 1| > MODULUS_TOLERANCE.
-`summary` gives the largest of both over all nodes, and per T_w and per f (over the other axes);
+`summary` gives the largest of both over the done nodes (a failed node, where the time domain did
+not converge, is listed apart), and per T_w and per f (over the other axes);
 the figures (`figures`) plot, against T_w, per f (one panel each) and per (β_B, β_S) (one line
 each) the node of the largest |error| over h̃, K̃_S, γ̃_a, signed.
 """
@@ -40,8 +41,8 @@ FIGURES = ("protocol_map_loss_angle", "protocol_map_modulus")
 
 
 def nodes(path: str | os.PathLike[str]) -> pd.DataFrame:
-    """One row per node of the finished store: AXES and VALUES. InputError for a store of another
-    campaign, or unless every node is done."""
+    """One row per node of the finished store: `state`, `error`, AXES and VALUES (NaN where the
+    node failed). InputError for a store of another campaign, or one with nodes still to run."""
     import tomllib
 
     from campaign.store.reader import read_provenance, read_results
@@ -50,12 +51,13 @@ def nodes(path: str | os.PathLike[str]) -> pd.DataFrame:
         raise InputError(f"{path}: not a store of a protocol-bias campaign ([campaign] task = \"{TASK}\": "
                          "campaigns/protocol.toml)")
     rows = read_results(path)
-    undone = int((rows["state"] != "done").sum())
-    if undone:
-        raise InputError(f"{path}: {undone} of {len(rows)} nodes not done; finish the campaign "
-                         "(run it again: it resumes)")
+    unfinished = int(rows["state"].isin(["pending", "running"]).sum())
+    if unfinished or not (rows["state"] == "done").any():
+        raise InputError(f"{path}: {unfinished or len(rows)} of {len(rows)} nodes not done; finish the "
+                         "campaign (run it again: it resumes)")
     radius = np.array([float(cell_radius(v)) for v in rows["volume_um3"]])
-    out = pd.DataFrame({"bulk_exponent": rows["bulk_exponent"], "shear_exponent": rows["shear_exponent"],
+    out = pd.DataFrame({"state": rows["state"], "error": rows["error"],
+                        "bulk_exponent": rows["bulk_exponent"], "shear_exponent": rows["shear_exponent"],
                         "wait_s": rows["wait_s"], "frequency_hz": rows["protocol_frequency_hz"],
                         "h_tilde": ((rows["h0_um"] - 0.5 * rows["dh_um"]) / (2.0 * radius)).round(9),
                         "ks_tilde": (rows["shear_mN_per_m"] / rows["bulk_mN_per_m"]).round(9),
@@ -88,11 +90,16 @@ def summary(table: pd.DataFrame) -> dict[str, Any]:
 
 
 def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """The map's document: each axis's values, every node's row (`nodes`) and the `summary`."""
+    """The map's document: each axis's values, the `summary` over the done nodes, every done node's
+    row (`nodes`) and the failed ones (`failed`: their axes and the error: where the time domain
+    did not converge)."""
     table = nodes(path)
     axes: dict[str, Any] = {k: sorted(set(table[k].tolist())) for k in AXES}
     axes["exponents"] = sorted(set(zip(table["bulk_exponent"].tolist(), table["shear_exponent"].tolist())))
-    return {"axes": axes, "summary": summary(table), "nodes": table.to_dict("records")}
+    done = table["state"] == "done"
+    return {"axes": axes, "summary": {**summary(table[done]), "nodes_failed": int((~done).sum())},
+            "nodes": table[done].drop(columns=["state", "error"]).to_dict("records"),
+            "failed": table.loc[~done, ["error", *AXES]].to_dict("records")}
 
 
 def figures(doc: dict[str, Any], out: OutputDir) -> list[Path]:
