@@ -11,6 +11,7 @@ import pytest
 from campaign.config import load
 from campaign.store.reader import read_results
 from campaign.store.schema import PROTOCOL_PARAMS, PROTOCOL_RESULTS
+from solver.time_protocol import STEPS_PER_PERIOD
 from tests.conftest import ROOT, on_one_and_two_ranks
 
 # V = 4300 µm³, h̃ = 0.6, K_B(1 s) = 25, K_S(1 s) = 8.33, γ_a = 1.5 mN/m; an elastic cortex and
@@ -57,18 +58,20 @@ def test_rows_hold_the_bias_whatever_the_ranks(stores):
 
 def test_an_elastic_cortex_has_no_bias_and_a_power_law_its_loss_angles(stores):
     elastic, power = (row for _, row in read_results(stores[1]).iterrows())
-    # β = 0: no loss anywhere; the time domain's |K*| is the linear response's to 0.07 % (docs)
+    # β = 0: no loss anywhere; the oscillation's |K*| (the tangent about h_m) a little above the
+    # model's secant K_sec of h0 -> h_m, the floor of the map (0.35-0.8 %, docs/viscoelastic.md)
     assert elastic["model_loss_angle_rad"] == 0.0 and abs(elastic["loss_angle_rad"]) < 1e-4
-    assert elastic["modulus_ratio"] == pytest.approx(1.0, abs=3e-3)
-    # the series' own loss angles are the power law's βπ/2 (to 0.01 rad at 1 Hz, docs)
+    assert 1.0 < elastic["modulus_ratio"] < 1.01
+    # the series' own loss angles are the power law's βπ/2 (to 0.03 rad at 1 Hz and β = 0.4, docs)
     assert power["bulk_loss_angle_rad"] == pytest.approx(0.05 * np.pi, abs=0.01)
-    assert power["shear_loss_angle_rad"] == pytest.approx(0.15 * np.pi, abs=0.01)
+    assert power["shear_loss_angle_rad"] == pytest.approx(0.15 * np.pi, abs=0.02)
     assert 0.157 < power["model_loss_angle_rad"] < 0.471             # between δ_B and δ_S
     assert power["modulus_ratio"] == pytest.approx(1.0, abs=0.02)
     assert abs(power["loss_angle_error_rad"]) < 0.01
     assert power["loss_angle_error_rad"] == pytest.approx(power["loss_angle_rad"] - power["model_loss_angle_rad"])
     # the step's unrelaxed stress shows in the mean tension, above γ_a = 1.5 mN/m
-    assert 1.5 < power["gamma_eff_mN_per_m"] < 2.0 and power["solves"] > 500
+    assert 1.5 < power["gamma_eff_mN_per_m"] < 2.0
+    assert power["solves"] > 5 * STEPS_PER_PERIOD + 13        # the 5 cycles and the ramp, then the wait
 
 
 def test_map_from_the_store_is_its_rows(stores, tmp_path, cortex):
