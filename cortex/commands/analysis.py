@@ -74,10 +74,10 @@ def _add_build_calibration(s: Commands) -> None:
 
 
 def _add_table_builder(s: Commands, name: str, help: str, description: str, what: str, json_help: str,
-                       handler: Callable[[argparse.Namespace], int]) -> None:
-    """`cortex analysis NAME STORE --out DIR [--json]`: a shipped table from its campaign's store."""
+                       handler: Callable[[argparse.Namespace], int], needs: str = "every node done") -> None:
+    """`cortex analysis NAME STORE --out DIR [--json]`: a table from its campaign's store (`needs`: of its nodes)."""
     b = s.add_parser(name, help=help, description=description)
-    b.add_argument("store", metavar="STORE", help=f"store of a {what} campaign (HDF5), every node done")
+    b.add_argument("store", metavar="STORE", help=f"store of a {what} campaign (HDF5), {needs}")
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     b.add_argument("--json", action="store_true", help=json_help)
     b.set_defaults(handler=handler)
@@ -108,7 +108,8 @@ def _add_build_protocol_map(s: Commands) -> None:
         "relaxed-state model, |K*| ratio and loss-angle error; SPEC 12, analysis/afm/synth/protocol_map.py) and "
         "its figures DIR/protocol_map_loss_angle.png/.pdf and DIR/protocol_map_modulus.png/.pdf from a "
         "finished store of campaigns/protocol.toml. `make protocol-map` runs both steps.",
-        "protocol-bias", "one JSON object: map file, figures, nodes and the summary", build_protocol_map)
+        "protocol-bias", "one JSON object: map file, figures, nodes and the summary", build_protocol_map,
+        "every node finished (a failed node is listed apart)")
 
 
 def _add_invert(s: Commands) -> None:
@@ -202,7 +203,8 @@ def build_protocol_map(args: argparse.Namespace) -> int:
     shown = figures(doc, OutputDir(args.out))
     summary = doc["summary"]
     say_result(args, {"map": str(doc["path"]), "figures": [str(p) for p in shown], "summary": summary},
-               f"wrote {doc['path']} ({summary['nodes']} nodes, {summary['nodes_off']} off the relaxed-state "
+               f"wrote {doc['path']} ({summary['nodes']} nodes done, {summary['nodes_failed']} failed; "
+               f"{summary['nodes_off']} off the relaxed-state "
                f"model by more than {summary['loss_angle_tolerance_rad']:g} rad or "
                f"{summary['modulus_tolerance']:.0%})")
     return 0
