@@ -110,13 +110,13 @@ def approach(state: TimeShell, t0_s: float, h_um: float, ramp_um_per_s: float, w
     return Steps(t0_s + t_rel, h, force)
 
 
-def oscillate(state: TimeShell, t0_s: float, frequency_hz: float, amplitude_um: float, cycles: int,
-              sample_s: float) -> tuple[Steps, int]:
-    """Oscillate the plate of `state` about its gap h_m from time t0: h_m + A sin(2π f (t - t0)),
+def oscillate(state: TimeShell, t0_s: float, h_m_um: float, frequency_hz: float, amplitude_um: float,
+              cycles: int, sample_s: float) -> tuple[Steps, int]:
+    """Oscillate the plate of `state` (at gap h_m) from time t0: h_m + A sin(2π f (t - t0)),
     `cycles` periods in STEPS_PER_PERIOD steps each; return the instrument's samples every
     `sample_s` after t0 (force by cubic spline through the steps and the force at t0) and the
     number of steps."""
-    h_m, f0 = state.h_um, state.force_nN()
+    h_m, f0 = h_m_um, state.force_nN()
     n_samples = int(round(cycles / (frequency_hz * sample_s)))
     t_samples = sample_s * np.arange(1.0, n_samples + 1.0)
     t_steps = _step_times(t_samples[-1], 1.0 / (frequency_hz * STEPS_PER_PERIOD), sample_s)
@@ -146,7 +146,8 @@ def run(shell: Shell, cortex: Cortex, protocol: Protocol) -> Recording:
     dt = p.sample_interval_s
     app = approach(state, 0.0, shell.h0_um - p.step_um, p.ramp_um_per_s, p.wait_s, dt)
     t_osc0 = float(app.time_s[-1])
-    osc, n_steps = oscillate(state, t_osc0, p.frequency_hz, p.amplitude_um, p.cycles, dt)
+    osc, n_steps = oscillate(state, t_osc0, float(app.height_um[-1]), p.frequency_hz, p.amplitude_um,
+                             p.cycles, dt)
     # the instrument's samples before the oscillation: the ramp and wait interpolated
     t_pre = np.arange(0.0, t_osc0 - 0.5 * dt, dt)
     t_sim = np.r_[0.0, app.time_s]
