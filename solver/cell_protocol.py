@@ -12,8 +12,8 @@ One `TimeShell` carries the cortex's history through the whole recording: every 
 earlier heights left. A power-law cortex K_B(t) = K_B,1s (t/1 s)^-β_B, K_S(t) = K_S,1s (t/1 s)^-β_S
 is written as Prony series (`power_law_cortex`, `solver.prony.fit_power_law`).
 
-The instrument's samples: every oscillation at `sample_hz` (at least 20 a period: the plate's
-height exactly, the force splined through the steps); the ramps and waits at `approach_hz`
+The instrument's samples: every oscillation at `sample_hz` (100 Hz: 10 a period at 10 Hz; the
+plate's height exactly, the force splined through the steps); the ramps and waits at `approach_hz`
 (linear between steps), as `cortex afm synth` stores them. `stretches` say which samples are
 an approach and which an oscillation (and at which f).
 """
@@ -27,7 +27,7 @@ from common.errors import InputError
 from solver.model import Shell
 from solver.prony import fit_power_law
 from solver.time_domain import Cortex, TimeShell
-from solver.time_protocol import Steps, approach, oscillate, sample_interval_s
+from solver.time_protocol import Steps, approach, oscillate
 
 Array = npt.NDArray[np.float64]
 
@@ -93,8 +93,8 @@ def _sampled(steps: Steps, t_from_s: float, h_from_um: float, f_from_nN: float, 
     end = float(steps.time_s[-1])
     t = np.r_[t_from_s + np.arange(1.0, np.ceil((end - t_from_s) * rate_hz - 1e-9)) / rate_hz, end]
     t_sim = np.r_[t_from_s, steps.time_s]
-    h: Array = np.interp(t, t_sim, np.r_[h_from_um, steps.height_um])
-    f: Array = np.interp(t, t_sim, np.r_[f_from_nN, steps.force_nN])
+    h: Array = np.asarray(np.interp(t, t_sim, np.r_[h_from_um, steps.height_um]), float)
+    f: Array = np.asarray(np.interp(t, t_sim, np.r_[f_from_nN, steps.force_nN]), float)
     return Steps(t, h, f)
 
 
@@ -111,14 +111,14 @@ def run_cell(shell: Shell, cortex: Cortex, protocol: CellProtocol) -> CellRecord
     for h_m in p.heights_um:
         last = pieces[-1]
         app = approach(state, float(last.time_s[-1]), h_m, p.ramp_um_per_s, p.wait_s,
-                       sample_interval_s(p.sample_hz, max(p.frequencies_hz)))
+                       1.0 / p.sample_hz)
         pieces.append(_sampled(app, float(last.time_s[-1]), float(last.height_um[-1]), float(last.force_nN[-1]),
                                p.approach_hz))
         rec.stretches.append(Stretch("approach", n, n + len(pieces[-1].time_s)))
         n, steps = n + len(pieces[-1].time_s), steps + len(app.time_s)
         for f, cycles in zip(p.frequencies_hz, p.cycles):
             osc, k = oscillate(state, float(pieces[-1].time_s[-1]), h_m, f, p.amplitude_um, cycles,
-                               sample_interval_s(p.sample_hz, f))
+                               1.0 / p.sample_hz)
             pieces.append(osc)
             rec.stretches.append(Stretch("oscillation", n, n + len(osc.time_s), float(f)))
             n, steps = n + len(osc.time_s), steps + k
