@@ -6,12 +6,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from common.errors import InputError
+from common.errors import InputError, SolverError
 from solver.cell_protocol import CellProtocol, power_law_cortex, run_cell
 from solver.compression import compress
 from solver.model import Shell
 from solver.prony import Prony
-from solver.time_domain import Cortex
+from solver.time_domain import Cortex, TimeShell
+from solver.time_protocol import step
 
 SHELL = Shell(volume_um3=4300.0, h0_um=13.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
 PROTOCOL = CellProtocol(heights_um=(12.5, 12.0, 11.0), frequencies_hz=(1.0,), cycles=(2,), wait_s=5.0)
@@ -59,3 +60,29 @@ def test_bad_cell_protocols_are_refused():
         CellProtocol(heights_um=(11.0,), frequencies_hz=(1.0,), cycles=(5,), wait_s=-1.0)
     with pytest.raises(InputError, match="above the first"):
         run_cell(replace(SHELL, h0_um=12.0), Cortex(Prony(25.0), Prony(8.33)), PROTOCOL)
+
+
+def test_a_step_without_equilibrium_is_taken_in_two_halves(monkeypatch):
+    """A step that fails (here: one longer than 0.3 s, after it has changed the state) is undone
+    and taken as two halves, the gap linear between: the force and the state are those of the
+    two half steps taken directly (to round-off)."""
+    cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
+    direct = TimeShell(SHELL, cortex)
+    direct.step(SHELL.h0_um - 0.05, 0.25)
+    expected = direct.step(SHELL.h0_um - 0.1, 0.25)
+    original, calls = TimeShell.step, []
+
+    def failing(self, h_um, dt_s):
+        calls.append(dt_s)
+        force = original(self, h_um, dt_s)
+        if dt_s > 0.3:
+            raise SolverError("no equilibrium")
+        return force
+    monkeypatch.setattr(TimeShell, "step", failing)
+    state = TimeShell(SHELL, cortex)
+    assert step(state, SHELL.h0_um - 0.1, 0.5) == pytest.approx(expected, rel=1e-12)
+    assert calls == [0.5, 0.25, 0.25]
+    assert np.allclose(state.channels[1].viscous, direct.channels[1].viscous, rtol=1e-12, atol=1e-15)
+    monkeypatch.setattr(TimeShell, "step", lambda self, h_um, dt_s: (_ for _ in ()).throw(SolverError("never")))
+    with pytest.raises(SolverError):
+        step(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5, halvings=2)

@@ -17,7 +17,9 @@ Bending stays elastic with B of K_B(1 s), K_S(1 s) for the chosen variant. A ble
 jump of γ_a adds Δγ_a 2 H A_c(h) to the force; then the measurement errors of `cells.ERRORS`.
 
 The simulations are independent per cell: `jobs` processes run them (the draws are made first,
-in order, so the experiment does not depend on `jobs`).
+in order, so the experiment does not depend on `jobs`). A cell whose simulation fails (no
+equilibrium even in halved steps) is left out and named in truth.json's
+`time_domain.failed_cells`; if every cell fails, a SolverError says so.
 """
 
 import sys
@@ -33,6 +35,7 @@ from analysis.afm.cell import Cell, Segment
 from analysis.afm.synth import cells as sy
 from analysis.afm.synth.rheology import describe, draw_exponents
 from analysis.afm.timeseries import shape_of
+from common.errors import SolverError
 from solver.cell_protocol import CellProtocol, CellRecording, power_law_cortex, run_cell
 from solver.elasticity import poisson_of_ratio
 from solver.model import Shell
@@ -48,9 +51,14 @@ class Job:
     protocol: CellProtocol
 
 
-def _simulate(job: Job) -> tuple[CellRecording, float]:
+def _simulate(job: Job) -> tuple[CellRecording | str, float]:
+    """The cell's recording, or why its simulation failed, and the wall time (s)."""
     start = time.perf_counter()
-    return run_cell(job.shell, job.cortex, job.protocol), time.perf_counter() - start
+    try:
+        rec: CellRecording | str = run_cell(job.shell, job.cortex, job.protocol)
+    except SolverError as e:
+        rec = str(e)
+    return rec, time.perf_counter() - start
 
 
 def _draw(i: int, freqs: tuple[float, ...], rng: np.random.Generator, exp_rng: np.random.Generator,
@@ -111,14 +119,20 @@ def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: fl
             results.append(r)
             bar.update()
     bar.close()
-    cells, truths, cost = [], [], []
+    cells, truths, cost, failed = [], [], [], {}
     for (p, truth, _), (rec, wall) in zip(drawn, results):
+        if isinstance(rec, str):
+            failed[truth["cell_id"]] = rec
+            continue
         cells.append(_cell(rng, p, truth, rec, errors))
         truths.append(truth)
         recordings = sum(s.kind == "oscillation" for s in rec.stretches)
         cost.append({"cell_id": truth["cell_id"], "steps": rec.steps, "wall_s": wall, "recordings": recordings})
+    if not cells:
+        raise SolverError(f"no cell could be simulated: {next(iter(failed.values()))}")
     truth_all = {"seed": seed, "errors": errors, "error_model": sy.ERRORS if errors else None,
-                 "time_domain": {"wait_s": float(wait_s), "bending": bending, "jobs": jobs, "cost": cost},
+                 "time_domain": {"wait_s": float(wait_s), "bending": bending, "jobs": jobs, "cost": cost,
+                                 "failed_cells": failed},
                  **sy.summary(truths, n_cells), **describe(medians)}
     return cells, truth_all
 
