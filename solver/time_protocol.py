@@ -9,6 +9,9 @@ From the relaxed droplet at h0 (the stress-free reference, t = 0) the plate
 3. oscillates h(t) = h_m + A sin(2π f (t - t_osc)) for `cycles` periods (A = 0.25 µm: 0.5 µm
    peak to peak) in STEPS_PER_PERIOD equal simulation steps a period, whatever the sampling.
 
+A step whose equilibrium the Newton iteration does not find is taken again in two halves
+(the gap linear between; `step`), at most MAX_HALVINGS times over.
+
 The instrument samples at `sample_hz` (100 Hz), or 20 samples a period where f > sample_hz/20.
 The returned recording holds every sample: the plate's height is h(t) itself; the force of
 the oscillation is the simulated force at the steps interpolated by a cubic spline (not-a-knot,
@@ -23,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
-from common.errors import InputError
+from common.errors import InputError, SolverError
 from solver.model import Shell
 from solver.time_domain import Cortex, TimeShell
 
@@ -32,6 +35,7 @@ WAIT_GROWTH = 1.2         # ratio of consecutive steps during the wait
 WAIT_LARGEST_S = 2.0      # largest step during the wait
 MIN_SAMPLES_PER_PERIOD = 20
 STEPS_PER_PERIOD = 64     # simulation steps a period of the oscillation
+MAX_HALVINGS = 4          # a step whose equilibrium fails is split in two, at most this often over
 
 Array = npt.NDArray[np.float64]
 
@@ -88,6 +92,20 @@ class Steps:
     force_nN: Array
 
 
+def step(state: TimeShell, h_um: float, dt_s: float, halvings: int = MAX_HALVINGS) -> float:
+    """`state.step(h, Δt)`; where its equilibrium is not found, the step in two halves (the gap
+    linear between), at most `halvings` times over."""
+    saved, h_from = state.saved(), state.h_um
+    try:
+        return state.step(h_um, dt_s)
+    except SolverError:
+        if halvings < 1:
+            raise
+    state.restore(saved)
+    step(state, 0.5 * (h_from + h_um), 0.5 * dt_s, halvings - 1)
+    return step(state, h_um, 0.5 * dt_s, halvings - 1)
+
+
 def approach(state: TimeShell, t0_s: float, h_um: float, ramp_um_per_s: float, wait_s: float,
              first_step_s: float) -> Steps:
     """Ramp the plate of `state` (at gap state.h_um at time t0) to h at `ramp_um_per_s`, then
@@ -106,22 +124,22 @@ def approach(state: TimeShell, t0_s: float, h_um: float, ramp_um_per_s: float, w
     h = h_from + (h_um - h_from) * (np.minimum(t_rel / ramp_s, 1.0) if n else np.ones(len(t_rel)))
     force, last = np.empty(len(t_rel)), 0.0
     for k, (tk, hk) in enumerate(zip(t_rel, h)):
-        force[k], last = state.step(hk, tk - last), tk
+        force[k], last = step(state, hk, tk - last), tk
     return Steps(t0_s + t_rel, h, force)
 
 
-def oscillate(state: TimeShell, t0_s: float, frequency_hz: float, amplitude_um: float, cycles: int,
-              sample_s: float) -> tuple[Steps, int]:
-    """Oscillate the plate of `state` about its gap h_m from time t0: h_m + A sin(2π f (t - t0)),
+def oscillate(state: TimeShell, t0_s: float, h_m_um: float, frequency_hz: float, amplitude_um: float,
+              cycles: int, sample_s: float) -> tuple[Steps, int]:
+    """Oscillate the plate of `state` (at gap h_m) from time t0: h_m + A sin(2π f (t - t0)),
     `cycles` periods in STEPS_PER_PERIOD steps each; return the instrument's samples every
     `sample_s` after t0 (force by cubic spline through the steps and the force at t0) and the
     number of steps."""
-    h_m, f0 = state.h_um, state.force_nN()
+    h_m, f0 = h_m_um, state.force_nN()
     n_samples = int(round(cycles / (frequency_hz * sample_s)))
     t_samples = sample_s * np.arange(1.0, n_samples + 1.0)
     t_steps = _step_times(t_samples[-1], 1.0 / (frequency_hz * STEPS_PER_PERIOD), sample_s)
     h_steps = h_m + amplitude_um * np.sin(2 * np.pi * frequency_hz * t_steps)
-    f_steps = np.array([state.step(h, dt) for h, dt in zip(h_steps, np.diff(t_steps, prepend=0.0))])
+    f_steps = np.array([step(state, h, dt) for h, dt in zip(h_steps, np.diff(t_steps, prepend=0.0))])
     spline = CubicSpline(np.r_[0.0, t_steps], np.r_[f0, f_steps])
     h_samples = h_m + amplitude_um * np.sin(2 * np.pi * frequency_hz * t_samples)
     return Steps(t0_s + t_samples, h_samples, np.asarray(spline(t_samples), float)), len(t_steps)
@@ -146,7 +164,8 @@ def run(shell: Shell, cortex: Cortex, protocol: Protocol) -> Recording:
     dt = p.sample_interval_s
     app = approach(state, 0.0, shell.h0_um - p.step_um, p.ramp_um_per_s, p.wait_s, dt)
     t_osc0 = float(app.time_s[-1])
-    osc, n_steps = oscillate(state, t_osc0, p.frequency_hz, p.amplitude_um, p.cycles, dt)
+    osc, n_steps = oscillate(state, t_osc0, float(app.height_um[-1]), p.frequency_hz, p.amplitude_um,
+                             p.cycles, dt)
     # the instrument's samples before the oscillation: the ramp and wait interpolated
     t_pre = np.arange(0.0, t_osc0 - 0.5 * dt, dt)
     t_sim = np.r_[0.0, app.time_s]

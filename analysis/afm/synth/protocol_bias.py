@@ -6,7 +6,7 @@ mean height h_m = h0 - Δh/2) and a protocol point (β_B, β_S, T_w, f). The cor
 
     K_B(t) = K_B (t/1 s)^-β_B,   K_S(t) = K_S (t/1 s)^-β_S
 
-(Prony series, `solver.prony.fit_power_law`, 2 elements a decade); the protocol
+(Prony series, `solver.cell_protocol.power_law_cortex`, 2 elements a decade); the protocol
 (`solver.time_protocol`) steps Δh_m = Δh/2 from h0 to h_m, waits T_w and oscillates 5 cycles of
 0.5 µm peak to peak at f. The segment fit (`analysis.afm.synth.time_domain.segment_fit`) gives
 |K*|_td and δ_td; the relaxed-state model (`solver.relaxed_state`) |K*|_model and δ_model. The
@@ -18,17 +18,9 @@ node's bias:
 from typing import Any
 
 from analysis.afm.synth.time_domain import segment_fit
-from solver.prony import fit_power_law
+from solver.cell_protocol import power_law_cortex
 from solver.relaxed_state import relaxed_state
-from solver.time_domain import Cortex
 from solver.time_protocol import Protocol, run
-
-
-def power_law_cortex(bulk_mN_per_m: float, shear_mN_per_m: float, bulk_exponent: float,
-                     shear_exponent: float) -> Cortex:
-    """K_B(t), K_S(t) = K (t/1 s)^-β as Prony series (`fit_power_law`'s default: 2 elements a decade)."""
-    return Cortex(fit_power_law(bulk_exponent, bulk_mN_per_m).prony,
-                  fit_power_law(shear_exponent, shear_mN_per_m).prony)
 
 
 def node_results(node: Any) -> dict[str, float]:
