@@ -9,6 +9,7 @@
 #   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
 #   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
 #   make ramp-table      rebuild the shipped shell ramp table (analysis/calibration/data/shell_ramp_table.json)
+#   make protocol-map    the protocol's bias map (results/protocol-map/: JSON table and figures)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
 #   make bench-full      every script in bench/; the others take minutes to an hour and more each
 #                        (the solver-forward round trip and error sources, the Monte-Carlo study by
@@ -129,6 +130,13 @@ ramp-table: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/ramp.toml --store results/ramp.h5
 	$(BIN)/cortex analysis build-ramp-table results/ramp.h5 --out results/ramp-table
 	cp results/ramp-table/shell_ramp_table.json $(CALIBRATION)/shell_ramp_table.json
+
+# The protocol's bias map (SPEC 12, docs/viscoelastic.md): its campaign under mpiexec (see
+# docs/performance.md for its time; reruns resume), then the JSON table and figures from the store.
+.PHONY: protocol-map
+protocol-map: setup
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/protocol.toml --store results/protocol.h5 || [ $$? = 1 ]
+	$(BIN)/cortex analysis build-protocol-map results/protocol.h5 --out results/protocol-map
 
 # Benchmarks: one JSON object each on stdout; every script runs as `python bench/X.py` (no script
 # is named like a package: tests/test_bench_scripts.py) and the target fails if one did.

@@ -8,7 +8,7 @@ the segment fits against the relaxed-state frequency-domain model. Prints one JS
   h0 = h_m + 0.25 µm with h_m at h̃ = 0.6; the protocol (`solver.time_protocol`): ramp 0.25 µm
   at 0.2 µm/s, wait T_w, 5 cycles of 0.5 µm peak to peak at f, 100 Hz (20 samples a period at
   least). Per f: wall time, equilibrium solves, ms per solve; the segment fit's |K*| and loss
-  angle; the relaxed-state model (`solver.viscoelastic`: K_sec C with the series' own
+  angle; the relaxed-state model (`solver.relaxed_state`: K_sec C with the series' own
   K*(ω) = K(iω)) and the ratios. Bending `none` unless --bending (the time-domain bending is
   elastic, so it would keep a prestress the relaxed model does not have).
 
@@ -19,18 +19,14 @@ the segment fits against the relaxed-state frequency-domain model. Prints one JS
 import argparse
 import json
 import time
-from dataclasses import replace
-
-import numpy as np
 
 from analysis.afm.synth.time_domain import segment_fit
-from solver.compression import compress
 from solver.geometry import cell_radius
 from solver.model import Shell
 from solver.prony import fit_power_law
+from solver.relaxed_state import relaxed_state
 from solver.time_domain import Cortex
 from solver.time_protocol import Protocol, run
-from solver.viscoelastic import viscoelastic_keys
 
 V, TENSION, BULK, SHEAR, H_TILDE = 4300.0, 1.5, 25.0, 8.33, 0.6
 
@@ -42,27 +38,20 @@ def prony_table():
             for fit in [fit_power_law(b, per_decade=n)]]
 
 
-def relaxed_model(shell, cortex, f):
-    """|K*| and the loss angle of the relaxed-state model at h_m with K* = K(iω)."""
-    Kb, Ks = cortex.bulk.complex_modulus(f), cortex.shear.complex_modulus(f)
-    model = replace(shell, bulk_mN_per_m=abs(Kb), shear_mN_per_m=abs(Ks))
-    keys = viscoelastic_keys(model, compress(model).derived["modulus_mN_per_m"], f,
-                             float(np.angle(Kb)), float(np.angle(Ks)))
-    return keys["modulus_mN_per_m"], keys["loss_angle_rad"], float(np.angle(Kb)), float(np.angle(Ks))
-
-
 def recording(shell, cortex, f, wait_s):
     start = time.perf_counter()
     rec = run(shell, cortex, Protocol(wait_s=wait_s, frequency_hz=f))
     wall = time.perf_counter() - start
     fit = segment_fit(rec, V)
-    K, delta, db, ds = relaxed_model(shell, cortex, f)
+    model = relaxed_state(shell, cortex, f)
+    K, delta = model["modulus_mN_per_m"], model["loss_angle_rad"]
     return {"frequency_hz": f, "wait_s": wait_s, "wall_s": wall, "solves": rec.steps,
             "ms_per_solve": 1e3 * wall / rec.steps, "samples": len(rec.time_s),
             "modulus_mN_per_m": float(fit["modulus_mN_per_m"]), "loss_angle_rad": fit["loss_angle_rad"],
             "tension_mN_per_m": fit["tension_mN_per_m"], "h_tilde": fit["h_tilde"],
             "model_modulus_mN_per_m": K, "model_loss_angle_rad": delta,
-            "bulk_loss_angle_rad": db, "shear_loss_angle_rad": ds,
+            "bulk_loss_angle_rad": model["bulk_loss_angle_rad"],
+            "shear_loss_angle_rad": model["shear_loss_angle_rad"],
             "modulus_ratio": float(fit["modulus_mN_per_m"]) / K, "loss_angle_ratio": fit["loss_angle_rad"] / delta}
 
 

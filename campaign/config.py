@@ -10,8 +10,12 @@
                 `campaign.store.schema`), or `ramp_table`, one node of the
                 shell ramp table (`analysis.afm.tension.shell_table`: one
                 continuation from the free sphere over the table's depths,
-                F/(K_B R) as RAMP_RESULTS; h0 and dh play no part); both
-                need the fast solver and an elastic grid without [montecarlo]
+                F/(K_B R) as RAMP_RESULTS; h0 and dh play no part), or
+                `protocol_bias`, one recording of the protocol in time per
+                shell and [protocol] point (`analysis.afm.synth.protocol_bias`:
+                its segment fit against the relaxed-state model,
+                PROTOCOL_RESULTS); these need the fast solver and an elastic
+                grid without [montecarlo]
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
@@ -35,6 +39,10 @@
                 values a model cell draws from, default all of the grid's),
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
+    [protocol]  a protocol_bias campaign's (and only its): exponents (pairs
+                [β_B, β_S]), wait_s, frequency_hz (a number or a list each;
+                `campaign.protocol_grid`); the campaign's tasks are the grid's
+                shells times their product, the protocol fastest
     [test]      for the test suite only: read by the module the environment
                 variable CORTEX_TASK_HOOKS names (`campaign.task_hooks`; the
                 suite's `tests/faults.py`: injected faults, no-op tasks, a
@@ -66,6 +74,7 @@ from functools import cached_property
 
 from campaign import task_hooks
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
+from campaign.protocol_grid import PROTOCOL_KEYS, ProtocolGrid, protocol_axes
 from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
@@ -76,12 +85,13 @@ from solver.model import BENDING_VARIANTS
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 MAX_TASKS = 100_000
-TASKS = ("compression", "viscoelastic_table", "ramp_table")
+TASKS = ("compression", "viscoelastic_table", "ramp_table", "protocol_bias")
 SECTIONS = {"campaign": {"name", "store", "max_tasks", "task"},
             "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
+            "protocol": set(PROTOCOL_KEYS),
             "test": None}       # its keys: the hooks' module's to check (`campaign.task_hooks`)
 MC_DEFAULTS = {"cells": 55, "studies": 100, "volume_error_rel_sd": 0.075, "height_error_sd_um": 0.5,
                "height_error_mode": list(MODES), "seed": 0}
@@ -94,7 +104,7 @@ class Campaign:
     method: str
     resolution: float
     timeout_s: float
-    shells: Grid           # every compression, in grid order (made when asked for)
+    shells: Grid | ProtocolGrid   # every compression (or protocol node), in grid order (made when asked for)
     text: str              # the file's text, kept in the store
     test: task_hooks.TaskHooks | None = None   # the [test] section (the test suite's only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
@@ -152,8 +162,12 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     meta = _campaign_section(path, data.get("campaign", {}))
     task = _task(path, meta, grid, method, "montecarlo" in data)
     limit = _max_tasks(path, meta)
-    _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS), limit, "compressions")
+    protocol = _protocol(path, data, task)
+    points = math.prod(len(v) for v in protocol.values()) if protocol else 1
+    _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS) * points, limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
+    if protocol:
+        shells = ProtocolGrid(shells, protocol)
     test = task_hooks.parse(path, data["test"], len(shells)) if "test" in data else None
     mc = data.get("montecarlo")
     _check_montecarlo_grid(path, mc, grid, ratios)
@@ -260,6 +274,14 @@ def _task(path, meta, grid, method, montecarlo):
             raise InputError(f"{path}: [campaign] task {task} takes elastic cells without "
                              "[montecarlo] (drop viscosity_Pa_s, frequency_hz and [montecarlo])")
     return task
+
+
+def _protocol(path, data, task):
+    """The [protocol] axes of a protocol-bias campaign (`campaign.protocol_grid`), {} for another task;
+    the section belongs to that task alone."""
+    if (task == "protocol_bias") != ("protocol" in data):
+        raise InputError(f"{path}: [campaign] task = \"protocol_bias\" and a [protocol] section go together")
+    return protocol_axes(path, data["protocol"]) if "protocol" in data else {}
 
 
 def _check_montecarlo_grid(path, mc, grid, ratios):

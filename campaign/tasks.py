@@ -1,8 +1,8 @@
 """One task, computed where it runs (a rank's task process,
 `campaign.task_process`): a compression or a Monte-Carlo trial task, under
-the per-task timeout, and its journal entry. In a viscoelastic-table
-or ramp-table campaign (`[campaign] task`) a grid point is one node of that
-table instead (`compute_node`).
+the per-task timeout, and its journal entry. In a viscoelastic-table,
+ramp-table or protocol-bias campaign (`[campaign] task`) a grid point is one
+node of that table or map instead (`compute_node`).
 
 A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
@@ -20,6 +20,7 @@ import signal
 import socket
 import time
 import traceback
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from campaign.task_hooks import TaskHooks
@@ -73,15 +74,20 @@ def compute(shell: Shell, method: str, timeout_s: float, row: int = 0,
     return _guarded(work, timeout_s)
 
 
-def compute_node(shell: Shell, timeout_s: float, task: str = "viscoelastic_table") -> Outcome:
+def compute_node(shell: Any, timeout_s: float, task: str = "viscoelastic_table") -> Outcome:
     """One node of the table of `task` at `shell`, with its `wall_s`: the viscoelastic table's
     (`analysis.calibration.viscoelastic_table.node_results`: ln C's coefficients, TABLE_RESULTS
     of `campaign.store.schema`) or the shell ramp table's (`analysis.afm.tension.shell_table.node_results`:
-    F/(K_B R) over its depths, RAMP_RESULTS)."""
+    F/(K_B R) over its depths, RAMP_RESULTS) or, `shell` a `campaign.protocol_grid.ProtocolNode`, one
+    recording's bias (`analysis.afm.synth.protocol_bias.node_results`: PROTOCOL_RESULTS and more)."""
     def work():
         # here: a compression campaign never loads them
+        node_results: Callable[[Any], dict[str, float]]
         if task == "ramp_table":
             from analysis.afm.tension.shell_table import node_results
+        elif task == "protocol_bias":
+            from analysis.afm.synth.protocol_bias import node_results as protocol_node
+            node_results = protocol_node
         else:
             from analysis.calibration.viscoelastic_table import node_results
         start = time.perf_counter()
@@ -163,6 +169,7 @@ def warm_up(campaign: "Campaign") -> None:
     if not campaign.shells:
         return
     shell = campaign.shells[0]
+    shell = getattr(shell, "shell", shell)         # a protocol node's shell
     try:
         if campaign.test is not None and campaign.test.warm_up(shell):
             return

@@ -37,6 +37,7 @@ The plate force is -(1/2) ∂L/∂z_p at the step's equilibrium (the prestress i
 """
 
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -161,6 +162,17 @@ class TimeShell:
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
         return self.force_nN()
+
+    def saved(self) -> tuple[Any, ...]:
+        """What a step changes (unknowns, gap, Lagrangian, labels, internal variables), for `restore`."""
+        return (self.u.copy(), self.h_um, self.lag, self._label, self._last_label,
+                [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
+
+    def restore(self, saved: tuple[Any, ...]) -> None:
+        """Back to the state `saved` returned (after a step that failed)."""
+        self.u, self.h_um, self.lag, self._label, self._last_label, channels = saved
+        for ch, (strain, viscous) in zip(self.channels, channels):
+            ch.strain, ch.viscous = strain.copy(), viscous.copy()
 
     def _carry(self, label: float) -> bool:
         """Carry the internal variables from the elements' material at `self._label` to that at

@@ -7,19 +7,26 @@ From the relaxed droplet at h0 (the stress-free reference, t = 0) the plate
 2. waits T_w at h_m, in steps growing geometrically (ratio WAIT_GROWTH) from one sample
    interval to at most WAIT_LARGEST_S (the strain creeps smoothly there);
 3. oscillates h(t) = h_m + A sin(2π f (t - t_osc)) for `cycles` periods (A = 0.25 µm: 0.5 µm
-   peak to peak), one simulation step per sample.
+   peak to peak) in STEPS_PER_PERIOD equal simulation steps a period, whatever the sampling.
+
+A step whose equilibrium the Newton iteration does not find is taken again in two halves
+(the gap linear between; `step`), at most MAX_HALVINGS times over.
 
 The instrument samples at `sample_hz` (100 Hz), or 20 samples a period where f > sample_hz/20.
-The returned recording holds every sample: the oscillation's samples are simulation steps;
-those of the ramp and the wait are the simulated force interpolated linearly between steps.
+The returned recording holds every sample: the plate's height is h(t) itself; the force of
+the oscillation is the simulated force at the steps interpolated by a cubic spline (not-a-knot,
+from t_osc on: its error is ~ (5/384) (2π/STEPS_PER_PERIOD)^4 of the force's amplitude, 1e-6),
+that of the ramp and the wait linear between steps. `approach` and `oscillate` are the two
+pieces, for protocols of several heights (`solver.cell_protocol`).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.interpolate import CubicSpline
 
-from common.errors import InputError
+from common.errors import InputError, SolverError
 from solver.model import Shell
 from solver.time_domain import Cortex, TimeShell
 
@@ -27,6 +34,10 @@ RAMP_STEP_UM = 0.02       # largest plate move in one step of the ramp
 WAIT_GROWTH = 1.2         # ratio of consecutive steps during the wait
 WAIT_LARGEST_S = 2.0      # largest step during the wait
 MIN_SAMPLES_PER_PERIOD = 20
+STEPS_PER_PERIOD = 64     # simulation steps a period of the oscillation
+MAX_HALVINGS = 4          # a step whose equilibrium fails is split in two, at most this often over
+
+Array = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -52,33 +63,95 @@ class Protocol:
     @property
     def sample_interval_s(self) -> float:
         """The instrument's sampling interval: 1/sample_hz, or a twentieth of a period if shorter."""
-        return min(1.0 / self.sample_hz, 1.0 / (MIN_SAMPLES_PER_PERIOD * self.frequency_hz))
+        return sample_interval_s(self.sample_hz, self.frequency_hz)
+
+
+def sample_interval_s(sample_hz: float, frequency_hz: float) -> float:
+    """1/sample_hz, or a twentieth of a period at `frequency_hz` if shorter."""
+    return min(1.0 / sample_hz, 1.0 / (MIN_SAMPLES_PER_PERIOD * frequency_hz))
 
 
 @dataclass
 class Recording:
     """Samples of a simulated recording; `oscillation` the samples of the oscillation segment."""
 
-    time_s: npt.NDArray[np.float64]
-    force_nN: npt.NDArray[np.float64]
-    height_um: npt.NDArray[np.float64]
+    time_s: Array
+    force_nN: Array
+    height_um: Array
     oscillation: slice
     frequency_hz: float
     steps: int                 # simulation steps (equilibrium solves)
 
 
-def _approach(shell: Shell, p: Protocol) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Simulation times and gaps of the ramp and the wait (t = 0 at h0 excluded)."""
-    ramp_s = p.step_um / p.ramp_um_per_s
-    n = max(int(np.ceil(p.step_um / RAMP_STEP_UM)), 1)
+@dataclass
+class Steps:
+    """Simulated times (s), gaps (µm) and plate forces (nN) of a stretch of a protocol."""
+
+    time_s: Array
+    height_um: Array
+    force_nN: Array
+
+
+def step(state: TimeShell, h_um: float, dt_s: float, halvings: int = MAX_HALVINGS) -> float:
+    """`state.step(h, Δt)`; where its equilibrium is not found, the step in two halves (the gap
+    linear between), at most `halvings` times over."""
+    saved, h_from = state.saved(), state.h_um
+    try:
+        return state.step(h_um, dt_s)
+    except SolverError:
+        if halvings < 1:
+            raise
+    state.restore(saved)
+    step(state, 0.5 * (h_from + h_um), 0.5 * dt_s, halvings - 1)
+    return step(state, h_um, 0.5 * dt_s, halvings - 1)
+
+
+def approach(state: TimeShell, t0_s: float, h_um: float, ramp_um_per_s: float, wait_s: float,
+             first_step_s: float) -> Steps:
+    """Ramp the plate of `state` (at gap state.h_um at time t0) to h at `ramp_um_per_s`, then
+    wait `wait_s` there (steps from `first_step_s` growing by WAIT_GROWTH to WAIT_LARGEST_S)."""
+    h_from = state.h_um
+    ramp_s = abs(h_from - h_um) / ramp_um_per_s
+    n = int(np.ceil(abs(h_from - h_um) / RAMP_STEP_UM))
     t = list(np.linspace(0.0, ramp_s, n + 1)[1:])
-    dt, end = p.sample_interval_s, ramp_s + p.wait_s
-    while t[-1] < end - 1e-12:
-        t.append(min(t[-1] + dt, end))
+    dt, end = first_step_s, ramp_s + wait_s
+    while (t[-1] if t else 0.0) < end - 1e-12:
+        t.append(min((t[-1] if t else 0.0) + dt, end))
         dt = min(dt * WAIT_GROWTH, WAIT_LARGEST_S)
-    t_arr = np.array(t)
-    h = shell.h0_um - p.step_um * np.minimum(t_arr / ramp_s, 1.0)
-    return t_arr, h
+    if not t:
+        raise InputError("an approach must move the plate or wait")
+    t_rel = np.array(t)
+    h = h_from + (h_um - h_from) * (np.minimum(t_rel / ramp_s, 1.0) if n else np.ones(len(t_rel)))
+    force, last = np.empty(len(t_rel)), 0.0
+    for k, (tk, hk) in enumerate(zip(t_rel, h)):
+        force[k], last = step(state, hk, tk - last), tk
+    return Steps(t0_s + t_rel, h, force)
+
+
+def oscillate(state: TimeShell, t0_s: float, h_m_um: float, frequency_hz: float, amplitude_um: float,
+              cycles: int, sample_s: float) -> tuple[Steps, int]:
+    """Oscillate the plate of `state` (at gap h_m) from time t0: h_m + A sin(2π f (t - t0)),
+    `cycles` periods in STEPS_PER_PERIOD steps each; return the instrument's samples every
+    `sample_s` after t0 (force by cubic spline through the steps and the force at t0) and the
+    number of steps."""
+    h_m, f0 = h_m_um, state.force_nN()
+    n_samples = int(round(cycles / (frequency_hz * sample_s)))
+    t_samples = sample_s * np.arange(1.0, n_samples + 1.0)
+    t_steps = _step_times(t_samples[-1], 1.0 / (frequency_hz * STEPS_PER_PERIOD), sample_s)
+    h_steps = h_m + amplitude_um * np.sin(2 * np.pi * frequency_hz * t_steps)
+    f_steps = np.array([step(state, h, dt) for h, dt in zip(h_steps, np.diff(t_steps, prepend=0.0))])
+    spline = CubicSpline(np.r_[0.0, t_steps], np.r_[f0, f_steps])
+    h_samples = h_m + amplitude_um * np.sin(2 * np.pi * frequency_hz * t_samples)
+    return Steps(t0_s + t_samples, h_samples, np.asarray(spline(t_samples), float)), len(t_steps)
+
+
+def _step_times(end_s: float, step_s: float, first_s: float) -> Array:
+    """Times (s) from the start of an oscillation to cover `end_s`: multiples of `step_s`, and
+    before the first of them `first_s` doubling (the plate's speed jumps at the start, and the
+    fast Maxwell elements answer within their τ: the force's kink is resolved there)."""
+    lead = first_s * 2.0 ** np.arange(max(int(np.ceil(np.log2(step_s / first_s))), 0))
+    grid = step_s * np.arange(1, int(np.ceil(end_s / step_s - 1e-9)) + 1)
+    return np.r_[lead[lead < 0.75 * step_s], grid]
 
 
 def run(shell: Shell, cortex: Cortex, protocol: Protocol) -> Recording:
@@ -87,25 +160,20 @@ def run(shell: Shell, cortex: Cortex, protocol: Protocol) -> Recording:
     if p.step_um + p.amplitude_um >= shell.h0_um:
         raise InputError("the protocol would close the gap")
     state = TimeShell(shell, cortex)
-    t_app, h_app = _approach(shell, p)
-    f_app, last = np.empty(len(t_app)), 0.0
-    for k, (t, h) in enumerate(zip(t_app, h_app)):
-        f_app[k], last = state.step(h, t - last), t
+    f_ref = state.force_nN()
     dt = p.sample_interval_s
-    t_osc0 = t_app[-1]
-    n_osc = int(round(p.cycles / (p.frequency_hz * dt)))
-    t_osc = t_osc0 + dt * np.arange(1, n_osc + 1)
-    h_m = shell.h0_um - p.step_um
-    h_osc = h_m + p.amplitude_um * np.sin(2 * np.pi * p.frequency_hz * (t_osc - t_osc0))
-    f_osc = np.array([state.step(h, dt) for h in h_osc])
+    app = approach(state, 0.0, shell.h0_um - p.step_um, p.ramp_um_per_s, p.wait_s, dt)
+    t_osc0 = float(app.time_s[-1])
+    osc, n_steps = oscillate(state, t_osc0, float(app.height_um[-1]), p.frequency_hz, p.amplitude_um,
+                             p.cycles, dt)
     # the instrument's samples before the oscillation: the ramp and wait interpolated
     t_pre = np.arange(0.0, t_osc0 - 0.5 * dt, dt)
-    t_sim = np.concatenate([[0.0], t_app])
-    f_sim = np.concatenate([[TimeShell(shell, cortex).force_nN()], f_app])
-    h_pre = np.interp(t_pre, t_sim, np.concatenate([[shell.h0_um], h_app]))
-    time_s = np.concatenate([t_pre, [t_osc0], t_osc])
-    force = np.concatenate([np.interp(t_pre, t_sim, f_sim), [f_app[-1]], f_osc])
-    height = np.concatenate([h_pre, [h_m], h_osc])
+    t_sim = np.r_[0.0, app.time_s]
+    h_pre = np.interp(t_pre, t_sim, np.r_[shell.h0_um, app.height_um])
+    f_pre = np.interp(t_pre, t_sim, np.r_[f_ref, app.force_nN])
+    time_s = np.concatenate([t_pre, [t_osc0], osc.time_s])
+    force = np.concatenate([f_pre, [app.force_nN[-1]], osc.force_nN])
+    height = np.concatenate([h_pre, [app.height_um[-1]], osc.height_um])
     start = len(t_pre) + 1
-    return Recording(time_s, force, height, slice(start, start + n_osc), float(p.frequency_hz),
-                     steps=len(t_app) + n_osc)
+    return Recording(time_s, force, height, slice(start, start + len(osc.time_s)), float(p.frequency_hz),
+                     steps=len(app.time_s) + n_steps)

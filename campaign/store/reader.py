@@ -26,7 +26,8 @@ import numpy as np
 
 from campaign.store import journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, STATES, stored_results,
+from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, PROTOCOL_PARAMS, STATES, stored_params,
+                                   stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
@@ -54,7 +55,7 @@ def _task_columns(path, names):
     started_unix_s, converged, rank, error; state and attempts always), journal
     overlaid. The float columns are rows of one array, `cols[FLOATS]` (so a
     DataFrame takes them without a copy)."""
-    floats = [k for k in names if k in PARAMS + ALL_RESULTS + ("started_unix_s",)]
+    floats = [k for k in names if k in PARAMS + PROTOCOL_PARAMS + ALL_RESULTS + ("started_unix_s",)]
     with _open_store(path) as f:
         n = len(f["state"])
         block = np.empty((len(floats), n))
@@ -115,9 +116,9 @@ def read_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     import pandas as pd           # here: a campaign run need not load it
     with _open_store(path) as f:
         ids, bending = _strings(f["task_id"]), _strings(f["bending"], few=True)
-        results = stored_results(f)
-    cols = _task_columns(path, PARAMS + results + ("converged", "rank", "error"))
-    frame = pd.DataFrame(cols[FLOATS].T, columns=list(PARAMS + results), copy=False)
+        results, params = stored_results(f), stored_params(f)
+    cols = _task_columns(path, params + results + ("converged", "rank", "error"))
+    frame = pd.DataFrame(cols[FLOATS].T, columns=list(params + results), copy=False)
     for i, (key, values) in enumerate((("task_id", ids), ("state", np.array(STATES, object)[cols["state"]]),
                                        ("bending", bending))):
         frame.insert(i, key, values)

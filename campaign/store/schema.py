@@ -59,8 +59,16 @@ TABLE_RESULTS = tuple(f"ln_c_{part}_b{i}_s{j}" for part in ("re", "im") for i, j
 # along depth), and `filled_depths`, how many were filled
 RAMP_DEPTHS = 48
 RAMP_RESULTS = tuple(f"force_over_kb_r_d{i:02d}" for i in range(RAMP_DEPTHS)) + ("filled_depths",)
-TASK_RESULTS = {"compression": (), "viscoelastic_table": TABLE_RESULTS, "ramp_table": RAMP_RESULTS}
-ALL_RESULTS = RESULTS + TABLE_RESULTS + RAMP_RESULTS      # what a journal record or a row may hold
+# a protocol-bias node's (`[campaign] task = "protocol_bias"`, `campaign.protocol_grid`,
+# `analysis.afm.synth.protocol_bias`; their datasets only in such a store): its protocol as parameters
+# PROTOCOL_PARAMS, and beside RESULTS' modulus_mN_per_m, loss_angle_rad (the segment fit's),
+# gamma_eff_mN_per_m (its mean γ_eff), h_tilde, h_mean_um and wall_s the results PROTOCOL_RESULTS
+PROTOCOL_PARAMS = ("bulk_exponent", "shear_exponent", "wait_s", "protocol_frequency_hz")
+PROTOCOL_RESULTS = ("model_modulus_mN_per_m", "model_loss_angle_rad", "bulk_loss_angle_rad",
+                    "shear_loss_angle_rad", "modulus_ratio", "loss_angle_error_rad", "solves")
+TASK_RESULTS = {"compression": (), "viscoelastic_table": TABLE_RESULTS, "ramp_table": RAMP_RESULTS,
+                "protocol_bias": PROTOCOL_RESULTS}
+ALL_RESULTS = RESULTS + TABLE_RESULTS + RAMP_RESULTS + PROTOCOL_RESULTS   # what a journal record or a row may hold
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 ERROR_BYTES = 256           # an error message's room in its row
@@ -178,8 +186,9 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
     columns = campaign.shells.columns()             # no shell made
-    for key in PARAMS:
-        f[key] = columns[key]
+    for key in PARAMS + PROTOCOL_PARAMS:
+        if key in columns:              # PROTOCOL_PARAMS: a protocol-bias campaign's alone
+            f[key] = columns[key]
     for key, values in (("bending", columns["bending"]), ("task_id", task_ids(campaign.shells, campaign.method))):
         f.create_dataset(key, data=fixed_strings(values))
     for key in result_names(campaign):
@@ -200,6 +209,11 @@ def result_names(campaign: StoredCampaign) -> tuple[str, ...]:
 def stored_results(f: h5py.File | h5py.Group) -> tuple[str, ...]:
     """The result columns of the open store `f`: RESULTS and the task's own its rows hold."""
     return RESULTS + next((own for own in TASK_RESULTS.values() if own and own[0] in f), ())
+
+
+def stored_params(f: h5py.File | h5py.Group) -> tuple[str, ...]:
+    """The parameter columns of the open store `f`: PARAMS, and PROTOCOL_PARAMS in a protocol-bias store."""
+    return PARAMS + (PROTOCOL_PARAMS if PROTOCOL_PARAMS[0] in f else ())
 
 
 def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:

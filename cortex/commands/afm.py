@@ -25,6 +25,8 @@ if TYPE_CHECKING:
 
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
 TRUTH = "truth.json"
+TIME_DOMAIN_EXPONENTS = (0.1, 0.3)       # --time-domain's default (beta_B, beta_S)
+TIME_DOMAIN_WAIT_S = 100.0
 
 
 def _import_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
@@ -85,9 +87,19 @@ def _add_synth(s: Commands) -> None:
     g.add_argument("--calibration", metavar="CAL.json", help="calibration whose law is the forward model")
     g.add_argument("--bulk-exponent", type=float, metavar="BETA_B",
                    help="viscoelastic cells: population median of beta_B, |K_B*| ~ f^beta_B and delta_B = "
-                        "beta_B pi/2 (per-cell SD 0.03; with --shear-exponent; docs/viscoelastic.md)")
+                        "beta_B pi/2 (per-cell SD 0.03; with --shear-exponent; docs/viscoelastic.md; "
+                        f"default {TIME_DOMAIN_EXPONENTS[0]:g} with --time-domain)")
     g.add_argument("--shear-exponent", type=float, metavar="BETA_S",
-                   help="viscoelastic cells: population median of beta_S (with --bulk-exponent)")
+                   help="viscoelastic cells: population median of beta_S (with --bulk-exponent; "
+                        f"default {TIME_DOMAIN_EXPONENTS[1]:g} with --time-domain)")
+    g.add_argument("--time-domain", action="store_true",
+                   help="simulate each cell's whole protocol in time (power-law cortex K(t) ~ t^-beta, one "
+                        "equilibrium of the fast solver per step; about a minute a cell; docs/viscoelastic.md)")
+    g.add_argument("--wait-s", type=float, default=None, metavar="S",
+                   help=f"--time-domain: the wait at each mean height before its oscillations (default "
+                        f"{TIME_DOMAIN_WAIT_S:g} s)")
+    g.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="--time-domain: cells simulated in N processes at once (default 1)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler=synth)
@@ -182,8 +194,16 @@ def synth(args: argparse.Namespace) -> int:
     from common.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
-    out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
-    cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
+    if args.time_domain:
+        settings = _time_domain_settings(args)
+        out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
+        from analysis.afm.synth import time_cells
+        cells, truth = time_cells.generate(args.cells, args.seed, errors=not args.no_errors, **settings)
+    else:
+        if args.wait_s is not None or args.jobs != 1:
+            raise InputError("--wait-s and --jobs go with --time-domain")
+        out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
+        cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
     with out.writing(EXPERIMENT) as experiment:
         write_experiment(experiment, cells)
     text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
@@ -192,6 +212,27 @@ def synth(args: argparse.Namespace) -> int:
     say_result(args, {"experiment": str(experiment), "truth": str(truth_path), "n_cells": len(cells)},
           f"wrote {experiment} ({len(cells)} cells) and {truth_path}")
     return 0
+
+
+def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """`time_cells.generate`'s settings from the options (checked before any work)."""
+    import math
+
+    from common.errors import InputError
+    if args.solver != "fast" or args.calibration:
+        raise InputError("--time-domain simulates with the fast solver: no --solver other than fast, "
+                         "no --calibration")
+    bulk, shear = (TIME_DOMAIN_EXPONENTS[k] if x is None else x
+                   for k, x in enumerate((args.bulk_exponent, args.shear_exponent)))
+    if not all(math.isfinite(b) and 0 <= b <= 0.6 for b in (bulk, shear)):
+        raise InputError(f"--bulk-exponent and --shear-exponent must be in [0, 0.6] (got {bulk:g}, {shear:g})")
+    wait = TIME_DOMAIN_WAIT_S if args.wait_s is None else args.wait_s
+    if not (math.isfinite(wait) and 0 <= wait <= 1e4):
+        raise InputError(f"--wait-s must be a number of seconds in [0, 10000] (got {wait:g})")
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
+    return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "bending": args.bending,
+            "jobs": args.jobs, "progress": not args.json}
 
 
 def new_experiment_folder(path: str, names: list[str]) -> OutputDir:

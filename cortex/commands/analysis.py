@@ -1,7 +1,7 @@
 """`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
 viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR`,
 `cortex analysis build-viscoelastic-table STORE --out DIR`, `cortex analysis
-build-ramp-table STORE --out DIR` and `cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
+build-ramp-table STORE --out DIR`, `cortex analysis build-protocol-map STORE --out DIR` and `cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
 imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
@@ -18,6 +18,7 @@ from cortex.results import plain, say_result
 CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
 TABLE_FILE = "viscoelastic_table.json"    # what build-viscoelastic-table writes into its --out folder
 RAMP_TABLE_FILE = "shell_ramp_table.json"  # what build-ramp-table writes into its --out folder
+PROTOCOL_MAP_FILE = "protocol_map.json"    # what build-protocol-map writes into its --out folder (and figures)
 
 
 def register(sub: Commands) -> None:
@@ -26,7 +27,7 @@ def register(sub: Commands) -> None:
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_build_table, _add_build_ramp_table,
-                _add_invert):
+                _add_build_protocol_map, _add_invert):
         add(s)
 
 
@@ -73,10 +74,10 @@ def _add_build_calibration(s: Commands) -> None:
 
 
 def _add_table_builder(s: Commands, name: str, help: str, description: str, what: str, json_help: str,
-                       handler: Callable[[argparse.Namespace], int]) -> None:
-    """`cortex analysis NAME STORE --out DIR [--json]`: a shipped table from its campaign's store."""
+                       handler: Callable[[argparse.Namespace], int], needs: str = "every node done") -> None:
+    """`cortex analysis NAME STORE --out DIR [--json]`: a table from its campaign's store (`needs`: of its nodes)."""
     b = s.add_parser(name, help=help, description=description)
-    b.add_argument("store", metavar="STORE", help=f"store of a {what} campaign (HDF5), every node done")
+    b.add_argument("store", metavar="STORE", help=f"store of a {what} campaign (HDF5), {needs}")
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     b.add_argument("--json", action="store_true", help=json_help)
     b.set_defaults(handler=handler)
@@ -98,6 +99,17 @@ def _add_build_ramp_table(s: Commands) -> None:
         "node, analysis/afm/tension/shell_table.py) from a finished store of campaigns/ramp.toml. `make "
         "ramp-table` rebuilds the one shipped in the package this way.",
         "ramp-table", "one JSON object: table file, nodes, depths filled", build_ramp_table)
+
+
+def _add_build_protocol_map(s: Commands) -> None:
+    _add_table_builder(
+        s, "build-protocol-map", "the protocol's bias map from its campaign's store",
+        "Build DIR/protocol_map.json (per node: the segment fit of a recording simulated in time against the "
+        "relaxed-state model, |K*| ratio and loss-angle error; SPEC 12, analysis/afm/synth/protocol_map.py) and "
+        "its figures DIR/protocol_map_loss_angle.png/.pdf and DIR/protocol_map_modulus.png/.pdf from a "
+        "finished store of campaigns/protocol.toml. `make protocol-map` runs both steps.",
+        "protocol-bias", "one JSON object: map file, figures, nodes and the summary", build_protocol_map,
+        "every node finished (a failed node is listed apart)")
 
 
 def _add_invert(s: Commands) -> None:
@@ -180,6 +192,21 @@ def build_ramp_table(args: argparse.Namespace) -> int:
     nodes = len(doc["radius_um"]) * len(doc["gamma_tilde"]) * len(doc["shear_tilde"])
     say_result(args, {"table": str(doc["path"]), "nodes": nodes, "filled": doc["filled"]},
                f"wrote {doc['path']} ({nodes} nodes, {doc['filled']} depths filled)")
+    return 0
+
+
+def build_protocol_map(args: argparse.Namespace) -> int:
+    from analysis.afm.synth.protocol_map import FIGURES, figures, from_store
+    from outputs.ownership import OutputDir
+    OutputDir(args.out).check([f"{n}.{e}" for n in FIGURES for e in ("png", "pdf")])   # before any work
+    doc = _write_table(args, PROTOCOL_MAP_FILE, from_store)
+    shown = figures(doc, OutputDir(args.out))
+    summary = doc["summary"]
+    say_result(args, {"map": str(doc["path"]), "figures": [str(p) for p in shown], "summary": summary},
+               f"wrote {doc['path']} ({summary['nodes']} nodes done, {summary['nodes_failed']} failed; "
+               f"{summary['nodes_off']} off the relaxed-state "
+               f"model by more than {summary['loss_angle_tolerance_rad']:g} rad or "
+               f"{summary['modulus_tolerance']:.0%})")
     return 0
 
 

@@ -92,6 +92,11 @@ def solver_forward(bending: str = "standard", method: str = "fast", dh_um: float
     return forward
 
 
+def periods(frequency_hz: float) -> int:
+    """Periods of an oscillation segment: 5, 2 below 0.05 Hz (SPEC 6)."""
+    return 2 if frequency_hz < 0.05 else 5
+
+
 def subset_sizes(n_cells: int) -> list[tuple[tuple[float, ...], int]]:
     total = sum(n for _, n in SUBSETS)
     sizes = [round(n_cells * n / total) for _, n in SUBSETS]
@@ -99,7 +104,7 @@ def subset_sizes(n_cells: int) -> list[tuple[tuple[float, ...], int]]:
     return [(freqs, n) for (freqs, _), n in zip(SUBSETS, sizes)]
 
 
-def _parameters(i: int, rng: np.random.Generator) -> tuple[dict[str, Any], dict[str, Any]]:
+def parameters(i: int, rng: np.random.Generator) -> tuple[dict[str, Any], dict[str, Any]]:
     """The cell's drawn truth: diameter D, V = π D³/6, γ_a, K_B at 1 Hz, the
     population draw z, the height step and heights, blebbing, spring constant."""
     D = rng.uniform(19.0, 23.0)
@@ -148,8 +153,7 @@ def _protocol(rng: np.random.Generator, p: dict[str, Any], freqs: tuple[float, .
         segs.append(Segment("approach", n0, n0 + t.size))
         n0, t0, h_prev = n0 + t.size, t[-1] + 1.0 / APPROACH_RATE_HZ, h_m
         for f in freqs:
-            periods = 2 if f < 0.05 else 5
-            s = np.arange(0.0, periods / f, 1.0 / RATE_HZ)
+            s = np.arange(0.0, periods(f) / f, 1.0 / RATE_HZ)
             w = 2 * np.pi * f
             delta = float(np.angle(K[f][j])) if np.iscomplexobj(K[f]) else BETA * np.pi / 2
             h = h_m - AMPLITUDE_UM * np.sin(w * s)
@@ -165,27 +169,39 @@ def _protocol(rng: np.random.Generator, p: dict[str, Any], freqs: tuple[float, .
 
 def _cell(i: int, freqs: tuple[float, ...], rng: np.random.Generator, forward: Any,
           errors: bool) -> tuple[Cell, dict[str, Any]]:
-    p, truth = _parameters(i, rng)
+    p, truth = parameters(i, rng)
     K = _moduli(p, freqs, forward, truth)
     t, h, dg, segs = _protocol(rng, p, freqs, K)
+    gamma_a = active_tension(rng, p, t, truth)
+    fpt, _ = shape_of(p["V"], h)
+    return measured(rng, p, truth, t, (gamma_a + np.nan_to_num(dg)) * fpt, h, segs, errors), truth
+
+
+def active_tension(rng: np.random.Generator, p: dict[str, Any], t: npt.NDArray[np.float64],
+                   truth: dict[str, Any]) -> npt.NDArray[np.float64]:
+    """γ_a(t) (mN/m): the cell's, times U(1.25, 1.6) from a time U(0.3, 0.7) t_end on if it blebs."""
     gamma_a = np.full(t.size, p["tension"])
     if p["blebbing"]:
         t_jump = rng.uniform(0.3, 0.7) * t[-1]
         gamma_a[t >= t_jump] *= rng.uniform(1.25, 1.6)
         truth["bleb_time_s"] = float(t_jump)
-    fpt, _ = shape_of(p["V"], h)
-    force = (gamma_a + np.nan_to_num(dg)) * fpt
+    return gamma_a
+
+
+def measured(rng: np.random.Generator, p: dict[str, Any], truth: dict[str, Any], t: npt.NDArray[np.float64],
+             force: npt.NDArray[np.float64], h: npt.NDArray[np.float64], segs: list[Segment], errors: bool) -> Cell:
+    """The recording as the instrument gives it: with `errors`, force noise and drift, a height
+    offset and the volume's error (ERRORS)."""
     V_rec, h_rec = p["V"], h
     if errors:
         force = force + ERRORS["force_noise_nN"] * rng.standard_normal(t.size) \
             + rng.uniform(-1, 1) * ERRORS["drift_nN_per_s"] * t
         h_rec = h + ERRORS["height_offset_sd_um"] * rng.standard_normal()
         V_rec = p["V"] * (1.0 + ERRORS["volume_rel_sd"] * rng.standard_normal())
-    cell = Cell(cell_id=truth["cell_id"], volume_um3=float(V_rec), time_s=t, force_nN=force, height_um=h_rec,
+    return Cell(cell_id=truth["cell_id"], volume_um3=float(V_rec), time_s=t, force_nN=force, height_um=h_rec,
                 segments=segs, volume_source="synthetic (confocal-like, "
                                              f"{'with' if errors else 'no'} volume error)",
                 spring_constant_N_per_m=float(p["spring"]), date="2026-01-01")
-    return cell, truth
 
 
 def generate(n_cells: int = 85, seed: int = 0, errors: bool = True, forward: Forward | ModuliModel | None = None
@@ -201,18 +217,24 @@ def generate(n_cells: int = 85, seed: int = 0, errors: bool = True, forward: For
             cells.append(c)
             truths.append(t)
             i += 1
+    truth = {"seed": seed, "errors": errors, "error_model": ERRORS if errors else None,
+             "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, **summary(truths, n_cells)}
+    if getattr(forward, "viscoelastic", False):
+        truth.update(cast(ModuliModel, forward).describe())
+    return cells, truth
+
+
+def summary(truths: list[dict[str, Any]], n_cells: int) -> dict[str, Any]:
+    """truth.json's populations, per frequency the true median ν of the non-blebbing cells and
+    every cell's values, the cells and the true trend."""
     per_f = {}
     for f in POPULATIONS:
         vals = {t["cell_id"]: {**t["frequencies"][f], "blebbing": t["blebbing"]} for t in truths if f in t["frequencies"]}
         ok = [v["nu"] for v in vals.values() if not v["blebbing"]]
         per_f[str(f)] = {"frequency_hz": f, "median_nu_true": float(np.median(ok)) if ok else None,
                          "n_cells": len(vals), "cells": vals}
-    truth = {"seed": seed, "errors": errors, "error_model": ERRORS if errors else None,
-             "beta": BETA, "loss_angle_rad": BETA * np.pi / 2, "populations": {str(k): v for k, v in POPULATIONS.items()},
-             "frequencies": per_f, "cells": truths, **true_trend(n_cells)}
-    if getattr(forward, "viscoelastic", False):
-        truth.update(cast(ModuliModel, forward).describe())
-    return cells, truth
+    return {"populations": {str(k): v for k, v in POPULATIONS.items()}, "frequencies": per_f, "cells": truths,
+            **true_trend(n_cells)}
 
 
 def true_trend(n_cells: int) -> dict[str, float]:

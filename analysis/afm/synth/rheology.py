@@ -67,6 +67,18 @@ def emulator_complex(model: "ComplexModel", bending: str = "standard") -> Comple
     return forward
 
 
+def draw_exponents(rng: np.random.Generator, medians: tuple[float, float]) -> npt.NDArray[np.float64]:
+    """A cell's (β_B, β_S): the medians plus SPREAD ε, clipped to EXPONENT_RANGE."""
+    return np.clip(np.array(medians) + SPREAD * rng.standard_normal(2), *EXPONENT_RANGE)
+
+
+def describe(medians: tuple[float, float]) -> dict[str, Any]:
+    """truth.json's account of the exponents' population."""
+    return {"viscoelastic": {"bulk_exponent_median": medians[0], "shear_exponent_median": medians[1],
+                             "exponent_spread_sd": SPREAD, "exponent_range": list(EXPONENT_RANGE),
+                             "shear_ratio_1hz_population": list(POPULATIONS[1.0])}}
+
+
 class ViscoelasticForward:
     """The synthetic experiment's forward model for viscoelastic cells (`analysis.afm.synth.cells`)."""
 
@@ -81,7 +93,7 @@ class ViscoelasticForward:
     def moduli(self, p: dict[str, Any], freqs: tuple[float, ...], truth: dict[str, Any]) -> dict[float, np.ndarray]:
         """K* (complex, mN/m) at every mean height per frequency; the truth gets the exponents
         and per frequency the moduli, loss angles and complex moduli."""
-        beta = np.clip(np.array(self.medians) + SPREAD * self.rng.standard_normal(2), *EXPONENT_RANGE)
+        beta = draw_exponents(self.rng, self.medians)
         mu, sigma = POPULATIONS[1.0]
         ks1 = float(np.exp(mu + sigma * p["z"]))
         truth["bulk_exponent"], truth["shear_exponent"] = float(beta[0]), float(beta[1])
@@ -99,6 +111,4 @@ class ViscoelasticForward:
         return K
 
     def describe(self) -> dict[str, Any]:
-        return {"viscoelastic": {"bulk_exponent_median": self.medians[0], "shear_exponent_median": self.medians[1],
-                                 "exponent_spread_sd": SPREAD, "exponent_range": list(EXPONENT_RANGE),
-                                 "shear_ratio_1hz_population": list(POPULATIONS[1.0])}}
+        return describe(self.medians)

@@ -1,0 +1,117 @@
+"""A protocol-bias campaign's nodes (`[campaign] task = "protocol_bias"`, SPEC 12): each shell
+of the grid (`campaign.grid.Grid`) under each point of the `[protocol]` section's product.
+
+The `[protocol]` axes (PROTOCOL_KEYS):
+
+    exponents      a list of pairs [β_B, β_S] of K(t) = K(1 s) (t/1 s)^-β (K(1 s): the grid's
+                   moduli): pairs, not a product, so a campaign picks the ones it needs
+    wait_s         T_w, the wait at the mean height before the oscillation (a number or a list)
+    frequency_hz   f, the oscillation's frequency (a number or a list)
+
+The protocol points are the product exponents × wait_s × frequency_hz (m of them, the last
+fastest); node i is shell i // m under point i % m, so the protocol varies fastest. A node's store columns are the shell's parameters and PROTOCOL_PARAMS
+(`campaign.store.schema`; the frequency as `protocol_frequency_hz`, apart from the viscous
+interior's `frequency_hz`); its id and the campaign's fingerprint are made from `to_dict`, the
+shell's fields and the protocol's.
+"""
+
+import itertools
+import math
+import operator
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from campaign.grid import Grid
+from common.errors import InputError
+from solver.model import Shell
+
+PROTOCOL_KEYS = ("exponents", "wait_s", "frequency_hz")
+NODE_KEYS = ("bulk_exponent", "shear_exponent", "wait_s", "frequency_hz")   # a node's protocol
+COLUMN = {"bulk_exponent": "bulk_exponent", "shear_exponent": "shear_exponent", "wait_s": "wait_s",
+          "frequency_hz": "protocol_frequency_hz"}      # a [protocol] key's store column
+
+
+@dataclass(frozen=True)
+class ProtocolNode:
+    """One node: the shell (K(1 s) its moduli, h0 = h_m + Δh/2) and the protocol point."""
+
+    shell: Shell
+    bulk_exponent: float
+    shear_exponent: float
+    wait_s: float
+    frequency_hz: float
+
+    def to_dict(self) -> dict[str, object]:
+        """The shell's fields and the protocol's (as their store columns)."""
+        return {**self.shell.to_dict(), **{COLUMN[k]: getattr(self, k) for k in NODE_KEYS}}
+
+
+def _is_number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def protocol_axes(path: Any, section: dict[str, Any]) -> dict[str, list[Any]]:
+    """The `[protocol]` section's axes (`exponents` as (β_B, β_S) tuples, each β in [0, 1); T_w >= 0 s;
+    f > 0 Hz), each non-empty; InputError naming what is wrong if not."""
+    missing = [k for k in PROTOCOL_KEYS if k not in section]
+    if missing:
+        raise InputError(f"{path}: [protocol] needs {', '.join(missing)}")
+    pairs = section["exponents"]
+    if not isinstance(pairs, list) or not pairs or not all(
+            isinstance(p, list) and len(p) == 2 and all(_is_number(b) and 0.0 <= b < 1.0 for b in p) for p in pairs):
+        raise InputError(f"{path}: [protocol] exponents must be a list of pairs [beta_B, beta_S], each in [0, 1) "
+                         f"(got {pairs!r})")
+    axes: dict[str, list[Any]] = {"exponents": [(float(b), float(s)) for b, s in pairs]}
+    for key, least, strict in (("wait_s", 0.0, False), ("frequency_hz", 0.0, True)):
+        values = section[key] if isinstance(section[key], list) else [section[key]]
+        if not values or not all(_is_number(v) and (v > least if strict else v >= least) for v in values):
+            raise InputError(f"{path}: [protocol] {key} must be a number {'>' if strict else '>='} 0 or a "
+                             f"non-empty list of them (got {section[key]!r})")
+        axes[key] = [float(v) for v in values]
+    return axes
+
+
+class ProtocolGrid(Sequence):
+    """The nodes of `shells` × the product of the protocol `axes` (`protocol_axes`)."""
+
+    def __init__(self, shells: Grid, axes: dict[str, list[Any]]):
+        self.shells = shells
+        self.points = [(b, s, w, f) for (b, s), w, f in
+                       itertools.product(axes["exponents"], axes["wait_s"], axes["frequency_hz"])]
+        self.m = len(self.points)
+
+    def __len__(self) -> int:
+        return len(self.shells) * self.m
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        i = operator.index(i)
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"node {i} out of range ({len(self)} nodes)")
+        s, p = divmod(i % len(self), self.m)
+        return ProtocolNode(self.shells[s], *self.points[p])
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The shells' columns (`Grid.columns`), each repeated per protocol point, and PROTOCOL_PARAMS."""
+        cols = {k: np.repeat(v, self.m) for k, v in self.shells.columns().items()}
+        points = np.array(self.points, float)
+        for j, key in enumerate(NODE_KEYS):
+            cols[COLUMN[key]] = np.tile(points[:, j], len(self.shells))
+        return cols
+
+    def texts(self, template: str, keys: Sequence[str], encode: Callable[[Any], str]) -> Iterator[str]:
+        """`template % tuple(encode(value of k) for k in keys)` at every node (keys among `to_dict`'s)."""
+        for node in self:
+            d = node.to_dict()
+            yield template % tuple(encode(d[k]) for k in keys)
+
+    def reprs(self) -> Iterator[str]:
+        """repr(node.to_dict()) of every node, in order: what the campaign's fingerprint is made of."""
+        return (repr(node.to_dict()) for node in self)
+
+    def __repr__(self) -> str:
+        return f"ProtocolGrid({len(self.shells)} shells x {self.m} protocol points)"

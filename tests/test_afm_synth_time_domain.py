@@ -1,0 +1,68 @@
+"""`cortex afm synth --time-domain`: a tiny experiment simulated in time, written in the native
+format with its truth and read by `afm analyze`'s reader; impossible values refused (status 2)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from analysis.afm.formats.reader import open as open_cells
+from analysis.afm.synth import cells as sy
+from analysis.afm.timeseries import segment_moduli
+from cortex.cli import main
+
+
+@pytest.fixture
+def tiny(monkeypatch):
+    """One cell (0.1, 1 and 10 Hz, as the published design's first subset), its first two mean
+    heights."""
+    draw = sy.parameters
+
+    def two_heights(i, rng):
+        p, truth = draw(i, rng)
+        p["h_means"] = p["h_means"][:2]
+        return p, truth
+    monkeypatch.setattr(sy, "parameters", two_heights)
+
+
+def test_synth_time_domain_writes_an_experiment_with_its_truth(tiny, tmp_path, capsys):
+    """The experiment holds per height an approach and 5-period oscillations at 100 Hz; the
+    segment fit of a noiseless recording finds a mean tension above γ_a (a 5 s wait leaves
+    part of the steps' stress: found 14-33 % above) and a loss angle between the bulk's and
+    the shear's (found 0.12-0.21 rad, δ_B 0.11, δ_S 0.44-0.51); truth.json holds the
+    exponents, the wait and the cost."""
+    out = tmp_path / "exp"
+    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--wait-s", "5", "--no-errors",
+                 "--out", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_cells"] == 1
+    truth = json.loads((out / "truth.json").read_text())
+    cell_truth = truth["cells"][0]
+    assert truth["time_domain"]["wait_s"] == 5.0 and truth["viscoelastic"]["bulk_exponent_median"] == 0.1
+    assert abs(cell_truth["bulk_exponent"] - 0.1) < 0.15 and abs(cell_truth["shear_exponent"] - 0.3) < 0.15
+    assert truth["time_domain"]["cost"][0]["steps"] > 2 * 5 * 64
+    (cell,) = open_cells([str(out / "experiment.h5")])
+    kinds = [(s.kind, s.frequency_hz if s.kind == "oscillation" else None) for s in cell.segments]
+    assert kinds == [("approach", None), ("oscillation", 0.1), ("oscillation", 1.0), ("oscillation", 10.0)] * 2
+    assert [s.stop - s.start for s in cell.segments if s.kind == "oscillation"] == [5000, 500, 50] * 2
+    for row in segment_moduli(cell):
+        f = cell_truth["frequencies"][str(row["frequency_hz"])]
+        assert 1.0 < row["tension_mN_per_m"] / cell_truth["tension_mN_per_m"] < 1.5
+        assert f["bulk_loss_angle_rad"] < row["loss_angle_rad"] < f["shear_loss_angle_rad"]
+    assert np.all(np.diff(cell.time_s) > 0)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--bulk-exponent", "0.7"], "must be in"),
+    (["--wait-s", "-1"], "--wait-s"),
+    (["--solver", "law"], "fast solver"),
+    (["--jobs", "0"], "--jobs"),
+])
+def test_impossible_time_domain_settings_are_refused(args, message, tmp_path, capsys):
+    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--out", str(tmp_path / "x"), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and not (tmp_path / "x" / "experiment.h5").exists()
+
+
+def test_wait_without_time_domain_is_refused(tmp_path, capsys):
+    assert main(["afm", "synth", "--cells", "1", "--wait-s", "5", "--out", str(tmp_path / "x")]) == 2
+    assert "--time-domain" in capsys.readouterr().err
