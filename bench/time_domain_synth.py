@@ -7,7 +7,9 @@
 - `bulk`, `shear`: over the cells `afm analyze` gave exponents (rheology.csv; cells with two
   frequencies or more), the median estimate against the median of the true exponents, the
   largest error, and the share of cells whose 95 % interval holds the true exponent;
-- `paired_test`: summary.json's test of β_S > β_B.
+- `paired_test`: summary.json's test of β_S > β_B; `tension_deviation`: over the cells, the
+  largest deviation of the mean tension per height from its median (cells.csv; the published
+  filter excludes a cell above 10 %).
 
     cortex afm synth --time-domain --cells 40 --out EXP [--bulk-exponent 0.1 --shear-exponent 0.3
                      --wait-s 100 --jobs 2]
@@ -53,10 +55,10 @@ def main() -> None:
     out = {"medians": [truth["viscoelastic"]["bulk_exponent_median"], truth["viscoelastic"]["shear_exponent_median"]],
            "wait_s": truth["time_domain"]["wait_s"], "errors": truth["errors"], "cost": cost(truth),
            **exponents(truth, pd.read_csv(analysis / "rheology.csv"))}
-    summary = json.loads((analysis / "summary.json").read_text())
-    if "paired_test" in summary:
-        out["paired_test"] = {k: summary["paired_test"].get(k) for k in
-                              ("median_difference", "p_value_greater", "shear_exponent_greater")}
+    paired = json.loads((analysis / "summary.json").read_text()).get("viscoelastic", {}).get("paired_test", {})
+    out["paired_test"] = {k: paired.get(k) for k in ("median_difference", "p_value_greater", "shear_exponent_greater")}
+    cells = pd.read_csv(analysis / "cells.csv").groupby("cell_id")["tension_deviation"].first()
+    out["tension_deviation"] = {"median": float(cells.median()), "min": float(cells.min()), "max": float(cells.max())}
     print(json.dumps(out))
 
 
