@@ -32,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from analysis.invert import intervals
-from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.invert.emulator_fit import CurveArrays, filled_heights, ks_bounds
 from solver.geometry import cell_radius
 
 if TYPE_CHECKING:
@@ -64,9 +64,9 @@ def _model(table: Any, slice_: Any, theta: Any, h: Any, tension: Any, volume_um3
     return value, jac
 
 
-def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: CurveArrays,
                  lnk: npt.NDArray[np.complex128], steps: int = STEPS) -> tuple[Any, Any]:
-    """Refit θ per row of `curves` (an `analysis.invert.emulator_fit.Curves`, K unused) to the measured
+    """Refit θ per row of `curves` (an `analysis.invert.emulator_fit.CurveArrays`, K unused) to the measured
     ln K* `lnk` (rows, m), starting from `theta` (rows, 4); rows of one volume share an
     emulator slice. Returns θ (rows, 4) and the residual sum of squares (rows,)."""
     h, _, use, tension, volume = curves
@@ -92,7 +92,7 @@ def gauss_newton(table: ComplexTable, emulator: Emulator, bending: str, theta: n
     return x, ss
 
 
-def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, lnk: npt.NDArray[np.complex128],
+def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: CurveArrays, lnk: npt.NDArray[np.complex128],
         start: npt.NDArray[np.float64]) -> tuple[Any, Any]:
     """θ* per curve from `start` (rows, 2: the magnitude-only (ln K_B, ln K̃_S)); NaN where
     `start` is not finite. Returns θ* (rows, 4) and the residual variance s² per component."""
@@ -103,7 +103,7 @@ def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, l
         return theta, s2
     phase = np.nanmedian(np.where(curves.use, lnk.imag, np.nan)[ok], axis=1)
     x0 = np.column_stack([start[ok], phase, phase])
-    sub = Curves(*(a[ok] for a in curves))
+    sub = CurveArrays(*(a[ok] for a in curves))
     theta[ok], ss = gauss_newton(table, emulator, bending, x0, sub, lnk[ok])
     n = sub.use.sum(axis=1)
     s2[ok] = ss / np.maximum(2 * n - 4, 1)
@@ -112,7 +112,7 @@ def fit(table: ComplexTable, emulator: Emulator, bending: str, curves: Curves, l
 
 def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDArray[np.float64],
           s2: npt.NDArray[np.float64],
-          curves: Curves, lnk: npt.NDArray[np.complex128], normals: npt.NDArray[np.float64], *,
+          curves: CurveArrays, lnk: npt.NDArray[np.complex128], normals: npt.NDArray[np.float64], *,
           volume_sd: float = intervals.VOLUME_SD, height_sd_um: float = intervals.HEIGHT_SD_UM,
           dh_um: float = intervals.DH_UM, seed: int = 0) -> npt.NDArray[np.float64]:
     """θ_m (rows, M, 4) of the bootstrap; `normals` (rows, M, 2): each row's (ε_m, η_m)."""
@@ -140,7 +140,7 @@ def draws(table: ComplexTable, emulator: Emulator, bending: str, theta: npt.NDAr
     flat = lambda a: a.reshape(c * M, *a.shape[2:])                      # noqa: E731
     measured = (flat(np.broadcast_to(radius, (c, M, 1))), flat(np.broadcast_to(heights, (c, M, m))))
     K_t = intervals.truth_moduli(flat(k_seen), (flat(r_true), flat(h_true)), measured, gamma_t.ravel(), dh=dh_um)
-    drawn = Curves(flat(h_true / (2.0 * r_true)), None, np.repeat(us, M, axis=0), gamma_t.ravel(),
+    drawn = CurveArrays(flat(h_true / (2.0 * r_true)), None, np.repeat(us, M, axis=0), gamma_t.ravel(),
                    np.repeat(vs, M))
     with np.errstate(invalid="ignore", divide="ignore"):
         lnk_t = np.log(K_t.astype(complex))

@@ -33,7 +33,7 @@ import pandas as pd
 from scipy.stats import wilcoxon
 
 from analysis.invert import intervals
-from analysis.invert.emulator_fit import Curves
+from analysis.invert.emulator_fit import CurveArrays
 from analysis.invert.inversion import to_curves, used_heights
 from analysis.viscoelastic_fit import complex_poisson, draws, fit
 from common.errors import InputError
@@ -126,7 +126,7 @@ def per_frequency(table: pd.DataFrame, segments: pd.DataFrame, emulator: Emulato
     h, k, d = (arr[c][idx] for c in ("h_tilde", "modulus_mN_per_m", "_delta"))
     use = used_heights(h, k)[0]
     tension, volume = table["tension_mN_per_m"].to_numpy(float), table["volume_um3"].to_numpy(float)
-    curves = Curves(h, k, use, tension, volume)
+    curves = CurveArrays(h, k, use, tension, volume)
     with np.errstate(invalid="ignore", divide="ignore"):
         lnk = np.log(np.where(use, k, 1.0)) + 1j * np.where(use, d, 0.0)
     start = np.column_stack([np.log(table["bulk_mN_per_m"]), np.log(table["ks_tilde"])])

@@ -45,8 +45,9 @@ START_POINTS = 25
 NU_ISOTROPIC_MAX = 0.5
 
 
-class Curves(NamedTuple):
-    """Many cells' K(h̃) curves, NaN-padded rows: h̃, K (mN/m), the heights used,
+class CurveArrays(NamedTuple):
+    """The emulator fit's arrays of many cells' K(h̃) curves (the labelled table is
+    `analysis.invert.curves.Curves`), NaN-padded rows: h̃, K (mN/m), the heights used,
     γ_a (mN/m) and V (µm³) per cell."""
 
     h: Any
@@ -67,7 +68,7 @@ def filled_heights(h: npt.ArrayLike, use: npt.ArrayLike) -> npt.NDArray[np.float
     return np.where(use, h, 0.6)
 
 
-def _start(emulator: Emulator, bending: str, curves: Curves) -> Any:
+def _start(emulator: Emulator, bending: str, curves: CurveArrays) -> Any:
     """θ0 per cell: the best of START_POINTS values of ln K̃_S, K_B by three
     fixed-point steps of the linear least squares at each."""
     h, k, use, tension, volume = curves
@@ -130,8 +131,8 @@ class _Model:
         return K * (1.0 - d_g), K * d_ks
 
 
-def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.float64]:
-    """θ = (ln K_B, ln K̃_S) per cell (rows of `Curves`), least squares over all
+def fit(emulator: Emulator, bending: str, curves: CurveArrays) -> npt.NDArray[np.float64]:
+    """θ = (ln K_B, ln K̃_S) per cell (rows of `CurveArrays`), least squares over all
     cells at once. Cells without usable heights get NaN."""
     h, k, use, tension, volume = curves
     n, m = h.shape
@@ -139,7 +140,7 @@ def fit(emulator: Emulator, bending: str, curves: Curves) -> npt.NDArray[np.floa
     theta = np.full((n, 2), np.nan)
     if not ok.any():
         return theta
-    sub = Curves(filled_heights(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok])
+    sub = CurveArrays(filled_heights(h[ok], use[ok]), np.where(use[ok], k[ok], 0), use[ok], tension[ok], volume[ok])
     hs, ks, us, ts, vs = sub
     cells = hs.shape[0]
     rows = np.repeat(np.arange(cells * m), 2)
@@ -179,7 +180,7 @@ def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tensi
     volume = np.broadcast_to(np.asarray(volume, float), h.shape[:1]).copy()
     use, n, top = used_heights(h, k)
     use &= (tension > 0)[:, None]
-    curves = Curves(h, k, use, tension, volume)
+    curves = CurveArrays(h, k, use, tension, volume)
     theta = fit(emulator, bending, curves)
     bulk, ks = np.exp(theta[:, 0]), np.exp(theta[:, 1])
     nu = poisson_of_ratio(ks)
@@ -202,7 +203,7 @@ def invert_curves_emulator(h_tilde: npt.ArrayLike, modulus: npt.ArrayLike, tensi
                          "excluded_reason": pd.Series(reasons, dtype=object)})
 
 
-def _goodness(emulator: Emulator, bending: str, theta: Any, curves: Curves) -> tuple[Any, Any]:
+def _goodness(emulator: Emulator, bending: str, theta: Any, curves: CurveArrays) -> tuple[Any, Any]:
     """R² and the RMS residual (mN/m, n - 2 degrees of freedom) per cell."""
     h, k, use, tension, volume = curves
     with np.errstate(invalid="ignore", divide="ignore"):

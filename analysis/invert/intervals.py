@@ -61,7 +61,7 @@ import numpy.typing as npt
 import pandas as pd
 from scipy.stats import bootstrap
 
-from analysis.invert.emulator_fit import Curves, filled_heights, ks_bounds
+from analysis.invert.emulator_fit import CurveArrays, filled_heights, ks_bounds
 from analysis.invert.inversion import H_TILDE_MAX, pass_height_filters
 from analysis.invert.measurement_errors import DRAWS, HEIGHT_SD_UM, LEVEL, VOLUME_SD
 from solver.elasticity import poisson_of_ratio
@@ -156,19 +156,19 @@ def _refits(emulator: Emulator, bending: str, rng: np.random.Generator, cells: t
     flat = lambda a: a.reshape(c * draws, *a.shape[2:])                      # noqa: E731
     measured = (flat(np.broadcast_to(radius, (c, draws, 1))), flat(np.broadcast_to(heights, (c, draws, m))))
     K_t = _truth_moduli(flat(k_seen), (flat(r_true), flat(h_true)), measured, gamma_t.ravel(), dh=dh_um)
-    drawn = Curves(flat(h_true / (2.0 * r_true)), K_t, np.repeat(use, draws, axis=0), gamma_t.ravel(),
+    drawn = CurveArrays(flat(h_true / (2.0 * r_true)), K_t, np.repeat(use, draws, axis=0), gamma_t.ravel(),
                    np.repeat(vs, draws))
     x = _gauss_newton(emulator[bending], np.repeat(th, draws, axis=0), drawn, steps=steps,
                       bounds=ks_bounds(emulator, bending))
     return x[:, 1].reshape(c, draws), _in_window(h, k, radius, r_true, h_true, heights)
 
 
-def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: Curves,
+def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float64], curves: CurveArrays,
                    rms: npt.NDArray[np.float64], *, draws: int = DRAWS,
                    volume_sd: float = VOLUME_SD, height_sd_um: float = HEIGHT_SD_UM, dh_um: float = DH_UM,
                    seed: int = 0, steps: int = GN_STEPS) -> tuple[Any, Any, Any, Any, Any]:
     """(ks_lo, ks_hi, nu_lo, nu_hi, ln_ks_se) arrays per cell (rows of `curves`, an
-    `analysis.invert.emulator_fit.Curves`, fitted θ and residual RMS `rms` (mN/m) per cell;
+    `analysis.invert.emulator_fit.CurveArrays`, fitted θ and residual RMS `rms` (mN/m) per cell;
     NaN where θ is not finite)."""
     h, k, use, tension, volume = curves
     out = np.full((5, h.shape[0]), np.nan)
@@ -198,7 +198,7 @@ def cell_intervals(emulator: Emulator, bending: str, theta: npt.NDArray[np.float
     return tuple(out)
 
 
-def _gauss_newton(table: Any, x: Any, curves: Curves, *, steps: int, bounds: Any) -> Any:
+def _gauss_newton(table: Any, x: Any, curves: CurveArrays, *, steps: int, bounds: Any) -> Any:
     """Refit θ = (ln K_B, ln K̃_S) of every row of `curves` from its start `x`: damped Gauss-Newton
     steps on the 2 x 2 normal equations, each step at most MAX_STEP in ln units and
     ln K̃_S kept within the fit's bounds; rows of one volume share a `VolumeSlice`."""

@@ -35,8 +35,8 @@ import numpy.typing as npt
 import pandas as pd
 
 from analysis.invert import intervals
-from analysis.invert.curves import Curves as CurveTable, curves_of
-from analysis.invert.emulator_fit import Curves, invert_curves_emulator
+from analysis.invert.curves import Curves, curves_of
+from analysis.invert.emulator_fit import CurveArrays, invert_curves_emulator
 from analysis.invert.inversion import invert_curves, used_heights
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.errors import InputError
@@ -69,7 +69,7 @@ class Inversion(ABC):
     def variants(self) -> list[str]:
         """The bending variants it can invert with."""
 
-    def invert(self, curves: CurveTable, bending: str, errors: MeasurementErrors | None = None) -> pd.DataFrame:
+    def invert(self, curves: Curves, bending: str, errors: MeasurementErrors | None = None) -> pd.DataFrame:
         """Invert `curves` with the bending variant `bending` (`errors`: what the 95 % intervals
         include): one row per curve, columns as in the module docstring (intervals NaN where
         the method gives none)."""
@@ -141,7 +141,7 @@ class EmulatorInversion(Inversion):
         use, _, _ = used_heights(h, k)
         theta = np.column_stack([np.log(out["bulk_mN_per_m"]), np.log(out["ks_tilde"])])
         ks_lo, ks_hi, nu_lo, nu_hi, ln_ks_se = intervals.cell_intervals(
-            self.emulator, bending, theta, Curves(h, k, use, tension, volume), out["rms_mN_per_m"].to_numpy(),
+            self.emulator, bending, theta, CurveArrays(h, k, use, tension, volume), out["rms_mN_per_m"].to_numpy(),
             draws=errors.draws, volume_sd=errors.volume_rel_sd, height_sd_um=errors.height_sd_um,
             seed=errors.seed)
         out["nu_lo95"], out["nu_hi95"], out["ks_lo95"], out["ks_hi95"] = nu_lo, nu_hi, ks_lo, ks_hi
