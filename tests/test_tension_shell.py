@@ -10,15 +10,24 @@ from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.depths import depth_flag, depth_rows
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.ramp import fit_ramp
-from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, SHEAR_TILDE, SIGNIFICANT, Fixed, fit_shell, shear_profile,
+from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, SHEAR_TILDE, SIGNIFICANT, Fixed, fit_shell, refit_shell,
                                             shell_interval)
-from analysis.afm.tension.shell_shear import (BOUNDED, IDENTIFIED, NOT_IDENTIFIED, fit_unknown_shear, identification,
+from analysis.afm.tension.shell_shear import (BOUNDED, IDENTIFIED, fit_unknown_shear, identification,
                                               shear_range)
 from analysis.afm.tension.shell_table import unit_forces
 from analysis.afm.tension.synth import droplet_force_nN, shell_ramp as elastic_ramp
 
 CELLS = 40
 SAMPLES = 8000           # a ramp to 0.14 R and as far above the contact: 4 s at 2 kHz
+
+def shear_profile(fit, x_um, force_nN, radius_um, shears):
+    """[(K̃_S, Δχ², γ_a, K_B)] of `fit` refitted at each K̃_S of `shears`, Δχ² = ΔSSE/σ² with the
+    fit's own noise σ: an independent look at how much one ramp tells about K̃_S."""
+    fits = [refit_shell(fit, x_um, force_nN, radius_um, Fixed(float(s))) for s in np.asarray(shears, float)]
+    sse = np.array([g.sse_nN2 for g in fits])
+    return [(g.shear_tilde, float((s - sse.min()) / fit.noise_nN ** 2), g.tension_mN_per_m, g.bulk_mN_per_m)
+            for g, s in zip(fits, sse)]
+
 
 def _cells():
     rng = np.random.default_rng(35)

@@ -22,8 +22,7 @@ Jacobian at the optimum); `sd` holds the SDs of γ_a and K_B and `correlation`
 their correlation. At the bound K_B = 0 the Jacobian's SDs do not hold (a ramp
 that cannot tell γ_a from K_B often lands there): the fit is redone at
 K_B = γ_a · PROFILE and the SDs widened to the span of the accepted ones
-(`_bound_sds`). `shear_profile` refits at each K̃_S of a grid: Δχ² = ΔSSE/σ²
-against K̃_S says how much one ramp tells about K̃_S. `shell_interval`: the 95 %
+(`_bound_sds`). `shell_interval`: the 95 %
 intervals with the volume error.
 
 Elastic term (K_B free only): the droplet (K_B = 0) is nested in the shell, so
@@ -255,15 +254,6 @@ def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, rad
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde, sse_nN2=sse,
                    tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None)
-
-
-def shear_profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
-                  shears: npt.ArrayLike) -> list[tuple[float, float, float, float]]:
-    """[(K̃_S, Δχ², γ_a, K_B)] of the fit refitted at each K̃_S of `shears` (module doc)."""
-    fits = [refit_shell(fit, x_um, force_nN, radius_um, Fixed(float(s))) for s in np.asarray(shears, float)]
-    sse = np.array([g.sse_nN2 for g in fits])
-    return [(g.shear_tilde, float((s - sse.min()) / fit.noise_nN ** 2), g.tension_mN_per_m, g.bulk_mN_per_m)
-            for g, s in zip(fits, sse)]
 
 
 def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,
