@@ -9,7 +9,10 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   compressions still queued, so the short tasks come last and even out the
   ranks' ends. A task is its number (`campaign.task_key.TaskNumbers`).
 - **Batch size** (tasks per message). With `W` workers, `R` ranks
-  computing, `M` tasks queued, `T̄` the running mean task time and `c̄` rank
+  computing, `M` tasks queued, `T̄` the running mean task time of the kind
+  at the queue's front (compressions and trial tasks are timed apart, and a
+  batch holds one kind: a trial may take a thousand times a compression, or
+  the reverse) and `c̄` rank
   0's running mean cost of serving one result message (receiving it,
   journalling its entries, the flush, the refill):
 
@@ -24,7 +27,7 @@ scheduler gives it (no MPI, no store, no clock), which tasks go where:
   guided self-scheduling (Polychronopoulos & Kuck 1987): large batches
   while much is left, single tasks at the end, so no rank is left with a
   long tail. A batch is never more than `BATCH_S_MAX` of work nor more than
-  `BATCH_MAX` tasks. Before any task has been timed, b = 1.
+  `BATCH_MAX` tasks. Before any task of the kind has been timed, b = 1.
 - **Look-ahead.** A worker is kept `ahead = max(AHEAD, 2 b)` tasks ahead: one
   batch computing, one queued, so it never waits for rank 0's answer.
 - **Does rank 0 compute?** It computes tasks itself between messages while
@@ -79,7 +82,7 @@ class Policy:
 
     def __init__(self, rows: Iterable[int], waits: Mapping[int, Iterable[int]], n: int, workers: int):
         numbers, self.workers = TaskNumbers(n), workers
-        self.task_s: float | None = None
+        self.times: dict[bool, float] = {}          # is a trial task -> running mean task time
         self.cost_s: float | None = None
         pending = set(numbers.of_compressions(rows))
         self.waiting: dict[int, int] = {}            # trial task -> compressions it still waits for
@@ -92,6 +95,7 @@ class Policy:
                 self.dependents.setdefault(r, []).append(trial)
         first = sorted(r for r in pending if r in self.dependents)
         self.todo = deque(first + sorted(pending - set(first)))
+        self.compressions_queued = len(self.todo)   # the queue: compressions, then trial tasks
         self.todo.extend(self._ready())
 
     def _ready(self) -> list[int]:
@@ -113,10 +117,15 @@ class Policy:
             del self.waiting[t]
             self.todo.append(t)
 
-    def timed(self, tasks: int, seconds: float) -> None:
-        """`tasks` tasks took `seconds` of computing."""
+    def timed(self, tasks: int, seconds: float, trials: bool = False) -> None:
+        """`tasks` tasks (trial tasks if `trials`, else compressions) took `seconds` of computing."""
         if tasks > 0:
-            self.task_s = _mean(self.task_s, seconds / tasks)
+            self.times[trials] = _mean(self.times.get(trials), seconds / tasks)
+
+    @property
+    def task_s(self) -> float | None:
+        """T̄ of the kind at the queue's front (trial tasks when it is empty); None if not timed yet."""
+        return self.times.get(not self.compressions_queued)
 
     def served(self, messages: int, seconds: float) -> None:
         """Rank 0 took `seconds` to serve `messages` result messages."""
@@ -173,8 +182,13 @@ class Policy:
         return out
 
     def take(self, count: int) -> list[int]:
-        """The next `count` tasks (fewer if fewer are queued), no longer queued."""
-        return [self.todo.popleft() for _ in range(min(count, len(self.todo)))]
+        """The next `count` tasks (fewer if fewer are queued, or if the
+        compressions queued end before), no longer queued."""
+        k = min(count, len(self.todo))
+        if self.compressions_queued:
+            k = min(k, self.compressions_queued)
+            self.compressions_queued -= k
+        return [self.todo.popleft() for _ in range(k)]
 
     def left(self) -> int:
         """Tasks not yet handed out: queued, or trial tasks still waiting."""

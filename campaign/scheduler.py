@@ -219,6 +219,11 @@ def _master(comm, store, campaign, retry_failed, progress, tasks=None):
     return _exit_status(master.policy.left(), master.failed, store.path)
 
 
+def _are_trials(entries):
+    """Whether a batch's entries (one kind: `Policy.take`) are trial tasks'."""
+    return not is_batch(entries) and len(entries) > 0 and not is_compression(entries[0])
+
+
 def _exit_status(left, failed, store_path):
     """The run's exit status, with a line saying what to do next."""
     if _stop["flag"] and left:
@@ -307,7 +312,7 @@ class _Master:
         while (got := self.link.receive()) is not None:
             entries, busy_s = got
             self.record(entries)
-            self.policy.timed(len(entries), busy_s)
+            self.policy.timed(len(entries), busy_s, _are_trials(entries))
             messages += 1
         if messages:
             self.flush()
@@ -327,7 +332,7 @@ class _Master:
         entries, busy_s = self.tasks.collect()
         if more:
             self.submit()
-        self.policy.timed(len(entries), busy_s)
+        self.policy.timed(len(entries), busy_s, _are_trials(entries))
         self.record(entries)
         self.refill()                 # a finished compression may have made trials ready
 

@@ -164,3 +164,26 @@ def test_rank_0_takes_about_master_batch_s_of_tasks_at_once():
     alone = Policy(rows=range(100_000), waits={}, n=100_000, workers=0)
     alone.timed(1000, 1000 * 1e-4)
     assert alone.master_batch() == alone.batch_size() > 1
+
+
+def test_trials_are_timed_apart_from_the_compressions_before_them():
+    """Instant compressions must not size the first batch of slow trial tasks: a
+    batch holds one kind, each kind has its own T̄, and an untimed kind gets one
+    task a batch. (A stop on a signal waits for the batches in flight; a batch of
+    100 trials of 0.5 s sized by 0.1 ms compressions held a one-rank run 50 s.)"""
+    p = Policy(rows=range(60), waits={j: [j % 60] for j in range(200)}, n=60, workers=0)
+    while p.compressions_queued:
+        batch = p.take(p.master_batch())
+        assert all(t < 60 for t in batch)                    # no trial rides along with compressions
+        p.timed(len(batch), len(batch) * 1e-4)               # instant compressions
+        for t in batch:
+            p.finished(t)
+    assert len(p.todo) == 200 and p.task_s is None           # trials queued, none timed
+    assert p.master_batch() == 1 and p.batch_size() == 1
+    first = p.take(p.master_batch())
+    p.timed(len(first), 0.5, trials=True)
+    assert p.task_s == 0.5 and p.times[False] == pytest.approx(1e-4)
+    assert p.batch_size() * p.task_s <= policy.BATCH_S_MAX   # at most 5 s of work in flight per batch
+    mixed = Policy(rows=range(4), waits={0: [0]}, n=4, workers=1)
+    mixed.finished(mixed.take(1)[0])                         # trial 0 ready, behind rows 1-3
+    assert mixed.take(10) == [1, 2, 3] and mixed.take(10) == [4]
