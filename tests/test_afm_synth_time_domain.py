@@ -9,6 +9,7 @@ import pytest
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.synth import cells as sy
 from analysis.afm.timeseries import segment_moduli
+from analysis.afm.waits import step_ages_s
 from cortex.cli import main
 
 
@@ -49,6 +50,9 @@ def test_synth_time_domain_writes_an_experiment_with_its_truth(tiny, tmp_path, c
         assert 1.0 < row["tension_mN_per_m"] / cell_truth["tension_mN_per_m"] < 1.5
         assert f["bulk_loss_angle_rad"] < row["loss_angle_rad"] < f["shear_loss_angle_rad"]
     assert np.all(np.diff(cell.time_s) > 0)
+    ages = step_ages_s(cell)                            # the wait read back off the recording
+    assert ages[0] == pytest.approx(5.0, abs=1.0) and ages[3] == pytest.approx(5.0, abs=1.0)
+    assert np.allclose(np.diff(ages[:3]), [50.0, 5.0], atol=0.05)   # then 5 periods at 0.1 and 1 Hz
 
 
 @pytest.mark.parametrize("args, message", [
