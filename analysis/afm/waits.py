@@ -39,7 +39,8 @@ def step_end_s(cell: Cell, oscillation: Segment) -> float:
 
 def step_ages_s(cell: Cell, wait_s: float | None = None) -> list[float]:
     """a_j (s) of every oscillation segment of `cell`, in order; with `wait_s`, T_w = wait_s."""
-    ages, first = [], {}
+    ages: list[float] = []
+    first: dict[float, float] = {}
     for seg in cell.oscillations():
         t_s, t_j = step_end_s(cell, seg), float(cell.time_s[seg.start])
         if math.isnan(t_s):
