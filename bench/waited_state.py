@@ -11,7 +11,9 @@ linear response |K*_w| alone (`linear`), at the middle of the oscillation t_w + 
 held in the response (`at_td_label`: K*_w, tangent). One JSON line per node, errors as
 |K*|_td / model - 1 and δ_td - δ_model.
 
-    python bench/waited_state.py [--nodes 0,5,...] [--part 0 --parts 2] > nodes.jsonl
+    python bench/waited_state.py [--nodes 0,5,... | --physiological] [--part 0 --parts 2] > nodes.jsonl
+
+(`--physiological`: every shell at β_B 0.1, β_S 0.2 and 0.4, f 0.1 and 1 Hz, T_w = 100 s.)
 """
 
 import argparse
@@ -110,11 +112,15 @@ def models(node: Any) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--nodes", default=None)
+    parser.add_argument("--physiological", action="store_true")
     parser.add_argument("--part", type=int, default=0)
     parser.add_argument("--parts", type=int, default=1)
     args = parser.parse_args()
     nodes = load(CAMPAIGN).shells
     ids = [int(i) for i in args.nodes.split(",")] if args.nodes else chosen(nodes)
+    if args.physiological:
+        ids = [i for i, n in enumerate(nodes) if (n.bulk_exponent, n.shear_exponent) in ((0.1, 0.2), (0.1, 0.4))
+               and n.wait_s == 100.0 and n.frequency_hz in (0.1, 1.0)]
     for i in ids[args.part::args.parts]:
         node = nodes[i]
         start = time.perf_counter()

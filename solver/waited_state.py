@@ -37,7 +37,7 @@ The prestress K(t_w) a is the time domain's (its mean tension γ_0 within 0.4 % 
 map's physiological nodes, `bench/waited_state.py`); what separates the model from the time
 domain there is the contact label: the time domain's lags the waited equilibrium's (its history
 is left out of dE/dl), and about the waited state with the time domain's label held the two
-|K*| agree to 0.6 % (docs/viscoelastic.md).
+|K*| agree to -0.4..+1.1 % (docs/viscoelastic.md, "The waited-state model").
 
 Limits: the strains creep during the wait (γ_a and the relaxing moduli redistribute them; a
 different β_B and β_S turn the ratio K_S/K_B), which K(t_w) a of the final strains ignores; the
