@@ -7,10 +7,16 @@ mean height) the plate visits the mean heights h_1 > h_2 > ... in turn; at each 
 2. oscillates h(t) = h_i + A sin(2π f (t - t_f)) at each of the cell's frequencies f, one after
    another from the last one's end, n_f periods each (`solver.time_protocol.oscillate`).
 
-One `TimeShell` carries the cortex's history through the whole recording: every stress is
-σ(t) = ∫ K(t - t') dε(t') over everything since t = 0, so each height starts from what the
-earlier heights left. A power-law cortex K_B(t) = K_B,1s (t/1 s)^-β_B, K_S(t) = K_S,1s (t/1 s)^-β_S
-is written as Prony series (`power_law_cortex`, `solver.prony.fit_power_law`).
+With `history` "carried" (the default) one `TimeShell` carries the cortex's history through the
+whole recording: every stress is σ(t) = ∫ K(t - t') dε(t') over everything since t = 0, so each
+height starts from what the earlier heights left. With "relaxed" every mean height h_i starts
+from its own relaxed droplet at h_i + Δh (Δh = h0 - h_1, the cell's first step): a fresh
+`TimeShell` of reference h_i + Δh, no stress from the earlier heights (the assumption of the
+published relaxed-state reading, SPEC 10); the recording's times run on, and the approach's
+samples are read between the relaxed droplet at h_i + Δh (its force) and h_i.
+
+A power-law cortex K_B(t) = K_B,1s (t/1 s)^-β_B, K_S(t) = K_S,1s (t/1 s)^-β_S is written as
+Prony series (`power_law_cortex`, `solver.prony.fit_power_law`).
 
 The instrument's samples: every oscillation at `sample_hz` (100 Hz: 10 a period at 10 Hz; the
 plate's height exactly, the force splined through the steps); the ramps and waits at `approach_hz`
@@ -18,12 +24,13 @@ plate's height exactly, the force splined through the steps); the ramps and wait
 an approach and which an oscillation (and at which f).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
 
 from common.errors import InputError
+from common.names import CORTEX_HISTORIES
 from solver.model import Shell
 from solver.prony import fit_power_law
 from solver.time_domain import Cortex, TimeShell
@@ -41,7 +48,9 @@ def power_law_cortex(bulk_1s_mN_per_m: float, shear_1s_mN_per_m: float, bulk_exp
 
 @dataclass(frozen=True)
 class CellProtocol:
-    """The mean heights (µm, decreasing), the frequencies at each (Hz) and the periods of each."""
+    """The mean heights (µm, decreasing), the frequencies at each (Hz) and the periods of each;
+    `history`: "carried" (one cortex history through every height) or "relaxed" (each height
+    from its own relaxed droplet one cell step above it; module docstring)."""
 
     heights_um: tuple[float, ...]
     frequencies_hz: tuple[float, ...]
@@ -51,8 +60,12 @@ class CellProtocol:
     ramp_um_per_s: float = 0.2
     sample_hz: float = 100.0
     approach_hz: float = 1.0
+    history: str = "carried"
 
     def __post_init__(self) -> None:
+        if self.history not in CORTEX_HISTORIES:
+            raise InputError(f"the cortex history must be one of {', '.join(CORTEX_HISTORIES)} "
+                             f"(got {self.history!r})")
         h = np.asarray(self.heights_um, float)
         if h.size < 1 or np.any(~np.isfinite(h)) or np.any(np.diff(h) >= 0) or h[-1] <= self.amplitude_um:
             raise InputError("mean heights must be finite, decreasing and above the oscillation's amplitude")
@@ -100,7 +113,8 @@ def _sampled(steps: Steps, t_from_s: float, h_from_um: float, f_from_nN: float, 
 
 def run_cell(shell: Shell, cortex: Cortex, protocol: CellProtocol) -> CellRecording:
     """Simulate `protocol` on the shell (reference droplet at shell.h0_um, above the first mean
-    height) with `cortex`: the recording at t = 0 (the reference) and every sample after."""
+    height) with `cortex`: the recording at t = 0 (the reference) and every sample after; with
+    `protocol.history` "relaxed" each later height from its own relaxed droplet (module docstring)."""
     p = protocol
     if shell.h0_um <= p.heights_um[0]:
         raise InputError("the reference droplet must stand above the first mean height")
@@ -108,12 +122,15 @@ def run_cell(shell: Shell, cortex: Cortex, protocol: CellProtocol) -> CellRecord
     pieces = [Steps(np.zeros(1), np.full(1, shell.h0_um), np.full(1, state.force_nN()))]
     rec = CellRecording(np.empty(0), np.empty(0), np.empty(0))
     n, steps = 1, 0
-    for h_m in p.heights_um:
-        last = pieces[-1]
-        app = approach(state, float(last.time_s[-1]), h_m, p.ramp_um_per_s, p.wait_s,
-                       1.0 / p.sample_hz)
-        pieces.append(_sampled(app, float(last.time_s[-1]), float(last.height_um[-1]), float(last.force_nN[-1]),
-                               p.approach_hz))
+    for i, h_m in enumerate(p.heights_um):
+        t_from = float(pieces[-1].time_s[-1])
+        if i and p.history == "relaxed":      # a fresh cortex, relaxed one cell step above h_m
+            state = TimeShell(replace(shell, h0_um=h_m + shell.h0_um - p.heights_um[0]), cortex)
+            h_from, f_from = state.h_um, state.force_nN()
+        else:
+            h_from, f_from = float(pieces[-1].height_um[-1]), float(pieces[-1].force_nN[-1])
+        app = approach(state, t_from, h_m, p.ramp_um_per_s, p.wait_s, 1.0 / p.sample_hz)
+        pieces.append(_sampled(app, t_from, h_from, f_from, p.approach_hz))
         rec.stretches.append(Stretch("approach", n, n + len(pieces[-1].time_s)))
         n, steps = n + len(pieces[-1].time_s), steps + len(app.time_s)
         for f, cycles in zip(p.frequencies_hz, p.cycles):

@@ -1,5 +1,5 @@
 """A whole cell's protocol in time (`solver.cell_protocol`): heights one after another, one
-cortex history, sampled as an instrument samples."""
+cortex history (or each height from its own relaxed droplet), sampled as an instrument samples."""
 
 from dataclasses import replace
 
@@ -53,7 +53,29 @@ def test_a_power_law_cortex_relaxes_and_carries_its_history():
     assert rec.force_nN[last.stop - 1] < direct.force_nN[first.stop - 1] - 1.0
 
 
+def test_the_relaxed_history_starts_every_height_from_its_own_relaxed_droplet():
+    """history "relaxed": the second height (12.0 µm) is recorded as a cell of reference droplet
+    one step (0.5 µm) above it, 12.5 µm, taken to 12.0 µm alone (same samples, to round-off:
+    found identical; its times after the first height's); the first height is the carried
+    history's. With the history carried the force there is higher: the earlier step's stress
+    is kept (found +7.1 nN on average over the height's samples, of 56 nN)."""
+    cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
+    two = replace(PROTOCOL, heights_um=(12.5, 12.0))
+    relaxed = run_cell(SHELL, cortex, replace(two, history="relaxed"))
+    carried = run_cell(SHELL, cortex, two)
+    fresh = run_cell(replace(SHELL, h0_um=12.5), cortex, replace(two, heights_um=(12.0,)))
+    second = relaxed.stretches[2].start                 # the second height's approach
+    assert relaxed.stretches == carried.stretches and relaxed.steps == carried.steps
+    assert np.array_equal(relaxed.force_nN[:second], carried.force_nN[:second])
+    assert np.allclose(relaxed.force_nN[second:], fresh.force_nN[1:], rtol=1e-12, atol=1e-9)
+    assert np.allclose(relaxed.height_um[second:], fresh.height_um[1:], atol=1e-12)
+    assert np.allclose(relaxed.time_s[second:] - relaxed.time_s[second - 1], fresh.time_s[1:], atol=1e-9)
+    assert np.mean(carried.force_nN[second:] - fresh.force_nN[1:]) > 5.0
+
+
 def test_bad_cell_protocols_are_refused():
+    with pytest.raises(InputError, match="history"):
+        CellProtocol(heights_um=(11.0,), frequencies_hz=(1.0,), cycles=(5,), history="forgotten")
     with pytest.raises(InputError, match="decreasing"):
         CellProtocol(heights_um=(11.0, 12.0), frequencies_hz=(1.0,), cycles=(5,))
     with pytest.raises(InputError, match="wait"):

@@ -14,7 +14,7 @@ import argparse
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from common.names import RAMP_MODELS, SOLVERS
+from common.names import CORTEX_HISTORIES, RAMP_MODELS, SOLVERS
 from cortex.options import (OUT_HELP, Commands, add_bending, add_error_options, add_inversion_options,
                             inversion_settings, measurement_errors)
 from cortex.results import plain, say_result
@@ -100,6 +100,10 @@ def _add_synth(s: Commands) -> None:
                         f"{TIME_DOMAIN_WAIT_S:g} s)")
     g.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="--time-domain: cells simulated in N processes at once (default 1)")
+    g.add_argument("--history", choices=CORTEX_HISTORIES, default=None, metavar="HISTORY",
+                   help="--time-domain: the cortex's history across mean heights, %(choices)s (default carried: "
+                        "one history through the whole protocol; relaxed: every mean height from its own relaxed "
+                        "droplet one cell step above it, as the relaxed-state reading assumes)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler=synth)
@@ -200,8 +204,8 @@ def synth(args: argparse.Namespace) -> int:
         from analysis.afm.synth import time_cells
         cells, truth = time_cells.generate(args.cells, args.seed, errors=not args.no_errors, **settings)
     else:
-        if args.wait_s is not None or args.jobs != 1:
-            raise InputError("--wait-s and --jobs go with --time-domain")
+        if args.wait_s is not None or args.jobs != 1 or args.history is not None:
+            raise InputError("--wait-s, --jobs and --history go with --time-domain")
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
         cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
     with out.writing(EXPERIMENT) as experiment:
@@ -232,7 +236,7 @@ def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
     return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "bending": args.bending,
-            "jobs": args.jobs, "progress": not args.json}
+            "jobs": args.jobs, "progress": not args.json, "history": args.history or "carried"}
 
 
 def new_experiment_folder(path: str, names: list[str]) -> OutputDir:

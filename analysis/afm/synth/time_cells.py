@@ -13,6 +13,8 @@ The recording is the time-domain shell (`solver.cell_protocol.run_cell`, the fas
 and Newton iteration, one equilibrium per step) driven from the relaxed droplet one step above
 the first mean height: every height's ramp (0.2 µm/s), the wait T_w, then its frequencies one
 after another (5 periods, 2 at 0.02 Hz), oscillations at 100 Hz, approaches stored at 1 Hz.
+`history` "carried" (the default) keeps one cortex history through every height; "relaxed"
+starts each height from its own relaxed droplet one cell step above it (`CellProtocol.history`).
 Bending stays elastic with B of K_B(1 s), K_S(1 s) for the chosen variant. A blebbing cell's
 jump of γ_a adds Δγ_a 2 H A_c(h) to the force; then the measurement errors of `cells.ERRORS`.
 
@@ -62,7 +64,8 @@ def _simulate(job: Job) -> tuple[CellRecording | str, float]:
 
 
 def _draw(i: int, freqs: tuple[float, ...], rng: np.random.Generator, exp_rng: np.random.Generator,
-          medians: tuple[float, float], wait_s: float, bending: str) -> tuple[dict[str, Any], dict[str, Any], Job]:
+          medians: tuple[float, float], wait_s: float, bending: str,
+          history: str) -> tuple[dict[str, Any], dict[str, Any], Job]:
     """The cell's parameters, truth and simulation."""
     p, truth = sy.parameters(i, rng)
     beta = draw_exponents(exp_rng, medians)
@@ -77,7 +80,7 @@ def _draw(i: int, freqs: tuple[float, ...], rng: np.random.Generator, exp_rng: n
                   shear_mN_per_m=shear1, tension_mN_per_m=p["tension"], bending=bending)
     protocol = CellProtocol(tuple(map(float, p["h_means"])), freqs, tuple(sy.periods(f) for f in freqs),
                             wait_s=wait_s, amplitude_um=sy.AMPLITUDE_UM, ramp_um_per_s=sy.SPEED_UM_PER_S,
-                            sample_hz=sy.RATE_HZ, approach_hz=sy.APPROACH_RATE_HZ)
+                            sample_hz=sy.RATE_HZ, approach_hz=sy.APPROACH_RATE_HZ, history=history)
     return p, truth, Job(shell, cortex, protocol)
 
 
@@ -104,13 +107,13 @@ def _cell(rng: np.random.Generator, p: dict[str, Any], truth: dict[str, Any], re
 
 def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: float = 0.1,
              shear_exponent: float = 0.3, wait_s: float = 100.0, bending: str = "standard", jobs: int = 1,
-             progress: bool = True) -> tuple[list[Cell], dict[str, Any]]:
+             progress: bool = True, history: str = "carried") -> tuple[list[Cell], dict[str, Any]]:
     """Return (cells, truth) as `cells.generate` does, the recordings simulated in time; the
     truth's `cost` holds the simulation steps and wall time per cell."""
     from tqdm import tqdm
     rng, exp_rng = np.random.default_rng(seed), np.random.default_rng([seed, 10])
     medians = (float(bulk_exponent), float(shear_exponent))
-    drawn = [_draw(i, freqs, rng, exp_rng, medians, float(wait_s), bending)
+    drawn = [_draw(i, freqs, rng, exp_rng, medians, float(wait_s), bending, history)
              for i, freqs in enumerate(f for freqs, n in sy.subset_sizes(n_cells) for f in [freqs] * n)]
     bar = tqdm(total=n_cells, unit="cell", desc="time-domain cells", file=sys.stderr, disable=not progress)
     with ProcessPoolExecutor(jobs, mp_context=get_context("fork")) if jobs > 1 else _Serial() as pool:
@@ -131,8 +134,8 @@ def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: fl
     if not cells:
         raise SolverError(f"no cell could be simulated: {next(iter(failed.values()))}")
     truth_all = {"seed": seed, "errors": errors, "error_model": sy.ERRORS if errors else None,
-                 "time_domain": {"wait_s": float(wait_s), "bending": bending, "jobs": jobs, "cost": cost,
-                                 "failed_cells": failed},
+                 "time_domain": {"wait_s": float(wait_s), "bending": bending, "history": history, "jobs": jobs,
+                                 "cost": cost, "failed_cells": failed},
                  **sy.summary(truths, n_cells), **describe(medians)}
     return cells, truth_all
 
