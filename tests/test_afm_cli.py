@@ -1,9 +1,11 @@
-"""`cortex afm`: synth and analyze end to end; malformed input -> one line, status 2."""
+"""`cortex afm`: synth and analyze end to end; the tension filter's tolerance; malformed input ->
+one line, status 2."""
 
 import json
 
 import h5py
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis.afm.formats.csvcell import write_csv_cell
@@ -43,6 +45,36 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
     capsys.readouterr()
     assert main(["afm", "synth", "--cells", "2", "--out", str(data), "--solver", "law",
                  "--calibration", str(cal)]) == 2
+
+
+def test_tension_tolerance_excludes_or_keeps_a_blebbing_cell(setup, tmp_path, capsys):
+    """Seed 0's cell002 blebs: its segments' mean tension deviates 34 % from its median (the
+    others 0.7-4.6 %). The published 0.1 excludes it (the reason names the limit); 0.5 and inf
+    keep it; summary.json says which tolerance (null for inf)."""
+    _, cal, _, _ = setup
+    data = tmp_path / "exp"
+    assert main(["afm", "synth", "--cells", "4", "--seed", "0", "--out", str(data), "--solver", "law",
+                 "--calibration", str(cal), "--json"]) == 0
+    for given, written, kept in ((None, 0.1, False), ("0.5", 0.5, True), ("inf", None, True)):
+        out = tmp_path / f"out{given}"
+        option = [] if given is None else ["--tension-tolerance", given]
+        assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out), "--no-phase",
+                     *option]) == 0
+        table = pd.read_csv(out / "cells.csv")
+        assert table.loc[table["cell_id"] == "cell002", "tension_deviation"].iloc[0] == pytest.approx(0.343, abs=0.01)
+        by_tension = table["excluded_reason"].astype("string").str.contains("tension", na=False)
+        assert set(table.loc[by_tension, "cell_id"]) == (set() if kept else {"cell002"}), given
+        assert json.loads((out / "summary.json").read_text())["tension_tolerance"] == written
+    assert "limit 10 %" in pd.read_csv(tmp_path / "outNone" / "cells.csv")["excluded_reason"].dropna().iloc[0]
+
+
+@pytest.mark.parametrize("value", ["-0.1", "nan"])
+def test_impossible_tension_tolerance_is_refused(setup, tmp_path, capsys, value):
+    _, cal, good, _ = setup
+    assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--out", str(tmp_path / "o"),
+                 "--tension-tolerance", value]) == 2
+    err = capsys.readouterr().err
+    assert "tension tolerance" in err and "Traceback" not in err and not (tmp_path / "o").exists()
 
 
 def _h5(path, cells, edit):

@@ -8,18 +8,18 @@ that frequency of <γ_eff>, V the cell's volume), and per cell its tension
 deviation: the segment means over the whole recording (all frequencies),
 max |<γ_eff>_i - median| / median.
 
-`cell_table(measured, inverted, law)`, per variant: the inversion's table with
-the segments' count and median loss angle per curve, the tension filter
-(published: a deviation above TENSION_TOLERANCE = 10 %, e.g. blebbing, excludes
-the cell with that reason) and `outside_calibration`: for the emulator its
+`cell_table(measured, inverted, law, tension_tolerance)`, per variant: the inversion's
+table with the segments' count and median loss angle per curve, the tension filter
+(a deviation above `tension_tolerance` excludes the cell with that reason; published,
+the default: TENSION_TOLERANCE = 10 %, e.g. blebbing; inf lifts it) and `outside_calibration`: for the emulator its
 `outside_emulator`; for the paper's law (`law` given) whether K̃_S or γ̃_a lies
 outside the law's grid (the α-table axes; ν then rests on the log law's
 extrapolation; None for a law without a table). The law's table keeps the
 columns and the row order (the recordings') it has always had.
 
-`inverted(measured, inversion, bending, errors)`: the cells table of one variant (the
-curves inverted, then `cell_table`); `analyze_cells(cells, inversion, bending, errors)`:
-`measure` and `inverted` at once -> (cells table, segments table).
+`inverted(measured, inversion, bending, errors, tension_tolerance)`: the cells table of one
+variant (the curves inverted, then `cell_table`); `analyze_cells(cells, inversion, bending,
+errors, tension_tolerance)`: `measure` and `inverted` at once -> (cells table, segments table).
 
 `summarise(table)`: the population summary (`analysis.afm.population.summary`)
 and, for a table with intervals, each frequency's bootstrap 95 % interval of the
@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from analysis.invert.measurement_errors import MeasurementErrors
     from analysis.invert.method import Inversion
 
-TENSION_TOLERANCE = 0.10
+TENSION_TOLERANCE = 0.10     # the published filter: the default of `tension_tolerance` (`check_tolerance`)
 LAW_COLUMNS = ["cell_id", "frequency_hz", "bending", "volume_um3", "tension_mN_per_m", "tension_deviation",
                "n_segments", "loss_angle_rad", "nu", "ks_tilde", "bulk_mN_per_m", "alpha", "r2", "gamma_tilde",
                "n_heights", "h_tilde_max", "excluded_reason", "outside_calibration"]
@@ -91,9 +91,18 @@ def _deviation(tension: pd.Series, median: float) -> float:
     return float(np.max(np.abs(tension - median)) / median) if median > 0 else np.inf
 
 
-def cell_table(measured: Measured, inverted: pd.DataFrame, law: Law | None = None) -> pd.DataFrame:
+def check_tolerance(tension_tolerance: float) -> float:
+    """`tension_tolerance` (a fraction; inf lifts the filter) if it is a number >= 0, else InputError."""
+    if not tension_tolerance >= 0:          # NaN too
+        raise InputError(f"the tension tolerance must be a fraction >= 0, or inf (got {tension_tolerance:g})")
+    return float(tension_tolerance)
+
+
+def cell_table(measured: Measured, inverted: pd.DataFrame, law: Law | None = None,
+               tension_tolerance: float = TENSION_TOLERANCE) -> pd.DataFrame:
     """The cells table of one variant from `inverted` (`Inversion.invert(measured.curves, ...)`);
-    `law`: the variant's law when the paper's law inverted (module docstring)."""
+    `law`: the variant's law when the paper's law inverted; `tension_tolerance`: the largest
+    tension deviation kept (module docstring)."""
     table = inverted.copy()
     table["tension_deviation"] = table["cell_id"].map(measured.deviation)
     table["n_segments"] = measured.n_segments
@@ -103,7 +112,8 @@ def cell_table(measured: Measured, inverted: pd.DataFrame, law: Law | None = Non
     else:
         table["outside_calibration"] = pd.Series(
             [_outside(law, k, g) for k, g in zip(table["ks_tilde"], table["gamma_tilde"])], dtype=object)
-    _tension_filter(table, measured.median_tension if law is not None else None)
+    _tension_filter(table, check_tolerance(tension_tolerance),
+                    measured.median_tension if law is not None else None)
     if law is None:
         return table
     rank = {c: i for i, c in enumerate(measured.order)}
@@ -111,11 +121,11 @@ def cell_table(measured: Measured, inverted: pd.DataFrame, law: Law | None = Non
     return table[LAW_COLUMNS].reset_index(drop=True)
 
 
-def _tension_filter(table: pd.DataFrame, median: dict[str, float] | None) -> None:
-    """Exclude, in place, every row of a cell whose tension deviation exceeds TENSION_TOLERANCE
+def _tension_filter(table: pd.DataFrame, tolerance: float, median: dict[str, float] | None) -> None:
+    """Exclude, in place, every row of a cell whose tension deviation exceeds `tolerance`
     (the reason names the median tension when `median` is given)."""
-    bad = table["tension_deviation"] > TENSION_TOLERANCE
-    limit = f"(limit {100 * TENSION_TOLERANCE:.0f} %)"
+    bad = table["tension_deviation"] > tolerance
+    limit = f"(limit {100 * tolerance:.3g} %)"
     table.loc[bad, "excluded_reason"] = [
         f"average tension not constant: deviates {100 * d:.0f} % from its median "
         + (f"{median[c]:.3g} mN/m " if median is not None else "") + limit
@@ -152,16 +162,18 @@ def summarise(table: pd.DataFrame) -> dict[str, Any]:
     return out
 
 
-def inverted(measured: Measured, inversion: Inversion, bending: str,
-             errors: MeasurementErrors | None = None) -> pd.DataFrame:
-    """The cells table of the curves of `measured` inverted with variant `bending`."""
+def inverted(measured: Measured, inversion: Inversion, bending: str, errors: MeasurementErrors | None = None,
+             tension_tolerance: float = TENSION_TOLERANCE) -> pd.DataFrame:
+    """The cells table of the curves of `measured` inverted with variant `bending`, the tension
+    filter at `tension_tolerance`."""
     from analysis.invert.method import LawInversion
     law = inversion.calibration[bending] if isinstance(inversion, LawInversion) else None
-    return cell_table(measured, inversion.invert(measured.curves, bending, errors), law)
+    return cell_table(measured, inversion.invert(measured.curves, bending, errors), law, tension_tolerance)
 
 
 def analyze_cells(cells: list[Cell], inversion: Inversion, bending: str = "standard",
-                  errors: MeasurementErrors | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                  errors: MeasurementErrors | None = None,
+                  tension_tolerance: float = TENSION_TOLERANCE) -> tuple[pd.DataFrame, pd.DataFrame]:
     """`cells` measured and inverted with variant `bending`: (cells table, segments table)."""
     measured = measure(cells)
-    return inverted(measured, inversion, bending, errors), measured.segments
+    return inverted(measured, inversion, bending, errors, tension_tolerance), measured.segments

@@ -22,7 +22,8 @@ DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
 random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
-report.md, which also lists the recordings not analysed.
+report.md, which also lists the recordings not analysed. summary.json's
+`tension_tolerance` is the tension filter's (`Settings.tension_tolerance`; null: lifted, inf).
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
 NanoScope files and folders of them (`analysis.afm.formats.reader.open`, with the volume and dish
@@ -41,13 +42,14 @@ phase and the paired test), report.md a section (`analysis.afm.rheology`)."""
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import pandas as pd
 
-from analysis.afm.analyze import Measured, inverted, measure, summarise
+from analysis.afm.analyze import TENSION_TOLERANCE, Measured, check_tolerance, inverted, measure, summarise
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
@@ -68,7 +70,9 @@ NO_OSCILLATION = "no modulation (oscillation) segment"
 @dataclass(frozen=True)
 class Settings:
     """How to analyse: the selected bending variant, the inversion method,
-    the error model of the emulator's intervals, how to read instrument files."""
+    the error model of the emulator's intervals, how to read instrument files, the tension
+    filter's tolerance (`analysis.afm.analyze`: published 0.1; inf lifts it; InputError if
+    negative or NaN)."""
 
     bending: str = "standard"
     method: str = "emulator"     # the command's default (`cortex.options.inversion_settings`)
@@ -77,6 +81,10 @@ class Settings:
     phase: bool = False          # the viscoelastic reading (`analysis.afm.rheology`)
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
+    tension_tolerance: float = TENSION_TOLERANCE
+
+    def __post_init__(self) -> None:
+        check_tolerance(self.tension_tolerance)
 
 
 @dataclass
@@ -128,10 +136,10 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
 
 
 
-def _variants(measured: Measured, inversion: Inversion, variants: list[str],
-              errors: MeasurementErrors | None) -> list[tuple[pd.DataFrame, dict[str, Any]]]:
+def _variants(measured: Measured, inversion: Inversion, variants: list[str], errors: MeasurementErrors | None,
+              tension_tolerance: float) -> list[tuple[pd.DataFrame, dict[str, Any]]]:
     """Per variant of `variants`: its cells table and summary."""
-    tables = [inverted(measured, inversion, v, errors) for v in variants]
+    tables = [inverted(measured, inversion, v, errors, tension_tolerance) for v in variants]
     return [(t, summarise(t)) for t in tables]
 
 
@@ -143,9 +151,10 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     measured = measure(rec.cells)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
-    with beside(_variants, measured, rec.inversion, others, settings.errors) as rest:
+    tolerance = settings.tension_tolerance
+    with beside(_variants, measured, rec.inversion, others, settings.errors, tolerance) as rest:
         [(fitted.tables[selected], fitted.sums[selected])] = _variants(measured, rec.inversion, [selected],
-                                                                       settings.errors)
+                                                                       settings.errors, tolerance)
         try:
             _readings(rec, settings, fitted)
         except Exception:
@@ -205,7 +214,9 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
         if variant == bending:
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
-    _write(out, "summary.json", _json({"bending": bending, "method": settings.method, **fitted.sums[bending]}))
+    tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
+    _write(out, "summary.json", _json({"bending": bending, "method": settings.method, "tension_tolerance": tolerance,
+                                       **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if has_intervals(fitted.tables[bending]):

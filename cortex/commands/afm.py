@@ -147,6 +147,10 @@ def _add_analyze(s: Commands) -> None:
                          "added back to every loss angle")
     ph.add_argument("--phase-lag-rad", metavar="F=RAD,...",
                     help="the instrument's phase lag per frequency, e.g. 1=0.02,10=0.2")
+    a.add_argument("--tension-tolerance", type=float, default=None, metavar="X",
+                   help="the tension filter: a cell whose segments' mean tension deviates from its median by more "
+                        "than the fraction X is excluded (default 0.1, as published; inf lifts the filter; "
+                        "summary.json tension_tolerance)")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler=analyze)
@@ -363,13 +367,15 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
 def analyze(args: argparse.Namespace) -> int:
     import json
 
+    from analysis.afm.analyze import TENSION_TOLERANCE, check_tolerance
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
+    tolerance = check_tolerance(TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance)
     file, errors = inversion_settings(args)          # also settles the default --method
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
-                        phase=phase, lags=lags, lag_source=lag_source)
+                        phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance)
     result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
