@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from analysis.afm.analyze import TENSION_TOLERANCE
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.synth.cells import generate, law_forward
@@ -66,6 +67,11 @@ def test_tension_tolerance_excludes_or_keeps_a_blebbing_cell(setup, tmp_path, ca
         assert set(table.loc[by_tension, "cell_id"]) == (set() if kept else {"cell002"}), given
         assert json.loads((out / "summary.json").read_text())["tension_tolerance"] == written
     assert "limit 10 %" in pd.read_csv(tmp_path / "outNone" / "cells.csv")["excluded_reason"].dropna().iloc[0]
+
+
+def test_the_help_names_the_published_tolerance(capsys):
+    assert main(["afm", "analyze", "--help"]) == 0
+    assert f"(default {TENSION_TOLERANCE:g}, as published;" in " ".join(capsys.readouterr().out.split())
 
 
 @pytest.mark.parametrize("value", ["-0.1", "nan"])
