@@ -28,10 +28,10 @@ from analysis.afm.synth.protocol_bias import node_results
 from campaign.config import load
 from solver.cell_protocol import power_law_cortex
 from solver.fast import _newton
-from solver.prestressed_response import material_parts, prestressed_modulus
+from solver.prestressed_response import complex_response, prestressed_modulus
 from solver.time_domain import TimeShell
 from solver.time_protocol import Protocol, approach
-from solver.viscous import Linearised, full_hessian, hold_label, linearise, respond
+from solver.viscous import Linearised, full_hessian, hold_label, linearise
 from solver.waited_state import waited_moduli, waited_state, waited_time_s
 
 CAMPAIGN = "campaigns/protocol.toml"
@@ -79,9 +79,7 @@ def at_td_label(node: Any, cortex: Any, protocol: Protocol, t_w: float) -> tuple
     lin = Linearised(lag=waited.lag, u=u, zp=waited.zp, H=full_hessian(waited.lag, u, waited.zp),
                      force_nN=force, h_mean_um=waited.h_mean_um, shell=model, held=True)
     hold_label(lin.H, 1.0)
-    MB, MS = material_parts(lin, model)
-    Kb, Ks = cortex.bulk.complex_modulus(f), cortex.shear.complex_modulus(f)
-    K = respond(lin, 0.0, f, (Kb - bulk) * MB + (Ks - shear) * MS).complex_modulus
+    K = complex_response(lin, model, cortex.bulk.complex_modulus(f), cortex.shear.complex_modulus(f), f)
     return K, state.force_nN() / waited.force_nN
 
 

@@ -53,13 +53,20 @@ def material_parts(lin: Linearised, shell: Shell) -> tuple[np.ndarray, np.ndarra
     return parts[0], parts[1]
 
 
+def complex_response(lin: Linearised, shell: Shell, bulk_complex_mN_per_m: complex,
+                     shear_complex_mN_per_m: complex, frequency_hz: float) -> complex:
+    """K*(ω) (mN/m) about the state `lin` of `shell` (its real moduli the prestress's) with
+    H*(ω) = H + (K_B* - K_B) M_B + (K_S* - K_S) M_S (module docstring)."""
+    MB, MS = material_parts(lin, shell)
+    extra = ((bulk_complex_mN_per_m - shell.bulk_mN_per_m) * MB
+             + (shear_complex_mN_per_m - shell.shear_mN_per_m) * MS)
+    return respond(lin, 0.0, frequency_hz, extra).complex_modulus
+
+
 def prestressed_modulus(shell: Shell, bulk_complex_mN_per_m: complex, shear_complex_mN_per_m: complex,
                         frequency_hz: float) -> complex:
     """K*(ω) (mN/m) of `shell` compressed from h0 to h_m = h0 - Δh/2 with its (real) moduli and
     oscillated there with K_B*, K_S* on the material stiffness (module docstring)."""
     lin = linearise(shell)
     lin.shell = shell
-    MB, MS = material_parts(lin, shell)
-    extra = ((bulk_complex_mN_per_m - shell.bulk_mN_per_m) * MB
-             + (shear_complex_mN_per_m - shell.shear_mN_per_m) * MS)
-    return respond(lin, 0.0, frequency_hz, extra).complex_modulus
+    return complex_response(lin, shell, bulk_complex_mN_per_m, shear_complex_mN_per_m, frequency_hz)

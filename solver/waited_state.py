@@ -51,7 +51,7 @@ import numpy as np
 
 from solver.compression import compress
 from solver.model import Shell
-from solver.prestressed_response import material_parts
+from solver.prestressed_response import complex_response
 from solver.time_domain import Cortex
 from solver.time_protocol import Protocol
 from solver.viscous import linearise, respond
@@ -79,8 +79,7 @@ def waited_state(shell: Shell, cortex: Cortex, frequency_hz: float, waited_s: fl
     model = replace(shell, bulk_mN_per_m=bulk, shear_mN_per_m=shear, viscosity_Pa_s=None, frequency_hz=None)
     lin = linearise(model)
     lin.shell = model
-    MB, MS = material_parts(lin, model)
-    linear = respond(lin, 0.0, frequency_hz, (Kb - bulk) * MB + (Ks - shear) * MS).complex_modulus
+    linear = complex_response(lin, model, Kb, Ks, frequency_hz)
     K = compress(model).derived["modulus_mN_per_m"] * linear / respond(lin, 0.0, frequency_hz).complex_modulus.real
     return {"modulus_mN_per_m": float(abs(K)), "loss_angle_rad": float(np.angle(K)),
             "bulk_loss_angle_rad": float(np.angle(Kb)), "shear_loss_angle_rad": float(np.angle(Ks)),
