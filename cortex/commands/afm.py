@@ -367,10 +367,10 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
 def analyze(args: argparse.Namespace) -> int:
     import json
 
-    from analysis.afm.analyze import TENSION_TOLERANCE, check_tolerance
+    from analysis.afm.analyze import TENSION_TOLERANCE
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    tolerance = check_tolerance(TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance)
+    tolerance = TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance   # Settings checks it
     file, errors = inversion_settings(args)          # also settles the default --method
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
