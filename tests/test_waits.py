@@ -58,3 +58,23 @@ def test_no_approach_no_age():
     cell = Cell("o", 4300.0, t, np.zeros_like(t), 10.0 - 0.25 * np.sin(2 * np.pi * t),
                 [Segment("oscillation", 0, t.size, 1.0)])
     assert math.isnan(step_ages_s(cell)[0]) and math.isnan(step_ages_s(cell, wait_s=50.0)[0])
+
+
+def test_histories_hold_every_earlier_step_and_its_age():
+    """The carried stress's history (analysis/afm/carried.py): h_ref before the first ramp,
+    the steps Δh_k so far and their ages at each segment's middle; a given wait moves every
+    step's end to S before its first oscillation; an approach that does not hold its height
+    for MIN_HOLD_S leaves its segments without a history."""
+    from analysis.afm.carried import histories
+    cell = _native([(12.0, 11.0, 0.2, 100.0, (0.1, 1.0)), (11.0, 10.5, 0.2, 80.0, (0.1,))])
+    first, second, third = histories(cell)
+    assert first.reference_um == 12.0 and list(first.steps_um) == pytest.approx([1.0])
+    assert first.ages_s == pytest.approx([100.0 + 25.0], abs=1.0)           # mid of 5 periods at 0.1 Hz
+    assert second.ages_s[0] == pytest.approx(first.ages_s[0] + 25.0 + 2.5, abs=0.05)
+    assert list(third.steps_um) == pytest.approx([1.0, 0.5], abs=1e-3)
+    assert third.ages_s[1] == pytest.approx(80.0 + 25.0, abs=1.0)
+    assert third.ages_s[0] - third.ages_s[1] == pytest.approx(100.0 + 50.0 + 5.0 + 2.5 + 0.01, abs=1.5)
+    given = histories(cell, wait_s=30.0)
+    assert given[0].ages_s == pytest.approx([55.0], abs=0.02) and given[2].ages_s[1] == pytest.approx(55.0, abs=0.02)
+    no_hold = _native([(12.0, 11.0, 0.2, 0.0, (1.0,))])
+    assert histories(no_hold) == [None] and histories(no_hold, wait_s=30.0)[0] is not None

@@ -68,23 +68,28 @@ class Measured:
 def measure(cells: list[Cell]) -> Measured:
     """The `Measured` of `cells` (InputError for a cell without oscillations:
     `analysis.afm.analyze_pipeline.read` sets such recordings aside)."""
-    segs, dev, med = [], {}, {}
+    segs = []
     for c in cells:
         if not c.oscillations():
             raise InputError(f"cell '{c.cell_id}': no oscillation segment to analyse")
         s = pd.DataFrame(segment_moduli(c))
         s.insert(0, "cell_id", c.cell_id)
         s["volume_um3"] = c.volume_um3
-        med[c.cell_id] = float(np.median(s["tension_mN_per_m"]))
-        dev[c.cell_id] = _deviation(s["tension_mN_per_m"], med[c.cell_id])
         segs.append(s)
-    rows = pd.concat(segs, ignore_index=True)
+    return measured_of(pd.concat(segs, ignore_index=True), [c.cell_id for c in cells])
+
+
+def measured_of(rows: pd.DataFrame, order: list[str]) -> Measured:
+    """The `Measured` of the segment rows `rows` (with `volume_um3`) of the cells `order`."""
+    med, dev = {}, {}
+    for cell, s in rows.groupby("cell_id", sort=False):
+        med[cell] = float(np.median(s["tension_mN_per_m"]))
+        dev[cell] = _deviation(s["tension_mN_per_m"], med[cell])
     curves = curves_of(rows)
     grouped = rows.groupby(["cell_id", "frequency_hz"])
     idx = pd.MultiIndex.from_frame(curves.keys[["cell_id", "frequency_hz"]])
     return Measured(rows.drop(columns=["volume_um3"]), curves, grouped.size().reindex(idx).to_numpy(),
-                    grouped["loss_angle_rad"].median().reindex(idx).to_numpy(), dev, med,
-                    [c.cell_id for c in cells])
+                    grouped["loss_angle_rad"].median().reindex(idx).to_numpy(), dev, med, order)
 
 
 def _deviation(tension: pd.Series, median: float) -> float:
