@@ -4,7 +4,7 @@
 - `cost`: per cell the simulation steps and wall time (truth.json's `time_domain.cost`, with
   the number of processes that shared the machine), per recording (one oscillation segment:
   a mean height at one frequency) and per step;
-- `bulk`, `shear`: over the cells `afm analyze` gave exponents (rheology.csv; cells with two
+- `bulk`, `shear`: over the cells `afm analyze` gave exponents (rheology.csv; cells with three
   frequencies or more), the median estimate against the median of the true exponents, the
   largest error, and the share of cells whose 95 % interval holds the true exponent;
 - `paired_test`: summary.json's test of β_S > β_B; `tension_deviation`: over the cells, the
@@ -13,7 +13,7 @@
 
     cortex afm synth --time-domain --cells 40 --out EXP [--bulk-exponent 0.1 --shear-exponent 0.3
                      --wait-s 100 --jobs 2]
-    cortex afm analyze EXP --out ANALYSIS
+    cortex afm analyze EXP --out ANALYSIS [--wait-s --jobs 2]   # --wait-s: the protocol-aware reading
     python bench/time_domain_synth.py EXP ANALYSIS
 """
 

@@ -84,24 +84,22 @@ def _zp_derivative(lag, u, zp, part):
     return (-f[0] + 8 * f[1] - 8 * f[2] + f[3]) / (12 * STEP_ZP)
 
 
-def linearise(shell: Shell, hold_touching: bool = False) -> Linearised:
+def linearise(shell: Shell) -> Linearised:
     """The equilibrium at h_m = h0 - Δh/2 (from the stress-free droplet at h0) and
     the Hessian of L in q = (u, z_p). The contact label l moves with the
     response where it is stationary (dE*/dl = 0); it is held where it is a
-    gauge (tension-only shell) or at its least value. Where it is held by the
-    free surface touching the plate (not smooth) it raises SolverError, or with
-    `hold_touching` holds the label there too."""
+    gauge (tension-only shell) or at its least value. Raises SolverError
+    where it is held by the free surface touching the plate (not smooth)."""
     mean = replace(shell, dh_um=0.5 * shell.dh_um, viscosity_Pa_s=None, frequency_hz=None)
     lag, u, _ = equilibrium(mean)
     zp = 0.5 * mean.h1_um
     _, g, dzp, H = lag.evaluate(u, zp)
     held = not lag.elastic or contact_at_least(u)     # a gauge, or at its bound
-    touching = not held and abs(g[-2]) > 1e-4 * lag.force_scale
-    if touching and not hold_touching:
+    if not held and abs(g[-2]) > 1e-4 * lag.force_scale:
         raise SolverError("the contact line is held at the touching label (dE*/dl = "
                           f"{g[-2]:.3g}): no smooth linear response")
     lin = Linearised(lag=lag, u=u, zp=zp, H=full_hessian(lag, u, zp, H), force_nN=-0.5 * dzp, h_mean_um=2 * zp)
-    lin.held = held = held or touching
+    lin.held = held
     if held:                     # l is a gauge (tension only) or at its least value: hold it
         hold_label(lin.H, 1.0)
     return lin

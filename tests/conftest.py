@@ -89,3 +89,15 @@ def journal_counts(store):
     from campaign.task_key import split
     compressions, trials = split(journal.read(f"{store}.journal"))
     return len(compressions), len(trials)
+
+
+def first_heights(monkeypatch, n):
+    """`afm synth` draws its cells with only their first `n` mean heights (small time-domain cells)."""
+    from analysis.afm.synth import cells as sy
+    draw = sy.parameters
+
+    def keep(i, rng):
+        p, truth = draw(i, rng)
+        p["h_means"] = p["h_means"][:n]
+        return p, truth
+    monkeypatch.setattr(sy, "parameters", keep)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from analysis.afm.formats.reader import open as open_cells
-from analysis.afm.synth import cells as sy
 from analysis.afm.timeseries import segment_moduli
 from analysis.afm.waits import step_ages_s
+from conftest import first_heights
 from cortex.cli import main
 
 
@@ -18,13 +18,7 @@ from cortex.cli import main
 def tiny(monkeypatch):
     """One cell (0.1, 1 and 10 Hz, as the published design's first subset), its first two mean
     heights."""
-    draw = sy.parameters
-
-    def two_heights(i, rng):
-        p, truth = draw(i, rng)
-        p["h_means"] = p["h_means"][:2]
-        return p, truth
-    monkeypatch.setattr(sy, "parameters", two_heights)
+    first_heights(monkeypatch, 2)
 
 
 def test_synth_time_domain_writes_an_experiment_with_its_truth(tiny, tmp_path, capsys):

@@ -60,21 +60,26 @@ def test_no_approach_no_age():
     assert math.isnan(step_ages_s(cell)[0]) and math.isnan(step_ages_s(cell, wait_s=50.0)[0])
 
 
-def test_histories_hold_every_earlier_step_and_its_age():
-    """The carried stress's history (analysis/afm/carried.py): h_ref before the first ramp,
-    the steps Δh_k so far and their ages at each segment's middle; a given wait moves every
-    step's end to S before its first oscillation; an approach that does not hold its height
-    for MIN_HOLD_S leaves its segments without a history."""
-    from analysis.afm.carried import histories
+def test_visits_are_the_recorded_protocol_or_one_with_a_given_wait():
+    """The protocol a replay follows (analysis/afm/replayed.py): h_ref and the time just before
+    the first ramp, per oscillation its mean height, frequency, periods and start, and the end of
+    the step before the first oscillation at each height; a given wait S moves every later time
+    by S minus the recorded wait; an approach that does not hold its height MIN_HOLD_S has no
+    recorded wait (None), unless S is given."""
+    from analysis.afm.replayed import visits
     cell = _native([(12.0, 11.0, 0.2, 100.0, (0.1, 1.0)), (11.0, 10.5, 0.2, 80.0, (0.1,))])
-    first, second, third = histories(cell)
-    assert first.reference_um == 12.0 and list(first.steps_um) == pytest.approx([1.0])
-    assert first.ages_s == pytest.approx([100.0 + 25.0], abs=1.0)           # mid of 5 periods at 0.1 Hz
-    assert second.ages_s[0] == pytest.approx(first.ages_s[0] + 25.0 + 2.5, abs=0.05)
-    assert list(third.steps_um) == pytest.approx([1.0, 0.5], abs=1e-3)
-    assert third.ages_s[1] == pytest.approx(80.0 + 25.0, abs=1.0)
-    assert third.ages_s[0] - third.ages_s[1] == pytest.approx(100.0 + 50.0 + 5.0 + 2.5 + 0.01, abs=1.5)
-    given = histories(cell, wait_s=30.0)
-    assert given[0].ages_s == pytest.approx([55.0], abs=0.02) and given[2].ages_s[1] == pytest.approx(55.0, abs=0.02)
+    p = visits(cell)
+    assert (p.reference_um, p.start_s) == (12.0, 0.0)
+    assert [(v.mean_um, v.frequency_hz, v.cycles) for v in p.visits] == \
+        [(pytest.approx(11.0, abs=1e-3), 0.1, 5), (pytest.approx(11.0, abs=1e-3), 1.0, 5), (pytest.approx(10.5, abs=1e-3), 0.1, 5)]
+    assert p.visits[0].start_s - p.visits[0].step_end_s == pytest.approx(100.0, abs=1.0)
+    assert math.isnan(p.visits[1].step_end_s) and p.visits[1].start_s == pytest.approx(p.visits[0].start_s + 50.0, abs=0.02)
+    assert p.visits[2].start_s - p.visits[2].step_end_s == pytest.approx(80.0, abs=1.0)
+    given = visits(cell, wait_s=30.0)
+    assert [v.start_s - v.step_end_s for v in given.visits[::2]] == pytest.approx([30.0, 30.0])
+    assert given.visits[0].step_end_s == p.visits[0].step_end_s
+    assert given.visits[1].start_s - given.visits[0].start_s == pytest.approx(50.0, abs=0.02)
+    assert given.visits[2].step_end_s - given.visits[1].start_s == pytest.approx(
+        p.visits[2].step_end_s - p.visits[1].start_s)                 # the ramp keeps its length
     no_hold = _native([(12.0, 11.0, 0.2, 0.0, (1.0,))])
-    assert histories(no_hold) == [None] and histories(no_hold, wait_s=30.0)[0] is not None
+    assert visits(no_hold) is None and visits(no_hold, wait_s=30.0) is not None

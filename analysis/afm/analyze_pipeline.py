@@ -37,7 +37,11 @@ and every frequency's median ν a bootstrap 95 % interval (`median_nu_lo95`,
 With `Settings.phase` (the command's default; `--no-phase` turns it off) the selected
 variant's cells table also gets the viscoelastic columns per cell and frequency,
 DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instrument
-phase and the paired test), report.md a section (`analysis.afm.rheology`)."""
+phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a finite
+or recorded `Settings.wait_s` (None: each recording's own waits; inf, the default: off) the
+segments are first corrected for the stress each cell keeps from its earlier height steps
+(`analysis.afm.protocol_reading`), every variant reads the corrected segments, segments.csv
+gains the correction's columns and summary.json `protocol`."""
 
 from __future__ import annotations
 
@@ -53,6 +57,8 @@ from analysis.afm.analyze import TENSION_TOLERANCE, Measured, check_tolerance, i
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
+from analysis.afm.protocol_reading import corrected, is_on
+from analysis.afm.protocol_reading import summary as protocol_summary
 from analysis.invert.method import Inversion, choose
 from outputs.ownership import OutputDir
 from common.beside import beside
@@ -82,9 +88,15 @@ class Settings:
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
     tension_tolerance: float = TENSION_TOLERANCE
+    wait_s: float | None = math.inf   # the protocol-aware reading's T_w (s): None each recording's own, inf off
+    jobs: int = 1                     # processes for the protocol-aware reading's replays
 
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
+        if self.wait_s is not None and not self.wait_s >= 0:
+            raise InputError(f"the wait must be a number of seconds >= 0, or inf (got {self.wait_s:g})")
+        if self.jobs < 1:
+            raise InputError(f"jobs must be >= 1 (got {self.jobs})")
 
 
 @dataclass
@@ -149,6 +161,9 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
     measured = measure(rec.cells)
+    if settings.phase and is_on(settings.wait_s):
+        measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
+                             settings.errors, settings.wait_s, settings.lags, settings.jobs)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
@@ -215,8 +230,9 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
+    aware = {"protocol": protocol_summary(fitted.segments, settings.wait_s)} if settings.phase and is_on(settings.wait_s) else {}
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, "tension_tolerance": tolerance,
-                                       **fitted.sums[bending]}))
+                                       **aware, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if has_intervals(fitted.tables[bending]):

@@ -114,6 +114,17 @@ def per_frequency(table: pd.DataFrame, segments: pd.DataFrame, emulator: Emulato
     columns) to the complex K* of `segments`: the new columns (a DataFrame aligned with
     `table`) and the draws θ_m (rows, M, 4) with θ*."""
     errors = errors or intervals_errors()
+    lag, curves, lnk, start = _inputs(table, segments, lags)
+    theta, s2 = fit(table_c, emulator, bending, curves, lnk, start)
+    normals = _cell_normals(table["cell_id"].tolist(), errors.draws, errors.seed)
+    th_m = draws(table_c, emulator, bending, theta, s2, curves, lnk, normals, volume_sd=errors.volume_rel_sd,
+                 height_sd_um=errors.height_sd_um, seed=errors.seed)
+    return _columns(theta, th_m, table["frequency_hz"].map(lag).to_numpy(float)), theta, th_m
+
+
+def _inputs(table: pd.DataFrame, segments: pd.DataFrame,
+            lags: dict[float, float] | None) -> tuple[dict[float, float], CurveArrays, Any, Any]:
+    """The instrument lags, the curves, ln K* per segment and the fit's start (θ from `table`)."""
     freqs = sorted(segments["frequency_hz"].unique())
     lag = instrument_lags(lags, freqs)
     segs = segments.assign(_delta=segments["loss_angle_rad"] + segments["frequency_hz"].map(lag))
@@ -131,11 +142,20 @@ def per_frequency(table: pd.DataFrame, segments: pd.DataFrame, emulator: Emulato
         lnk = np.log(np.where(use, k, 1.0)) + 1j * np.where(use, d, 0.0)
     start = np.column_stack([np.log(table["bulk_mN_per_m"]), np.log(table["ks_tilde"])])
     start[table["excluded_reason"].notna().to_numpy()] = np.nan
-    theta, s2 = fit(table_c, emulator, bending, curves, lnk, start)
-    normals = _cell_normals(table["cell_id"].tolist(), errors.draws, errors.seed)
-    th_m = draws(table_c, emulator, bending, theta, s2, curves, lnk, normals, volume_sd=errors.volume_rel_sd,
-                 height_sd_um=errors.height_sd_um, seed=errors.seed)
-    return _columns(theta, th_m, table["frequency_hz"].map(lag).to_numpy(float)), theta, th_m
+    return lag, curves, lnk, start
+
+
+def point_moduli(table: pd.DataFrame, segments: pd.DataFrame, model: ComplexModel, bending: str,
+                 lags: dict[float, float] | None = None) -> pd.DataFrame:
+    """θ* alone (no draws) per (cell_id, frequency_hz) of `table`: `bulk_abs`, `bulk_delta`,
+    `shear_abs`, `shear_delta` (|K_B*|, δ_B, |K_S*|, δ_S; mN/m, rad) and `tension` (the table's
+    γ_a), what `analysis.afm.replayed.power_laws` needs."""
+    _, curves, lnk, start = _inputs(table, segments, lags)
+    theta, _ = fit(model.table, model.emulator, bending, curves, lnk, start)
+    return pd.DataFrame({"cell_id": table["cell_id"].to_numpy(), "frequency_hz": table["frequency_hz"].to_numpy(),
+                         "bulk_abs": np.exp(theta[:, 0]), "bulk_delta": theta[:, 2],
+                         "shear_abs": np.exp(theta[:, 0] + theta[:, 1]), "shear_delta": theta[:, 3],
+                         "tension": table["tension_mN_per_m"].to_numpy(float)})
 
 
 def intervals_errors() -> MeasurementErrors:

@@ -94,7 +94,7 @@ def _add_synth(s: Commands) -> None:
                         f"default {TIME_DOMAIN_EXPONENTS[1]:g} with --time-domain)")
     g.add_argument("--time-domain", action="store_true",
                    help="simulate each cell's whole protocol in time (power-law cortex K(t) ~ t^-beta, one "
-                        "equilibrium of the fast solver per step; about a minute a cell; docs/viscoelastic.md)")
+                        "equilibrium of the fast solver per step; about 10-45 s a cell; docs/viscoelastic.md)")
     g.add_argument("--wait-s", type=float, default=None, metavar="S",
                    help=f"--time-domain: the wait at each mean height before its oscillations (default "
                         f"{TIME_DOMAIN_WAIT_S:g} s)")
@@ -151,6 +151,14 @@ def _add_analyze(s: Commands) -> None:
                    help="the tension filter: a cell whose segments' mean tension deviates from its median by more "
                         "than the fraction X is excluded (default 0.1, as published; inf lifts the filter; "
                         "summary.json tension_tolerance)")
+    a.add_argument("--wait-s", nargs="?", const="recorded", default=None, metavar="S",
+                   help="the viscoelastic reading aware of the protocol: each cell's own protocol replayed in "
+                        "time with its fitted power-law cortex, every segment corrected for the stress kept from "
+                        "the earlier height steps (about 5 s a cell, three rounds; docs/viscoelastic.md). Alone: "
+                        "each recording's own waits (from its approaches or pauses); S: a wait of S s at every "
+                        "height; inf: the relaxed-state reading (the default)")
+    a.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="--wait-s: cells replayed in N processes at once (default 1)")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler=analyze)
@@ -364,6 +372,27 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
     return paths
 
 
+def wait_setting(text: str | None, phase: bool) -> float | None:
+    """`--wait-s`: None for each recording's own waits, else the seconds (inf: off); InputError
+    (one line) if malformed or given with --no-phase."""
+    import math
+
+    from common.errors import InputError
+    if text is None:
+        return math.inf
+    wait: float | None = None
+    if text != "recorded":
+        try:
+            wait = float(text)
+        except ValueError:
+            raise InputError(f"--wait-s: '{text}' is not a number of seconds or inf") from None
+        if not wait >= 0:
+            raise InputError(f"--wait-s: the wait must be >= 0 s, or inf (got {text})")
+    if not phase and (wait is None or math.isfinite(wait)):
+        raise InputError("--wait-s corrects the viscoelastic reading: it cannot go with --no-phase")
+    return wait
+
+
 def analyze(args: argparse.Namespace) -> int:
     import json
 
@@ -375,7 +404,8 @@ def analyze(args: argparse.Namespace) -> int:
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
-                        phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance)
+                        phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance,
+                        wait_s=wait_setting(args.wait_s, phase), jobs=args.jobs)
     result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],

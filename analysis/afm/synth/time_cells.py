@@ -26,9 +26,7 @@ equilibrium even in halved steps) is left out and named in truth.json's
 
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from multiprocessing import get_context
 from typing import Any
 
 import numpy as np
@@ -38,6 +36,7 @@ from analysis.afm.synth import cells as sy
 from analysis.afm.synth.rheology import describe, draw_exponents
 from analysis.afm.timeseries import shape_of
 from common.errors import SolverError
+from common.pool import pool
 from solver.cell_protocol import CellProtocol, CellRecording, power_law_cortex, run_cell
 from solver.elasticity import poisson_of_ratio
 from solver.model import Shell
@@ -116,9 +115,9 @@ def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: fl
     drawn = [_draw(i, freqs, rng, exp_rng, medians, float(wait_s), bending, history)
              for i, freqs in enumerate(f for freqs, n in sy.subset_sizes(n_cells) for f in [freqs] * n)]
     bar = tqdm(total=n_cells, unit="cell", desc="time-domain cells", file=sys.stderr, disable=not progress)
-    with ProcessPoolExecutor(jobs, mp_context=get_context("fork")) if jobs > 1 else _Serial() as pool:
+    with pool(jobs) as workers:
         results = []
-        for r in pool.map(_simulate, [job for _, _, job in drawn]):
+        for r in workers.map(_simulate, [job for _, _, job in drawn]):
             results.append(r)
             bar.update()
     bar.close()
@@ -138,16 +137,3 @@ def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: fl
                                  "cost": cost, "failed_cells": failed},
                  **sy.summary(truths, n_cells), **describe(medians)}
     return cells, truth_all
-
-
-class _Serial:
-    """The pool's map in this process."""
-
-    def __enter__(self) -> "_Serial":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def map(self, fn: Any, items: list[Job]) -> Any:
-        return map(fn, items)

@@ -1,0 +1,119 @@
+"""The protocol-aware reading (SPEC 10, 12): a recording's protocol replayed coarsely in time
+(`solver.protocol_replay`) against the synthetic experiments' full simulation, the power laws it
+is replayed with (`analysis.afm.replayed.power_laws`), `afm analyze --wait-s` on a cell simulated
+in time against its truth, and its limits: `--wait-s inf` is the relaxed-state reading unchanged,
+bad values exit 2."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.special import gamma
+
+from analysis.afm.cell import Cell, Segment
+from analysis.afm.replayed import power_laws, visits
+from analysis.afm.timeseries import segment_moduli
+from conftest import first_heights
+from cortex.cli import main
+from solver.cell_protocol import CellProtocol, power_law_cortex, run_cell
+from solver.model import Shell
+from solver.protocol_replay import replay
+
+
+def _recorded(shell, cortex, protocol):
+    rec = run_cell(shell, cortex, protocol)
+    segs = [Segment(s.kind, s.start, s.stop, np.nan if s.frequency_hz is None else s.frequency_hz)
+            for s in rec.stretches]
+    return Cell("c", shell.volume_um3, rec.time_s, rec.force_nN, rec.height_um, segs)
+
+
+def test_the_coarse_replay_reads_as_the_full_simulation():
+    """Two heights, 1 and 10 Hz, a 20 s wait, β_B = 0.1, β_S = 0.3: the replay of the recording's
+    own protocol (16 steps a period, 2 periods) read by the segment fit against the full
+    simulation's (64 steps a period, 5 periods): |K*| within 1.5 %, loss angle within 0.012 rad,
+    mean tension within 2.5 % (found up to 0.3 %, 0.0051 rad, 1.4 %)."""
+    shell = Shell(volume_um3=4300.0, h0_um=14.0, bulk_mN_per_m=25.0, shear_mN_per_m=20.0,
+                  tension_mN_per_m=1.0, bending="none")
+    cortex = power_law_cortex(25.0, 20.0, 0.1, 0.3)
+    cell = _recorded(shell, cortex, CellProtocol((13.5, 13.0), (1.0, 10.0), (5, 5), wait_s=20.0))
+    protocol = visits(cell)
+    assert protocol.reference_um == 14.0 and [v.mean_um for v in protocol.visits] == pytest.approx([13.5] * 2 + [13.0] * 2)
+    rep = replay(shell, cortex, protocol.start_s, protocol.visits)
+    t, h, f, segs, n = [], [], [], [], 0
+    for k, v in enumerate(protocol.visits):
+        t.append(1000.0 * k + rep.time_s[k])
+        h.append(rep.height_um[k])
+        f.append(rep.force_nN[k])
+        segs.append(Segment("oscillation", n, n + rep.time_s[k].size, v.frequency_hz))
+        n += rep.time_s[k].size
+    replayed = segment_moduli(Cell("r", 4300.0, np.concatenate(t), np.concatenate(f), np.concatenate(h), segs))
+    for full, coarse in zip(segment_moduli(cell), replayed):
+        assert coarse["modulus_mN_per_m"] == pytest.approx(full["modulus_mN_per_m"], rel=0.015)
+        assert coarse["loss_angle_rad"] == pytest.approx(full["loss_angle_rad"], abs=0.012)
+        assert coarse["tension_mN_per_m"] == pytest.approx(full["tension_mN_per_m"], rel=0.025)
+
+
+def test_power_laws_from_the_fits_at_each_frequency():
+    """|K*(f)| = K(1 s) Γ(1-β) (2π f)^β at three frequencies gives back β and K(1 s); one
+    frequency gives β = 2δ/π; γ_a is the median tension."""
+    rows = []
+    for f in (0.1, 1.0, 10.0):
+        for cell, beta_b, beta_s, n in (("a", 0.1, 0.3, 3), ("b", 0.2, 0.4, 1)):
+            if cell == "b" and f != 1.0:
+                continue
+            kb, ks = (k * gamma(1 - b) * (2 * np.pi * f) ** b for k, b in ((25.0, beta_b), (10.0, beta_s)))
+            rows.append({"cell_id": cell, "frequency_hz": f, "bulk_abs": kb, "bulk_delta": beta_b * np.pi / 2,
+                         "shear_abs": ks, "shear_delta": beta_s * np.pi / 2, "tension": 1.0 + f})
+    laws = power_laws(pd.DataFrame(rows)).set_index("cell_id")
+    assert laws.loc["a", ["bulk_beta", "shear_beta", "bulk_1s", "shear_1s", "tension"]].to_list() == \
+        pytest.approx([0.1, 0.3, 25.0, 10.0, 2.0])
+    assert laws.loc["b", ["bulk_beta", "shear_beta", "bulk_1s", "shear_1s"]].to_list() == \
+        pytest.approx([0.2, 0.4, 25.0, 10.0])
+
+
+@pytest.fixture
+def five_heights(monkeypatch):
+    """One cell (0.1, 1 and 10 Hz), its first five mean heights."""
+    first_heights(monkeypatch, 5)
+
+
+def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
+    """A noiseless cell simulated in time with its history carried (100 s waits, five heights):
+    the relaxed-state reading excludes it by the tension filter (the kept stress: found 20 %) and,
+    the filter lifted, reads β_S 0.158 low and β_B 0.025 high, outside their intervals;
+    `--wait-s` (the recording's own waits) keeps the cell (found 1.2 %) and reads both exponents
+    within 0.015 of the truth (found +0.0004 and -0.009), each inside its 95 % interval;
+    `--wait-s inf` is the relaxed-state reading, output for output."""
+    exp = tmp_path / "exp"
+    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--no-errors", "--out", str(exp)]) == 0
+    truth = json.loads((exp / "truth.json").read_text())["cells"][0]
+    runs = {"relaxed": [], "lifted": ["--tension-tolerance", "inf"], "aware": ["--wait-s"],
+            "inf": ["--wait-s", "inf"]}
+    for name, extra in runs.items():
+        assert main(["afm", "analyze", str(exp), "--out", str(tmp_path / name), *extra]) in (0, 1)
+    read = {name: pd.read_csv(tmp_path / name / "rheology.csv") for name in runs}
+    assert read["relaxed"].empty
+    assert read["lifted"]["shear_exponent"][0] - truth["shear_exponent"] < -0.1
+    aware = read["aware"].iloc[0]
+    for name in ("bulk", "shear"):
+        assert aware[f"{name}_exponent"] == pytest.approx(truth[f"{name}_exponent"], abs=0.015)
+        assert aware[f"{name}_exponent_lo95"] <= truth[f"{name}_exponent"] <= aware[f"{name}_exponent_hi95"]
+    segments = pd.read_csv(tmp_path / "aware" / "segments.csv")
+    assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
+    for file in ("cells.csv", "rheology.csv", "segments.csv"):
+        assert (tmp_path / "inf" / file).read_text() == (tmp_path / "relaxed" / file).read_text()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--wait-s", "soon"], "--wait-s: 'soon' is not a number"),
+    (["--wait-s", "-5"], "--wait-s: the wait must be >= 0 s"),
+    (["--wait-s", "--no-phase"], "cannot go with --no-phase"),
+    (["--wait-s", "--jobs", "0"], "jobs must be >= 1"),
+])
+def test_wait_s_bad_values_exit_2(tmp_path, capsys, args, message):
+    assert main(["afm", "synth", "--cells", "2", "--out", str(tmp_path / "exp")]) == 0
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(tmp_path / "exp"), "--out", str(tmp_path / "a"), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
