@@ -154,7 +154,8 @@ def _add_analyze(s: Commands) -> None:
     a.add_argument("--wait-s", nargs="?", const="recorded", default=None, metavar="S",
                    help="the viscoelastic reading aware of the protocol: each cell's own protocol replayed in "
                         "time with its fitted power-law cortex, every segment corrected for the stress kept from "
-                        "the earlier height steps (about 5 s a cell, three rounds; docs/viscoelastic.md). Alone: "
+                        "the earlier height steps, in rounds until the cells' power laws settle (about 16 s of CPU a "
+                        "cell in all; docs/viscoelastic.md). Put it after the data. Alone: "
                         "each recording's own waits (from its approaches or pauses); S: a wait of S s at every "
                         "height; inf: the relaxed-state reading (the default)")
     a.add_argument("--jobs", type=int, default=1, metavar="N",
