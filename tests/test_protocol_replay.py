@@ -12,7 +12,7 @@ import pytest
 from scipy.special import gamma
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.replayed import power_laws, visits
+from analysis.afm.replayed import power_laws, replayed_segments, visits
 from analysis.afm.timeseries import segment_moduli
 from conftest import first_heights
 from cortex.cli import main
@@ -39,15 +39,7 @@ def test_the_coarse_replay_reads_as_the_full_simulation():
     cell = _recorded(shell, cortex, CellProtocol((13.5, 13.0), (1.0, 10.0), (5, 5), wait_s=20.0))
     protocol = visits(cell)
     assert protocol.reference_um == 14.0 and [v.mean_um for v in protocol.visits] == pytest.approx([13.5] * 2 + [13.0] * 2)
-    rep = replay(shell, cortex, protocol.start_s, protocol.visits)
-    t, h, f, segs, n = [], [], [], [], 0
-    for k, v in enumerate(protocol.visits):
-        t.append(1000.0 * k + rep.time_s[k])
-        h.append(rep.height_um[k])
-        f.append(rep.force_nN[k])
-        segs.append(Segment("oscillation", n, n + rep.time_s[k].size, v.frequency_hz))
-        n += rep.time_s[k].size
-    replayed = segment_moduli(Cell("r", 4300.0, np.concatenate(t), np.concatenate(f), np.concatenate(h), segs))
+    replayed = replayed_segments(cell, replay(shell, cortex, protocol.start_s, protocol.visits))
     for full, coarse in zip(segment_moduli(cell), replayed):
         assert coarse["modulus_mN_per_m"] == pytest.approx(full["modulus_mN_per_m"], rel=0.015)
         assert coarse["loss_angle_rad"] == pytest.approx(full["loss_angle_rad"], abs=0.012)

@@ -91,6 +91,11 @@ class Settings:
     wait_s: float | None = math.inf   # the protocol-aware reading's T_w (s): None each recording's own, inf off
     jobs: int = 1                     # processes for the protocol-aware reading's replays
 
+    @property
+    def protocol_aware(self) -> bool:
+        """Whether the viscoelastic reading corrects for the protocol (`analysis.afm.protocol_reading`)."""
+        return self.phase and is_on(self.wait_s)
+
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
         if self.wait_s is not None and not self.wait_s >= 0:
@@ -161,7 +166,7 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
     measured = measure(rec.cells)
-    if settings.phase and is_on(settings.wait_s):
+    if settings.protocol_aware:
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
                              settings.errors, settings.wait_s, settings.lags, settings.jobs)
     fitted = Fitted(segments=measured.segments)
@@ -230,7 +235,7 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
-    aware = {"protocol": protocol_summary(fitted.segments, settings.wait_s)} if settings.phase and is_on(settings.wait_s) else {}
+    aware = {"protocol": protocol_summary(fitted.segments, settings.wait_s)} if settings.protocol_aware else {}
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, "tension_tolerance": tolerance,
                                        **aware, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))

@@ -114,7 +114,7 @@ def power_laws(moduli: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["cell_id", "tension", "bulk_beta", "bulk_1s", "shear_beta", "shear_1s"])
 
 
-def _replayed_segments(cell: Cell, rep: Replay) -> list[dict[str, Any]]:
+def replayed_segments(cell: Cell, rep: Replay) -> list[dict[str, Any]]:
     """`segment_moduli` of the replay, read as a recording of the cell's volume."""
     t, h, f, segs, n, t0 = [], [], [], [], 0, 0.0
     for ts, hs, fs, freq in zip(rep.time_s, rep.height_um, rep.force_nN, [s.frequency_hz for s in cell.oscillations()]):
@@ -139,7 +139,7 @@ def cell_correction(cell: Cell, law: dict[str, float], bending: str,
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.reference_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     try:
-        rows = _replayed_segments(cell, replay(shell, cortex, protocol.start_s, protocol.visits))
+        rows = replayed_segments(cell, replay(shell, cortex, protocol.start_s, protocol.visits))
     except SolverError:
         return None
     out = np.empty((len(rows), 3))
