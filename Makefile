@@ -56,9 +56,10 @@ demo: setup
 	$(BIN)/cortex analysis calibrate results/demo.h5 --out results/demo-analysis --partial
 	@echo "demo store: results/demo.h5 (cortex campaign status results/demo.h5); report: results/demo-analysis/report.md"
 	@# a small synthetic experiment (12 cells, the solver as forward model, errors on; kept once made),
-	@# analysed with the calibration shipped in the package: nu per frequency with 95 % intervals
+	@# analysed with the calibration shipped in the package: nu per frequency with 95 % intervals; read in the
+	@# relaxed state its model makes (--wait-s inf; a measured recording is read with its own waits, the default)
 	@[ -e results/demo-cells/experiment.h5 ] || $(BIN)/cortex afm synth --cells 12 --seed 7 --out results/demo-cells
-	$(BIN)/cortex afm analyze results/demo-cells --out results/demo-cells/analysis
+	$(BIN)/cortex afm analyze results/demo-cells --out results/demo-cells/analysis --wait-s inf
 	@grep -m1 '^\*\*Trend' results/demo-cells/analysis/report.md
 	@sed -n '/^Median/,/^Each cell/p' results/demo-cells/analysis/report.md
 	@echo "true medians: results/demo-cells/truth.json; per cell: results/demo-cells/analysis/cells.csv"
@@ -71,7 +72,7 @@ typecheck: setup
 
 test-serial: setup
 	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)
-	$(BIN)/python -m pytest -q $(PYTEST_ARGS) tests
+	$(BIN)/python -m pytest -q --durations=20 $(PYTEST_ARGS) tests   # the 20 slowest: the suite stays well under 20 minutes
 
 # MPI runs: each rank runs pytest; exit status 5 ("no tests collected": no
 # MPI tests in the selection) is not a failure, any other non-zero status is.

@@ -15,7 +15,7 @@ memory) is a `RuntimeError`. Leaving the `with` block stops a child still at wor
 
 Policy, `forking()`: a child only where it can run beside this process, i.e. where
 the fork start method exists and this process may run on two CPUs or more
-(`os.sched_getaffinity`); elsewhere `fn(*args)` runs in this process when
+(`common.pool.usable_cores`); elsewhere `fn(*args)` runs in this process when
 `result()` is first asked (the same value, serially). At most one child: the
 callers use two processes in all.
 """
@@ -23,11 +23,12 @@ callers use two processes in all.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import pickle
 import traceback
 from contextlib import contextmanager
 from typing import Any, Callable, Generic, Iterator, TypeVar
+
+from common.pool import usable_cores
 
 T = TypeVar("T")
 
@@ -36,8 +37,7 @@ def forking() -> bool:
     """Whether a forked child can run beside this process (module docstring)."""
     if "fork" not in multiprocessing.get_all_start_methods():
         return False
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return cpus >= 2
+    return usable_cores() >= 2
 
 
 class RemoteTraceback(Exception):

@@ -1,5 +1,7 @@
-"""A process pool of `jobs` workers, or the same map in this process for one job."""
+"""A process pool of `jobs` workers, or the same map in this process for one job; how many
+CPUs this process may use (`usable_cores`, the default number of jobs)."""
 
+import os
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from typing import Any, Callable, Iterable, Iterator
@@ -16,6 +18,11 @@ class Serial:
 
     def map(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
         return map(fn, items)
+
+
+def usable_cores() -> int:
+    """The CPUs this process may run on (its affinity where the system says, else the machine's count)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def pool(jobs: int) -> Any:

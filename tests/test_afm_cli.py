@@ -35,7 +35,8 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
                  "--calibration", str(cal)]) == 0
     truth = json.loads((data / "truth.json").read_text())
     assert len(truth["cells"]) == 6
-    assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out")]) == 0
+    assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out"),
+                 "--wait-s", "inf"]) == 0
     s = json.loads((tmp_path / "out/summary.json").read_text())
     keys = {"frequency_hz", "n_cells", "n_excluded", "median_nu", "iqr_nu", "lognormal_mu", "lognormal_sigma"}
     assert s["frequencies"] and all(keys <= set(r) for r in s["frequencies"])
@@ -190,9 +191,9 @@ def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys
     import common.beside
     assert common.beside.forking(), "this test needs fork and two CPUs"
     d, _, good, _ = setup
-    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "forked")]) == 0
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "forked"), "--wait-s", "inf"]) == 0
     monkeypatch.setattr(common.beside, "forking", lambda: False)
-    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "serial")]) == 0
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "serial"), "--wait-s", "inf"]) == 0
     names = sorted(p.name for p in (tmp_path / "serial").iterdir() if p.suffix in (".csv", ".json", ".md"))
     assert {"cells_double.csv", "cells_none.csv", "summary_double.json", "population.json"} <= set(names)
     for name in names:

@@ -97,9 +97,10 @@ def test_modulation_archives_analyse_like_the_native_experiment(exp, tmp_path):
     d, cells, folder, vol, cal = exp
     from analysis.afm.formats.h5 import write_experiment
     native = write_experiment(tmp_path / "native.h5", cells)
-    assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a")]) == 0
+    assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a"),
+                 "--wait-s", "inf"]) == 0
     assert main(["afm", "analyze", str(folder), "--volumes", str(vol), "--dish-height-um", "3",
-                 "--calibration", str(cal), "--out", str(tmp_path / "b")]) == 0
+                 "--calibration", str(cal), "--out", str(tmp_path / "b"), "--wait-s", "inf"]) == 0
     a, b = (pd.read_csv(tmp_path / x / "cells.csv") for x in ("a", "b"))
     assert len(a) == len(b) > 3 and a["nu"].notna().sum() > 3
     pd.testing.assert_series_equal(a["cell_id"], b["cell_id"])
@@ -225,7 +226,7 @@ def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_pat
     table.write_text(vol.read_text() + f"approach-only,{c.volume_um3},confocal\n")
     capsys.readouterr()
     assert main(["afm", "analyze", str(mixed), "--volumes", str(table), "--dish-height-um", "3",
-                 "--calibration", str(cal), "--out", str(tmp_path / "o")]) == 1
+                 "--calibration", str(cal), "--out", str(tmp_path / "o"), "--wait-s", "inf"]) == 1
     assert "not analysed: approach-only: no modulation (oscillation) segment" in capsys.readouterr().out
     report = (tmp_path / "o" / "report.md").read_text()
     assert "| approach-only | no modulation (oscillation) segment |" in report

@@ -162,7 +162,7 @@ def test_afm_analyze_refuses_a_file(afm, tmp_path, capsys):
 def test_afm_analyze_reruns_into_its_own_folder_but_keeps_a_stranger(afm, tmp_path, capsys):
     cal, data = afm
     out = tmp_path / "out"
-    args = ["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out)]
+    args = ["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out), "--wait-s", "inf"]
     assert main(args) == 0
     listed = set((out / MANIFEST).read_text().split())
     assert {"report.md", "summary.json", "cells.csv", "k_curves.png"} <= listed

@@ -74,14 +74,13 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
     """A noiseless cell simulated in time with its history carried (100 s waits, five heights):
     the relaxed-state reading excludes it by the tension filter (the kept stress: found 20 %) and,
     the filter lifted, reads β_S 0.158 low and β_B 0.025 high, outside their intervals;
-    `--wait-s` (the recording's own waits) keeps the cell (found 1.2 %) and reads both exponents
-    within 0.015 of the truth (found +0.0004 and -0.009), each inside its 95 % interval;
-    `--wait-s inf` is the relaxed-state reading, output for output."""
+    the default (the recording's own waits) keeps the cell (found 1.2 %) and reads both exponents
+    within 0.015 of the truth (found +0.0004 and -0.009), each inside its 95 % interval."""
     exp = tmp_path / "exp"
     assert main(["afm", "synth", "--time-domain", "--cells", "1", "--no-errors", "--out", str(exp)]) == 0
     truth = json.loads((exp / "truth.json").read_text())["cells"][0]
-    runs = {"relaxed": [], "lifted": ["--tension-tolerance", "inf"], "aware": ["--wait-s"],
-            "inf": ["--wait-s", "inf"]}
+    runs = {"relaxed": ["--wait-s", "inf"], "lifted": ["--wait-s", "inf", "--tension-tolerance", "inf"],
+            "aware": []}
     for name, extra in runs.items():
         assert main(["afm", "analyze", str(exp), "--out", str(tmp_path / name), *extra]) in (0, 1)
     read = {name: pd.read_csv(tmp_path / name / "rheology.csv") for name in runs}
@@ -93,15 +92,14 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
         assert aware[f"{name}_exponent_lo95"] <= truth[f"{name}_exponent"] <= aware[f"{name}_exponent_hi95"]
     segments = pd.read_csv(tmp_path / "aware" / "segments.csv")
     assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
-    for file in ("cells.csv", "rheology.csv", "segments.csv"):
-        assert (tmp_path / "inf" / file).read_text() == (tmp_path / "relaxed" / file).read_text()
+    assert json.loads((tmp_path / "aware" / "summary.json").read_text())["protocol"]["wait_s"] == "recorded"
 
 
 @pytest.mark.parametrize("args, message", [
     (["--wait-s", "soon"], "--wait-s: 'soon' is not a number"),
     (["--wait-s", "-5"], "--wait-s: the wait must be >= 0 s"),
-    (["--wait-s", "--no-phase"], "cannot go with --no-phase"),
-    (["--wait-s", "--jobs", "0"], "jobs must be >= 1"),
+    (["--wait-s", "100", "--no-phase"], "cannot go with --no-phase"),
+    (["--jobs", "0"], "jobs must be >= 1"),
 ])
 def test_wait_s_bad_values_exit_2(tmp_path, capsys, args, message):
     assert main(["afm", "synth", "--cells", "2", "--out", str(tmp_path / "exp")]) == 0

@@ -38,7 +38,7 @@ With `Settings.phase` (the command's default; `--no-phase` turns it off) the sel
 variant's cells table also gets the viscoelastic columns per cell and frequency,
 DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instrument
 phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a finite
-or recorded `Settings.wait_s` (None: each recording's own waits; inf, the default: off) the
+or recorded `Settings.wait_s` (None, the default: each recording's own waits; inf: off) the
 segments are first corrected for the stress each cell keeps from its earlier height steps
 (`analysis.afm.protocol_reading`), every variant reads the corrected segments, segments.csv
 gains the correction's columns and summary.json `protocol`."""
@@ -88,8 +88,8 @@ class Settings:
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
     tension_tolerance: float = TENSION_TOLERANCE
-    wait_s: float | None = math.inf   # the protocol-aware reading's T_w (s): None each recording's own, inf off
-    jobs: int = 1                     # processes for the protocol-aware reading's replays
+    wait_s: float | None = None   # the protocol-aware reading's T_w (s): None each recording's own, inf off
+    jobs: int = 1                 # processes for the protocol-aware reading's replays
 
     @property
     def protocol_aware(self) -> bool:

@@ -151,15 +151,16 @@ def _add_analyze(s: Commands) -> None:
                    help="the tension filter: a cell whose segments' mean tension deviates from its median by more "
                         "than the fraction X is excluded (default 0.1, as published; inf lifts the filter; "
                         "summary.json tension_tolerance)")
-    a.add_argument("--wait-s", nargs="?", const="recorded", default=None, metavar="S",
-                   help="the viscoelastic reading aware of the protocol: each cell's own protocol replayed in "
-                        "time with its fitted power-law cortex, every segment corrected for the stress kept from "
-                        "the earlier height steps, in rounds until the cells' power laws settle (about 16 s of CPU a "
-                        "cell in all; docs/viscoelastic.md). Put it after the data. Alone: "
-                        "each recording's own waits (from its approaches or pauses); S: a wait of S s at every "
-                        "height; inf: the relaxed-state reading (the default)")
-    a.add_argument("--jobs", type=int, default=1, metavar="N",
-                   help="--wait-s: cells replayed in N processes at once (default 1)")
+    a.add_argument("--wait-s", default="recorded", metavar="S",
+                   help="the wait before each height's oscillations, for the protocol-aware viscoelastic reading: "
+                        "each cell's own protocol replayed in time with its fitted power-law cortex, every segment "
+                        "corrected for the stress kept from the earlier height steps, in rounds until the cells' "
+                        "power laws settle (about 16 s of CPU a cell in all; docs/viscoelastic.md). 'recorded' (the "
+                        "default): each recording's own waits (from its approaches or pauses); S: a wait of S s at "
+                        "every height; inf: the relaxed-state reading, no correction (what the frequency-domain "
+                        "'afm synth' models)")
+    a.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="cells replayed in N processes at once (default: the CPUs this process may use)")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler=analyze)
@@ -226,8 +227,9 @@ def synth(args: argparse.Namespace) -> int:
     text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
     with out.writing(TRUTH) as truth_path:
         write_atomically(truth_path, text.encode())
+    hint = "" if args.time_domain else " (made in the relaxed state: read it with afm analyze --wait-s inf)"
     say_result(args, {"experiment": str(experiment), "truth": str(truth_path), "n_cells": len(cells)},
-          f"wrote {experiment} ({len(cells)} cells) and {truth_path}")
+               f"wrote {experiment} ({len(cells)} cells) and {truth_path}{hint}")
     return 0
 
 
@@ -373,23 +375,21 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
     return paths
 
 
-def wait_setting(text: str | None, phase: bool) -> float | None:
-    """`--wait-s`: None for each recording's own waits, else the seconds (inf: off); InputError
-    (one line) if malformed or given with --no-phase."""
+def wait_setting(text: str, phase: bool) -> float | None:
+    """`--wait-s`: None for each recording's own waits ('recorded'), else the seconds (inf: off);
+    InputError (one line) if malformed, or finite with --no-phase."""
     import math
 
     from common.errors import InputError
-    if text is None:
-        return math.inf
-    wait: float | None = None
-    if text != "recorded":
-        try:
-            wait = float(text)
-        except ValueError:
-            raise InputError(f"--wait-s: '{text}' is not a number of seconds or inf") from None
-        if not wait >= 0:
-            raise InputError(f"--wait-s: the wait must be >= 0 s, or inf (got {text})")
-    if not phase and (wait is None or math.isfinite(wait)):
+    if text == "recorded":
+        return None
+    try:
+        wait = float(text)
+    except ValueError:
+        raise InputError(f"--wait-s: '{text}' is not a number of seconds, 'recorded' or inf") from None
+    if not wait >= 0:
+        raise InputError(f"--wait-s: the wait must be >= 0 s, or inf (got {text})")
+    if not phase and math.isfinite(wait):
         raise InputError("--wait-s corrects the viscoelastic reading: it cannot go with --no-phase")
     return wait
 
@@ -400,13 +400,15 @@ def analyze(args: argparse.Namespace) -> int:
     from analysis.afm.analyze import TENSION_TOLERANCE
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
+    from common.pool import usable_cores
     tolerance = TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance   # Settings checks it
     file, errors = inversion_settings(args)          # also settles the default --method
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
                         phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance,
-                        wait_s=wait_setting(args.wait_s, phase), jobs=args.jobs)
+                        wait_s=wait_setting(args.wait_s, phase),
+                        jobs=usable_cores() if args.jobs is None else args.jobs)
     result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],
