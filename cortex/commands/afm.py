@@ -155,7 +155,7 @@ def _add_analyze(s: Commands) -> None:
                    help="the wait before each height's oscillations, for the protocol-aware viscoelastic reading: "
                         "each cell's own protocol replayed in time with its fitted power-law cortex, every segment "
                         "corrected for the stress kept from the earlier height steps, in rounds until the cells' "
-                        "power laws settle (about 16 s of CPU a cell in all; docs/viscoelastic.md). 'recorded' (the "
+                        "power laws settle (about 25 s of CPU a cell in all; docs/viscoelastic.md). 'recorded' (the "
                         "default): each recording's own waits (from its approaches or pauses); S: a wait of S s at "
                         "every height; inf: the relaxed-state reading, no correction (what the frequency-domain "
                         "'afm synth' models)")
