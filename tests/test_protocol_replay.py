@@ -1,8 +1,8 @@
 """The protocol-aware reading (SPEC 10, 12): a recording's protocol replayed coarsely in time
 (`solver.protocol_replay`) against the synthetic experiments' full simulation, the power laws it
-is replayed with (`analysis.afm.replayed.power_laws`), `afm analyze --wait-s` on a cell simulated
-in time against its truth, and its limits: `--wait-s inf` is the relaxed-state reading unchanged,
-bad values exit 2."""
+is replayed with (`analysis.afm.replayed.power_laws`), `afm analyze` (by default with each
+recording's own waits) on a cell simulated in time against its truth and against `--wait-s inf`,
+the relaxed-state reading; bad values exit 2."""
 
 import json
 
