@@ -67,11 +67,12 @@ def test_explicit_scheme_converges_to_the_fast_solvers_limit():
     """h0 = 15 µm, K_S = K_B (ν = 0), γ_a = 3 mN/m, no bending: where the solvers
     once disagreed by 2 % at their default resolutions. The fast solver
     converges at order ≈ 2 (resolutions 1, 2, 4); the explicit scheme's K
-    approaches that K∞ as its mesh is refined (resolutions 0.5, 1, 2: 0.1 %,
-    0.03 %, 0.005 % off) and is within 0.05 % of it at resolution 1 and finer."""
+    approaches that K∞ as its mesh is refined (resolutions 0.5 and 1: 0.1 % and
+    0.03 % off) and is within 0.05 % of it at resolution 1. Resolution 2 (0.005 %
+    off; 60 s, the explicit cost grows as r³) is `bench/convergence.py`'s."""
     point = (15.0, 25.0, 3.0, "none")
     K_f, p_f = richardson([modulus(*point, r, "fast") for r in (1.0, 2.0, 4.0)])
     assert 1.5 < p_f < 3.5
-    errors = [abs(modulus(*point, r, "explicit") / K_f - 1.0) for r in (0.5, 1.0, 2.0)]
-    assert errors[0] > errors[1] > errors[2]
-    assert errors[1] < 5e-4 and errors[2] < 2e-4
+    errors = [abs(modulus(*point, r, "explicit") / K_f - 1.0) for r in (0.5, 1.0)]
+    assert errors[0] > 2 * errors[1]
+    assert errors[1] < 5e-4
