@@ -132,7 +132,7 @@ ramp-table: setup
 	$(BIN)/cortex analysis build-ramp-table results/ramp.h5 --out results/ramp-table
 	cp results/ramp-table/shell_ramp_table.json $(CALIBRATION)/shell_ramp_table.json
 
-# The protocol's bias map (SPEC 12, docs/viscoelastic.md): its campaign under mpiexec (see
+# The protocol's bias map (SPEC 12, docs/studies/protocol-bias.md): its campaign under mpiexec (see
 # docs/performance.md for its time; reruns resume), then the JSON table and figures from the store.
 .PHONY: protocol-map
 protocol-map: setup

@@ -36,7 +36,8 @@ from pathlib import Path
 
 import analysis.afm.synth.cells as synth
 from analysis.afm.formats.h5 import write_experiment
-from analysis.synthetic import reference_law
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
+from studies.synthetic import reference_law  # noqa: E402
 
 TARGET_S = 15.0
 ROOT = Path(__file__).resolve().parent.parent

@@ -9,7 +9,7 @@ from the shipped emulator, K̃_S and γ_a spread like the synthetic
 population) inverted by the emulator with their 95 % intervals (100 draws),
 best of 3 (target 10 s on one core; wall and CPU time both given).
 `synthetic_paper_size`: the same run on tables of the paper size (540 compressions, 3 true ν x 2 height-error modes x 100 studies x 55
-cells) generated from the laws (`analysis.synthetic`), reading excluded —
+cells) generated from the laws (`studies.synthetic`), reading excluded —
 the analysis cost alone, measurable before any campaign has run.
 
     python bench/calibrate_invert.py [STORE]
@@ -24,7 +24,8 @@ from pathlib import Path
 
 
 import analysis.calibration.command.pipeline as report
-from analysis.synthetic import reference_law, results_table, trials_table
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
+from studies.synthetic import reference_law, results_table, trials_table  # noqa: E402
 
 
 def timed_run(store, out):

@@ -5,7 +5,7 @@ and analysed by the installed command, once without and once with --out (the
 figures). Prints one JSON object; target: the analysis of 100 recordings
 (`cortex afm tension EXP.h5 --json`, the whole process) within 10 s.
 
-It also prints docs/tension.md's known-truth tables (`depth_table`): ramps of a
+It also prints docs/studies/tension-ramps.md's known-truth tables (`depth_table`): ramps of a
 droplet of V = 4300 µm³ and T = 1 mN/m down to h̃ from 0.98 to 0.5 (1000 samples,
 force noise 0.02 nN, height noise 1 nm, 8 seeds), fitted by both models: T / T_true
 (mean, largest error), contact error, R²; and the bias table of an elastic cell
@@ -30,8 +30,10 @@ import numpy as np
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.formats.instruments import to_cell, wedge_height_um
 from analysis.afm.tension.ramp import fit_ramp
-from analysis.afm.tension.synth import droplet_recording, shell_ramp
 from solver.geometry import cell_radius
+
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
+from studies.tension_synth import droplet_recording, shell_ramp  # noqa: E402
 
 N = 100
 

@@ -14,12 +14,17 @@ K_B = 25, K_S = 8.33, γ_a = 1.5 mN/m, standard bending), best of --repeat:
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from solver import viscous, viscous_time
+from solver import viscous
 from solver.model import Shell
+
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
+from studies import viscous_time  # noqa: E402
 
 SHELL = Shell(volume_um3=4300.0, h0_um=12.0, dh_um=0.5, bulk_mN_per_m=25.0, shear_mN_per_m=8.33,
               tension_mN_per_m=1.5)

@@ -2,7 +2,7 @@
 
 Per node of `campaigns/protocol.toml` (chosen below, or `--nodes i,j,...`): the recording's
 segment fit and the relaxed-state model (`analysis.afm.synth.protocol_bias.node_results`), and
-the waited-state model (`solver.waited_state`, K_sec,w C_w) at t_w = T_w + t_r/2 (`waited`), its
+the waited-state model (`studies.waited_state`, K_sec,w C_w) at t_w = T_w + t_r/2 (`waited`), its
 linear response |K*_w| alone (`linear`), at the middle of the oscillation t_w + 2.5/f
 (`waited_mid`), the same linearisation with the prestress of the moduli |K*(f)|
 (`prestress_abs`), and two diagnostics from the time domain's own state at the end of the wait
@@ -18,8 +18,10 @@ held in the response (`at_td_label`: K*_w, tangent). One JSON line per node, err
 
 import argparse
 import json
+import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,11 +30,13 @@ from analysis.afm.synth.protocol_bias import node_results
 from campaign.config import load
 from solver.cell_protocol import power_law_cortex
 from solver.fast import _newton
-from solver.prestressed_response import complex_response, prestressed_modulus
 from solver.time_domain import TimeShell
 from solver.time_protocol import Protocol, approach
 from solver.viscous import Linearised, full_hessian, hold_label, linearise
-from solver.waited_state import waited_moduli, waited_state, waited_time_s
+
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
+from studies.prestressed_response import complex_response, prestressed_modulus  # noqa: E402
+from studies.waited_state import waited_moduli, waited_state, waited_time_s  # noqa: E402
 
 CAMPAIGN = "campaigns/protocol.toml"
 PHYSIOLOGICAL = [(b, s, w, f) for b, s in ((0.1, 0.2), (0.1, 0.4)) for w in (10.0, 100.0) for f in (0.1, 1.0)]

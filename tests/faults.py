@@ -68,11 +68,13 @@ HERE = Path(__file__).resolve().parent
 def environment(base: dict[str, str] | None = None) -> dict[str, str]:
     """The variables that install these faults in a process and every process
     it starts: `base` (default os.environ) with CORTEX_TASK_HOOKS naming this
-    module and this folder on PYTHONPATH."""
+    module, and this folder and the repository root (`studies`, which the fake
+    law comes from) on PYTHONPATH."""
     base = dict(os.environ if base is None else base)
     path = [p for p in base.get("PYTHONPATH", "").split(os.pathsep) if p]
-    if str(HERE) not in path:
-        path.insert(0, str(HERE))
+    for folder in (str(HERE.parent), str(HERE)):
+        if folder not in path:
+            path.insert(0, folder)
     return {**base, task_hooks.ENV: "faults", "PYTHONPATH": os.pathsep.join(path)}
 
 
@@ -159,7 +161,7 @@ def prepare(fault: str, shell: Any) -> None:
     test timeout then times the fault itself, not a process's start-up, on a
     machine of any speed. Once per process and shape."""
     if fault == "fake_law":
-        import analysis.synthetic  # noqa: F401  (the law's coefficients: its import outside the timer)
+        import studies.synthetic  # noqa: F401  (the law's coefficients: its import outside the timer)
         from solver.geometry import droplet
         from solver.modulus import effective_modulus
         effective_modulus(shell.volume_um3, shell.h0_um, shell.h1_um, shell.tension_mN_per_m, 0.0)
@@ -214,10 +216,10 @@ def _cubic(coefficients, x):
 
 def fake_law(shell: Any) -> dict[str, Any]:
     """The result of the made-up law of the analysis's synthetic stores
-    (`analysis.synthetic.REFERENCE_*`) instead of a solve, with the force
+    (`studies.synthetic.REFERENCE_*`) instead of a solve, with the force
     that gives it, F = (γ_a + K ε_A) 2 H(h1) A_c(h1) (SPEC 3 backwards), and
     K and the rest then from that force exactly as after a solve."""
-    from analysis.synthetic import REFERENCE_C, REFERENCE_D, REFERENCE_LAMBDA
+    from studies.synthetic import REFERENCE_C, REFERENCE_D, REFERENCE_LAMBDA
     from solver.geometry import droplet
     from solver.modulus import effective_modulus
     V, h0, h1, bulk, g = shell.volume_um3, shell.h0_um, shell.h1_um, shell.bulk_mN_per_m, shell.tension_mN_per_m

@@ -13,7 +13,7 @@ from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 from cortex.cli import main
 
 

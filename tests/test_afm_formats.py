@@ -9,7 +9,7 @@ from analysis.afm.formats.csvcell import read_csv_cell, write_csv_cell
 from analysis.afm.formats.h5 import read_experiment, write_experiment
 from analysis.afm.formats.jpk.text import read_jpk
 from analysis.afm.synth.cells import generate, law_forward
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 
 JPK = Path(__file__).resolve().parents[1].parent / "shared/data/jpk/force-save-2020.10.29-12.06.06.196.txt"
 

@@ -13,7 +13,7 @@ from analysis.invert.method import choose
 from analysis.afm.population.summary import summary
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 
 
 @pytest.fixture(scope="session")

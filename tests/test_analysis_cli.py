@@ -11,7 +11,7 @@ import pytest
 
 import analysis.calibration.command.pipeline as report
 from analysis.calibration.file import load_calibration
-from analysis.synthetic import reference_law, results_table, trials_table
+from studies.synthetic import reference_law, results_table, trials_table
 from cortex.cli import main
 
 LAWS = {b: reference_law(b) for b in ("standard", "double", "none")}

@@ -7,7 +7,7 @@ import pytest
 
 from analysis.calibration.command import montecarlo, reconstruction
 from analysis.calibration.law import Calibration, calibrate
-from analysis.synthetic import reference_law, results_table, trials_table
+from studies.synthetic import reference_law, results_table, trials_table
 
 LAW = reference_law("standard")
 CAL = Calibration({"standard": LAW})

@@ -1,13 +1,15 @@
 """The README's folder map and docs/architecture.md's module map match the tree:
 every folder the README names exists and every top-level folder of the
-project is named; every module of the packages is named in the module map,
-and every module the map names exists."""
+project is named; every module of the packages (and of `studies/`) is named in
+the module map, and every module the map names exists; the product imports
+nothing of `studies/`."""
 
 import re
 
 from conftest import ROOT
 
-TOP = ("cortex", "common", "solver", "campaign", "analysis", "outputs")
+PRODUCT = ("cortex", "common", "solver", "campaign", "analysis", "outputs")
+TOP = (*PRODUCT, "studies")
 PACKAGES = tuple(str(init.parent.relative_to(ROOT)) for top in TOP
                  for init in sorted((ROOT / top).rglob("__init__.py")))
 
@@ -41,3 +43,9 @@ def test_every_module_is_in_the_module_map_and_every_named_module_exists():
     ghosts = [token for token in re.findall(r"`([\w/]+\.py)`", text)
               if not ((ROOT / token).is_file() if "/" in token else token in everywhere)]
     assert ghosts == [], f"docs/architecture.md names modules that do not exist: {ghosts}"
+
+
+def test_the_product_imports_nothing_of_the_studies():
+    importing = [str(path.relative_to(ROOT)) for top in PRODUCT for path in sorted((ROOT / top).rglob("*.py"))
+                 if re.search(r"^\s*(from|import)\s+studies\b", path.read_text(), flags=re.M)]
+    assert importing == [], f"product modules that import studies/: {importing}"

@@ -7,7 +7,7 @@ in its place by every `import` of that name, ours or a library's. These tests
 check that no script has such a name, that every script's imports resolve
 with bench/ first on the path (without running its main), that every
 `bench/X.py` the docs, the Makefile and the code name exists, that the docs
-name every script, and that none is shown run with Python's -P flag.
+(docs/ and docs/studies/) name every script, and that none is shown run with Python's -P flag.
 """
 
 import importlib.util
@@ -20,7 +20,7 @@ import sys
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BENCH = ROOT / "bench"
 SCRIPTS = sorted(BENCH.glob("*.py"))
-PACKAGES = ("campaign", "analysis", "solver", "common", "cortex", "outputs")
+PACKAGES = ("campaign", "analysis", "solver", "common", "cortex", "outputs", "studies")
 
 
 def test_there_are_scripts_and_packages_to_check():
@@ -70,9 +70,10 @@ def test_every_script_imports_with_bench_first_on_the_path(tmp_path):
 
 def test_every_named_script_exists_and_runs_plainly():
     texts = {path: path.read_text() for path in
-             [ROOT / "README.md", ROOT / "Makefile", *(ROOT / "docs").glob("*.md"),
+             [ROOT / "README.md", ROOT / "Makefile", *(ROOT / "docs").rglob("*.md"),
               *SCRIPTS, *(ROOT / "tests").glob("*.py"), *(ROOT / "solver").rglob("*.py"),
-              *(ROOT / "analysis").rglob("*.py"), *(ROOT / "campaign").rglob("*.py")]}
+              *(ROOT / "analysis").rglob("*.py"), *(ROOT / "campaign").rglob("*.py"),
+              *(ROOT / "studies").rglob("*.py")]}
     named = {(path.name, m) for path, text in texts.items() for m in re.findall(r"bench/([a-z0-9_]+)\.py", text)}
     missing = sorted({(where, name) for where, name in named if not (BENCH / f"{name}.py").is_file()})
     assert missing == []

@@ -10,8 +10,8 @@ import pytest
 from analysis.calibration import law_fits
 from analysis.calibration.file import load_calibration
 from analysis.calibration.law import calibrate, poisson, shear_ratio
-from analysis.synthetic import PAPER_GRID, reference_law, results_table
 from common.errors import InputError
+from studies.synthetic import PAPER_GRID, reference_law, results_table
 
 H = np.array([14.75, 13.75, 12.75, 11.75, 10.75, 9.75]) / 20.1727   # the paper grid's h~
 

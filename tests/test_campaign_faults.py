@@ -35,9 +35,9 @@ def test_the_sleep_counts_towards_the_task_timeout():
 
 def test_fake_law_is_the_reference_law_of_the_analysis():
     """K of the fake compressions at three grid points is K_B (1 + α exp(h̃/λ))
-    of analysis.synthetic.reference_law('standard'), from the force it returns."""
+    of studies.synthetic.reference_law('standard'), from the force it returns."""
     from analysis.calibration.law_fits import modulus_law
-    from analysis.synthetic import reference_law
+    from studies.synthetic import reference_law
     law = reference_law("standard")
     for shear, tension, h0 in ((8.33, 0.5, 15.0), (15.0, 1.5, 12.0), (25.0, 3.0, 11.0)):
         shell = Shell(volume_um3=4300.0, h0_um=h0, bulk_mN_per_m=25.0, shear_mN_per_m=shear,

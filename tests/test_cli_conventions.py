@@ -13,7 +13,7 @@ import pytest
 
 from analysis.calibration.law import Calibration
 from analysis.invert.table import METHODS as INVERSION_METHODS
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 from conftest import CORTEX, ROOT, cortex
 from cortex.cli import build_parser, main
 from solver.compression import METHODS as SOLVERS

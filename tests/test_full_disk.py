@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 from campaign.store import journal
 from campaign.store.journal import read as read_journal
 from campaign.store.reader import read_results, read_trials

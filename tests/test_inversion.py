@@ -7,7 +7,7 @@ import pytest
 from analysis.calibration.law import Calibration, poisson, shear_ratio
 from analysis.invert.inversion import invert_cell, invert_curves
 from analysis.calibration.law_fits import modulus_law
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 
 LAW = reference_law("standard")
 CAL = Calibration({"standard": LAW, "double": reference_law("double")})

@@ -14,7 +14,7 @@ from analysis.afm.formats.h5 import read_experiment
 from analysis.afm.formats.reader import ImportOptions, open as open_cells
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 from cortex.cli import main
 from jpk_writer import write_force, write_map
 

@@ -154,7 +154,7 @@ def test_import_json_summary_of_each_real_file(tmp_path, capsys):
 @need
 def test_analyze_lists_recordings_without_modulation(tmp_path, capsys):
     from analysis.calibration.law import Calibration
-    from analysis.synthetic import reference_law
+    from studies.synthetic import reference_law
     cal = tmp_path / "cal.json"
     Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
     capsys.readouterr()

@@ -14,7 +14,7 @@ import pytest
 from analysis.afm.formats.h5 import write_experiment
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from studies.synthetic import reference_law
 from conftest import BIN, ROOT
 from cortex.cli import main
 from outputs.ownership import MANIFEST

@@ -194,7 +194,7 @@ def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(
 
     from analysis.afm.synth.cells import subset_sizes
     from analysis.calibration.law import Calibration
-    from analysis.synthetic import reference_law
+    from studies.synthetic import reference_law
     from cortex.cli import main
     cal = tmp_path / "cal.json"
     Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)

@@ -59,7 +59,7 @@ def test_rows_hold_the_bias_whatever_the_ranks(stores):
 def test_an_elastic_cortex_has_no_bias_and_a_power_law_its_loss_angles(stores):
     elastic, power = (row for _, row in read_results(stores[1]).iterrows())
     # β = 0: no loss anywhere; the oscillation's |K*| (the tangent about h_m) a little above the
-    # model's secant K_sec of h0 -> h_m, the floor of the map (0.35-0.8 %, docs/viscoelastic.md)
+    # model's secant K_sec of h0 -> h_m, the floor of the map (0.35-0.8 %, docs/studies/protocol-bias.md)
     assert elastic["model_loss_angle_rad"] == 0.0 and abs(elastic["loss_angle_rad"]) < 1e-4
     assert 1.0 < elastic["modulus_ratio"] < 1.01
     # the series' own loss angles are the power law's βπ/2 (to 0.03 rad at 1 Hz and β = 0.4, docs)

@@ -10,10 +10,10 @@ from analysis.afm.formats.instruments import wedge_height_um
 from analysis.afm.tension.ramp import fit_ramp, force_per_tension_um
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.pipeline import Options, Trace, analyse
-from analysis.afm.tension.synth import droplet_force_nN, droplet_recording
 from solver.droplet_table import mean_curvature_per_um, unit_area, unit_shape
 from common.errors import InputError
 from solver.geometry import cell_radius, droplet
+from studies.tension_synth import droplet_force_nN, droplet_recording
 
 DEPTHS_H_TILDE = (0.95, 0.9, 0.8, 0.7, 0.6, 0.5)
 
@@ -58,7 +58,7 @@ def test_droplet_ramps_give_back_the_tension_within_1_percent(h_tilde, volume, t
 def test_the_small_deformation_formula_is_biased_low_and_less_so_deeper():
     """Fitted to exact droplet ramps (contact free), π T δ (1 + 5δ/4R) gives T
     too small, by less the deeper the ramp, and puts the contact ever lower
-    (docs/tension.md's table)."""
+    (docs/studies/tension-ramps.md's table)."""
     volume, tension = 4300.0, 1.0
     radius = float(cell_radius(volume))
     ratios, contacts = [], []

@@ -10,7 +10,7 @@ import pytest
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.instruments import to_cell
 from analysis.afm.tension.shell_shear import shear_range
-from analysis.afm.tension.synth import droplet_recording
+from studies.tension_synth import droplet_recording
 from conftest import ROOT
 from cortex.cli import main
 from jpk_writer import write_force
@@ -140,7 +140,7 @@ def test_figure_names_are_files_and_never_shared():
 
 @need
 def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
-    """The text export with its constant-force pause (docs/tension.md has the
+    """The text export with its constant-force pause (docs/studies/tension-real-files.md has the
     numbers): R = 6.8 µm, the radius the published tool assumes for its test data."""
     status, doc = _json(capsys, TEXT, "--radius-um", 6.8)
     assert status == 0
@@ -176,7 +176,7 @@ def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
     binary, text = doc["rows"]
     assert binary["part"] == text["part"] == "approach" and binary["r2"] > 0.95 and text["r2"] > 0.95
     assert text["droplet_tension_mN_per_m"] == pytest.approx(binary["droplet_tension_mN_per_m"], rel=0.02)
-    for row in (binary, text):         # the shell's γ_a at most the droplet's apparent T (docs/tension.md)
+    for row in (binary, text):         # the shell's γ_a at most the droplet's apparent T (docs/studies/tension-real-files.md)
         assert row["model"] == "shell" and row["tension_mN_per_m"] <= 1.01 * row["droplet_tension_mN_per_m"]
         assert row["tension_lo95_mN_per_m"] < row["tension_mN_per_m"] < row["tension_hi95_mN_per_m"]
     assert text["depth_um"] == pytest.approx(binary["depth_um"], abs=0.05)

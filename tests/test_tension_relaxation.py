@@ -12,8 +12,8 @@ from analysis.afm.tension.pause import pause_tension
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.pipeline import Options, run
 from analysis.afm.tension.relaxation import EXPONENTIAL, NONE, POWER, fit_relaxation, shape, time_to_s
-from analysis.afm.tension.synth import RATE_HZ, droplet_force_nN, droplet_recording
 from solver.geometry import cell_radius
+from studies.tension_synth import RATE_HZ, droplet_force_nN, droplet_recording
 
 F_INF, AMPLITUDE, NOISE = 4.0, 1.5, 0.02
 T = np.arange(3000) / RATE_HZ                  # a 3 s pause at 1 kHz

@@ -15,7 +15,7 @@ from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, SHEAR_TILDE, SIGNIF
 from analysis.afm.tension.shell_shear import (BOUNDED, IDENTIFIED, fit_unknown_shear, identification,
                                               shear_range)
 from analysis.afm.tension.shell_table import unit_forces
-from analysis.afm.tension.synth import droplet_force_nN, shell_ramp as elastic_ramp
+from studies.tension_synth import droplet_force_nN, shell_ramp as elastic_ramp
 
 CELLS = 40
 SAMPLES = 8000           # a ramp to 0.14 R and as far above the contact: 4 s at 2 kHz

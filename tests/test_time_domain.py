@@ -11,13 +11,13 @@ from analysis.afm.synth.time_domain import segment_fit
 from common.errors import InputError
 from solver.compression import compress
 from solver.model import Shell
-from solver.prestressed_response import material_parts
 from solver.prony import Prony, fit_power_law
 from solver.relaxed_state import relaxed_state
 from solver.time_domain import Cortex, TimeShell, simulate
 from solver.time_protocol import STEPS_PER_PERIOD, Protocol, approach, run
 from solver.viscoelastic import hessian_parts, relaxed
 from solver.viscous import hold_label, linearise, respond
+from studies.prestressed_response import material_parts
 
 V = 4300.0
 SHELL = Shell(volume_um3=V, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
@@ -89,7 +89,7 @@ def test_loss_angle_at_once_is_the_prestressed_state_model():
     after the step to h_m, prestressed by the spring: the loss angle is the linear response
     about the compressed state h0 -> h_m with the complex moduli on the whole ∂H/∂K
     (`solver.viscoelastic.hessian_parts` at that state; found 0.9 % apart) and on the material
-    stiffness alone with the contact label held (`solver.prestressed_response`; 1.2 %)."""
+    stiffness alone with the contact label held (`studies.prestressed_response`; 1.2 %)."""
     shell = replace(SHELL, h0_um=12.25, bending_pN_um=SHELL.bending_stiffness * 1000.0)
     cortex, f = Cortex(Prony(25.0, (25.0,), (0.01,)), Prony(8.33, (8.33,), (0.01,))), 1.0
     fit = segment_fit(run(shell, cortex, Protocol(wait_s=0.0, frequency_hz=f, sample_hz=40 * f)), V)

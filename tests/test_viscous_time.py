@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from analysis.afm.timeseries import fit_sinusoid, shape_of
-from solver import viscous, viscous_time
+from solver import viscous
 from common.errors import InputError
 from solver.model import Shell
+from studies import viscous_time
 
 SHELL = Shell(volume_um3=4300.0, h0_um=12.0, dh_um=0.5, bulk_mN_per_m=25.0, shear_mN_per_m=8.33,
               tension_mN_per_m=1.5)

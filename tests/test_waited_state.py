@@ -1,4 +1,4 @@
-"""The waited-state model (`solver.waited_state`, SPEC 12) against the protocol simulated in time
+"""The waited-state model (`studies.waited_state`, SPEC 12) against the protocol simulated in time
 on nodes of the bias map (`campaigns/protocol.toml`, `analysis.afm.synth.protocol_bias`), and its
 reduction to the relaxed-state model for an elastic cortex."""
 
@@ -10,7 +10,7 @@ from solver.geometry import cell_radius
 from solver.model import Shell
 from solver.relaxed_state import relaxed_state
 from solver.time_protocol import Protocol, run
-from solver.waited_state import waited_state, waited_time_s
+from studies.waited_state import waited_state, waited_time_s
 
 V = 4300.0
 
@@ -48,7 +48,7 @@ NODES = [
 def test_waited_state_against_the_protocol_in_time(node, waited_error, relaxed_error):
     """The segment fit of the simulated recording against the waited-state model: |K*| within
     2.5 % and the loss angle within 0.008 rad (found up to 1.95 % and 0.0061 rad on these
-    nodes; the rest of the gap is the time domain's contact label, docs/viscoelastic.md), where
+    nodes; the rest of the gap is the time domain's contact label, docs/studies/waited-state.md), where
     the relaxed-state model is 10 % off at β = 0.4. Each error is pinned to its measured value."""
     h_tilde, ks_tilde, gamma_tilde, beta_b, beta_s, wait_s, f = node
     shell = map_shell(h_tilde, ks_tilde, gamma_tilde)

@@ -20,7 +20,7 @@ stress increment is K*(ω) δa on the material stiffness M while the prestress s
 
     H*(ω) = H_w + (K_B* - K_B,w) M_B + (K_S* - K_S,w) M_S,   K_B* = K_B(iω), K_S* = K_S(iω)
 
-(`solver.prestressed_response`: linearised about the waited state, label free where it is
+(`studies.prestressed_response`: linearised about the waited state, label free where it is
 stationary), and `solver.viscous.respond` reads it as the experiment does: K*_w(ω) = δγ_eff / ε̂_A
 (`linear_modulus_mN_per_m` = |K*_w|). As in `solver.relaxed_state`, the experiment's 0.5 µm
 peak-to-peak oscillation is given the secant of the elastic shell and the linear response only
@@ -37,7 +37,7 @@ The prestress K(t_w) a is the time domain's (its mean tension γ_0 within 0.4 % 
 map's physiological nodes, `bench/waited_state.py`); what separates the model from the time
 domain there is the contact label: the time domain's lags the waited equilibrium's (its history
 is left out of dE/dl), and about the waited state with the time domain's label held the two
-|K*| agree to -0.4..+1.1 % (docs/viscoelastic.md, "The waited-state model").
+|K*| agree to -0.4..+1.1 % (docs/studies/waited-state.md).
 
 Limits: the strains creep during the wait (γ_a and the relaxing moduli redistribute them; a
 different β_B and β_S turn the ratio K_S/K_B), which K(t_w) a of the final strains ignores; the
@@ -51,7 +51,7 @@ import numpy as np
 
 from solver.compression import compress
 from solver.model import Shell
-from solver.prestressed_response import complex_response
+from studies.prestressed_response import complex_response
 from solver.time_domain import Cortex
 from solver.time_protocol import Protocol
 from solver.viscous import linearise, respond

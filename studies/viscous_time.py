@@ -24,7 +24,7 @@ from solver.model import check_viscous_inputs
 from solver.viscous import NN_PER_PA_UM2, Linearised, shell_response
 
 
-def _damping(lin, viscosity_Pa_s):
+def _damping(lin: Linearised, viscosity_Pa_s: float) -> npt.NDArray[np.float64]:
     """C = 2·1e-3 η D with its near-null directions (eigenvalues below 1e-9 of the
     largest) made exactly null: a relabelling of the nodes that moves no
     material (nodes sliding along the shell as l changes) has ~1e-9 relative
