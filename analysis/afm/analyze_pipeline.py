@@ -102,6 +102,8 @@ class Settings:
 
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
+        if self.as_made and self.wait_s is not None:
+            raise InputError(f"a wait of {self.wait_s:g} s is given: it goes with as_made=False")
         if self.wait_s is not None and not self.wait_s >= 0:
             raise InputError(f"the wait must be a number of seconds >= 0, or inf (got {self.wait_s:g})")
         if self.jobs < 1:
