@@ -92,12 +92,12 @@ def _open(path: Path) -> h5py.File:
         f = h5py.File(path, "r")
     except OSError:
         raise InputError(f"{path}: not an HDF5 file (truncated or corrupt?)") from None
-    if f.attrs.get("format") != FORMAT:
+    form, version = f.attrs.get("format"), f.attrs.get("version", -1)
+    if form != FORMAT or int(version) != VERSION:
         f.close()
-        raise InputError(f"{path}: not a cortex-afm experiment (attribute format != '{FORMAT}')")
-    if int(f.attrs.get("version", -1)) != VERSION:
-        f.close()
-        raise InputError(f"{path}: format version {f.attrs.get('version')} (this reader knows {VERSION})")
+        if form != FORMAT:
+            raise InputError(f"{path}: not a cortex-afm experiment (attribute format != '{FORMAT}')")
+        raise InputError(f"{path}: format version {version} (this reader knows {VERSION})")
     return f
 
 
