@@ -14,18 +14,20 @@ import pytest
 from analysis.afm import provenance as prov
 from analysis.afm.formats.h5 import read_experiment, read_provenance, write_experiment
 from analysis.afm.synth.cells import generate, law_forward
-from analysis.calibration.law import Calibration
-from analysis.synthetic import reference_law
+from analysis.calibration.file import load_calibration, shipped_path
 from common.errors import InputError
 from conftest import first_heights
 from cortex.cli import main
 
 
 @pytest.fixture(scope="module")
-def cal(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(path)
-    return path
+def cal():
+    """The shipped calibration: its law is the forward model, `--method law` the inversion."""
+    return shipped_path()
+
+
+def _cells(n):
+    return generate(n, seed=1, errors=False, forward=law_forward(load_calibration(None).calibration["standard"]))[0]
 
 
 def test_a_frequency_domain_synth_is_read_by_default_as_wait_s_inf(cal, tmp_path):
@@ -36,8 +38,8 @@ def test_a_frequency_domain_synth_is_read_by_default_as_wait_s_inf(cal, tmp_path
                  "--out", str(exp)]) == 0
     assert read_provenance(exp / "experiment.h5") == prov.FREQUENCY_DOMAIN
     for name, extra in (("default", []), ("inf", ["--wait-s", "inf"])):
-        assert main(["afm", "analyze", str(exp), "--calibration", str(cal), "--out", str(tmp_path / name),
-                     *extra]) == 0
+        assert main(["afm", "analyze", str(exp), "--calibration", str(cal), "--method", "law",
+                     "--out", str(tmp_path / name), *extra]) == 0
     files = sorted(p.name for p in (tmp_path / "inf").iterdir() if p.suffix in (".csv", ".json"))
     assert {"cells.csv", "segments.csv", "rheology.csv", "summary.json", "population.json"} <= set(files)
     said = {}
@@ -72,13 +74,12 @@ def test_a_time_domain_synth_records_its_cortex(tmp_path, monkeypatch):
 
 
 def test_a_file_without_provenance_is_read_as_measured_and_left_as_it_is(cal, tmp_path):
-    cells, _ = generate(2, seed=1, errors=False, forward=law_forward(reference_law()))
-    old = write_experiment(tmp_path / "old.h5", cells)          # as files were written before
+    old = write_experiment(tmp_path / "old.h5", _cells(2))          # as files were written before
     before = old.read_bytes()
     assert prov.reading(read_provenance(old), None, as_made=True) == \
         prov.Reading(None, "protocol-aware", "no provenance recorded: read as measured")
-    assert main(["afm", "analyze", str(old), "--calibration", str(cal), "--no-phase", "--out",
-                 str(tmp_path / "a")]) == 0
+    assert main(["afm", "analyze", str(old), "--calibration", str(cal), "--method", "law", "--no-phase",
+                 "--out", str(tmp_path / "a")]) == 0
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert summary["provenance"] == {"kind": "unknown", "recorded": False}
     assert "does not record how it was made" in (tmp_path / "a" / "report.md").read_text()
@@ -105,8 +106,7 @@ def _bad_cortex(g):
 ], ids=["kind", "no-model", "model", "measured-model", "memory-negative", "memory-text", "no-memory", "history",
         "cortex", "no-kind"])
 def test_a_malformed_provenance_is_refused(cal, tmp_path, capsys, attrs, edit, says):
-    cells, _ = generate(1, seed=1, errors=False, forward=law_forward(reference_law()))
-    path = write_experiment(tmp_path / "bad.h5", cells)
+    path = write_experiment(tmp_path / "bad.h5", _cells(1))
     with h5py.File(path, "r+") as f:
         g = f.create_group("provenance")
         g.attrs.update(attrs)
