@@ -2,13 +2,13 @@
 all four frequencies, errors on, the shipped calibration (emulator, every bending
 variant, 95 % intervals, the viscoelastic reading, the population, figures, report).
 The recordings come from the law forward model (quick to make) and are written to an
-experiment file first; they are read as that model makes them, in the relaxed state
-(`--wait-s inf`: the protocol-aware reading, the command's default for measured files, is
-timed by bench/time_domain_synth.py's recipe, docs/performance.md).
+experiment file first, recorded as frequency-domain synthetic, so the command's default reads
+them as that model makes them, in the relaxed state (the protocol-aware reading, its default for
+measured and time-domain files, is timed by bench/time_domain_synth.py's recipe, docs/performance.md).
 
 Each run is what the command runs (`analysis.calibration.file.load_calibration` of the shipped
 calibration, then `analysis.afm.analyze_pipeline.run` with the command's default
-settings but the wait) in this process, its steps timed by wrapping the functions the pipeline
+settings) in this process, its steps timed by wrapping the functions the pipeline
 calls: reading (the calibration file too), segment fits (the
 curves), the selected variant's emulator fit, bootstrap intervals and summary
 (with the median's bootstrap), the population answer, the viscoelastic reading,
@@ -25,7 +25,6 @@ imports). Prints one JSON object; target: cli_wall_s <= 15 s on 2 cores.
 
 import argparse
 import json
-import math
 import resource
 import subprocess
 import sys
@@ -36,6 +35,7 @@ from pathlib import Path
 
 import analysis.afm.synth.cells as synth
 from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.provenance import FREQUENCY_DOMAIN
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
 from studies.synthetic import reference_law  # noqa: E402
 
@@ -90,7 +90,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         cells, _ = synth.generate(args.cells, seed=0, errors=True, forward=synth.law_forward(reference_law()))
         data = Path(tmp) / "experiment.h5"
-        write_experiment(data, cells)
+        write_experiment(data, cells, FREQUENCY_DOMAIN)
         spent = _timers()
         runs = []
         for i in range(args.repeat):
@@ -99,7 +99,7 @@ def main():
             children = resource.getrusage(resource.RUSAGE_CHILDREN)
             file = load_calibration()
             spent["read"] = [time.perf_counter() - w, time.process_time() - c]    # + the recordings, below
-            settings = Settings(method="emulator", errors=MeasurementErrors().check(), phase=True, wait_s=math.inf)
+            settings = Settings(method="emulator", errors=MeasurementErrors().check(), phase=True)
             run(str(data), file, Path(tmp) / f"an{i}", settings)
             spent["total"] = [time.perf_counter() - w, time.process_time() - c]
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -109,8 +109,7 @@ def main():
         best["report_and_tables"] = [best["write"][j] - best["figures"][j] for j in (0, 1)]
         del best["write"]
         t0 = time.perf_counter()
-        subprocess.run([str(Path(sys.executable).parent / "cortex"), "afm", "analyze", str(data), "--out", str(Path(tmp) / "cli"),
-                        "--wait-s", "inf"],
+        subprocess.run([str(Path(sys.executable).parent / "cortex"), "afm", "analyze", str(data), "--out", str(Path(tmp) / "cli")],
                        check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
         cli = time.perf_counter() - t0
     print(json.dumps({"cells": len(cells), "frequencies": 4, "repeat": args.repeat,

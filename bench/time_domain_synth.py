@@ -13,7 +13,7 @@
 
     cortex afm synth --time-domain --cells 40 --out EXP [--bulk-exponent 0.1 --shear-exponent 0.3
                      --wait-s 100 --jobs 2]
-    cortex afm analyze EXP --out ANALYSIS [--wait-s inf]   # the protocol-aware reading; inf: the relaxed-state one
+    cortex afm analyze EXP --out ANALYSIS [--wait-s inf]   # protocol-aware (its provenance); inf: the relaxed state
     python bench/time_domain_synth.py EXP ANALYSIS
 """
 

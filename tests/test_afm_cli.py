@@ -11,6 +11,7 @@ import pytest
 from analysis.afm.analyze import TENSION_TOLERANCE
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.provenance import FREQUENCY_DOMAIN
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
@@ -24,7 +25,7 @@ def setup(tmp_path_factory):
     Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
     cells, _ = generate(4, seed=2, errors=True, forward=law_forward(reference_law()))
     good = d / "good.h5"
-    write_experiment(good, cells)
+    write_experiment(good, cells, FREQUENCY_DOMAIN)
     return d, cal, good, cells
 
 
@@ -35,8 +36,7 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
                  "--calibration", str(cal)]) == 0
     truth = json.loads((data / "truth.json").read_text())
     assert len(truth["cells"]) == 6
-    assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out"),
-                 "--wait-s", "inf"]) == 0
+    assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(tmp_path / "out")]) == 0
     s = json.loads((tmp_path / "out/summary.json").read_text())
     keys = {"frequency_hz", "n_cells", "n_excluded", "median_nu", "iqr_nu", "lognormal_mu", "lognormal_sigma"}
     assert s["frequencies"] and all(keys <= set(r) for r in s["frequencies"])
@@ -191,9 +191,9 @@ def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys
     import common.beside
     assert common.beside.forking(), "this test needs fork and two CPUs"
     d, _, good, _ = setup
-    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "forked"), "--wait-s", "inf"]) == 0
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "forked")]) == 0
     monkeypatch.setattr(common.beside, "forking", lambda: False)
-    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "serial"), "--wait-s", "inf"]) == 0
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "serial")]) == 0
     names = sorted(p.name for p in (tmp_path / "serial").iterdir() if p.suffix in (".csv", ".json", ".md"))
     assert {"cells_double.csv", "cells_none.csv", "summary_double.json", "population.json"} <= set(names)
     for name in names:

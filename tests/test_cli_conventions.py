@@ -103,7 +103,7 @@ def test_out_is_a_folder_in_behaviour(tmp_path, capsys):
         assert len(f["cells"]) == 3
     assert len(json.loads((exp / "truth.json").read_text())["cells"]) == 3
     status = main(["afm", "analyze", str(exp), "--calibration", str(cal), "--method", "law",
-                   "--out", str(tmp_path / "an"), "--wait-s", "inf", "--json"])
+                   "--out", str(tmp_path / "an"), "--json"])
     result = json.loads(capsys.readouterr().out)
     assert status in (0, 1) and result["report"] == str(tmp_path / "an" / "report.md")
     assert {r["frequency_hz"] for r in result["frequencies"]} and all("median_nu" in r for r in result["frequencies"])

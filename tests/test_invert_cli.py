@@ -95,7 +95,7 @@ def test_afm_analyze_needs_no_calibration(tmp_path):
     run = cortex("afm", "synth", "--cells", 8, "--seed", 2, "--no-errors", "--solver", "law",
                  "--calibration", shipped, "--out", exp)
     assert run.returncode == 0, run.stderr
-    run = cortex("afm", "analyze", exp, "--out", tmp_path / "an", "--draws", 30, "--wait-s", "inf")
+    run = cortex("afm", "analyze", exp, "--out", tmp_path / "an", "--draws", 30)
     assert run.returncode == 0, run.stderr
     cells = pd.read_csv(tmp_path / "an" / "cells.csv")
     ok = cells[cells["excluded_reason"].isna()]

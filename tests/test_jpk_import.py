@@ -10,8 +10,9 @@ import pandas as pd
 import pytest
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.formats.h5 import read_experiment
+from analysis.afm.formats.h5 import read_experiment, read_provenance
 from analysis.afm.formats.reader import ImportOptions, open as open_cells
+from analysis.afm.provenance import FREQUENCY_DOMAIN, MEASURED
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
@@ -82,6 +83,7 @@ def test_native_round_trip(exp, tmp_path, capsys):
     assert main(["afm", "import", str(folder), "--volumes", str(vol), "--dish-height-um", "3", "--out",
                  str(out)]) == 0
     back = read_experiment(out / "experiment.h5")
+    assert read_provenance(out / "experiment.h5") == MEASURED           # imported: measured
     direct = open_cells([folder], ImportOptions(volumes_csv=str(vol), dish_um=3.0))
     def plan(cell):
         return [(s.kind, s.start, s.stop, *np.nan_to_num([s.frequency_hz, s.amplitude_um], nan=-1.0))
@@ -94,13 +96,20 @@ def test_native_round_trip(exp, tmp_path, capsys):
 
 
 def test_modulation_archives_analyse_like_the_native_experiment(exp, tmp_path):
+    """The JPK files of synthetic cells are measured ones to `afm analyze` (protocol-aware by
+    default), so they are read in the relaxed state given (--wait-s inf): what the native experiment
+    of the same cells, recorded as frequency-domain synthetic, is read with by default."""
     d, cells, folder, vol, cal = exp
     from analysis.afm.formats.h5 import write_experiment
-    native = write_experiment(tmp_path / "native.h5", cells)
-    assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a"),
-                 "--wait-s", "inf"]) == 0
+    native = write_experiment(tmp_path / "native.h5", cells, FREQUENCY_DOMAIN)
+    assert main(["afm", "analyze", str(native), "--calibration", str(cal), "--out", str(tmp_path / "a")]) == 0
     assert main(["afm", "analyze", str(folder), "--volumes", str(vol), "--dish-height-um", "3",
                  "--calibration", str(cal), "--out", str(tmp_path / "b"), "--wait-s", "inf"]) == 0
+    import json
+    said = {x: json.loads((tmp_path / x / "summary.json").read_text()) for x in ("a", "b")}
+    assert said["a"]["reading"] == "relaxed (synthetic, frequency-domain)"
+    assert said["b"]["reading"] == "relaxed (--wait-s inf; the experiment: measured)"
+    assert said["b"]["provenance"] == {"kind": "measured", "recorded": True}
     a, b = (pd.read_csv(tmp_path / x / "cells.csv") for x in ("a", "b"))
     assert len(a) == len(b) > 3 and a["nu"].notna().sum() > 3
     pd.testing.assert_series_equal(a["cell_id"], b["cell_id"])
@@ -226,7 +235,7 @@ def test_analyze_reports_a_recording_without_modulation_and_exits_1(exp, tmp_pat
     table.write_text(vol.read_text() + f"approach-only,{c.volume_um3},confocal\n")
     capsys.readouterr()
     assert main(["afm", "analyze", str(mixed), "--volumes", str(table), "--dish-height-um", "3",
-                 "--calibration", str(cal), "--out", str(tmp_path / "o"), "--wait-s", "inf"]) == 1
+                 "--calibration", str(cal), "--out", str(tmp_path / "o"), "--no-phase"]) == 1
     assert "not analysed: approach-only: no modulation (oscillation) segment" in capsys.readouterr().out
     report = (tmp_path / "o" / "report.md").read_text()
     assert "| approach-only | no modulation (oscillation) segment |" in report

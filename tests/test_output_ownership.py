@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from analysis.afm.formats.h5 import write_experiment
+from analysis.afm.provenance import FREQUENCY_DOMAIN
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
@@ -131,7 +132,7 @@ def afm(tmp_path_factory):
     cal = d / "cal.json"
     Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
     cells, _ = generate(3, seed=2, errors=False, forward=law_forward(reference_law()))
-    data = write_experiment(d / "exp.h5", cells)
+    data = write_experiment(d / "exp.h5", cells, FREQUENCY_DOMAIN)
     return cal, data
 
 
@@ -162,7 +163,7 @@ def test_afm_analyze_refuses_a_file(afm, tmp_path, capsys):
 def test_afm_analyze_reruns_into_its_own_folder_but_keeps_a_stranger(afm, tmp_path, capsys):
     cal, data = afm
     out = tmp_path / "out"
-    args = ["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out), "--wait-s", "inf"]
+    args = ["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out)]
     assert main(args) == 0
     listed = set((out / MANIFEST).read_text().split())
     assert {"report.md", "summary.json", "cells.csv", "k_curves.png"} <= listed

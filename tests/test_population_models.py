@@ -207,7 +207,7 @@ def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(
     assert truth["trend_slope_design_weighted_ln_ks_per_decade"] == pytest.approx(
         trend.pseudo_true_slope(pops, subset_sizes(12)))
     assert main(["afm", "analyze", str(tmp_path / "exp"), "--calibration", str(cal), "--method", "law",
-                 "--out", str(tmp_path / "a"), "--wait-s", "inf"]) == 0
+                 "--out", str(tmp_path / "a")]) == 0
     doc = json.loads((tmp_path / "a" / "population.json").read_text())
     assert doc["measurement_from_intervals"] is False          # the law gives no intervals
     assert all(r["measurement_share"] is None for r in doc["frequencies"])

@@ -1,8 +1,8 @@
 """The protocol-aware reading (SPEC 10, 12): a recording's protocol replayed coarsely in time
 (`solver.protocol_replay`) against the synthetic experiments' full simulation, the power laws it
 is replayed with (`analysis.afm.replayed.power_laws`), `afm analyze` (by default with each
-recording's own waits) on a cell simulated in time against its truth and against `--wait-s inf`,
-the relaxed-state reading; bad values exit 2."""
+recording's own waits, as a time-domain experiment's provenance asks) on a cell simulated in time
+against its truth and against `--wait-s inf`, the relaxed-state reading; bad values exit 2."""
 
 import json
 
@@ -92,7 +92,9 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
         assert aware[f"{name}_exponent_lo95"] <= truth[f"{name}_exponent"] <= aware[f"{name}_exponent_hi95"]
     segments = pd.read_csv(tmp_path / "aware" / "segments.csv")
     assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
-    assert json.loads((tmp_path / "aware" / "summary.json").read_text())["protocol"]["wait_s"] == "recorded"
+    said = json.loads((tmp_path / "aware" / "summary.json").read_text())
+    assert said["protocol"]["wait_s"] == "recorded"
+    assert said["reading"] == "protocol-aware (synthetic, time-domain)"      # read as it was made
 
 
 @pytest.mark.parametrize("args, message", [

@@ -3,8 +3,9 @@ per-cell inversion and population statistics.
 
 Public API (imported on first use):
 
-- `read_experiment(path)` / `write_experiment(path, cells)`: the native
-  experiment file (HDF5) of `Cell`s; `open(paths, ImportOptions(...))` (the one
+- `read_experiment(path)` / `write_experiment(path, cells, provenance)`: the native
+  experiment file (HDF5) of `Cell`s and how they were made (`analysis.afm.provenance`:
+  `MEASURED`, `FREQUENCY_DOMAIN`, `time_domain(...)`; `read_provenance(path)`); `open(paths, ImportOptions(...))` (the one
   reader, in `analysis.afm.formats`): cells from an experiment, a single-cell CSV,
   or JPK or Bruker files and folders, as every `cortex afm` command reads them.
 

@@ -37,11 +37,17 @@ and every frequency's median ν a bootstrap 95 % interval (`median_nu_lo95`,
 With `Settings.phase` (the command's default; `--no-phase` turns it off) the selected
 variant's cells table also gets the viscoelastic columns per cell and frequency,
 DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instrument
-phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a finite
-or recorded `Settings.wait_s` (None, the default: each recording's own waits; inf: off) the
-segments are first corrected for the stress each cell keeps from its earlier height steps
-(`analysis.afm.protocol_reading`), every variant reads the corrected segments, segments.csv
-gains the correction's columns and summary.json `protocol`."""
+phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a
+protocol-aware reading the segments are first corrected for the stress each cell keeps from its
+earlier height steps (`analysis.afm.protocol_reading`), every variant reads the corrected segments,
+segments.csv gains the correction's columns and summary.json `protocol`.
+
+The reading follows the data's provenance (`analysis.afm.provenance`, `Settings.as_made`, the
+default): a relaxed synthetic experiment (frequency-domain `afm synth`) in the relaxed state, exactly
+as `Settings(as_made=False, wait_s=inf)`; a time-domain synthetic, a measured or an unknown one
+protocol-aware with each recording's own waits. `as_made` False takes `Settings.wait_s` as given
+(None: each recording's own waits; inf: the relaxed state). summary.json's `reading` and
+`provenance`, and report.md, say which reading was used and why."""
 
 from __future__ import annotations
 
@@ -59,6 +65,8 @@ from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_reading import corrected, is_on
 from analysis.afm.protocol_reading import summary as protocol_summary
+from analysis.afm.provenance import Provenance, Reading, of_data, reading
+from analysis.afm.provenance import markdown as made_markdown
 from analysis.invert.method import Inversion, choose
 from outputs.ownership import OutputDir
 from common.beside import beside
@@ -88,16 +96,14 @@ class Settings:
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
     tension_tolerance: float = TENSION_TOLERANCE
-    wait_s: float | None = None   # the protocol-aware reading's T_w (s): None each recording's own, inf off
+    as_made: bool = True          # read each experiment as its provenance says (`analysis.afm.provenance`)
+    wait_s: float | None = None   # with as_made False: T_w (s), None each recording's own, inf the relaxed state
     jobs: int = 1                 # processes for the protocol-aware reading's replays
-
-    @property
-    def protocol_aware(self) -> bool:
-        """Whether the viscoelastic reading corrects for the protocol (`analysis.afm.protocol_reading`)."""
-        return self.phase and is_on(self.wait_s)
 
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
+        if self.as_made and self.wait_s is not None:
+            raise InputError(f"a wait of {self.wait_s:g} s is given: it goes with as_made=False")
         if self.wait_s is not None and not self.wait_s >= 0:
             raise InputError(f"the wait must be a number of seconds >= 0, or inf (got {self.wait_s:g})")
         if self.jobs < 1:
@@ -116,6 +122,12 @@ class Recordings:
     inversion: Inversion
     calibration: CalibrationFile
     variants: list[str]
+    provenance: Provenance
+    reading: Reading
+
+    def protocol_aware(self, settings: Settings) -> bool:
+        """Whether the viscoelastic reading corrects for the protocol (`analysis.afm.protocol_reading`)."""
+        return settings.phase and is_on(self.reading.wait_s)
 
 
 @dataclass
@@ -144,12 +156,14 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
     """`Recordings` of `data` (a path or a list of paths) with the inversion the
     calibration file (`analysis.calibration.file.load_calibration`) serves. InputError for bad input."""
     cells = open_cells(data, settings.import_options)
+    provenance = of_data([data] if isinstance(data, (str, Path)) else data)
     inversion = _inversion(calibration, settings.method, settings.bending)
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
     name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
     variants = [settings.bending] + [v for v in inversion.variants() if v != settings.bending]
     return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
-                      inversion=inversion, calibration=calibration, variants=variants)
+                      inversion=inversion, calibration=calibration, variants=variants, provenance=provenance,
+                      reading=reading(provenance, settings.wait_s, settings.as_made, settings.phase))
 
 
 
@@ -166,9 +180,9 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
     measured = measure(rec.cells)
-    if settings.protocol_aware:
+    if rec.protocol_aware(settings):
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
-                             settings.errors, settings.wait_s, settings.lags, settings.jobs)
+                             settings.errors, rec.reading.wait_s, settings.lags, settings.jobs)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
@@ -235,9 +249,10 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
-    aware = {"protocol": protocol_summary(fitted.segments, settings.wait_s)} if settings.protocol_aware else {}
+    aware = {"protocol": protocol_summary(fitted.segments, rec.reading.wait_s)} if rec.protocol_aware(settings) else {}
+    made = {"reading": rec.reading.label(), "provenance": rec.provenance.to_dict()}
     _write(out, "summary.json", _json({"bending": bending, "method": settings.method, "tension_tolerance": tolerance,
-                                       **aware, **fitted.sums[bending]}))
+                                       **made, **aware, **fitted.sums[bending]}))
     _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if has_intervals(fitted.tables[bending]):
@@ -245,7 +260,7 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     from analysis.afm.population.answer_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, settings.method, fitted.tables, fitted.sums, figs,
-                    fitted.population) + markdown_skipped(None, rec.skipped)
+                    fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
         _write(out, "rheology.csv", _csv(fitted.rheology))

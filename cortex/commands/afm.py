@@ -21,6 +21,7 @@ from cortex.results import plain, say_result
 
 if TYPE_CHECKING:
     from analysis.afm.formats.reader import ImportOptions
+    from analysis.afm.provenance import Provenance
     from outputs.ownership import OutputDir
 
 EXPERIMENT = "experiment.h5"            # what synth and import write into their --out folder
@@ -151,14 +152,16 @@ def _add_analyze(s: Commands) -> None:
                    help="the tension filter: a cell whose segments' mean tension deviates from its median by more "
                         "than the fraction X is excluded (default 0.1, as published; inf lifts the filter; "
                         "summary.json tension_tolerance)")
-    a.add_argument("--wait-s", default="recorded", metavar="S",
+    a.add_argument("--wait-s", default=None, metavar="S",
                    help="the wait before each height's oscillations, for the protocol-aware viscoelastic reading: "
                         "each cell's own protocol replayed in time with its fitted power-law cortex, every segment "
                         "corrected for the stress kept from the earlier height steps, in rounds until the cells' "
-                        "power laws settle (about 25 s of CPU a cell in all; docs/viscoelastic.md). 'recorded' (the "
-                        "default): each recording's own waits (from its approaches or pauses); S: a wait of S s at "
-                        "every height; inf: the relaxed-state reading, no correction (what the frequency-domain "
-                        "'afm synth' models)")
+                        "power laws settle (about 25 s of CPU a cell in all; docs/viscoelastic.md). Default: as the "
+                        "experiment was made (its provenance; docs/afm.md): a frequency-domain 'afm synth' "
+                        "experiment, relaxed at every height, as inf; a measured or time-domain one as recorded. "
+                        "'recorded': each recording's own waits (from its approaches or pauses); S: a wait of S s "
+                        "at every height; inf: the relaxed-state reading, no correction. summary.json 'reading' "
+                        "says which was used and why")
     a.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="cells replayed in N processes at once (default: the CPUs this process may use)")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
@@ -212,6 +215,7 @@ def synth(args: argparse.Namespace) -> int:
     from common.errors import InputError
     if args.cells < 1:
         raise InputError(f"--cells must be >= 1 (got {args.cells})")
+    settings: dict[str, Any] = {}
     if args.time_domain:
         settings = _time_domain_settings(args)
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
@@ -223,14 +227,22 @@ def synth(args: argparse.Namespace) -> int:
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
         cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
     with out.writing(EXPERIMENT) as experiment:
-        write_experiment(experiment, cells)
+        write_experiment(experiment, cells, _made(args, settings, truth))
     text = json.dumps({"format": TRUTH_FORMAT, **truth}, indent=1, default=float) + "\n"
     with out.writing(TRUTH) as truth_path:
         write_atomically(truth_path, text.encode())
-    hint = "" if args.time_domain else " (made in the relaxed state: read it with afm analyze --wait-s inf)"
     say_result(args, {"experiment": str(experiment), "truth": str(truth_path), "n_cells": len(cells)},
-               f"wrote {experiment} ({len(cells)} cells) and {truth_path}{hint}")
+               f"wrote {experiment} ({len(cells)} cells) and {truth_path}")
     return 0
+
+
+def _made(args: argparse.Namespace, settings: dict[str, Any], truth: dict[str, Any]) -> Provenance:
+    """The provenance `afm synth` records: frequency-domain, or time-domain with each cell's cortex,
+    its history and τ_c (the synth's `memory_s` where it has one, else inf: no turnover)."""
+    from analysis.afm import provenance
+    if not args.time_domain:
+        return provenance.FREQUENCY_DOMAIN
+    return provenance.time_domain(truth["cells"], settings["history"], settings.get("memory_s", float("inf")))
 
 
 def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
@@ -326,6 +338,7 @@ def import_(args: argparse.Namespace) -> int:
     from analysis.afm.formats.h5 import write_experiment
     from analysis.afm.formats.instruments import NAMES, is_instrument_file
     from analysis.afm.formats.reader import open as open_cells
+    from analysis.afm.provenance import MEASURED
     from common.errors import InputError
     for f in args.files:                # instrument files only: an experiment is never imported again
         if not is_instrument_file(f):
@@ -333,7 +346,7 @@ def import_(args: argparse.Namespace) -> int:
     out = new_experiment_folder(args.out, [EXPERIMENT])
     cells = open_cells(args.files, import_options(args))
     with out.writing(EXPERIMENT) as path:
-        write_experiment(path, cells)
+        write_experiment(path, cells, MEASURED)
     for c in cells:
         assert c.recorded is not None, "an instrument cell keeps its recording's summary"
         print(json.dumps(c.recorded) if args.json else _summary_line(c.recorded))
@@ -375,14 +388,17 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
     return paths
 
 
-def wait_setting(text: str, phase: bool) -> float | None:
-    """`--wait-s`: None for each recording's own waits ('recorded'), else the seconds (inf: off);
-    InputError (one line) if malformed, or finite with --no-phase."""
+def wait_setting(text: str | None, phase: bool) -> tuple[bool, float | None]:
+    """`--wait-s` as (as made, wait): (True, None) when not given (the experiment read as its
+    provenance says), else (False, None) for each recording's own waits ('recorded') or (False, the
+    seconds; inf: the relaxed state); InputError (one line) if malformed, or finite with --no-phase."""
     import math
 
     from common.errors import InputError
+    if text is None:
+        return True, None
     if text == "recorded":
-        return None
+        return False, None
     try:
         wait = float(text)
     except ValueError:
@@ -391,7 +407,7 @@ def wait_setting(text: str, phase: bool) -> float | None:
         raise InputError(f"--wait-s: the wait must be >= 0 s, or inf (got {text})")
     if not phase and math.isfinite(wait):
         raise InputError("--wait-s corrects the viscoelastic reading: it cannot go with --no-phase")
-    return wait
+    return False, wait
 
 
 def analyze(args: argparse.Namespace) -> int:
@@ -405,9 +421,10 @@ def analyze(args: argparse.Namespace) -> int:
     file, errors = inversion_settings(args)          # also settles the default --method
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
+    as_made, wait = wait_setting(args.wait_s, phase)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
                         phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance,
-                        wait_s=wait_setting(args.wait_s, phase),
+                        as_made=as_made, wait_s=wait,
                         jobs=usable_cores() if args.jobs is None else args.jobs)
     result = run(data, file, args.out, settings)
     if args.json:

@@ -10,6 +10,9 @@ Layout (format "cortex-afm", version 1):
                                         frequency_hz (float64, NaN but for oscillations)
         segment_amplitude_um            float64 (m,), optional: an oscillation's piezo amplitude
                                         (NaN where unknown; written by `cortex afm import`)
+    /provenance/               how the experiment was made: measured or synthetic, with its model
+                               (`analysis.afm.provenance`; absent from files written before it was
+                               recorded, which read as unknown)
 
 Writing builds the file in memory and writes it to `FILE.tmp`, renamed at
 the end, so no file is left half-written and a full disk is one clear error. Reading checks the layout and every cell
@@ -23,7 +26,9 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.afm import provenance as prov
 from analysis.afm.cell import Cell, Segment
+from analysis.afm.provenance import Provenance
 from outputs.writing import hdf5_image, write_atomically
 from common.errors import InputError
 
@@ -31,14 +36,15 @@ FORMAT, VERSION = "cortex-afm", 1
 SEG_DTYPE = np.dtype([("kind", h5py.string_dtype()), ("start", "i8"), ("stop", "i8"), ("frequency_hz", "f8")])
 
 
-def write_experiment(path: str | Path, cells: Iterable[Cell]) -> Path:
-    """Write `cells` to `path` (built in memory, written atomically: a full
-    disk gives a WriteError naming `path`, never a half-written file)."""
-    return Path(write_atomically(path, hdf5_image(lambda f: _fill(f, cells))))
+def write_experiment(path: str | Path, cells: Iterable[Cell], provenance: Provenance = prov.UNKNOWN) -> Path:
+    """Write `cells` made as `provenance` says to `path` (built in memory, written atomically: a full
+    disk gives a WriteError naming `path`, never a half-written file); an unknown provenance is not written."""
+    return Path(write_atomically(path, hdf5_image(lambda f: _fill(f, cells, provenance))))
 
 
-def _fill(f: h5py.File, cells: Iterable[Cell]) -> None:
+def _fill(f: h5py.File, cells: Iterable[Cell], provenance: Provenance) -> None:
     f.attrs["format"], f.attrs["version"] = FORMAT, VERSION
+    prov.write(f, provenance)
     root = f.create_group("cells")
     for c in cells:
         g = root.create_group(c.cell_id)
@@ -78,20 +84,34 @@ def _segments(seg: Any, amp: Any, where: str) -> list[Segment]:
         raise InputError(f"{where}: 'segments' is not a table of kind, start, stop, frequency_hz") from None
 
 
-def read_experiment(path: str | Path) -> list[Cell]:
-    """All cells of an experiment file, validated."""
-    path = Path(path)
+def _open(path: Path) -> h5py.File:
+    """The experiment file at `path`, open for reading, its format and version checked."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     try:
         f = h5py.File(path, "r")
     except OSError:
         raise InputError(f"{path}: not an HDF5 file (truncated or corrupt?)") from None
-    with f:
-        if f.attrs.get("format") != FORMAT:
+    form, version = f.attrs.get("format"), f.attrs.get("version", -1)
+    if form != FORMAT or int(version) != VERSION:
+        f.close()
+        if form != FORMAT:
             raise InputError(f"{path}: not a cortex-afm experiment (attribute format != '{FORMAT}')")
-        if int(f.attrs.get("version", -1)) != VERSION:
-            raise InputError(f"{path}: format version {f.attrs.get('version')} (this reader knows {VERSION})")
+        raise InputError(f"{path}: format version {version} (this reader knows {VERSION})")
+    return f
+
+
+def read_provenance(path: str | Path) -> Provenance:
+    """How the experiment file at `path` was made (`analysis.afm.provenance`; unknown if not recorded)."""
+    with _open(Path(path)) as f:
+        return prov.read(f, str(path))
+
+
+def read_experiment(path: str | Path) -> list[Cell]:
+    """All cells of an experiment file, validated (its provenance too)."""
+    path = Path(path)
+    with _open(path) as f:
+        prov.read(f, str(path))
         if "cells" not in f or not len(f["cells"]):
             raise InputError(f"{path}: no cells in /cells")
         cells = []
