@@ -20,7 +20,7 @@ SHELL = Shell(volume_um3=4300.0, h0_um=13.0, bulk_mN_per_m=25.0, shear_mN_per_m=
 PROTOCOL = Protocol.stepped(13.0, (12.5, 12.0, 11.0), (1.0,), (2,), wait_s=5.0)
 
 
-def run_cell(shell, cortex, protocol, history="carried"):
+def cell_recording(shell, cortex, protocol, history="carried"):
     """The recording with every ramp and its hold as one approach stretch, as the synth stores it."""
     from analysis.afm.synth.time_domain import segments_of
     rec = simulate(shell, cortex, protocol, history=history)
@@ -32,7 +32,7 @@ def test_an_elastic_cortex_gives_the_elastic_force_at_every_height():
     """β = 0 (constant moduli): after each ramp and wait, and after the oscillations that
     follow, the plate force is the elastic solver's for h0 -> h_i (found 1e-4; asked 0.5 %),
     whatever came before; segments are where the protocol puts them."""
-    rec = run_cell(SHELL, Cortex(Prony(25.0), Prony(8.33)), PROTOCOL)
+    rec = cell_recording(SHELL, Cortex(Prony(25.0), Prony(8.33)), PROTOCOL)
     approaches = [s for s in rec.stretches if s.kind == "approach"]
     oscillations = [s for s in rec.stretches if s.kind == "oscillation"]
     assert len(approaches) == len(oscillations) == 3
@@ -53,12 +53,12 @@ def test_a_power_law_cortex_relaxes_and_carries_its_history():
     to relax (found: 1.5-6 nN relaxed in 5 s waits; 106.8 against 108.2 nN; an elastic cortex
     gives both the same force, the test above)."""
     cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
-    rec = run_cell(SHELL, cortex, PROTOCOL)
+    rec = cell_recording(SHELL, cortex, PROTOCOL)
     approaches = [s for s in rec.stretches if s.kind == "approach"]
     for a in approaches:
         ramp_end = a.start + int(np.argmin(rec.height_um[a.start:a.stop]))
         assert rec.force_nN[a.stop - 1] < rec.force_nN[ramp_end] - 0.5
-    direct = run_cell(SHELL, cortex, Protocol.stepped(13.0, (11.0,), (1.0,), (2,), wait_s=5.0))
+    direct = cell_recording(SHELL, cortex, Protocol.stepped(13.0, (11.0,), (1.0,), (2,), wait_s=5.0))
     last, first = approaches[-1], direct.stretches[0]
     assert rec.force_nN[last.stop - 1] < direct.force_nN[first.stop - 1] - 1.0
 
@@ -71,9 +71,9 @@ def test_the_relaxed_history_starts_every_height_from_its_own_relaxed_droplet():
     is kept (found +7.1 nN on average over the height's samples, of 56 nN)."""
     cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
     two = Protocol.stepped(13.0, (12.5, 12.0), (1.0,), (2,), wait_s=5.0)
-    relaxed = run_cell(SHELL, cortex, two, history="relaxed")
-    carried = run_cell(SHELL, cortex, two)
-    fresh = run_cell(SHELL, cortex, Protocol.stepped(12.5, (12.0,), (1.0,), (2,), wait_s=5.0))
+    relaxed = cell_recording(SHELL, cortex, two, history="relaxed")
+    carried = cell_recording(SHELL, cortex, two)
+    fresh = cell_recording(SHELL, cortex, Protocol.stepped(12.5, (12.0,), (1.0,), (2,), wait_s=5.0))
     second = relaxed.stretches[2].start                 # the second height's approach
     assert relaxed.stretches == carried.stretches and relaxed.steps == carried.steps
     assert np.array_equal(relaxed.force_nN[:second], carried.force_nN[:second])

@@ -106,8 +106,8 @@ def _add_synth(s: Commands) -> None:
                         "one history through the whole protocol; relaxed: every mean height from its own relaxed "
                         "droplet one cell step above it, as the relaxed-state reading assumes)")
     g.add_argument("--hold", choices=HOLD_KINDS, default=None, metavar="KIND",
-                   help="--time-domain: each wait is a hold at constant %(choices)s (default height; force: the "
-                        "force the ramp reached is held and the plate creeps)")
+                   help="--time-domain: each wait a hold at constant KIND, %(choices)s (default height; force: "
+                        "the force the ramp reached is held while the plate creeps)")
     g.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
                    help=f"--time-domain: the speed of the ramps to each mean height (default "
                         f"{TIME_DOMAIN_RAMP_UM_PER_S:g} um/s)")
