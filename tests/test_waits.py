@@ -73,7 +73,7 @@ def test_no_approach_no_age():
     assert math.isnan(Protocol(12.0, (Oscillate(1.0),)).ages_s()[0])
 
 
-def test_visits_are_the_recorded_protocol_or_one_with_a_given_wait():
+def test_protocol_of_is_the_recorded_protocol_or_one_with_a_given_wait():
     """The protocol a replay follows: from h_ref at the time just before the first ramp, per
     height a ramp to the mean height ending where the step ends (its speed the recorded one), a
     hold to the first oscillation, each oscillation's frequency and periods and a hold to the
