@@ -137,7 +137,8 @@ def test_a_constant_force_hold_creeps_and_a_ramp_to_a_force_stops_there():
     """A ramp to 40 nN (sampled at 10 Hz) rises to it and stops there; the hold at constant force
     keeps it at every sample (to 1e-6) while the plate creeps down, step after step, as the
     power-law cortex relaxes (found 0.037 µm in 5 s); held at the same height instead, the force
-    falls (found to 39.0 nN). An elastic cortex holds the force without creeping (1e-6 µm)."""
+    falls (found to 39.0 nN). An elastic cortex holds the force without creeping (1e-6 µm). A
+    ramp to a force the cell exceeds at once is one InputError."""
     cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
     by_force = Protocol(13.0, (Ramp(to_nN=40.0), Hold(5.0, "force")))
     rec = simulate(SHELL, cortex, by_force, sampling=Sampling(approach_hz=10.0))
@@ -151,3 +152,5 @@ def test_a_constant_force_hold_creeps_and_a_ramp_to_a_force_stops_there():
     assert simulate(SHELL, cortex, held).force_nN[-1] < 40.0 - 0.5
     still = simulate(SHELL, Cortex(Prony(25.0), Prony(8.33)), by_force, sampling=Sampling(approach_hz=10.0))
     assert np.ptp(still.height_um[still.stretches[1].start:]) < 1e-6
+    with pytest.raises(InputError, match="one step in"):                # below the tension's own force
+        simulate(SHELL, cortex, Protocol(13.0, (Ramp(to_nN=10.0),)))
