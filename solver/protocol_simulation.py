@@ -11,7 +11,7 @@ protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
 
 - a ramp moves the plate at most `ramp_step_um` a step, linear in time at its speed; a ramp to a
   force stops at the step where the force crosses it, that step's gap found by regula falsi;
-- a hold grows its steps from `hold_first_s` (FINE: the sampling interval) by `hold_growth` up
+- a hold grows its steps from `hold_first_s` (FINE: 1/`sample_hz`) by `hold_growth` up
   to `hold_largest_s`; consecutive height holds are one hold. A constant-force hold finds at
   every step the gap whose force is the hold's (the secant method on h, `_at_force`);
 - an oscillation takes `steps_per_period` steps a period. FINE: over all its periods, with
@@ -24,7 +24,7 @@ protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
 
 REPLAY against FINE, read with the true cortex by the segment fit, on two cells of 33 and 18
 segments: |K*| within 1.6 % (0.8 % on average), loss angle within 0.014 rad
-(`tests/test_protocol_simulation.py` checks a small cell); it takes ~1700 steps for a cell of 11
+(`tests/test_protocol_replay.py` checks a small cell); it takes ~1700 steps for a cell of 11
 heights at three frequencies, 3 ms a step.
 
 Sampling (`Sampling`): oscillations at `sample_hz` (or `min_samples_per_period` a period where
@@ -61,7 +61,7 @@ class Resolution:
     """How finely a protocol is stepped (module docstring)."""
 
     ramp_step_um: float
-    hold_first_s: float | None        # None: the sampling interval
+    hold_first_s: float | None        # None: 1/sample_hz
     hold_growth: float
     hold_largest_s: float
     steps_per_period: int
