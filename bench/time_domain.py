@@ -5,8 +5,8 @@ the segment fits against the relaxed-state frequency-domain model. Prints one JS
   largest relative error of the fit to (t/1 s)^-β over 0.01-1000 s (`solver.prony`).
 - `recordings`: a cell of V = 4300 µm³, γ_a = 1.5 mN/m, K_B(1 s) = 25 mN/m, K_S(1 s) = 8.33 mN/m
   with K(t) ∝ t^-β (β_B, β_S; Prony series, 2 elements a decade), reference droplet at
-  h0 = h_m + 0.25 µm with h_m at h̃ = 0.6; the protocol (`solver.time_protocol`): ramp 0.25 µm
-  at 0.2 µm/s, wait T_w, 5 cycles of 0.5 µm peak to peak at f, 100 Hz (20 samples a period at
+  h0 = h_m + 0.25 µm with h_m at h̃ = 0.6; the protocol (`solver.protocol`, simulated by
+  `solver.protocol_simulation` at its FINE resolution): ramp 0.25 µm at 0.2 µm/s, hold T_w, 5 cycles of 0.5 µm peak to peak at f, 100 Hz (20 samples a period at
   least). Per f: wall time, equilibrium solves, ms per solve; the segment fit's |K*| and loss
   angle; the relaxed-state model (`solver.relaxed_state`: K_sec C with the series' own
   K*(ω) = K(iω)) and the ratios. Bending `none` unless --bending (the time-domain bending is
@@ -25,8 +25,9 @@ from solver.geometry import cell_radius
 from solver.model import Shell
 from solver.prony import fit_power_law
 from solver.relaxed_state import relaxed_state
+from solver.protocol import Hold, Oscillate, Protocol, Ramp
+from solver.protocol_simulation import Sampling, simulate
 from solver.time_domain import Cortex
-from solver.time_protocol import Protocol, run
 
 V, TENSION, BULK, SHEAR, H_TILDE = 4300.0, 1.5, 25.0, 8.33, 0.6
 
@@ -40,7 +41,8 @@ def prony_table():
 
 def recording(shell, cortex, f, wait_s):
     start = time.perf_counter()
-    rec = run(shell, cortex, Protocol(wait_s=wait_s, frequency_hz=f))
+    protocol = Protocol(shell.h0_um, (Ramp(to_um=shell.h0_um - 0.25), Hold(wait_s), Oscillate(f)))
+    rec = simulate(shell, cortex, protocol, sampling=Sampling(approach_hz=100.0, min_samples_per_period=20))
     wall = time.perf_counter() - start
     fit = segment_fit(rec, V)
     model = relaxed_state(shell, cortex, f)

@@ -6,7 +6,7 @@ the waited-state model (`studies.waited_state`, K_sec,w C_w) at t_w = T_w + t_r/
 linear response |K*_w| alone (`linear`), at the middle of the oscillation t_w + 2.5/f
 (`waited_mid`), the same linearisation with the prestress of the moduli |K*(f)|
 (`prestress_abs`), and two diagnostics from the time domain's own state at the end of the wait
-(`solver.time_protocol.approach`): its mean tension γ_0 against the waited state's
+(the node's protocol up to its oscillation, `solver.protocol_simulation.simulate`): its mean tension γ_0 against the waited state's
 (`gamma0_ratio`), and the waited state re-solved at the time domain's contact label, the label
 held in the response (`at_td_label`: K*_w, tangent). One JSON line per node, errors as
 |K*|_td / model - 1 and δ_td - δ_model.
@@ -28,10 +28,10 @@ import numpy as np
 
 from analysis.afm.synth.protocol_bias import node_results
 from campaign.config import load
-from solver.cell_protocol import power_law_cortex
 from solver.fast import _newton
-from solver.time_domain import TimeShell
-from solver.time_protocol import Protocol, approach
+from solver.protocol import Oscillate, Protocol
+from solver.protocol_simulation import simulate
+from solver.time_domain import power_law_cortex
 from solver.viscous import Linearised, full_hessian, hold_label, linearise
 
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))   # `studies`, beside bench/ (not installed)
@@ -70,28 +70,27 @@ def at_td_label(node: Any, cortex: Any, protocol: Protocol, t_w: float) -> tuple
     """K*_w of the waited state re-solved at the time domain's contact label (held), and the
     time domain's γ_0 over the waited state's (both at the end of the wait)."""
     shell, f = node.shell, node.frequency_hz
-    state = TimeShell(shell, cortex)
-    approach(state, 0.0, shell.h0_um - protocol.step_um, protocol.ramp_um_per_s, protocol.wait_s,
-             protocol.sample_interval_s)
+    before = Protocol(protocol.start_um, tuple(s for s in protocol.steps if not isinstance(s, Oscillate)))
+    simulated = simulate(shell, cortex, before)
     bulk, shear = waited_moduli(cortex, t_w)
     model = replace(shell, bulk_mN_per_m=bulk, shear_mN_per_m=shear)
     waited = linearise(model)
     u = waited.u.copy()
-    u[-2] = state.u[-2]
+    u[-2] = simulated.contact_label
     u = _newton(waited.lag, u, waited.zp)[0]
     force = float(-0.5 * waited.lag.newton_system(u, waited.zp, hessian=False)[2])
     lin = Linearised(lag=waited.lag, u=u, zp=waited.zp, H=full_hessian(waited.lag, u, waited.zp),
                      force_nN=force, h_mean_um=waited.h_mean_um, shell=model, held=True)
     hold_label(lin.H, 1.0)
     K = complex_response(lin, model, cortex.bulk.complex_modulus(f), cortex.shear.complex_modulus(f), f)
-    return K, state.force_nN() / waited.force_nN
+    return K, float(simulated.force_nN[-1]) / waited.force_nN
 
 
 def models(node: Any) -> dict[str, float]:
     """The waited-state variants at `node` (module docstring)."""
     shell, f = node.shell, node.frequency_hz
     cortex = power_law_cortex(shell.bulk_mN_per_m, shell.shear_mN_per_m, node.bulk_exponent, node.shear_exponent)
-    protocol = Protocol(step_um=0.5 * shell.dh_um, wait_s=node.wait_s, frequency_hz=f)
+    protocol = node.protocol
     t_w = waited_time_s(protocol)
     out: dict[str, float] = {"waited_s": t_w}
     for name, t in (("waited", t_w), ("waited_mid", t_w + 2.5 / f)):

@@ -74,7 +74,7 @@ from functools import cached_property
 
 from campaign import task_hooks
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
-from campaign.protocol_grid import PROTOCOL_KEYS, ProtocolGrid, protocol_axes
+from campaign.protocol_grid import PROTOCOL_KEYS, BiasGrid, protocol_axes
 from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
@@ -104,7 +104,7 @@ class Campaign:
     method: str
     resolution: float
     timeout_s: float
-    shells: Grid | ProtocolGrid   # every compression (or protocol node), in grid order (made when asked for)
+    shells: Grid | BiasGrid   # every compression (or protocol node), in grid order (made when asked for)
     text: str              # the file's text, kept in the store
     test: task_hooks.TaskHooks | None = None   # the [test] section (the test suite's only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
@@ -167,7 +167,7 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS) * points, limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
     if protocol:
-        shells = ProtocolGrid(shells, protocol)
+        shells = BiasGrid(shells, protocol)
     test = task_hooks.parse(path, data["test"], len(shells)) if "test" in data else None
     mc = data.get("montecarlo")
     _check_montecarlo_grid(path, mc, grid, ratios)

@@ -9,7 +9,9 @@ The `[protocol]` axes (PROTOCOL_KEYS):
     frequency_hz   f, the oscillation's frequency (a number or a list)
 
 The protocol points are the product exponents × wait_s × frequency_hz (m of them, the last
-fastest); node i is shell i // m under point i % m, so the protocol varies fastest. A node's store columns are the shell's parameters and PROTOCOL_PARAMS
+fastest); node i is shell i // m under point i % m, so the protocol varies fastest. A node's
+protocol (`bias_protocol`, a `solver.protocol.Protocol`): from the shell's h0 a ramp of Δh/2 to
+the mean height h_m = h0 - Δh/2 at 0.2 µm/s, a hold of T_w there, 5 periods of 0.25 µm at f. A node's store columns are the shell's parameters and PROTOCOL_PARAMS
 (`campaign.store.schema`; the frequency as `protocol_frequency_hz`, apart from the viscous
 interior's `frequency_hz`); its id and the campaign's fingerprint are made from `to_dict`, the
 shell's fields and the protocol's.
@@ -27,6 +29,7 @@ import numpy as np
 from campaign.grid import Grid
 from common.errors import InputError
 from solver.model import Shell
+from solver.protocol import Hold, Oscillate, Protocol, Ramp
 
 PROTOCOL_KEYS = ("exponents", "wait_s", "frequency_hz")
 NODE_KEYS = ("bulk_exponent", "shear_exponent", "wait_s", "frequency_hz")   # a node's protocol
@@ -34,18 +37,35 @@ COLUMN = {"bulk_exponent": "bulk_exponent", "shear_exponent": "shear_exponent", 
           "frequency_hz": "protocol_frequency_hz"}      # a [protocol] key's store column
 
 
+def bias_protocol(shell: Shell, wait_s: float, frequency_hz: float) -> Protocol:
+    """A node's protocol (module docstring)."""
+    h_m = shell.h0_um - 0.5 * shell.dh_um
+    return Protocol(shell.h0_um, (Ramp(to_um=h_m), Hold(wait_s), Oscillate(frequency_hz)))
+
+
 @dataclass(frozen=True)
-class ProtocolNode:
-    """One node: the shell (K(1 s) its moduli, h0 = h_m + Δh/2) and the protocol point."""
+class BiasNode:
+    """One node: the shell (K(1 s) its moduli, h0 = h_m + Δh/2), the exponents and the protocol."""
 
     shell: Shell
     bulk_exponent: float
     shear_exponent: float
-    wait_s: float
-    frequency_hz: float
+    protocol: Protocol
+
+    @property
+    def wait_s(self) -> float:
+        hold = self.protocol.steps[1]
+        assert isinstance(hold, Hold)
+        return hold.duration_s
+
+    @property
+    def frequency_hz(self) -> float:
+        osc = self.protocol.steps[2]
+        assert isinstance(osc, Oscillate)
+        return osc.frequency_hz
 
     def to_dict(self) -> dict[str, object]:
-        """The shell's fields and the protocol's (as their store columns)."""
+        """The shell's fields and the protocol point (as their store columns)."""
         return {**self.shell.to_dict(), **{COLUMN[k]: getattr(self, k) for k in NODE_KEYS}}
 
 
@@ -74,7 +94,7 @@ def protocol_axes(path: Any, section: dict[str, Any]) -> dict[str, list[Any]]:
     return axes
 
 
-class ProtocolGrid(Sequence):
+class BiasGrid(Sequence):
     """The nodes of `shells` × the product of the protocol `axes` (`protocol_axes`)."""
 
     def __init__(self, shells: Grid, axes: dict[str, list[Any]]):
@@ -93,7 +113,9 @@ class ProtocolGrid(Sequence):
         if not -len(self) <= i < len(self):
             raise IndexError(f"node {i} out of range ({len(self)} nodes)")
         s, p = divmod(i % len(self), self.m)
-        return ProtocolNode(self.shells[s], *self.points[p])
+        b, sh, w, f = self.points[p]
+        shell = self.shells[s]
+        return BiasNode(shell, b, sh, bias_protocol(shell, w, f))
 
     def columns(self) -> dict[str, np.ndarray]:
         """The shells' columns (`Grid.columns`), each repeated per protocol point, and PROTOCOL_PARAMS."""
@@ -114,4 +136,4 @@ class ProtocolGrid(Sequence):
         return (repr(node.to_dict()) for node in self)
 
     def __repr__(self) -> str:
-        return f"ProtocolGrid({len(self.shells)} shells x {self.m} protocol points)"
+        return f"BiasGrid({len(self.shells)} shells x {self.m} protocol points)"

@@ -78,7 +78,7 @@ def compute_node(shell: Any, timeout_s: float, task: str = "viscoelastic_table")
     """One node of the table of `task` at `shell`, with its `wall_s`: the viscoelastic table's
     (`analysis.calibration.viscoelastic_table.node_results`: ln C's coefficients, TABLE_RESULTS
     of `campaign.store.schema`) or the shell ramp table's (`analysis.afm.tension.shell_table.node_results`:
-    F/(K_B R) over its depths, RAMP_RESULTS) or, `shell` a `campaign.protocol_grid.ProtocolNode`, one
+    F/(K_B R) over its depths, RAMP_RESULTS) or, `shell` a `campaign.protocol_grid.BiasNode`, one
     recording's bias (`analysis.afm.synth.protocol_bias.node_results`: PROTOCOL_RESULTS and more)."""
     def work():
         # here: a compression campaign never loads them

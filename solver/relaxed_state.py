@@ -10,7 +10,7 @@ times the complex factor C(δ_B, δ_S) of `solver.viscoelastic.viscoelastic_keys
 
     K*(h_m) = K_sec C,   |K*| = `modulus_mN_per_m`,   δ = arg K* = `loss_angle_rad`.
 
-What the time domain's segment fits (`solver.time_protocol`, SPEC 12) are compared with.
+What the time domain's segment fits (`solver.protocol_simulation`, SPEC 12) are compared with.
 """
 
 from dataclasses import replace

@@ -47,7 +47,7 @@ from solver.fast import _contact, problem
 from solver.fast.contact import LOG_PSI_MIN
 from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
-from solver.prony import Prony
+from solver.prony import Prony, fit_power_law
 
 EXTRAPOLATE = 1.0   # the contact label's start: l_n + EXTRAPOLATE (l_n - l_n-1)
 
@@ -58,6 +58,14 @@ class Cortex:
 
     bulk: Prony
     shear: Prony
+
+
+def power_law_cortex(bulk_1s_mN_per_m: float, shear_1s_mN_per_m: float, bulk_exponent: float,
+                     shear_exponent: float) -> Cortex:
+    """K_B(t) = K_B,1s (t/1 s)^-β_B and K_S(t) = K_S,1s (t/1 s)^-β_S as Prony series
+    (`solver.prony.fit_power_law`)."""
+    return Cortex(fit_power_law(bulk_exponent, bulk_1s_mN_per_m).prony,
+                  fit_power_law(shear_exponent, shear_1s_mN_per_m).prony)
 
 
 @dataclass
@@ -211,16 +219,3 @@ def element_strains(lag: Lagrangian, u: npt.NDArray[np.float64],
     e2 = (r[1:] + r[:-1]) / (r0[1:] + r0[:-1]) - 1.0
     return e1 + e2, e1 - e2
 
-
-def simulate(shell: Shell, cortex: Cortex, t_s: npt.ArrayLike, h_um: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """The plate force (nN) at the times t (s, increasing, from 0 at the reference h0) for the
-    gap history h(t) (µm, h(0) = h0), linear between the given times."""
-    t, h = np.asarray(t_s, float), np.asarray(h_um, float)
-    if t.ndim != 1 or t.shape != h.shape or len(t) < 2 or np.any(np.diff(t) <= 0):
-        raise InputError("times must be increasing, one gap each, at least two")
-    state = TimeShell(shell, cortex)
-    force = np.empty(len(t))
-    force[0] = state.force_nN() if abs(h[0] - shell.h0_um) < 1e-12 else state.step(h[0], 1e-9)
-    for k in range(1, len(t)):
-        force[k] = state.step(h[k], t[k] - t[k - 1])
-    return force

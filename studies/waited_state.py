@@ -1,7 +1,7 @@
 """The frequency-domain reading of a Prony-series cortex: the waited-state model (SPEC 10, 12).
 
-The protocol (`solver.time_protocol`) ramps the plate from the stress-free droplet at h0 to
-h_m = h0 - Δh/2 in t_r = Δh_m / v (0.25 µm at 0.2 µm/s: 1.25 s), waits T_w and oscillates at
+The bias map's protocol (`solver.protocol.Protocol`: a ramp, a hold, an oscillation) ramps the
+plate from the stress-free droplet at h0 to h_m = h0 - Δh/2 in t_r = Δh_m / v (0.25 µm at 0.2 µm/s: 1.25 s), waits T_w and oscillates at
 f. A power-law cortex has not relaxed by then: an element strained by a (a = e1 + e2, and
 likewise s = e1 - e2) over the ramp carries
 
@@ -49,18 +49,24 @@ from dataclasses import replace
 
 import numpy as np
 
+from common.errors import InputError
 from solver.compression import compress
 from solver.model import Shell
+from solver.protocol import Protocol, Ramp
 from studies.prestressed_response import complex_response
 from solver.time_domain import Cortex
-from solver.time_protocol import Protocol
 from solver.viscous import linearise, respond
 
 
 def waited_time_s(protocol: Protocol) -> float:
-    """t_w = T_w + t_r/2 (s): the time from the middle of the ramp (t_r = Δh_m / v) to the
-    start of the oscillation."""
-    return float(protocol.wait_s + 0.5 * protocol.step_um / protocol.ramp_um_per_s)
+    """t_w = T_w + t_r/2 (s): the time from the middle of the protocol's first ramp
+    (t_r = Δh_m / v, from its start to a height) to the start of its first oscillation, the
+    holds between making T_w."""
+    ramp = protocol.steps[0]
+    if not (isinstance(ramp, Ramp) and ramp.to_um is not None):
+        raise InputError("the waited state needs a protocol that starts with a ramp to a height")
+    ramp_s = abs(protocol.start_um - ramp.to_um) / ramp.speed_um_per_s
+    return float(protocol.ages_s()[0] + 0.5 * ramp_s)
 
 
 def waited_moduli(cortex: Cortex, waited_s: float) -> tuple[float, float]:

@@ -1,6 +1,6 @@
 """`cortex afm synth --time-domain`: a tiny experiment simulated in time, written in the native
-format with its truth and read by `afm analyze`'s reader; `--history relaxed`; impossible values
-refused (status 2)."""
+format with its truth and read by `afm analyze`'s reader; `--history relaxed`; `--hold force`
+with `--ramp-speed-um-per-s`; impossible values refused (status 2)."""
 
 import json
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from analysis.afm.formats.reader import open as open_cells
+from analysis.afm.recorded_protocol import protocol_of
 from analysis.afm.timeseries import segment_moduli
-from analysis.afm.waits import step_ages_s
 from conftest import first_heights
 from cortex.cli import main
 
@@ -45,7 +45,7 @@ def test_synth_time_domain_writes_an_experiment_with_its_truth(tiny, tmp_path, c
         assert 1.0 < row["tension_mN_per_m"] / cell_truth["tension_mN_per_m"] < 1.5
         assert f["bulk_loss_angle_rad"] < row["loss_angle_rad"] < f["shear_loss_angle_rad"]
     assert np.all(np.diff(cell.time_s) > 0)
-    ages = step_ages_s(cell)                            # the wait read back off the recording
+    ages = protocol_of(cell).ages_s()                   # the wait read back off the recording
     assert ages[0] == pytest.approx(5.0, abs=1.0) and ages[3] == pytest.approx(5.0, abs=1.0)
     assert np.allclose(np.diff(ages[:3]), [50.0, 5.0], atol=0.05)   # then 5 periods at 0.1 and 1 Hz
 
@@ -64,8 +64,29 @@ def test_synth_time_domain_relaxed_history_keeps_no_stress_from_the_first_height
     assert np.allclose(second, first, rtol=0.01)
 
 
+def test_synth_time_domain_holds_the_force_after_fast_ramps(tiny, tmp_path):
+    """--hold force --ramp-speed-um-per-s 1: each approach is the ramp at 1 µm/s (the first one
+    step long) and a 5 s hold at the force the ramp reached, the plate creeping down as the
+    cortex relaxes (found 0.01-0.03 µm); truth.json says both."""
+    out = tmp_path / "exp"
+    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--wait-s", "5", "--no-errors", "--hold", "force",
+                 "--ramp-speed-um-per-s", "1", "--out", str(out), "--json"]) == 0
+    truth = json.loads((out / "truth.json").read_text())
+    assert (truth["time_domain"]["hold"], truth["time_domain"]["ramp_speed_um_per_s"]) == ("force", 1.0)
+    cell_truth = truth["cells"][0]
+    (cell,) = open_cells([str(out / "experiment.h5")])
+    first = cell.segments[0]
+    assert cell.time_s[first.stop - 1] == pytest.approx(cell_truth["step_um"] / 1.0 + 5.0, abs=1e-9)
+    for a in (s for s in cell.segments if s.kind == "approach"):
+        hold = slice(a.stop - 4, a.stop)                   # the hold's last samples, 1 s apart
+        assert np.allclose(cell.force_nN[hold], cell.force_nN[a.stop - 1], rtol=1e-6)
+        assert np.all(np.diff(cell.height_um[hold]) < 0)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--bulk-exponent", "0.7"], "must be in"),
+    (["--ramp-speed-um-per-s", "0"], "--ramp-speed-um-per-s"),
+    (["--hold", "position"], "--hold"),
     (["--wait-s", "-1"], "--wait-s"),
     (["--solver", "law"], "fast solver"),
     (["--jobs", "0"], "--jobs"),
@@ -77,7 +98,8 @@ def test_impossible_time_domain_settings_are_refused(args, message, tmp_path, ca
     assert message in err and "Traceback" not in err and not (tmp_path / "x" / "experiment.h5").exists()
 
 
-@pytest.mark.parametrize("args", [["--wait-s", "5"], ["--history", "relaxed"]])
+@pytest.mark.parametrize("args", [["--wait-s", "5"], ["--history", "relaxed"], ["--hold", "force"],
+                                  ["--ramp-speed-um-per-s", "1"]])
 def test_time_domain_options_without_time_domain_are_refused(args, tmp_path, capsys):
     assert main(["afm", "synth", "--cells", "1", *args, "--out", str(tmp_path / "x")]) == 2
     assert "--time-domain" in capsys.readouterr().err

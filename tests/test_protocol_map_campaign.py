@@ -11,7 +11,7 @@ import pytest
 from campaign.config import load
 from campaign.store.reader import read_results
 from campaign.store.schema import PROTOCOL_PARAMS, PROTOCOL_RESULTS
-from solver.time_protocol import STEPS_PER_PERIOD
+from solver.protocol_simulation import FINE
 from tests.conftest import ROOT, on_one_and_two_ranks
 
 # V = 4300 µm³, h̃ = 0.6, K_B(1 s) = 25, K_S(1 s) = 8.33, γ_a = 1.5 mN/m; an elastic cortex and
@@ -71,7 +71,7 @@ def test_an_elastic_cortex_has_no_bias_and_a_power_law_its_loss_angles(stores):
     assert power["loss_angle_error_rad"] == pytest.approx(power["loss_angle_rad"] - power["model_loss_angle_rad"])
     # the step's unrelaxed stress shows in the mean tension, above γ_a = 1.5 mN/m
     assert 1.5 < power["gamma_eff_mN_per_m"] < 2.0
-    assert power["solves"] > 5 * STEPS_PER_PERIOD + 13        # the 5 cycles and the ramp, then the wait
+    assert power["solves"] > 5 * FINE.steps_per_period + 13        # the 5 cycles and the ramp, then the wait
 
 
 def test_map_from_the_store_is_its_rows(stores, tmp_path, cortex):

@@ -1,8 +1,9 @@
-"""The protocol-aware reading (SPEC 10, 12): a recording's protocol replayed coarsely in time
-(`solver.protocol_replay`) against the synthetic experiments' full simulation, the power laws it
-is replayed with (`analysis.afm.replayed.power_laws`), `afm analyze` (by default with each
-recording's own waits, as a time-domain experiment's provenance asks) on a cell simulated in time
-against its truth and against `--wait-s inf`, the relaxed-state reading; bad values exit 2."""
+"""The protocol-aware reading (SPEC 10, 12): a recording's protocol read off it
+(`analysis.afm.recorded_protocol.protocol_of`) and simulated at the REPLAY resolution against
+the synthetic experiments' FINE one (`solver.protocol_simulation.simulate`), the power laws it
+is replayed with (`analysis.afm.rheology.cortex_laws`), `afm analyze` (by default with each
+recording's own waits, as a time-domain experiment's provenance asks) on a cell simulated in time against its truth and against `--wait-s inf`,
+the relaxed-state reading; bad values exit 2."""
 
 import json
 
@@ -11,35 +12,39 @@ import pandas as pd
 import pytest
 from scipy.special import gamma
 
-from analysis.afm.cell import Cell, Segment
-from analysis.afm.replayed import power_laws, replayed_segments, visits
+from analysis.afm.recorded_protocol import protocol_of
+from analysis.afm.replayed import replayed_segments
+from analysis.afm.rheology import cortex_laws
+from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
 from conftest import first_heights
 from cortex.cli import main
-from solver.cell_protocol import CellProtocol, power_law_cortex, run_cell
 from solver.model import Shell
-from solver.protocol_replay import replay
+from solver.protocol import Oscillate, Protocol, Ramp
+from solver.protocol_simulation import REPLAY, simulate
+from solver.time_domain import power_law_cortex
 
 
 def _recorded(shell, cortex, protocol):
-    rec = run_cell(shell, cortex, protocol)
-    segs = [Segment(s.kind, s.start, s.stop, np.nan if s.frequency_hz is None else s.frequency_hz)
-            for s in rec.stretches]
-    return Cell("c", shell.volume_um3, rec.time_s, rec.force_nN, rec.height_um, segs)
+    return recording_cell(simulate(shell, cortex, protocol), shell.volume_um3, "c")
 
 
-def test_the_coarse_replay_reads_as_the_full_simulation():
-    """Two heights, 1 and 10 Hz, a 20 s wait, β_B = 0.1, β_S = 0.3: the replay of the recording's
-    own protocol (16 steps a period, 2 periods) read by the segment fit against the full
-    simulation's (64 steps a period, 5 periods): |K*| within 1.5 %, loss angle within 0.012 rad,
-    mean tension within 2.5 % (found up to 0.3 %, 0.0051 rad, 1.4 %)."""
+def test_the_replay_resolution_reads_as_the_fine_one():
+    """Two heights, 1 and 10 Hz, a 20 s wait, β_B = 0.1, β_S = 0.3: the recording's own protocol
+    read off it and simulated at the REPLAY resolution (16 steps a period, 2 periods) read by the
+    segment fit against the FINE simulation's (64 steps a period, 5 periods): |K*| within 1.5 %,
+    loss angle within 0.012 rad, mean tension within 2.5 % (found up to 0.3 %, 0.0052 rad, 1.4 %)."""
     shell = Shell(volume_um3=4300.0, h0_um=14.0, bulk_mN_per_m=25.0, shear_mN_per_m=20.0,
                   tension_mN_per_m=1.0, bending="none")
     cortex = power_law_cortex(25.0, 20.0, 0.1, 0.3)
-    cell = _recorded(shell, cortex, CellProtocol((13.5, 13.0), (1.0, 10.0), (5, 5), wait_s=20.0))
-    protocol = visits(cell)
-    assert protocol.reference_um == 14.0 and [v.mean_um for v in protocol.visits] == pytest.approx([13.5] * 2 + [13.0] * 2)
-    replayed = replayed_segments(cell, replay(shell, cortex, protocol.start_s, protocol.visits))
+    cell = _recorded(shell, cortex, Protocol.stepped(14.0, (13.5, 13.0), (1.0, 10.0), (5, 5), wait_s=20.0))
+    protocol = protocol_of(cell)
+    assert protocol.start_um == 14.0
+    assert [s.to_um for s in protocol.steps if isinstance(s, Ramp)] == pytest.approx([13.5, 13.0])
+    assert [(s.frequency_hz, s.periods) for s in protocol.steps if isinstance(s, Oscillate)] == [(1.0, 5), (10.0, 5)] * 2
+    replay = simulate(shell, cortex, protocol, REPLAY)
+    assert [s.stop - s.start for s in replay.oscillations()] == [32] * 4
+    replayed = replayed_segments(cell, replay)
     for full, coarse in zip(segment_moduli(cell), replayed):
         assert coarse["modulus_mN_per_m"] == pytest.approx(full["modulus_mN_per_m"], rel=0.015)
         assert coarse["loss_angle_rad"] == pytest.approx(full["loss_angle_rad"], abs=0.012)
@@ -57,7 +62,7 @@ def test_power_laws_from_the_fits_at_each_frequency():
             kb, ks = (k * gamma(1 - b) * (2 * np.pi * f) ** b for k, b in ((25.0, beta_b), (10.0, beta_s)))
             rows.append({"cell_id": cell, "frequency_hz": f, "bulk_abs": kb, "bulk_delta": beta_b * np.pi / 2,
                          "shear_abs": ks, "shear_delta": beta_s * np.pi / 2, "tension": 1.0 + f})
-    laws = power_laws(pd.DataFrame(rows)).set_index("cell_id")
+    laws = cortex_laws(pd.DataFrame(rows)).set_index("cell_id")
     assert laws.loc["a", ["bulk_beta", "shear_beta", "bulk_1s", "shear_1s", "tension"]].to_list() == \
         pytest.approx([0.1, 0.3, 25.0, 10.0, 2.0])
     assert laws.loc["b", ["bulk_beta", "shear_beta", "bulk_1s", "shear_1s"]].to_list() == \

@@ -13,14 +13,24 @@ from solver.compression import compress
 from solver.model import Shell
 from solver.prony import Prony, fit_power_law
 from solver.relaxed_state import relaxed_state
-from solver.time_domain import Cortex, TimeShell, simulate
-from solver.time_protocol import STEPS_PER_PERIOD, Protocol, approach, run
+from solver.protocol import Hold, Oscillate, Protocol, Ramp
+from solver.protocol_simulation import FINE, Sampling, simulate
+from solver.time_domain import Cortex
 from solver.viscoelastic import hessian_parts, relaxed
 from solver.viscous import hold_label, linearise, respond
 from studies.prestressed_response import material_parts
 
 V = 4300.0
 SHELL = Shell(volume_um3=V, h0_um=12.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
+
+
+def run(shell, cortex, wait_s=100.0, frequency_hz=1.0, periods=5, sample_hz=100.0, resolution=FINE):
+    """One height: a ramp 0.25 µm down from h0 at 0.2 µm/s, a hold of `wait_s`, `periods` of
+    0.5 µm peak to peak at f; sampled at `sample_hz` throughout (20 samples a period at least)."""
+    protocol = Protocol(shell.h0_um, (Ramp(to_um=shell.h0_um - 0.25), Hold(wait_s),
+                                      Oscillate(frequency_hz, 0.25, periods)))
+    sampling = Sampling(sample_hz=sample_hz, approach_hz=sample_hz, min_samples_per_period=20)
+    return simulate(shell, cortex, protocol, resolution, sampling)
 
 
 @pytest.mark.parametrize("beta", [0.1, 0.2, 0.3, 0.4])
@@ -53,10 +63,11 @@ def test_exponential_integrator_is_exact_for_a_ramp():
     Cortex(Prony(10.0, (15.0,), (1e9,)), Prony(3.0, (5.33,), (1e9,))),  # elements that never relax
 ])
 def test_a_cortex_that_does_not_relax_gives_the_elastic_secant_modulus(cortex):
-    """Compressed in time h0 -> h1 (0.2 µm/s, 25 steps), the final force and so K of SPEC 3
-    are the elastic solver's (found 1e-5; asked 0.5 %)."""
-    t = np.linspace(0.0, 2.5, 26)
-    force = simulate(SHELL, cortex, t, SHELL.h0_um - 0.2 * t)[-1]
+    """Compressed in time h0 -> h1 (a ramp at 0.2 µm/s, 25 steps), the final force and so K of
+    SPEC 3 are the elastic solver's (found 1e-5; asked 0.5 %)."""
+    rec = simulate(SHELL, cortex, Protocol(SHELL.h0_um, (Ramp(to_um=SHELL.h0_um - 0.5),)))
+    assert rec.steps == 25
+    force = rec.force_nN[-1]
     elastic = compress(SHELL).solution.force_nN
     K = compress(SHELL).derived["modulus_mN_per_m"]
     dgamma = (force - elastic) / (elastic / compress(SHELL).derived["gamma_eff_mN_per_m"])
@@ -77,7 +88,7 @@ def test_loss_angle_after_full_relaxation_is_the_relaxed_state_model():
     0.9 % apart; asked 2 %). No bending: the elastic bending would keep its prestress."""
     shell = replace(SHELL, h0_um=12.25, bending="none")
     cortex, f = _two_times(25.0, 8.33, 20.0, 0.01), 1.0
-    fit = segment_fit(run(shell, cortex, Protocol(wait_s=300.0, frequency_hz=f, sample_hz=40 * f)), V)
+    fit = segment_fit(run(shell, cortex, wait_s=300.0, frequency_hz=f, sample_hz=40 * f), V)
     keys = relaxed_state(shell, cortex, f)
     assert fit["loss_angle_rad"] == pytest.approx(keys["loss_angle_rad"], rel=0.02)
     assert fit["modulus_mN_per_m"] == pytest.approx(keys["modulus_mN_per_m"], rel=0.02)
@@ -92,7 +103,7 @@ def test_loss_angle_at_once_is_the_prestressed_state_model():
     stiffness alone with the contact label held (`studies.prestressed_response`; 1.2 %)."""
     shell = replace(SHELL, h0_um=12.25, bending_pN_um=SHELL.bending_stiffness * 1000.0)
     cortex, f = Cortex(Prony(25.0, (25.0,), (0.01,)), Prony(8.33, (8.33,), (0.01,))), 1.0
-    fit = segment_fit(run(shell, cortex, Protocol(wait_s=0.0, frequency_hz=f, sample_hz=40 * f)), V)
+    fit = segment_fit(run(shell, cortex, wait_s=0.0, frequency_hz=f, sample_hz=40 * f), V)
     Kb, Ks = cortex.bulk.complex_modulus(f), cortex.shear.complex_modulus(f)
     state = replace(shell, dh_um=0.5)
     lin = linearise(state)
@@ -110,37 +121,38 @@ def test_relaxed_state_of_the_frequency_model_is_the_one_the_wait_reaches():
     """After a full relaxation the plate force is the tension-only droplet's at h_m (to the
     mesh's 0.3 %), as `solver.viscoelastic.relaxed` assumes."""
     shell = replace(SHELL, h0_um=12.25, bending="none")
-    rec = run(shell, _two_times(25.0, 8.33, 5.0, 0.01), Protocol(wait_s=100.0, cycles=1))
-    before = rec.force_nN[rec.oscillation.start - 1]
+    rec = run(shell, _two_times(25.0, 8.33, 5.0, 0.01), wait_s=100.0, periods=1)
+    before = rec.force_nN[rec.oscillations()[0].start - 1]
     lin = linearise(relaxed(replace(shell, bulk_mN_per_m=1e-9, shear_mN_per_m=1e-9)))
     assert before == pytest.approx(lin.force_nN, rel=3e-3)
 
 
 def test_bad_protocols_and_histories_are_refused():
-    """One clear InputError each: a zero frequency, a gap the protocol would close, times
-    that do not increase."""
+    """One clear InputError each: a zero frequency, a gap the protocol would close, a sampling
+    rate of zero."""
     with pytest.raises(InputError, match="frequency_hz"):
-        Protocol(frequency_hz=0.0)
+        Oscillate(frequency_hz=0.0)
     cortex = Cortex(Prony(25.0), Prony(8.33))
     with pytest.raises(InputError, match="close the gap"):
-        run(replace(SHELL, h0_um=0.4, dh_um=0.1), cortex, Protocol())
-    with pytest.raises(InputError, match="increasing"):
-        simulate(SHELL, cortex, [0.0, 1.0, 1.0], [12.0, 11.9, 11.8])
+        run(replace(SHELL, h0_um=0.4, dh_um=0.1), cortex)
+    with pytest.raises(InputError, match="sample_hz"):
+        Sampling(sample_hz=0.0)
 
 
 def test_oscillation_in_steps_per_period_matches_a_step_per_sample():
-    """The oscillation simulated in STEPS_PER_PERIOD steps a period, its force splined to the
-    samples, against one step per 100 Hz sample (the exact integrator's finest use): a power-law
-    cortex (β_B 0.1, β_S 0.3) 10 s after the step, 0.1 Hz; the force at every sample agrees to
-    1e-3 of its amplitude (found 8e-4, second order in the step: 2e-3 at 32 steps a period)."""
+    """The oscillation simulated in FINE's 64 steps a period, its force splined to the samples,
+    against one step per 100 Hz sample (the exact integrator's finest use: the same simulation
+    with 1000 steps a period): a power-law cortex (β_B 0.1, β_S 0.3) 10 s after the step,
+    0.1 Hz; the force at every sample agrees to 1e-3 of its amplitude (found 8e-4, second order
+    in the step: 2e-3 at 32 steps a period)."""
     shell = replace(SHELL, bending="none")
     cortex = Cortex(fit_power_law(0.1, 25.0).prony, fit_power_law(0.3, 8.33).prony)
-    p = Protocol(wait_s=10.0, frequency_hz=0.1, cycles=1)
-    rec = run(shell, cortex, p)
-    assert rec.steps < 200 + STEPS_PER_PERIOD
-    state = TimeShell(shell, cortex)
-    approach(state, 0.0, shell.h0_um - p.step_um, p.ramp_um_per_s, p.wait_s, p.sample_interval_s)
-    osc = rec.oscillation
-    fine = [state.step(h, p.sample_interval_s) for h in rec.height_um[osc]]
+    rec = run(shell, cortex, wait_s=10.0, frequency_hz=0.1, periods=1)
+    assert rec.steps < 200 + FINE.steps_per_period
+    per_sample = run(shell, cortex, wait_s=10.0, frequency_hz=0.1, periods=1,
+                     resolution=replace(FINE, steps_per_period=1000))
+    osc = slice(rec.oscillations()[0].start, rec.oscillations()[0].stop)
+    assert np.array_equal(rec.height_um[osc], per_sample.height_um[osc])
+    fine = per_sample.force_nN[osc]
     amplitude = np.ptp(fine) / 2
     assert np.max(np.abs(rec.force_nN[osc] - fine)) < 1e-3 * amplitude

@@ -4,12 +4,14 @@ reduction to the relaxed-state model for an elastic cortex."""
 
 import pytest
 
+from analysis.afm.synth.protocol_bias import SAMPLING
 from analysis.afm.synth.time_domain import segment_fit
-from solver.cell_protocol import power_law_cortex
+from campaign.protocol_grid import bias_protocol
 from solver.geometry import cell_radius
 from solver.model import Shell
+from solver.protocol_simulation import simulate
 from solver.relaxed_state import relaxed_state
-from solver.time_protocol import Protocol, run
+from solver.time_domain import power_law_cortex
 from studies.waited_state import waited_state, waited_time_s
 
 V = 4300.0
@@ -27,7 +29,7 @@ def test_an_elastic_cortex_is_the_relaxed_state_model():
     t_w is the wait plus half the ramp (0.25 µm at 0.2 µm/s)."""
     shell = map_shell(0.7, 1.28, 0.032)
     cortex = power_law_cortex(25.0, 32.0, 0.0, 0.0)
-    t_w = waited_time_s(Protocol(step_um=0.25, wait_s=100.0, frequency_hz=1.0))
+    t_w = waited_time_s(bias_protocol(shell, 100.0, 1.0))
     assert t_w == pytest.approx(100.625)
     waited, relaxed = waited_state(shell, cortex, 1.0, t_w), relaxed_state(shell, cortex, 1.0)
     assert waited["modulus_mN_per_m"] == pytest.approx(relaxed["modulus_mN_per_m"], rel=1e-9)
@@ -53,8 +55,8 @@ def test_waited_state_against_the_protocol_in_time(node, waited_error, relaxed_e
     h_tilde, ks_tilde, gamma_tilde, beta_b, beta_s, wait_s, f = node
     shell = map_shell(h_tilde, ks_tilde, gamma_tilde)
     cortex = power_law_cortex(25.0, shell.shear_mN_per_m, beta_b, beta_s)
-    protocol = Protocol(step_um=0.25, wait_s=wait_s, frequency_hz=f)
-    fit = segment_fit(run(shell, cortex, protocol), V)
+    protocol = bias_protocol(shell, wait_s, f)
+    fit = segment_fit(simulate(shell, cortex, protocol, sampling=SAMPLING), V)
     model = waited_state(shell, cortex, f, waited_time_s(protocol))
     modulus_error = fit["modulus_mN_per_m"] / model["modulus_mN_per_m"] - 1.0
     loss_error = fit["loss_angle_rad"] - model["loss_angle_rad"]

@@ -1,6 +1,7 @@
-"""The age of each oscillation's step stress read off the recording (analysis/afm/waits.py):
-the native format's approach (step and wait in one segment), a JPK-like recording with pause
-segments (the height creeping in a constant-force pause), a given wait, no approach at all."""
+"""A recording's protocol read off it (`analysis.afm.recorded_protocol.protocol_of`) and the age
+of each oscillation's step stress (`Protocol.ages_s`): the native format's approach (step and
+wait in one segment), a JPK-like recording with pause segments (the height creeping in a
+constant-force pause: a force hold), a given wait, no approach at all."""
 
 import math
 
@@ -8,7 +9,12 @@ import numpy as np
 import pytest
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.waits import step_ages_s, step_end_s
+from analysis.afm.recorded_protocol import protocol_of
+from solver.protocol import Hold, Oscillate, Protocol
+
+
+def step_ages_s(cell, wait_s=None):
+    return protocol_of(cell, wait_s).ages_s()
 
 
 def _native(steps):
@@ -49,37 +55,45 @@ def test_pause_segments_give_the_wait_even_where_the_height_creeps():
     i10, i70 = np.searchsorted(t, 10.0), np.searchsorted(t, 70.0)
     segs = [Segment("approach", 0, i10), Segment("pause", i10, i70), Segment("oscillation", i70, t.size, 1.0)]
     cell = Cell("jpk", 4300.0, t, np.zeros_like(t), h, segs)
-    assert step_end_s(cell, segs[2]) == pytest.approx(10.0, abs=0.011)
+    ramp, hold, osc = protocol_of(cell).steps
+    assert ramp.to_um == pytest.approx(15.0, abs=0.01) and ramp.speed_um_per_s == pytest.approx(0.5, rel=0.01)
+    assert hold.kind == "force" and hold.duration_s == pytest.approx(60.0, abs=0.011)
+    assert osc == Oscillate(1.0, 0.25, 20)
     assert step_ages_s(cell) == [pytest.approx(60.0, abs=0.011)]
+    flat = np.where((t >= 10.0) & (t < 70.0), 15.0, h)                  # a pause at constant height
+    still = Cell("jpk", 4300.0, t, np.zeros_like(t), flat, segs)
+    assert protocol_of(still).steps[1].kind == "height"
 
 
 def test_no_approach_no_age():
     t = np.arange(0.0, 5.0, 0.01)
     cell = Cell("o", 4300.0, t, np.zeros_like(t), 10.0 - 0.25 * np.sin(2 * np.pi * t),
                 [Segment("oscillation", 0, t.size, 1.0)])
-    assert math.isnan(step_ages_s(cell)[0]) and math.isnan(step_ages_s(cell, wait_s=50.0)[0])
+    assert protocol_of(cell) is None and protocol_of(cell, wait_s=50.0) is None
+    assert math.isnan(Protocol(12.0, (Oscillate(1.0),)).ages_s()[0])
 
 
-def test_visits_are_the_recorded_protocol_or_one_with_a_given_wait():
-    """The protocol a replay follows (analysis/afm/replayed.py): h_ref and the time just before
-    the first ramp, per oscillation its mean height, frequency, periods and start, and the end of
-    the step before the first oscillation at each height; a given wait S moves every later time
-    by S minus the recorded wait; an approach that does not hold its height MIN_HOLD_S has no
-    recorded wait (None), unless S is given."""
-    from analysis.afm.replayed import visits
+def test_protocol_of_is_the_recorded_protocol_or_one_with_a_given_wait():
+    """The protocol a replay follows: from h_ref at the time just before the first ramp, per
+    height a ramp to the mean height ending where the step ends (its speed the recorded one), a
+    hold to the first oscillation, each oscillation's frequency and periods and a hold to the
+    next; a given wait S makes every height's hold S and keeps the rest (the ramps' lengths, the
+    oscillations); an approach that does not hold its height MIN_HOLD_S has no recorded wait
+    (None), unless S is given."""
     cell = _native([(12.0, 11.0, 0.2, 100.0, (0.1, 1.0)), (11.0, 10.5, 0.2, 80.0, (0.1,))])
-    p = visits(cell)
-    assert (p.reference_um, p.start_s) == (12.0, 0.0)
-    assert [(v.mean_um, v.frequency_hz, v.cycles) for v in p.visits] == \
-        [(pytest.approx(11.0, abs=1e-3), 0.1, 5), (pytest.approx(11.0, abs=1e-3), 1.0, 5), (pytest.approx(10.5, abs=1e-3), 0.1, 5)]
-    assert p.visits[0].start_s - p.visits[0].step_end_s == pytest.approx(100.0, abs=1.0)
-    assert math.isnan(p.visits[1].step_end_s) and p.visits[1].start_s == pytest.approx(p.visits[0].start_s + 50.0, abs=0.02)
-    assert p.visits[2].start_s - p.visits[2].step_end_s == pytest.approx(80.0, abs=1.0)
-    given = visits(cell, wait_s=30.0)
-    assert [v.start_s - v.step_end_s for v in given.visits[::2]] == pytest.approx([30.0, 30.0])
-    assert given.visits[0].step_end_s == p.visits[0].step_end_s
-    assert given.visits[1].start_s - given.visits[0].start_s == pytest.approx(50.0, abs=0.02)
-    assert given.visits[2].step_end_s - given.visits[1].start_s == pytest.approx(
-        p.visits[2].step_end_s - p.visits[1].start_s)                 # the ramp keeps its length
+    p = protocol_of(cell)
+    assert (p.start_um, p.start_s) == (12.0, 0.0)
+    kinds = [type(s).__name__ for s in p.steps]
+    assert kinds == ["Ramp", "Hold", "Oscillate", "Hold", "Oscillate", "Ramp", "Hold", "Oscillate"]
+    r1, h1, o1, h2, o2, r2, h3, o3 = p.steps
+    assert [r1.to_um, r2.to_um] == pytest.approx([11.0, 10.5], abs=1e-3)
+    assert [(o.frequency_hz, o.periods) for o in (o1, o2, o3)] == [(0.1, 5), (1.0, 5), (0.1, 5)]
+    assert r1.speed_um_per_s == pytest.approx(0.2, rel=0.2) and r2.speed_um_per_s == pytest.approx(0.2, rel=0.4)
+    assert h1.duration_s == pytest.approx(100.0, abs=1.0) and h2.duration_s == pytest.approx(0.0, abs=0.02)
+    assert h3.duration_s == pytest.approx(80.0, abs=1.0)
+    assert all(h.kind == "height" for h in (h1, h2, h3))
+    given = protocol_of(cell, wait_s=30.0)
+    assert [s.duration_s for s in given.steps if isinstance(s, Hold)] == pytest.approx([30.0, 0.0, 30.0], abs=0.02)
+    assert [s for s in given.steps if not isinstance(s, Hold)] == [s for s in p.steps if not isinstance(s, Hold)]
     no_hold = _native([(12.0, 11.0, 0.2, 0.0, (1.0,))])
-    assert visits(no_hold) is None and visits(no_hold, wait_s=30.0) is not None
+    assert protocol_of(no_hold) is None and protocol_of(no_hold, wait_s=30.0) is not None

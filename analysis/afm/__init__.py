@@ -8,6 +8,8 @@ Public API (imported on first use):
   `MEASURED`, `FREQUENCY_DOMAIN`, `time_domain(...)`; `read_provenance(path)`); `open(paths, ImportOptions(...))` (the one
   reader, in `analysis.afm.formats`): cells from an experiment, a single-cell CSV,
   or JPK or Bruker files and folders, as every `cortex afm` command reads them.
+- `protocol_of(cell, wait_s=None)`: the `solver.protocol.Protocol` a recording went through,
+  read off its samples and segments (`analysis.afm.recorded_protocol`).
 
 Every public name is its definition's own. The commands' pipelines are used as modules:
 `analysis.afm.synth.cells.generate(n_cells, seed, errors, forward)` -> (cells, truth)
@@ -26,8 +28,10 @@ from common.lazy_exports import lazy_exports
 if TYPE_CHECKING:           # what the type checker sees of the names below
     from analysis.afm.cell import Cell, Segment
     from analysis.afm.formats.h5 import read_experiment, write_experiment
+    from analysis.afm.recorded_protocol import protocol_of
 
 __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "Cell": "analysis.afm.cell", "Segment": "analysis.afm.cell",
     "read_experiment": "analysis.afm.formats.h5", "write_experiment": "analysis.afm.formats.h5",
+    "protocol_of": "analysis.afm.recorded_protocol",
 })

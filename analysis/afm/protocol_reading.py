@@ -31,8 +31,8 @@ import pandas as pd
 from tqdm import tqdm
 
 from analysis.afm.analyze import Measured, inverted, measured_of
-from analysis.afm.replayed import apply, cell_correction, power_laws
-from analysis.afm.rheology import point_moduli
+from analysis.afm.replayed import apply, cell_correction
+from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
 
 if TYPE_CHECKING:
@@ -59,7 +59,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None) -> dict[str, object]:
 
 
 def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[str]:
-    """The cells of `found` (`analysis.afm.replayed.power_laws`) whose power laws are new or moved
+    """The cells of `found` (`analysis.afm.rheology.cortex_laws`) whose power laws are new or moved
     by more than SETTLED from `laws` (β by the difference, moduli and γ_a by the log ratio)."""
     moved = []
     for row in found.to_dict("records"):
@@ -101,7 +101,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     table, now = inverted(measured, inversion, bending, errors, math.inf), _measured(raw, factors, volumes, measured)
     laws: dict[str, dict[str, float]] = {}
     for i in range(MAX_ROUNDS):
-        found = power_laws(point_moduli(table, now.segments, model, bending, lags))
+        found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
         todo = unsettled(laws, found)
         if not todo:
             break

@@ -16,6 +16,9 @@ intervals of β. A power-law (structural damping) material has δ = βπ/2 at ev
 frequency: `bulk_power_law_consistent` says whether the mean fitted δ_B over the
 frequencies minus β_B π/2 has a 95 % interval holding 0 (likewise shear).
 
+The same slope gives the laws a cell's protocol is replayed with (`cortex_laws`, the
+protocol-aware reading: K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β), one frequency: β = 2δ/π).
+
 Population: medians and quartiles of β_B and β_S and the Wilcoxon signed-rank test of
 β_S - β_B over the cells (`scipy.stats.wilcoxon`; one-sided, β_S > β_B, as the
 turnover reading predicts, and two-sided).
@@ -149,7 +152,7 @@ def point_moduli(table: pd.DataFrame, segments: pd.DataFrame, model: ComplexMode
                  lags: dict[float, float] | None = None) -> pd.DataFrame:
     """θ* alone (no draws) per (cell_id, frequency_hz) of `table`: `bulk_abs`, `bulk_delta`,
     `shear_abs`, `shear_delta` (|K_B*|, δ_B, |K_S*|, δ_S; mN/m, rad) and `tension` (the table's
-    γ_a), what `analysis.afm.replayed.power_laws` needs."""
+    γ_a), what `cortex_laws` needs."""
     _, curves, lnk, start = _inputs(table, segments, lags)
     theta, _ = fit(model.table, model.emulator, bending, curves, lnk, start)
     return pd.DataFrame({"cell_id": table["cell_id"].to_numpy(), "frequency_hz": table["frequency_hz"].to_numpy(),
@@ -223,6 +226,34 @@ def power_laws(table: pd.DataFrame, theta: Any, th_m: Any) -> pd.DataFrame:
                                                          ("loss_angle_mean_rad", "power_law_loss_angle_rad",
                                                           "power_law_consistent")]
     return pd.DataFrame(rows, columns=cols)
+
+
+EXPONENT_RANGE = (0.0, 0.9)      # the exponents a cell's cortex is replayed with
+
+
+def cortex_laws(moduli: pd.DataFrame) -> pd.DataFrame:
+    """Per cell the relaxation laws K(t) = K(1 s) t^-β its protocol is replayed with, from the
+    point fits at each frequency (`point_moduli`: `bulk_abs`, `bulk_delta`, ...): β the slope of
+    ln |K*| in ln f (`_slopes`, as `power_laws`; one frequency: 2δ/π), clipped to EXPONENT_RANGE,
+    K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β) from the line's value at 1 Hz, and γ_a the median
+    tension. Columns `cell_id`, `tension`, `bulk_beta`, `bulk_1s`, `shear_beta`, `shear_1s`."""
+    from scipy.special import gamma
+    rows = []
+    for cell, g in moduli.dropna(subset=["bulk_abs", "shear_abs", "bulk_delta", "shear_delta"]).groupby("cell_id"):
+        x = np.log(g["frequency_hz"].to_numpy(float))
+        row: dict[str, Any] = {"cell_id": cell, "tension": float(g["tension"].median())}
+        for name in ("bulk", "shear"):
+            y = np.log(g[f"{name}_abs"].to_numpy(float))
+            if len(g) > 1:
+                slope, at_1hz = (float(v[0]) for v in _slopes(x, y[:, None]))
+            else:
+                slope = 2 * float(g[f"{name}_delta"].iloc[0]) / np.pi
+                at_1hz = float(y[0]) - slope * float(x[0])
+            beta = float(np.clip(slope, *EXPONENT_RANGE))
+            row[f"{name}_beta"] = beta
+            row[f"{name}_1s"] = float(np.exp(at_1hz) / (gamma(1.0 - beta) * (2 * np.pi) ** beta))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["cell_id", "tension", "bulk_beta", "bulk_1s", "shear_beta", "shear_1s"])
 
 
 def paired_test(rheology: pd.DataFrame) -> dict[str, Any]:

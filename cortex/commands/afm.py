@@ -14,7 +14,7 @@ import argparse
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from common.names import CORTEX_HISTORIES, RAMP_MODELS, SOLVERS
+from common.names import CORTEX_HISTORIES, HOLD_KINDS, RAMP_MODELS, SOLVERS
 from cortex.options import (OUT_HELP, Commands, add_bending, add_error_options, add_inversion_options,
                             inversion_settings, measurement_errors)
 from cortex.results import plain, say_result
@@ -28,6 +28,7 @@ EXPERIMENT = "experiment.h5"            # what synth and import write into their
 TRUTH = "truth.json"
 TIME_DOMAIN_EXPONENTS = (0.1, 0.3)       # --time-domain's default (beta_B, beta_S)
 TIME_DOMAIN_WAIT_S = 100.0
+TIME_DOMAIN_RAMP_UM_PER_S = 0.2          # as published (SPEC 6)
 
 
 def _import_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_default: str = "0") -> None:
@@ -105,6 +106,12 @@ def _add_synth(s: Commands) -> None:
                    help="--time-domain: the cortex's history across mean heights, %(choices)s (default carried: "
                         "one history through the whole protocol; relaxed: every mean height from its own relaxed "
                         "droplet one cell step above it, as the relaxed-state reading assumes)")
+    g.add_argument("--hold", choices=HOLD_KINDS, default=None, metavar="KIND",
+                   help="--time-domain: each wait a hold at constant KIND, %(choices)s (default height; force: "
+                        "the force the ramp reached is held while the plate creeps)")
+    g.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
+                   help=f"--time-domain: the speed of the ramps to each mean height (default "
+                        f"{TIME_DOMAIN_RAMP_UM_PER_S:g} um/s)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
     g.set_defaults(handler=synth)
@@ -222,8 +229,8 @@ def synth(args: argparse.Namespace) -> int:
         from analysis.afm.synth import time_cells
         cells, truth = time_cells.generate(args.cells, args.seed, errors=not args.no_errors, **settings)
     else:
-        if args.wait_s is not None or args.jobs != 1 or args.history is not None:
-            raise InputError("--wait-s, --jobs and --history go with --time-domain")
+        if (args.wait_s, args.history, args.hold, args.ramp_speed_um_per_s) != (None,) * 4 or args.jobs != 1:
+            raise InputError("--wait-s, --jobs, --history, --hold and --ramp-speed-um-per-s go with --time-domain")
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
         cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
     with out.writing(EXPERIMENT) as experiment:
@@ -262,8 +269,12 @@ def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
         raise InputError(f"--wait-s must be a number of seconds in [0, 10000] (got {wait:g})")
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
+    speed = TIME_DOMAIN_RAMP_UM_PER_S if args.ramp_speed_um_per_s is None else args.ramp_speed_um_per_s
+    if not (math.isfinite(speed) and 0 < speed <= 100):
+        raise InputError(f"--ramp-speed-um-per-s must be a speed in (0, 100] um/s (got {speed:g})")
     return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "bending": args.bending,
-            "jobs": args.jobs, "progress": not args.json, "history": args.history or "carried"}
+            "jobs": args.jobs, "progress": not args.json, "history": args.history or "carried",
+            "hold": args.hold or "height", "ramp_speed_um_per_s": speed}
 
 
 def new_experiment_folder(path: str, names: list[str]) -> OutputDir:

@@ -13,11 +13,13 @@ the published populations; K_S = K̃_S K_B(f); true ν = (1 - K̃_S)/(1 + K̃_S)
 truth.json also holds the trend slope of ln K̃_S per decade these populations
 imply (`true_trend`): the line through the μ_f, and the design-weighted one.
 
-Protocol: heights from h̃ ~ U(0.70, 0.745) down in steps of 0.5 or 1 µm
-(per cell) to h̃ ≥ 0.49; each step = an `approach` segment (0.2 µm/s, then a
-wait U(50, 150) s; stored at 1 Hz, the analysis does not use it), then one
-`oscillation` segment per frequency: h(t) = h_m - 0.25 sin(2πft) µm, 5
-periods (2 at 0.02 Hz), 100 Hz sampling.
+Protocol (`cell_protocol`, a `solver.protocol.Protocol`): from 0.78 D, heights
+from h̃ ~ U(0.70, 0.745) down in steps of 0.5 or 1 µm (per cell) to h̃ ≥ 0.49;
+each step a ramp at 0.2 µm/s and a hold of U(50, 150) s (one `approach`
+segment, stored at 1 Hz; the analysis does not use it), then one `oscillation`
+segment per frequency: h(t) = h_m - 0.25 sin(2πft) µm (phase π: pressing
+first), 5 periods (2 at 0.02 Hz), 100 Hz sampling. The forces are not
+simulated through it: each height is in its relaxed state (below).
 
 Forward model: `forward(V, heights, K_B, K_S, γ_a) -> |K|` at the mean heights
 (one solve per cell, frequency and height, not per sample). The default is
@@ -31,8 +33,9 @@ per cell, recorded volume × (1 + N(0, 0.075)). Blebbing cells (8 %, also
 without errors): γ_a jumps by a factor U(1.25, 1.6) at a random time.
 """
 
+import typing
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +44,7 @@ from analysis.afm.cell import Cell, Segment
 from analysis.afm.timeseries import shape_of
 from solver.elasticity import poisson_of_ratio
 from solver.geometry import cell_radius
+from solver.protocol import Hold, Oscillate, Protocol, Ramp, Step
 
 if TYPE_CHECKING:
     from analysis.calibration.law import Law
@@ -59,7 +63,7 @@ Forward = Callable[[float, npt.NDArray[np.float64], float, float, float], np.nda
 """forward(V (µm³), mean heights (µm), K_B, K_S, γ_a (mN/m)) -> |K| (mN/m) at each height."""
 
 
-class ModuliModel(Protocol):
+class ModuliModel(typing.Protocol):
     """A forward model that draws its own moduli (`analysis.afm.synth.rheology.ViscoelasticForward`)."""
 
     viscoelastic: bool
@@ -135,35 +139,54 @@ def _moduli(p: dict[str, Any], freqs: tuple[float, ...], forward: Any, truth: di
     return K
 
 
-def _protocol(rng: np.random.Generator, p: dict[str, Any], freqs: tuple[float, ...], K: dict[float, np.ndarray]
+def cell_protocol(rng: np.random.Generator, p: dict[str, Any], freqs: tuple[float, ...]) -> Protocol:
+    """The cell's protocol (module docstring; the holds drawn from `rng`)."""
+    steps: list[Step] = []
+    for h_m in p["h_means"]:
+        steps += [Ramp(to_um=float(h_m), speed_um_per_s=SPEED_UM_PER_S), Hold(float(rng.uniform(50.0, 150.0)))]
+        steps += [Oscillate(f, AMPLITUDE_UM, periods(f), np.pi) for f in freqs]
+    return Protocol(float(0.78 * p["D"]), tuple(steps))
+
+
+def _protocol(protocol: Protocol, p: dict[str, Any], K: dict[float, np.ndarray]
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Segment]]:
     """The recording's time s, height µm and elastic Δγ (mN/m; NaN on the
-    approaches) and its segments: per mean height an approach and a wait, then
-    the oscillations at every frequency (the area lags by δ = β π/2, or where K
-    is complex by arg K per height)."""
-    t_chunks, h_chunks, g_chunks, segs, t0, n0, h_prev = [], [], [], [], 0.0, 0, 0.78 * p["D"]
-    for j, h_m in enumerate(p["h_means"]):
-        move = (h_prev - h_m) / SPEED_UM_PER_S
-        wait = rng.uniform(50.0, 150.0)
-        t = t0 + np.arange(0.0, move + wait, 1.0 / APPROACH_RATE_HZ)
-        h = np.where(t - t0 < move, h_prev - SPEED_UM_PER_S * (t - t0), h_m)
-        t_chunks.append(t)
-        h_chunks.append(h)
-        g_chunks.append(np.full(t.size, np.nan))
-        segs.append(Segment("approach", n0, n0 + t.size))
-        n0, t0, h_prev = n0 + t.size, t[-1] + 1.0 / APPROACH_RATE_HZ, h_m
-        for f in freqs:
-            s = np.arange(0.0, periods(f) / f, 1.0 / RATE_HZ)
-            w = 2 * np.pi * f
-            delta = float(np.angle(K[f][j])) if np.iscomplexobj(K[f]) else BETA * np.pi / 2
-            h = h_m - AMPLITUDE_UM * np.sin(w * s)
-            fpt, area = shape_of(p["V"], np.r_[h, h_m - AMPLITUDE_UM * np.sin(w * s + delta), h_m])
-            a_lag, a_mean = area[s.size:2 * s.size], area[-1]
-            g_chunks.append(abs(K[f][j]) * (a_lag - a_mean) / a_mean)
-            t_chunks.append(t0 + s)
+    approaches) and its segments: every run of ramps and holds one approach
+    (sampled at APPROACH_RATE_HZ from its start), every oscillation at RATE_HZ
+    from its start (the area lags by δ = β π/2, or where K is complex by arg K
+    per height)."""
+    t_chunks, h_chunks, g_chunks, segs, t0, n0 = [], [], [], [], 0.0, 0
+    h_prev = h_m = protocol.start_um
+    move, held, speed, j = 0.0, 0.0, SPEED_UM_PER_S, -1
+    for step in protocol.steps:
+        if isinstance(step, Ramp):
+            assert step.to_um is not None
+            h_prev, h_m, speed, j = h_m, step.to_um, step.speed_um_per_s, j + 1
+            move = abs(h_prev - h_m) / speed
+            continue
+        if isinstance(step, Hold):
+            held += step.duration_s
+            continue
+        if move + held > 0:
+            t = t0 + np.arange(0.0, move + held, 1.0 / APPROACH_RATE_HZ)
+            h = np.where(t - t0 < move, h_prev + np.sign(h_m - h_prev) * speed * (t - t0), h_m)
+            t_chunks.append(t)
             h_chunks.append(h)
-            segs.append(Segment("oscillation", n0, n0 + s.size, f))
-            n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
+            g_chunks.append(np.full(t.size, np.nan))
+            segs.append(Segment("approach", n0, n0 + t.size))
+            n0, t0, move, held = n0 + t.size, t[-1] + 1.0 / APPROACH_RATE_HZ, 0.0, 0.0
+        f, A, phi = step.frequency_hz, step.amplitude_um, step.phase_rad
+        s = np.arange(0.0, step.periods / f, 1.0 / RATE_HZ)
+        w = 2 * np.pi * f
+        delta = float(np.angle(K[f][j])) if np.iscomplexobj(K[f]) else BETA * np.pi / 2
+        h = h_m + A * np.sin(w * s + phi)
+        fpt, area = shape_of(p["V"], np.r_[h, h_m + A * np.sin(w * s + phi + delta), h_m])
+        a_lag, a_mean = area[s.size:2 * s.size], area[-1]
+        g_chunks.append(abs(K[f][j]) * (a_lag - a_mean) / a_mean)
+        t_chunks.append(t0 + s)
+        h_chunks.append(h)
+        segs.append(Segment("oscillation", n0, n0 + s.size, f))
+        n0, t0 = n0 + s.size, t0 + s[-1] + 1.0 / RATE_HZ
     return np.concatenate(t_chunks), np.concatenate(h_chunks), np.concatenate(g_chunks), segs
 
 
@@ -171,7 +194,7 @@ def _cell(i: int, freqs: tuple[float, ...], rng: np.random.Generator, forward: A
           errors: bool) -> tuple[Cell, dict[str, Any]]:
     p, truth = parameters(i, rng)
     K = _moduli(p, freqs, forward, truth)
-    t, h, dg, segs = _protocol(rng, p, freqs, K)
+    t, h, dg, segs = _protocol(cell_protocol(rng, p, freqs), p, K)
     gamma_a = active_tension(rng, p, t, truth)
     fpt, _ = shape_of(p["V"], h)
     return measured(rng, p, truth, t, (gamma_a + np.nan_to_num(dg)) * fpt, h, segs, errors), truth

@@ -1,14 +1,16 @@
 """One node of the protocol's bias map (SPEC 12): a simulated recording read by the segment fit,
 against the relaxed-state frequency-domain model.
 
-A node (`campaign.protocol_grid.ProtocolNode`) is a shell (K_B, K_S its moduli at 1 s, γ_a,
-mean height h_m = h0 - Δh/2) and a protocol point (β_B, β_S, T_w, f). The cortex relaxes as
+A node (`campaign.protocol_grid.BiasNode`) is a shell (K_B, K_S its moduli at 1 s, γ_a,
+mean height h_m = h0 - Δh/2), the exponents (β_B, β_S) and its protocol (T_w, f). The cortex
+relaxes as
 
     K_B(t) = K_B (t/1 s)^-β_B,   K_S(t) = K_S (t/1 s)^-β_S
 
-(Prony series, `solver.cell_protocol.power_law_cortex`, 2 elements a decade); the protocol
-(`solver.time_protocol`) steps Δh_m = Δh/2 from h0 to h_m, waits T_w and oscillates 5 cycles of
-0.5 µm peak to peak at f. The segment fit (`analysis.afm.synth.time_domain.segment_fit`) gives
+(Prony series, `solver.time_domain.power_law_cortex`, 2 elements a decade); the protocol
+(`campaign.protocol_grid.bias_protocol`, simulated by `solver.protocol_simulation.simulate`
+at its FINE resolution, 100 Hz and at least 20 samples a period) ramps Δh_m = Δh/2 from h0 to
+h_m, holds T_w and oscillates 5 periods of 0.5 µm peak to peak at f. The segment fit (`analysis.afm.synth.time_domain.segment_fit`) gives
 |K*|_td and δ_td; the relaxed-state model (`solver.relaxed_state`) |K*|_model and δ_model. The
 node's bias:
 
@@ -18,19 +20,21 @@ node's bias:
 from typing import Any
 
 from analysis.afm.synth.time_domain import segment_fit
-from solver.cell_protocol import power_law_cortex
+from solver.protocol_simulation import Sampling, simulate
 from solver.relaxed_state import relaxed_state
-from solver.time_protocol import Protocol, run
+from solver.time_domain import power_law_cortex
+
+SAMPLING = Sampling(sample_hz=100.0, approach_hz=100.0, min_samples_per_period=20)
 
 
 def node_results(node: Any) -> dict[str, float]:
-    """The recording of `node` (a `ProtocolNode`) and its bias: `modulus_mN_per_m`, `loss_angle_rad`,
+    """The recording of `node` (a `BiasNode`) and its bias: `modulus_mN_per_m`, `loss_angle_rad`,
     `gamma_eff_mN_per_m` (mean γ_eff), `h_tilde` of the segment fit; the model's
     `model_modulus_mN_per_m`, `model_loss_angle_rad`, `bulk_loss_angle_rad`, `shear_loss_angle_rad`;
     `modulus_ratio`, `loss_angle_error_rad`; `solves` (equilibrium solves)."""
     shell = node.shell
     cortex = power_law_cortex(shell.bulk_mN_per_m, shell.shear_mN_per_m, node.bulk_exponent, node.shear_exponent)
-    rec = run(shell, cortex, Protocol(step_um=0.5 * shell.dh_um, wait_s=node.wait_s, frequency_hz=node.frequency_hz))
+    rec = simulate(shell, cortex, node.protocol, sampling=SAMPLING)
     fit = segment_fit(rec, shell.volume_um3)
     model = relaxed_state(shell, cortex, node.frequency_hz)
     modulus, loss = float(fit["modulus_mN_per_m"]), float(fit["loss_angle_rad"])
