@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Resume a campaign stopped by its time limit (or cancelled, or crashed), and
-# chain its calibration again; print the job ids.
+# Resume a campaign that stopped short of complete (out of requeues,
+# cancelled, failed), and chain its calibration again; print the job ids.
 #
 #   jobs/resume.sh CONFIG.toml STORE.h5 OUTDIR [-- SBATCH_OPTIONS_FOR_THE_CAMPAIGN...]
 #
@@ -8,8 +8,8 @@
 # STORE.h5 exists and printing how far it got (`cortex campaign status`, on
 # stderr). The new campaign job skips the tasks already done and redoes those
 # that were interrupted; the analysis waits for it with afterok. A campaign
-# stopped by its time limit prints this command at the end of its log
-# (cortex-campaign-JOBID.out).
+# job that stopped without requeueing itself prints this command at the end
+# of its log (cortex-campaign-JOBID.out).
 #
 # Prints `campaign JOBID` and `analysis JOBID` on two lines (stdout).
 set -euo pipefail

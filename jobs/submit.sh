@@ -6,8 +6,12 @@
 #
 # The campaign runs jobs/campaign.sbatch; the analysis (jobs/analysis.sbatch)
 # waits with --dependency=afterok:<campaign> and so starts only when the store
-# is complete. If the campaign hits its time limit it stops cleanly and exits
-# non-zero; its analysis is then cancelled (--kill-on-invalid-dep=yes). To
+# is complete. The campaign job finishes the store by itself: when its time
+# limit nears, or its campaign step is lost with a node, it requeues itself
+# (same job id; the analysis keeps waiting) and resumes, at most
+# CORTEX_MAX_REQUEUES times (default 10, read when the job runs). If it ends
+# short of complete (failed tasks, no requeue left, cancelled) it exits
+# non-zero and its analysis is cancelled (--kill-on-invalid-dep=yes). To
 # resume, run the same command again, or jobs/resume.sh with the same
 # arguments (it first checks the store and says how far it got): the new
 # campaign job picks up the tasks not yet done and a new analysis is chained
@@ -16,7 +20,7 @@
 # Prints `campaign JOBID` and `analysis JOBID` on two lines (stdout). Works from
 # any directory: paths are relative to where it is called, and the jobs run
 # there (their logs, cortex-campaign-JOBID.out and cortex-analysis-JOBID.out,
-# land there too). CORTEX_VENV and CORTEX_CMD pass through to the jobs.
+# land there too). CORTEX_MAX_REQUEUES, CORTEX_VENV and CORTEX_CMD pass through to the jobs.
 set -euo pipefail
 
 if (($# < 3)); then

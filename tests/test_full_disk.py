@@ -5,6 +5,7 @@ write paths: mpio where h5py has MPI, as under `make test-mpi-parallel`). Runs o
 a 4 MB tmpfs filled with a ballast file (needs root to mount; skipped
 otherwise, saying why)."""
 
+import errno
 import json
 import os
 import shutil
@@ -181,3 +182,49 @@ def test_a_journal_record_cut_by_a_full_disk_is_trimmed(reference, tmp_path):
     assert done.returncode == 0, done.stderr
     assert len(read_journal(str(store) + ".journal")) >= len(entries)
     assert_same_rows(store, ref_store)
+
+
+class _Refusing:
+    """A file whose disk takes `room` bytes, then refuses every write (ENOSPC)."""
+
+    def __init__(self, raw, room):
+        self.raw, self.room = raw, room
+
+    def write(self, data):
+        if len(data) > self.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.room -= len(data)
+        return self.raw.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.raw, name)
+
+
+@pytest.mark.parametrize("room", [0, 4096, 600_000])
+def test_a_new_hdf5_file_refused_part_way_is_kept_from_hdf5(tmp_path, monkeypatch, capfd, room):
+    """`outputs.writing.write_hdf5` (how a new store is made) on a disk that
+    refuses its writes after `room` bytes (at the first write, among the
+    metadata, in the middle of a 1.6 MB dataset): HDF5 never sees the
+    failure (nothing on stderr, no exception from it), the half-made file is
+    removed and WriteError names the file; with room it writes the file."""
+    import numpy as np
+    from common.errors import WriteError
+    from outputs import writing
+
+    def build(f):
+        f["x"] = np.arange(200_000, dtype=float)
+        f.create_dataset("error", (1000,), "S256", fill_time="alloc")
+        f.attrs["text"] = "y" * 5000
+
+    shielded = writing._Shielded.__init__
+    monkeypatch.setattr(writing._Shielded, "__init__", lambda self, raw: shielded(self, _Refusing(raw, room)))
+    with pytest.raises(WriteError) as refused:
+        writing.write_hdf5(tmp_path / "s.h5", build)
+    assert str(tmp_path / "s.h5") in str(refused.value) and refused.value.errno == errno.ENOSPC
+    assert os.listdir(tmp_path) == []
+    assert capfd.readouterr().err == ""
+    monkeypatch.undo()
+    writing.write_hdf5(tmp_path / "s.h5", build)
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["x"][-1] == 199_999 and f["error"][0] == b"" and len(f.attrs["text"]) == 5000
+    assert os.listdir(tmp_path) == ["s.h5"]

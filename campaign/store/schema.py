@@ -126,11 +126,21 @@ def task_ids(grid: Grid, method: str) -> list[str]:
     ids: each JSON text made from a template of the sorted keys with the
     values' texts (`Grid.texts`; json prints a float as its repr) instead of
     from a shell's dict: 10,000 ids in about 10 ms."""
+    return list(_task_ids(grid, method))
+
+
+def task_id_column(grid: Grid, method: str) -> np.ndarray:
+    """`task_ids` as the store keeps them (16 ASCII bytes each), made one at a
+    time: no list of a million strings (73 bytes a task) on the way."""
+    return np.fromiter(_task_ids(grid, method), "S16", count=len(grid))
+
+
+def _task_ids(grid, method):
     keys = sorted({**grid[0].to_dict(), "method": method})
     fields = [k for k in keys if k != "method"]
     own = json.dumps(method).replace("%", "%%")
     body = "{" + ", ".join(f"{json.dumps(k)}: {own if k == 'method' else '%s'}" for k in keys) + "}"
-    return [hashlib.sha256(text.encode()).hexdigest()[:16] for text in grid.texts(body, fields, _json_value)]
+    return (hashlib.sha256(text.encode()).hexdigest()[:16] for text in grid.texts(body, fields, _json_value))
 
 
 def _json_value(value):
@@ -166,7 +176,7 @@ def error_dtype() -> np.dtype:
 def fixed_strings(values: Sequence[str]) -> np.ndarray:
     """Short ASCII names (task ids, bending variants) as a fixed-length byte
     array: read back a hundred times faster than variable-length strings."""
-    return np.array([v.encode("ascii") for v in values], f"S{max([len(v) for v in values] + [1])}")
+    return np.array(values, f"S{max(map(len, values), default=1)}")   # (ASCII: numpy refuses other text)
 
 
 def clip(text: str) -> bytes:
@@ -178,7 +188,17 @@ def _bookkeeping(g, n):
     """The bookkeeping columns of `n` rows, each pending, never attempted."""
     for key, dtype in BOOKKEEPING.items():
         g[key] = np.full(n, {"rank": -1, "started_unix_s": np.nan}.get(key, 0), dtype)
-    g.create_dataset("error", data=np.zeros(n, error_dtype()), dtype=error_dtype())
+    g.create_dataset("error", (n,), error_dtype(), dcpl=_allocated(), fill_time="alloc")   # HDF5 writes the
+    # empty messages itself, a buffer at a time: no n x ERROR_BYTES array (256 MB at a million rows)
+
+
+def _allocated():
+    """A dataset-creation property list whose storage is allocated when the dataset is made (and its fill
+    value written then): rows are later written in place, never growing the file."""
+    import h5py
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+    return dcpl
 
 
 def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> None:
@@ -189,8 +209,9 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
     for key in PARAMS + PROTOCOL_PARAMS:
         if key in columns:              # PROTOCOL_PARAMS: a protocol-bias campaign's alone
             f[key] = columns[key]
-    for key, values in (("bending", columns["bending"]), ("task_id", task_ids(campaign.shells, campaign.method))):
-        f.create_dataset(key, data=fixed_strings(values))
+    f.create_dataset("bending", data=fixed_strings(columns["bending"]))
+    del columns                                     # (at a million tasks 80 MB, not kept while the ids are made)
+    f.create_dataset("task_id", data=task_id_column(campaign.shells, campaign.method))
     for key in result_names(campaign):
         f.create_dataset(key, data=np.full(n, np.nan))
     f["converged"] = np.zeros(n, np.int8)

@@ -26,8 +26,9 @@ file refuses a second run on the same store.
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
 (`campaign.store.files`). A full disk never reaches HDF5 while it grows the
-file (HDF5 then crashes): new files are built in memory and written by
-Python, growth waits for `ensure_room`, rows are written in place
+file (HDF5 then crashes): a new file is written in place through a file
+object that keeps every failed write from HDF5 (`write_hdf5`; the half-made
+file is then removed), growth waits for `ensure_room`, rows are written in place
 (`outputs.writing`); a failed journal write is a WriteError naming the
 journal, and `abort` closes without writing more.
 
@@ -58,7 +59,7 @@ from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
 from campaign.store.files import check_store_path, open_read, set_aside
 from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
-from outputs.writing import ensure_room, hdf5_image, named_failures, write_atomically
+from outputs.writing import ensure_room, hdf5_image, named_failures, write_hdf5
 from common.errors import InputError
 
 if TYPE_CHECKING:
@@ -139,9 +140,9 @@ class Store:
                 set_aside(p, f"{p}.bak-{stamp}")
 
     def _create(self, campaign, ranks):
-        """The new file, built in memory and written by Python (`outputs.writing`)."""
+        """The new file, written in place with every write failure kept from HDF5 (`outputs.writing`)."""
         attrs = provenance.store_attrs(campaign, ranks)
-        write_atomically(self.path, hdf5_image(lambda f: schema.fill(f, campaign, attrs)))
+        write_hdf5(self.path, lambda f: schema.fill(f, campaign, attrs))
 
     def _open_or_rebuild(self, campaign, ranks):
         import h5py
