@@ -10,7 +10,7 @@ The `[protocol]` axes (PROTOCOL_KEYS):
 
 The protocol points are the product exponents × wait_s × frequency_hz (m of them, the last
 fastest); node i is shell i // m under point i % m, so the protocol varies fastest. A node's store columns are the shell's parameters and PROTOCOL_PARAMS
-(`campaign.store.schema`; the frequency as `protocol_frequency_hz`, apart from the viscous
+(a task kind with these parameters takes a `[protocol]` section, `campaign.kinds`; the frequency as `protocol_frequency_hz`, apart from the viscous
 interior's `frequency_hz`); its id and the campaign's fingerprint are made from `to_dict`, the
 shell's fields and the protocol's.
 """
@@ -32,6 +32,7 @@ PROTOCOL_KEYS = ("exponents", "wait_s", "frequency_hz")
 NODE_KEYS = ("bulk_exponent", "shear_exponent", "wait_s", "frequency_hz")   # a node's protocol
 COLUMN = {"bulk_exponent": "bulk_exponent", "shear_exponent": "shear_exponent", "wait_s": "wait_s",
           "frequency_hz": "protocol_frequency_hz"}      # a [protocol] key's store column
+PROTOCOL_PARAMS = tuple(COLUMN[k] for k in NODE_KEYS)   # a node's protocol columns (with the shell's)
 
 
 @dataclass(frozen=True)
