@@ -1,4 +1,4 @@
-"""A protocol-bias campaign's nodes (`[campaign] task = "protocol_bias"`, SPEC 12): each shell
+"""A protocol-bias campaign's nodes (`[campaign] task = "analysis.afm.synth.protocol_bias:protocol_bias"`, SPEC 12): each shell
 of the grid (`campaign.grid.Grid`) under each point of the `[protocol]` section's product.
 
 The `[protocol]` axes (PROTOCOL_KEYS):

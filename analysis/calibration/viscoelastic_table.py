@@ -26,7 +26,7 @@ Only the `standard` bending variant is tabulated (the factor C changes with B by
 less than with the angles: B/(K_B R²) ~ 1e-5).
 
 The table is built by the campaign engine: `campaigns/viscoelastic.toml` (`[campaign]
-task = "viscoelastic_table"`) runs one task per node (`node_results`, any number of
+task = "analysis.calibration.viscoelastic_table:viscoelastic_table"`, the kind `KIND`) runs one task per node (`node_results`, any number of
 ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
 the table's document from the finished store.
 """

@@ -8,8 +8,8 @@ yet), so it also works while a campaign is running:
 - `read_trials`: the Monte-Carlo trial curves, one row per trial and height;
 - `read_provenance`: what made the store;
 - `summary`: counts by state, failures with their messages, throughput and
-  ETA, from the state, start-time and wall-time columns only (the task table
-  is not built: at a million tasks it answers in well under a second).
+  ETA, from the state, start-time and wall-time columns and those the check
+  reads (the task table is not built).
 
 Error messages are read only for rows that can hold one (attempted and not
 done): a done row's message is always empty.
