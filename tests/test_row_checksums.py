@@ -4,6 +4,7 @@ in any float column of a done row of a finished store, or of a trial row, is rep
 line), and `cortex campaign repair` rewrites the row from the journal to the store's very bytes; a
 damaged journal record is skipped (the records after it kept) and its tasks are computed again."""
 
+import json
 import shutil
 
 import h5py
@@ -74,6 +75,9 @@ def test_a_flipped_force_is_reported_never_read_and_repaired(finished, tmp_path)
     check = cortex("campaign", "verify", store)
     assert check.returncode == 1 and check.stdout.strip().splitlines() == [
         f"{store}: row {ROW} (task {rows.loc[ROW, 'task_id']}): damaged, its checksum fails"], check.stdout
+    found = cortex("campaign", "verify", store, "--json")
+    assert found.returncode == 1 and json.loads(found.stdout) == {
+        "store": str(store), "rows": [[ROW, rows.loc[ROW, "task_id"]]], "trial_rows": [], "journal": []}
     fixed = cortex("campaign", "repair", store)
     assert fixed.returncode == 0 and f"row {ROW} rewritten from the journal" in fixed.stdout, fixed.stderr
     assert store.read_bytes() == before

@@ -74,18 +74,27 @@ def _open_store(path):
     return f
 
 
-def verify(path: str | os.PathLike[str]) -> list[str]:
-    """One line per damaged row, trial row and journal stretch of store `path` ([] if none)."""
+def findings(path: str | os.PathLike[str]) -> dict[str, list]:
+    """What is damaged in store `path`: {'rows': [[row, task id]], 'trial_rows': [[row, trial task,
+    cell]], 'journal': [[start, end]] (damaged stretches, bytes)}."""
     with _open_store(path) as f:
         bad = damaged_rows(f)
         ids = f["task_id"][bad["rows"]] if len(bad["rows"]) else []
         cells = int(f["trials"].attrs["cells_per_study"]) if "trials" in f else 1
-    lines = [f"{path}: row {r} (task {t.decode()}): damaged, its checksum fails" for r, t in zip(bad["rows"], ids)]
-    lines += [f"{path}: trial row {r} (trial task {r // cells}, cell {r % cells}): damaged, its checksum fails"
-              for r in bad["trials"].tolist()]
-    lines += [f"{path}.journal: bytes {a}-{b} damaged (no record there checks); its tasks are pending "
-              "unless their rows hold them" for a, b in journal_damage(path)]
-    return lines
+    return {"rows": [[int(r), t.decode()] for r, t in zip(bad["rows"], ids)],
+            "trial_rows": [[r, r // cells, r % cells] for r in bad["trials"].tolist()],
+            "journal": [[a, b] for a, b in journal_damage(path)]}
+
+
+def verify(path: str | os.PathLike[str], found: dict[str, list] | None = None) -> list[str]:
+    """One line per damaged row, trial row and journal stretch of store `path` ([] if none);
+    `found`: its `findings`, if made already."""
+    found = findings(path) if found is None else found
+    return ([f"{path}: row {r} (task {t}): damaged, its checksum fails" for r, t in found["rows"]]
+            + [f"{path}: trial row {r} (trial task {j}, cell {c}): damaged, its checksum fails"
+               for r, j, c in found["trial_rows"]]
+            + [f"{path}.journal: bytes {a}-{b} damaged (no record there checks); its tasks are pending "
+               "unless their rows hold them" for a, b in found["journal"]])
 
 
 def repair(path: str | os.PathLike[str]) -> list[str]:

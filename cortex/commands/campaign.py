@@ -47,6 +47,8 @@ def register(sub: Commands) -> None:
                                   "its CRC: one line per damaged row or record (exit 1), or one line saying "
                                   "none is (exit 0). Reads only; also while the campaign runs.")
     v.add_argument("store", metavar="STORE.h5")
+    v.add_argument("--json", action="store_true", help="one JSON object: store, rows ([row, task_id]), "
+                   "trial_rows ([row, trial task, cell]), journal ([start, end] bytes of damaged stretches)")
     v.set_defaults(handler=verify)
     rp = cs.add_parser("repair", help="rewrite damaged rows from the journal",
                        description="Rewrite every damaged row of STORE (see `verify`) from its task's entry in "
@@ -54,6 +56,7 @@ def register(sub: Commands) -> None:
                                    "journal does not hold is set pending (the next run computes it). Writes only "
                                    "those rows of STORE, under its lock (not while a run holds it).")
     rp.add_argument("store", metavar="STORE.h5")
+    rp.add_argument("--json", action="store_true", help="one JSON object: store, repaired (one line per row)")
     rp.set_defaults(handler=repair)
 
 
@@ -111,19 +114,25 @@ def status(args: argparse.Namespace) -> int:
 
 
 def verify(args: argparse.Namespace) -> int:
-    from campaign.store.verify import verify as check
+    import json
+    from campaign.store.verify import findings, verify as check
     from common.errors import EXIT_SOME_FAILED
-    lines = check(args.store)
-    for line in lines:
-        print(line)
-    if not lines:
-        print(f"{args.store}: no damaged row or journal record")
+    found = findings(args.store)
+    lines = check(args.store, found)
+    if args.json:
+        print(json.dumps({"store": args.store, **found}))
+    else:
+        print("\n".join(lines) if lines else f"{args.store}: no damaged row or journal record")
     return EXIT_SOME_FAILED if lines else 0
 
 
 def repair(args: argparse.Namespace) -> int:
+    import json
     from campaign.store.verify import repair as rewrite
     lines = rewrite(args.store)
+    if args.json:
+        print(json.dumps({"store": args.store, "repaired": lines}))
+        return 0
     for line in lines:
         print(line)
     print(f"{args.store}: {len(lines)} damaged rows repaired" if lines else f"{args.store}: no damaged row")
