@@ -143,8 +143,9 @@ def _trial_entry(k, t, arrays):
     return trial_entry(t["task"], cells, t["state"], t["error"], t["attempts"], t["rank"], t["started"])
 
 
-def _record(buf, at):
-    """(end, entries) of the record at byte `at` of `buf`, or None if no whole record that checks is there."""
+def _record(buf, at, decoded=True):
+    """(end, entries) of the record at byte `at` of `buf`, or None if no whole record that checks is there
+    (`decoded` False: entries [] unless its header is not JSON, only its CRC checked)."""
     lead = buf[at:at + _HEAD]
     if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
         return None
@@ -156,17 +157,17 @@ def _record(buf, at):
     if _CRC.unpack(buf[end - _CRC.size:end])[0] != zlib.crc32(body):
         return None
     try:
-        return end, decode(json.loads(body[:n_head]), body[n_head:])
+        return end, (decode(json.loads(body[:n_head]), body[n_head:]) if decoded else [])
     except (ValueError, KeyError, TypeError):       # a header that checks but is not ours
         return None
 
 
-def _frames(buf, at=0):
+def _frames(buf, at=0, decoded=True):
     """(start, end, entries) of each stretch of `buf` from byte `at` on: a record that checks, or
     (entries None) a damaged stretch up to the next record that does (found by its MAGIC), or to the
     end (a record a kill cut)."""
     while at < len(buf):
-        got = _record(buf, at)
+        got = _record(buf, at, decoded)
         if got is not None:
             yield at, got[0], got[1]
             at = got[0]
@@ -177,7 +178,7 @@ def _frames(buf, at=0):
             if at < 0:
                 yield start, len(buf), None
                 return
-            got = _record(buf, at)
+            got = _record(buf, at, decoded)
         yield start, at, None
 
 
@@ -202,11 +203,11 @@ def read(path: str | os.PathLike[str], start: int = 0) -> list[Entry]:
     return entries
 
 
-def read_all(path: str | os.PathLike[str]) -> list[tuple[int, int, list[Entry] | None]]:
+def read_all(path: str | os.PathLike[str], decoded: bool = True) -> list[tuple[int, int, list[Entry] | None]]:
     """(start, end, entries) of every stretch of the journal: its records, and (entries None) its
-    damaged stretches (`_frames`)."""
+    damaged stretches (`_frames`); `decoded` False: each record's entries [] (its CRC checked only)."""
     with _mapped(path) as buf:
-        return list(_frames(buf))
+        return list(_frames(buf, 0, decoded))
 
 
 def complete_bytes(path: str | os.PathLike[str]) -> int:
@@ -214,7 +215,7 @@ def complete_bytes(path: str | os.PathLike[str]) -> int:
     it included: they stay, and are skipped when read)."""
     end = 0
     with _mapped(path) as buf:
-        for _, stop, batch in _frames(buf):
+        for _, stop, batch in _frames(buf, 0, False):
             if batch is not None:
                 end = stop
     return end

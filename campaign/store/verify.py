@@ -58,7 +58,7 @@ def pending_again(f: h5py.File) -> dict[str, npt.NDArray[np.int64]]:
 def journal_damage(path: str | os.PathLike[str]) -> list[tuple[int, int]]:
     """The damaged stretches (start, end bytes) of the journal of store `path` (a cut last record
     not among them)."""
-    stretches = journal.read_all(str(path) + ".journal")
+    stretches = journal.read_all(str(path) + ".journal", decoded=False)
     last = max((i for i, (_, _, e) in enumerate(stretches) if e is not None), default=-1)
     return [(a, b) for i, (a, b, e) in enumerate(stretches) if e is None and i < last]
 
