@@ -32,16 +32,24 @@ if TYPE_CHECKING:
     import h5py
 
 
+CHUNK = 1 << 16      # rows checked at a time: rank 0 holds CHUNK rows' columns (12 MB), not the store's
+
+
 def damaged_rows(f: h5py.File) -> dict[str, npt.NDArray[np.int64]]:
     """{'rows': damaged task rows, 'trials': damaged trial rows} of the open store `f` (empty arrays
-    for a store without checksums)."""
+    for a store without checksums), checked CHUNK rows at a time."""
     out = {"rows": np.zeros(0, np.int64), "trials": np.zeros(0, np.int64)}
     if CHECKSUM in f:
-        out["rows"] = checksum.damaged(lambda k: f[k][:], checksum.task_names(stored_results(f)))
+        out["rows"] = _by_chunks(f, checksum.task_names(stored_results(f)))
     if "trials" in f and CHECKSUM in f["trials"]:
-        g = f["trials"]
-        out["trials"] = checksum.damaged(lambda k: g[k][:], checksum.TRIAL_COVERED)
+        out["trials"] = _by_chunks(f["trials"], checksum.TRIAL_COVERED)
     return out
+
+
+def _by_chunks(g, names):
+    n = len(g["state"])
+    parts = [start + checksum.damaged(lambda k: g[k][start:start + CHUNK], names) for start in range(0, n, CHUNK)]
+    return np.concatenate(parts) if parts else np.zeros(0, np.int64)
 
 
 def pending_again(f: h5py.File) -> dict[str, npt.NDArray[np.int64]]:
