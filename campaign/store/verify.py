@@ -6,7 +6,8 @@ journal record is damaged when its CRC fails (`campaign.store.journal`; a record
 the journal's end is not damage, the next run trims it).
 
 - `verify(path)`: one line per damaged row, trial row and journal stretch (read-only, no lock:
-  also while a campaign runs);
+  also while a campaign runs; a row the journal holds past the file's `journal_bytes`, which a
+  run may be writing, is not checked: the readers take it from the journal);
 - `repair(path)`: under the store's lock, each damaged row rewritten from its task's last entry in
   the journal (`campaign.store.rows.write_entries`, which writes the values and the checksum the
   run wrote), a damaged row the journal does not hold set pending (the next run computes it);
@@ -87,11 +88,21 @@ def findings(path: str | os.PathLike[str]) -> dict[str, list]:
     cell]], 'journal': [[start, end]] (damaged stretches, bytes)}."""
     with _open_store(path) as f:
         bad = damaged_rows(f)
-        ids = f["task_id"][bad["rows"]] if len(bad["rows"]) else []
         cells = int(f["trials"].attrs["cells_per_study"]) if "trials" in f else 1
+        _drop_newer(bad, journal.read(str(path) + ".journal", f.attrs.get("journal_bytes", 0)), cells)
+        ids = f["task_id"][bad["rows"]] if len(bad["rows"]) else []
     return {"rows": [[int(r), t.decode()] for r, t in zip(bad["rows"], ids)],
             "trial_rows": [[r, r // cells, r % cells] for r in bad["trials"].tolist()],
             "journal": [[a, b] for a, b in journal_damage(path)]}
+
+
+def _drop_newer(bad, entries, cells):
+    """Leave out of `bad` the rows the journal holds past the rows (a running campaign's rows being
+    written: the readers take them from the journal)."""
+    rows = {e["row"] for e in entries if is_compression(e)}
+    tasks = {e["task"] for e in entries if not is_compression(e)}
+    bad["rows"] = np.array([r for r in bad["rows"].tolist() if r not in rows], np.int64)
+    bad["trials"] = np.array([r for r in bad["trials"].tolist() if r // cells not in tasks], np.int64)
 
 
 def verify(path: str | os.PathLike[str], found: dict[str, list] | None = None) -> list[str]:
