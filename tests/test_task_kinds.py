@@ -37,11 +37,9 @@ def _expected():
 
 def _read(store):
     """What the checks look at: the rows' columns and the store's kind attributes."""
-    from campaign.store.reader import read_results
-    rows = read_results(store)[["state", "h0_squared_um2", "shear_over_bulk", "force_nN", "rank"]]
     with h5py.File(store, "r") as f:
         kind = (str(f.attrs["task_kind"]), int(f.attrs["task_version"]), json.loads(f.attrs["task_results"]))
-    return rows.to_dict("list"), kind
+    return _read_rows(store), kind
 
 
 def _check(read):
@@ -115,3 +113,26 @@ def test_a_kind_from_a_test_module_runs_under_the_scheduler(tmp_path_factory):
     read = on_rank0(lambda: _read(store))
     _check(read)
     assert set(read[0]["rank"]) <= set(range(MPI.COMM_WORLD.Get_size()))
+
+
+def test_a_store_made_before_kinds_is_refused_for_a_run_and_still_read(tmp_path):
+    """A store without `task_kind`/`task_version` and without checksums (as made before kinds):
+    a run refuses it in one line, leaving it as it was; the readers read it, unchecked."""
+    config = tmp_path / "c.toml"
+    config.write_text(CAMPAIGN)
+    store = tmp_path / "s.h5"
+    assert cortex("campaign", "run", config, "--store", store, "--quiet").returncode == 0
+    with h5py.File(store, "r+") as f:
+        for key in ("task_kind", "task_version", "task_params", "task_results"):
+            del f.attrs[key]
+        del f["checksum"]
+    before = store.read_bytes()
+    again = cortex("campaign", "run", config, "--store", store, "--quiet")
+    assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1, again.stderr
+    assert "made by an older cortex" in again.stderr and store.read_bytes() == before
+    _check((_read_rows(store), ("squares", 1, {"h0_squared_um2": "µm²", "shear_over_bulk": "1"})))  # as made
+
+
+def _read_rows(store):
+    from campaign.store.reader import read_results
+    return read_results(store)[["state", "h0_squared_um2", "shear_over_bulk", "force_nN", "rank"]].to_dict("list")
