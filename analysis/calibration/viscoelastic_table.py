@@ -26,8 +26,8 @@ Only the `standard` bending variant is tabulated (the factor C changes with B by
 less than with the angles: B/(K_B R²) ~ 1e-5).
 
 The table is built by the campaign engine: `campaigns/viscoelastic.toml` (`[campaign]
-task = "analysis.calibration.viscoelastic_table:viscoelastic_table"`, the kind `KIND`) runs one task per node (`node_results`, any number of
-ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
+task = "analysis.calibration.viscoelastic_table:viscoelastic_table"`, the kind `KIND`) runs one
+task per node (`node_results`, any number of ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
 the table's document from the finished store.
 """
 
@@ -125,9 +125,11 @@ def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     doc = tomllib.loads(text) if text else {}
     grid = {**DEFAULTS, **doc.get("grid", {})}
     keys = ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")
-    if str(doc.get("campaign", {}).get("task", "")).rpartition(":")[2] != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
+    task = str(doc.get("campaign", {}).get("task", "")).rpartition(":")[2]      # MODULE:NAME, or a bare name
+    if task != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
         raise InputError(f"{path}: not a store of a viscoelastic-table campaign over h_tilde, ks_tilde and "
-                         f"gamma_tilde, standard bending ([campaign] task = \"analysis.calibration.viscoelastic_table:{TASK}\": campaigns/viscoelastic.toml)")
+                         "gamma_tilde, standard bending ([campaign] task = "
+                         f"\"analysis.calibration.viscoelastic_table:{TASK}\": campaigns/viscoelastic.toml)")
     axes = [np.atleast_1d(np.asarray(grid[k], float)) for k in keys]
     rows = read_results(path)
     undone = int((rows["state"] != "done").sum())

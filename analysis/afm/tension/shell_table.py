@@ -35,9 +35,9 @@ by `fill`).
 The grid: DEPTHS δ/R to 0.3 (48, denser near the sphere, where the force bends
 most), GAMMAS γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both log-spaced, RADII
 4-13.5 µm. The table is built by the campaign engine: `campaigns/ramp.toml`
-(`[campaign] task = "analysis.afm.tension.shell_table:ramp_table"`, the kind `KIND`) runs one task per node (γ̃_a, K̃_S, R) over
-any number of ranks, resumably (`node_results`: f at every depth, a depth
-whose continuation stalls filled in along depth by `fill`), and `from_store`
+(`[campaign] task = "analysis.afm.tension.shell_table:ramp_table"`, the kind `KIND`) runs one
+task per node (γ̃_a, K̃_S, R) over any number of ranks, resumably (`node_results`: f at every
+depth, a depth whose continuation stalls filled in along depth by `fill`), and `from_store`
 (`cortex analysis build-ramp-table`) makes the table's document
 (f[depth][gamma][shear][radius]) from the finished store.
 """
@@ -177,7 +177,8 @@ def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     if str(doc.get("campaign", {}).get("task", "")).rpartition(":")[2] != TASK or not isinstance(grid["bending"], str) \
             or not set(keys) <= set(grid):
         raise InputError(f"{path}: not a store of a ramp-table campaign over volume_um3, gamma_tilde and "
-                         f"ks_tilde, one bending ([campaign] task = \"analysis.afm.tension.shell_table:{TASK}\": campaigns/ramp.toml)")
+                         f"ks_tilde, one bending ([campaign] task = \"analysis.afm.tension.shell_table:{TASK}\": "
+                         "campaigns/ramp.toml)")
     volumes, gammas, shears = (np.atleast_1d(np.asarray(grid[k], float)) for k in keys)
     rows = read_results(path)
     undone = int((rows["state"] != "done").sum())
