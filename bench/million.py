@@ -12,7 +12,13 @@ included; `status_cpu_s` its user + system time, which a loaded machine
 does not inflate), `open_wall_s` that of opening the store and reading its
 result table (`campaign.store.reader.read_results`, in a fresh process, its
 start-up and the imports of pandas and the reader excluded; `open_cpu_s` its
-CPU time), each the best of --repeat runs; `store_mb` and `journal_mb` the
+CPU time), each the best of --repeat runs; `verify_wall_s` that of
+`cortex campaign verify STORE` (every row checked against its checksum and the
+journal against its CRCs, start-up included) and `check_wall_s` (`check_cpu_s`)
+that of the rows' check alone, the columns read and summed
+(`campaign.store.verify.damaged_rows`, in a fresh process, imports excluded),
+which every open and reader pays; `check_per_million_s` is it scaled to a
+million rows from the largest size. `store_mb` and `journal_mb` the
 sizes on disk. From two sizes,
 `rss_rank0_per_task_bytes` is the growth of rank 0's peak per task.
 """
@@ -54,6 +60,16 @@ rows = read_results(sys.argv[1])
 print(time.perf_counter() - started, time.process_time() - cpu, len(rows))
 """
 
+CHECK = """
+import sys, time
+from campaign.store.files import open_read
+from campaign.store.verify import damaged_rows
+started, cpu = time.perf_counter(), time.process_time()
+with open_read(sys.argv[1]) as f:
+    bad = damaged_rows(f)
+print(time.perf_counter() - started, time.process_time() - cpu, len(bad["rows"]))
+"""
+
 
 def _grid(lo, hi, n):
     return ", ".join(f"{lo + (hi - lo) * i / max(n - 1, 1):.6f}" for i in range(n))
@@ -90,11 +106,19 @@ def one_size(tmp, tasks, ranks, repeat):
     opened = [_run([sys.executable, "-c", OPEN, str(store)], env={**os.environ, "PYTHONPATH": str(ROOT)})[2].split()
               for _ in range(repeat)]
     open_wall, open_cpu, rows = min(float(o[0]) for o in opened), min(float(o[1]) for o in opened), opened[0][2]
+    verify_wall = min(_run([str(BIN / "cortex"), "campaign", "verify", str(store)])[0] for _ in range(repeat))
+    checked = [_run([sys.executable, "-c", CHECK, str(store)], env={**os.environ, "PYTHONPATH": str(ROOT)})[2].split()
+               for _ in range(repeat)]
+    if any(int(c[2]) for c in checked):
+        raise SystemExit(f"bench: {store} has damaged rows")
+    check_wall, check_cpu = min(float(c[0]) for c in checked), min(float(c[1]) for c in checked)
     return {"tasks": tasks, "done": info["done"], "rows_read": int(rows), "run_wall_s": round(run_wall, 2),
             "tasks_per_s": round(tasks / run_wall, 1), "peak_rss_rank0_mb": round(peaks[0], 1),
             "peak_rss_other_mb": round(max((v for k, v in peaks.items() if k), default=0.0), 1),
             "status_wall_s": round(status_wall, 3), "status_cpu_s": round(status_cpu, 3),
             "open_wall_s": round(open_wall, 3), "open_cpu_s": round(open_cpu, 3),
+            "verify_wall_s": round(verify_wall, 3), "check_wall_s": round(check_wall, 3),
+            "check_cpu_s": round(check_cpu, 3),
             "store_mb": round(store.stat().st_size / 2**20, 1),
             "journal_mb": round(os.path.getsize(f"{store}.journal") / 2**20, 1)}
 
@@ -108,7 +132,8 @@ def main():
     sizes = [int(x) for x in args.tasks.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         runs = [one_size(pathlib.Path(tmp), n, args.ranks, args.repeat) for n in sizes]
-    out = {"ranks": args.ranks, "runs": runs}
+    out = {"ranks": args.ranks, "runs": runs,
+           "check_per_million_s": round(runs[-1]["check_wall_s"] * 1e6 / runs[-1]["tasks"], 2)}
     if len(runs) >= 2:
         a, b = runs[0], runs[-1]
         out["rss_rank0_per_task_bytes"] = round((b["peak_rss_rank0_mb"] - a["peak_rss_rank0_mb"]) * 2**20

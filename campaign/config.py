@@ -2,20 +2,14 @@
 
     [campaign]  name, store (default path of the HDF5 store), max_tasks
                 (the largest campaign accepted, default MAX_TASKS = 100,000),
-                task (what one grid point computes, TASKS): `compression`
-                (the default) or `viscoelastic_table`, one node of the
-                complex correspondence table (`analysis.calibration.viscoelastic_table`:
-                one linearisation, the 7 x 7 loss angles, ln C's polynomial
-                coefficients as the results TABLE_RESULTS of
-                `campaign.store.schema`), or `ramp_table`, one node of the
-                shell ramp table (`analysis.afm.tension.shell_table`: one
-                continuation from the free sphere over the table's depths,
-                F/(K_B R) as RAMP_RESULTS; h0 and dh play no part), or
-                `protocol_bias`, one recording of the protocol in time per
-                shell and [protocol] point (`analysis.afm.synth.protocol_bias`:
-                its segment fit against the relaxed-state model,
-                PROTOCOL_RESULTS); these need the fast solver and an elastic
-                grid without [montecarlo]
+                task (what one grid point computes, a task kind:
+                `campaign.kinds`): `compression` (the default), or
+                "MODULE:NAME", the kind NAME that MODULE registers (the
+                tables': "analysis.calibration.viscoelastic_table:viscoelastic_table",
+                "analysis.afm.tension.shell_table:ramp_table",
+                "analysis.afm.synth.protocol_bias:protocol_bias"); a kind other
+                than compression needs the fast solver and an elastic grid
+                without [montecarlo]
     [grid]      volume_um3, h0_um, dh_um, bulk_mN_per_m, shear_mN_per_m,
                 tension_mN_per_m, thickness_um: a number or a list of numbers;
                 bending: a name or a list of `standard`, `double`, `none`;
@@ -39,7 +33,8 @@
                 values a model cell draws from, default all of the grid's),
                 bending (default all of the grid's), seed (0). The grid must
                 hold one volume_um3, dh_um, bulk_mN_per_m and thickness_um.
-    [protocol]  a protocol_bias campaign's (and only its): exponents (pairs
+    [protocol]  a kind's whose parameters are the protocol's (and only its,
+                `campaign.protocol_grid.PROTOCOL_PARAMS`): exponents (pairs
                 [β_B, β_S]), wait_s, frequency_hz (a number or a list each;
                 `campaign.protocol_grid`); the campaign's tasks are the grid's
                 shells times their product, the protocol fastest
@@ -69,12 +64,13 @@ import itertools
 import math
 import os
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 from campaign import task_hooks
+from campaign.kinds import Kind, find as find_kind
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
-from campaign.protocol_grid import PROTOCOL_KEYS, BiasGrid, protocol_axes
+from campaign.protocol_grid import PROTOCOL_KEYS, PROTOCOL_PARAMS, BiasGrid, protocol_axes
 from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
 from solver.compression import METHODS
@@ -85,7 +81,6 @@ from solver.model import BENDING_VARIANTS
 RATIO_AXES = {"h0_um": "h_tilde", "shear_mN_per_m": "ks_tilde", "tension_mN_per_m": "gamma_tilde"}
 DEFAULTS = {"volume_um3": 4300.0, "dh_um": 0.5, "thickness_um": 0.2, "bending": "standard"}
 MAX_TASKS = 100_000
-TASKS = ("compression", "viscoelastic_table", "ramp_table", "protocol_bias")
 SECTIONS = {"campaign": {"name", "store", "max_tasks", "task"},
             "grid": set(GRID_KEYS) | set(RATIO_AXES.values()),
             "solver": {"method", "resolution", "timeout_s", "memory_limit_mb", "retries"},
@@ -111,20 +106,24 @@ class Campaign:
     trial_cells: int = 0   # N, cells per study
     memory_limit_mb: float | None = None   # per task process; None: the node's share (`campaign.isolation`)
     retries: int = 0       # of a task that crashed its process or did not answer
-    task: str = "compression"   # what one grid point computes (TASKS)
+    kind: Kind = field(default_factory=lambda: find_kind("compression"))   # what a grid point computes
+
+
+    @property
+    def task(self) -> str:
+        """The name of its task kind."""
+        return self.kind.name
 
     @cached_property
     def fingerprint(self):
         """What identifies the campaign's compressions: refuses a store made from another grid.
         sha256 of repr([shell.to_dict(), ...]) + method + repr(resolution), fed to the hash
         4,096 shells at a time so that a million tasks never make one long text;
-        a task other than `compression` is hashed after them."""
+        the task kind's name and version ('NAME@VERSION', `campaign.kinds.Kind.stamp`) after them."""
         h, texts = hashlib.sha256(b"["), self.shells.reprs()
         for i, chunk in enumerate(iter(lambda: list(itertools.islice(texts, 4096)), [])):
             h.update(((", " if i else "") + ", ".join(chunk)).encode())
-        h.update(("]" + self.method + repr(self.resolution)).encode())
-        if self.task != "compression":
-            h.update(self.task.encode())
+        h.update(("]" + self.method + repr(self.resolution) + self.kind.stamp()).encode())
         return h.hexdigest()
 
     @cached_property
@@ -137,7 +136,8 @@ class Campaign:
         """What identifies its Monte-Carlo trials ('' without any)."""
         if not self.studies:
             return ""
-        key = repr([s.task_id for s in self.studies]) + repr(self.trial_cells)
+        from campaign.trials import TRIAL_KIND
+        key = repr([s.task_id for s in self.studies]) + repr(self.trial_cells) + TRIAL_KIND.stamp()
         return hashlib.sha256(key.encode()).hexdigest()
 
 
@@ -160,9 +160,9 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     method, resolution, timeout = _solver_section(path, data.get("solver", {}))
     memory_limit_mb, retries = _isolation_settings(path, data.get("solver", {}))
     meta = _campaign_section(path, data.get("campaign", {}))
-    task = _task(path, meta, grid, method, "montecarlo" in data)
+    kind = _kind(path, meta, grid, method, "montecarlo" in data)
     limit = _max_tasks(path, meta)
-    protocol = _protocol(path, data, task)
+    protocol = _protocol(path, data, kind)
     points = math.prod(len(v) for v in protocol.values()) if protocol else 1
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS) * points, limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
@@ -175,7 +175,7 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     return Campaign(test=test, name=meta.get("name", str(path)), store=meta.get("store"), method=method,
                     resolution=resolution, timeout_s=timeout, shells=shells,
                     text=raw.decode(), studies=studies, trial_cells=mc["cells"] if studies else 0,
-                    memory_limit_mb=memory_limit_mb, retries=retries, task=task)
+                    memory_limit_mb=memory_limit_mb, retries=retries, kind=kind)
 
 
 def _read_toml(path):
@@ -261,26 +261,31 @@ def _campaign_section(path, meta):
     return meta
 
 
-def _task(path, meta, grid, method, montecarlo):
-    """[campaign] task (one of TASKS); a table node (viscoelastic or ramp) needs
-    the fast solver (its linearisation, its continuation) and an elastic cell, and has no trials."""
-    task = meta.get("task", "compression")
-    if task not in TASKS:
-        raise InputError(f"{path}: [campaign] task must be one of {', '.join(TASKS)} (got {task!r})")
-    if task != "compression":
+def _kind(path, meta, grid, method, montecarlo):
+    """[campaign] task: its kind (`campaign.kinds.find`); a kind other than compression (a table's
+    node: a linearisation, a continuation, a recording) needs the fast solver and an elastic cell,
+    and has no trials."""
+    kind = find_kind(meta.get("task", "compression"), f"{path}: [campaign] task")
+    if kind.compute is not None:
         if method != "fast":
-            raise InputError(f"{path}: [campaign] task {task} needs [solver] method = \"fast\"")
+            raise InputError(f"{path}: [campaign] task {kind.name} needs [solver] method = \"fast\"")
         if montecarlo or any(key in grid for key in OPTIONAL):
-            raise InputError(f"{path}: [campaign] task {task} takes elastic cells without "
+            raise InputError(f"{path}: [campaign] task {kind.name} takes elastic cells without "
                              "[montecarlo] (drop viscosity_Pa_s, frequency_hz and [montecarlo])")
-    return task
+    extra = tuple(kind.params)
+    if extra not in ((), PROTOCOL_PARAMS):
+        raise InputError(f"{path}: [campaign] task {kind.name}: its parameters {', '.join(extra)} are "
+                         f"not a grid's (the shell's, or those and the protocol's: {', '.join(PROTOCOL_PARAMS)})")
+    return kind
 
 
-def _protocol(path, data, task):
-    """The [protocol] axes of a protocol-bias campaign (`campaign.protocol_grid`), {} for another task;
-    the section belongs to that task alone."""
-    if (task == "protocol_bias") != ("protocol" in data):
-        raise InputError(f"{path}: [campaign] task = \"protocol_bias\" and a [protocol] section go together")
+def _protocol(path, data, kind):
+    """The [protocol] axes of a campaign whose kind takes the protocol's parameters
+    (`campaign.protocol_grid`), {} for another; the section belongs to such a kind alone."""
+    if bool(kind.params) != ("protocol" in data):
+        raise InputError(f"{path}: [campaign] task ({kind.name!r} here) is a kind with the protocol's "
+                         "parameters, as \"analysis.afm.synth.protocol_bias:protocol_bias\", "
+                         "and a [protocol] section go together")
     return protocol_axes(path, data["protocol"]) if "protocol" in data else {}
 
 

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from campaign.store.schema import ALL_RESULTS, STATES, results_table
+from campaign.store.schema import STATES, results_table
 from campaign.task_key import (COMPRESSION, CompressionEntry, Entry, TaskKey, TrialEntry, compression_entry,
                                is_compression)
 
@@ -129,7 +129,7 @@ def compression_columns(chunks: Sequence[Chunk], names: Sequence[str] | None = N
     """The columns of compression entries and batches `chunks`, in order:
     row, state, attempts, rank, started, converged (arrays), `results`
     ({name: float64 array, NaN where a task lacks it} for `names`, by default
-    the ALL_RESULTS some task has) and `errors` ({position: message}). A run of
+    every result some task has, in the order first met) and `errors` ({position: message}). A run of
     entries is taken apart as one (a pass per column), a batch as it is."""
     pieces: list[dict[str, Any]] = []
     run: list[CompressionEntry] = []
@@ -144,7 +144,7 @@ def compression_columns(chunks: Sequence[Chunk], names: Sequence[str] | None = N
     if run:
         pieces.append(_entry_columns(run))
     if names is None:
-        names = [k for k in ALL_RESULTS if any(p["has"](k) for p in pieces)]
+        names = list(dict.fromkeys(k for p in pieces for k in p["names"]() if k != "converged"))
     out: dict[str, Any] = {"errors": {}}
     at = 0
     for p in pieces:
@@ -171,7 +171,7 @@ def _batch_columns(batch: CompressionBatch) -> dict[str, Any]:
     converged = batch.values[:, where["converged"]] != 0 if "converged" in where else np.zeros(n, bool)
     return {"row": batch.row, "state": batch.state, "attempts": batch.attempts, "rank": batch.rank,
             "started": batch.started, "converged": converged.astype(np.int8), "errors": batch.errors,
-            "has": where.__contains__, "table": table}
+            "names": lambda: batch.names, "table": table}
 
 
 def _entry_columns(entries: list[CompressionEntry]) -> dict[str, Any]:
@@ -182,5 +182,5 @@ def _entry_columns(entries: list[CompressionEntry]) -> dict[str, Any]:
                "converged": [bool(r.get("converged", False)) for r in results]}
     out: dict[str, Any] = {key: np.array(columns[key], dtype) for key, dtype in COLUMNS.items()}
     out.update(errors={i: e["error"] for i, e in enumerate(entries) if e.get("error")},
-               has=lambda k: any(k in r for r in results), table=lambda names: results_table(results, names))
+               names=lambda: [k for r in results for k in r], table=lambda names: results_table(results, names))
     return out

@@ -1,4 +1,4 @@
-"""A protocol-bias campaign's nodes (`[campaign] task = "protocol_bias"`, SPEC 12): each shell
+"""A protocol-bias campaign's nodes (`[campaign] task = "analysis.afm.synth.protocol_bias:protocol_bias"`, SPEC 12): each shell
 of the grid (`campaign.grid.Grid`) under each point of the `[protocol]` section's product.
 
 The `[protocol]` axes (PROTOCOL_KEYS):
@@ -12,7 +12,7 @@ The protocol points are the product exponents × wait_s × frequency_hz (m of th
 fastest); node i is shell i // m under point i % m, so the protocol varies fastest. A node's
 protocol (`bias_protocol`, a `solver.protocol.Protocol`): from the shell's h0 a ramp of Δh/2 to
 the mean height h_m = h0 - Δh/2 at 0.2 µm/s, a hold of T_w there, 5 periods of 0.25 µm at f. A node's store columns are the shell's parameters and PROTOCOL_PARAMS
-(`campaign.store.schema`; the frequency as `protocol_frequency_hz`, apart from the viscous
+(a task kind with these parameters takes a `[protocol]` section, `campaign.kinds`; the frequency as `protocol_frequency_hz`, apart from the viscous
 interior's `frequency_hz`); its id and the campaign's fingerprint are made from `to_dict`, the
 shell's fields and the protocol's.
 """
@@ -35,6 +35,7 @@ PROTOCOL_KEYS = ("exponents", "wait_s", "frequency_hz")
 NODE_KEYS = ("bulk_exponent", "shear_exponent", "wait_s", "frequency_hz")   # a node's protocol
 COLUMN = {"bulk_exponent": "bulk_exponent", "shear_exponent": "shear_exponent", "wait_s": "wait_s",
           "frequency_hz": "protocol_frequency_hz"}      # a [protocol] key's store column
+PROTOCOL_PARAMS = tuple(COLUMN[k] for k in NODE_KEYS)   # a node's protocol columns (with the shell's)
 
 
 def bias_protocol(shell: Shell, wait_s: float, frequency_hz: float) -> Protocol:

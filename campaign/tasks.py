@@ -1,8 +1,9 @@
 """One task, computed where it runs (a rank's task process,
 `campaign.task_process`): a compression or a Monte-Carlo trial task, under
-the per-task timeout, and its journal entry. In a viscoelastic-table,
-ramp-table or protocol-bias campaign (`[campaign] task`) a grid point is one
-node of that table or map instead (`compute_node`).
+the per-task timeout, and its journal entry. In a campaign of another task
+kind (`[campaign] task`, `campaign.kinds`: the tables' nodes, registered by
+their owners) a grid point is computed by its kind's function instead
+(`compute_node`). The engine's own kind, `compression`, is registered here.
 
 A task that raises (a MemoryError too: the process's memory is capped),
 exceeds the per-task timeout (SIGALRM) or (a compression) returns a
@@ -23,6 +24,7 @@ import traceback
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from campaign.kinds import COMPRESSION as COMPRESSION_KIND, Kind, register
 from campaign.task_hooks import TaskHooks
 from campaign.task_key import COMPRESSION, CompressionEntry, TrialEntry, compression_entry, trial_entry
 from solver.compression import compress
@@ -32,6 +34,9 @@ if TYPE_CHECKING:
     from campaign.config import Campaign
 
 Outcome = tuple[str, dict[str, Any], str, float]    # (state, results, error, started as Unix time)
+
+# the engine's own kind: one compression per grid point (`compute`), its results schema.RESULTS
+KIND = register(Kind(COMPRESSION_KIND, 1, {}, doc="one compression of the shell (SPEC 2-3)"))
 
 
 class TaskTimeout(Exception):
@@ -74,24 +79,12 @@ def compute(shell: Shell, method: str, timeout_s: float, row: int = 0,
     return _guarded(work, timeout_s)
 
 
-def compute_node(shell: Any, timeout_s: float, task: str = "viscoelastic_table") -> Outcome:
-    """One node of the table of `task` at `shell`, with its `wall_s`: the viscoelastic table's
-    (`analysis.calibration.viscoelastic_table.node_results`: ln C's coefficients, TABLE_RESULTS
-    of `campaign.store.schema`) or the shell ramp table's (`analysis.afm.tension.shell_table.node_results`:
-    F/(K_B R) over its depths, RAMP_RESULTS) or, `shell` a `campaign.protocol_grid.BiasNode`, one
-    recording's bias (`analysis.afm.synth.protocol_bias.node_results`: PROTOCOL_RESULTS and more)."""
+def compute_node(point: Any, timeout_s: float, node_results: Callable[[Any], dict[str, float]]) -> Outcome:
+    """One grid point `point` of a campaign of another task kind (`campaign.kinds.Kind.compute`,
+    `node_results`), with its `converged` (True) and `wall_s`."""
     def work():
-        # here: a compression campaign never loads them
-        node_results: Callable[[Any], dict[str, float]]
-        if task == "ramp_table":
-            from analysis.afm.tension.shell_table import node_results
-        elif task == "protocol_bias":
-            from analysis.afm.synth.protocol_bias import node_results as protocol_node
-            node_results = protocol_node
-        else:
-            from analysis.calibration.viscoelastic_table import node_results
         start = time.perf_counter()
-        result = node_results(shell)
+        result = node_results(point)
         result.update(converged=True, wall_s=time.perf_counter() - start)
         if not _finite(result.values()):
             raise _NonFinite()
@@ -185,8 +178,8 @@ def execute(campaign: "Campaign", task: int, payload: Any) -> Outcome:
     """Task number `task`: (state, results, error, started); `payload` is a trial
     task's (forces, errors) (`campaign.trial_inputs`), None for a compression."""
     (kind, i), test = campaign.numbers.key(task), campaign.test
-    if kind == COMPRESSION and campaign.task != "compression":
-        return compute_node(campaign.shells[i], campaign.timeout_s, campaign.task)
+    if kind == COMPRESSION and campaign.kind.compute is not None:
+        return compute_node(campaign.shells[i], campaign.timeout_s, campaign.kind.compute)
     if kind == COMPRESSION:
         return compute(campaign.shells[i], campaign.method, campaign.timeout_s, i, test)
     forces, errors = payload

@@ -34,6 +34,11 @@ sphere of Ṽ) gives NaN at that height; the inversion skips it. A cell whose
 γ_a has a failed compression is failed, with that compression's message.
 Each study is computed as one (N, heights) array, so its numbers depend on
 nothing but its parameters: not on ranks, batches or order.
+
+The trials are a task kind of the engine's own (`TRIAL_KIND`, `campaign.kinds`): their results per
+cell and height with units, and a version that the trials' fingerprint holds
+(`campaign.config.Campaign.trials_fingerprint`). `run_study` computes one; the scheduler hands it
+the compressions' forces (`campaign.trial_inputs`).
 """
 
 import hashlib
@@ -44,10 +49,16 @@ from functools import cached_property
 import numpy as np
 
 from campaign.cell_streams import streams
+from campaign.kinds import Kind, register
 from solver.elasticity import poisson_ratio
 from solver.geometry import droplet, sphere_height
 
 MODES = ("per_cell", "per_height")
+TRIAL_KIND = register(Kind("trial", 1, {
+    "tension_mN_per_m": "mN/m", "volume_used_um3": "µm³",                       # per cell
+    "h0_used_um": "µm", "h1_used_um": "µm", "force_nN": "nN", "h_tilde": "1", "modulus_mN_per_m": "mN/m",
+    "gamma_eff_mN_per_m": "mN/m", "tension_seen_mN_per_m": "mN/m"},             # per cell and height
+    doc="one Monte-Carlo study: N model cells' K(h̃) curves as an experimenter reads them (SPEC 5)"))
 NU_TOLERANCE = 0.01     # |ν of the grid's K_S - ν asked| allowed
 
 

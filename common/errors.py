@@ -21,7 +21,8 @@ EXIT_WRITE_FAILED = 5
 EXIT_STATUSES = (
     (EXIT_DONE, "done"),
     (EXIT_SOME_FAILED, "done, but some tasks (or cells) failed: see the report or `cortex campaign status` "
-                       "(`campaign run --retry-failed` reruns them)"),
+                       "(`campaign run --retry-failed` reruns them); `campaign verify`: damaged rows found "
+                       "(`campaign repair` rewrites them)"),
     (EXIT_BAD_INPUT, "bad input: a malformed file, an impossible parameter, a path that is not ours to write "
                      "(nothing was written)"),
     (EXIT_SIGNAL, "stopped by a signal (SIGTERM, SIGINT/Ctrl-C): rerun the same command to resume"),

@@ -49,3 +49,31 @@ def test_the_product_imports_nothing_of_the_studies():
     importing = [str(path.relative_to(ROOT)) for top in PRODUCT for path in sorted((ROOT / top).rglob("*.py"))
                  if re.search(r"^\s*(from|import)\s+studies\b", path.read_text(), flags=re.M)]
     assert importing == [], f"product modules that import studies/: {importing}"
+
+
+def _imported_packages(package):
+    """The top-level packages of TOP that the modules of `package` import (at module level or
+    inside functions, `import x` and `from x import y` alike)."""
+    import ast
+    found = set()
+    for path in (ROOT / package).rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level
+                     else [])
+            found.update(n.split(".")[0] for n in names if n.split(".")[0] in TOP)
+    return found - {package}
+
+
+def test_the_engine_imports_nothing_of_analysis_and_the_package_map_has_no_cycle():
+    """campaign/ knows no client (its task kinds are registered by their owners, `campaign.kinds`);
+    the packages' imports form no cycle (a topological order exists)."""
+    graph = {top: _imported_packages(top) for top in TOP}
+    assert "analysis" not in graph["campaign"], "campaign/ imports analysis"
+    assert "campaign" in graph["analysis"]            # the scan sees imports (analysis reads stores)
+    order, left = [], dict(graph)
+    while left:
+        ready = [p for p, deps in left.items() if not deps - set(order)]
+        assert ready, f"the packages import each other in a cycle: {left}"
+        order += sorted(ready)
+        left = {p: deps for p, deps in left.items() if p not in ready}

@@ -54,7 +54,8 @@ IDS = [" ".join(words) for words, _ in COMMANDS]
 
 
 def test_the_tree_has_every_command():
-    assert {"geometry", "compress", "poroelastic", "campaign run", "campaign status", "analysis calibrate",
+    assert {"geometry", "compress", "poroelastic", "campaign run", "campaign status", "campaign verify",
+            "campaign repair", "analysis calibrate",
             "analysis viscosity", "analysis build-calibration", "analysis build-viscoelastic-table",
             "analysis build-ramp-table", "analysis build-protocol-map", "analysis invert", "afm synth", "afm import",
             "afm analyze", "afm tension", "doctor"} == set(IDS)

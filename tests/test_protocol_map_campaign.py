@@ -1,4 +1,4 @@
-"""The protocol's bias map as a campaign (`[campaign] task = "protocol_bias"`, SPEC 12): a
+"""The protocol's bias map as a campaign (`[campaign] task = "analysis.afm.synth.protocol_bias:protocol_bias"`, SPEC 12): a
 two-node grid run on 1 and 2 ranks, the map built from the store (`cortex analysis
 build-protocol-map`), its refusals, and the shipped campaign file's grid covering the issue's
 ranges."""
@@ -10,14 +10,15 @@ import pytest
 
 from campaign.config import load
 from campaign.store.reader import read_results
-from campaign.store.schema import PROTOCOL_PARAMS, PROTOCOL_RESULTS
+from analysis.afm.synth.protocol_bias import PROTOCOL_RESULTS
+from campaign.protocol_grid import PROTOCOL_PARAMS
 from solver.protocol_simulation import FINE
 from tests.conftest import ROOT, on_one_and_two_ranks
 
 # V = 4300 µm³, h̃ = 0.6, K_B(1 s) = 25, K_S(1 s) = 8.33, γ_a = 1.5 mN/m; an elastic cortex and
 # β_B = 0.1, β_S = 0.3; waited 30 s, oscillated at 1 Hz
 SUBGRID = """[campaign]
-task = "protocol_bias"
+task = "analysis.afm.synth.protocol_bias:protocol_bias"
 
 [grid]
 volume_um3 = 4300.0
@@ -50,7 +51,7 @@ def stores(tmp_path_factory):
 def test_rows_hold_the_bias_whatever_the_ranks(stores):
     one, two = (read_results(stores[r]) for r in (1, 2))
     assert list(one["state"]) == ["done"] * 2 and (two["rank"] > 0).any()
-    columns = list(PROTOCOL_PARAMS + PROTOCOL_RESULTS) + ["modulus_mN_per_m", "loss_angle_rad", "gamma_eff_mN_per_m"]
+    columns = list(PROTOCOL_PARAMS + tuple(PROTOCOL_RESULTS)) + ["modulus_mN_per_m", "loss_angle_rad", "gamma_eff_mN_per_m"]
     np.testing.assert_allclose(one[columns].to_numpy(), two[columns].to_numpy(), rtol=1e-9, atol=1e-12)
     assert one["bulk_exponent"].tolist() == [0.0, 0.1] and one["shear_exponent"].tolist() == [0.0, 0.3]
     assert (one["protocol_frequency_hz"] == 1.0).all() and one["frequency_hz"].isna().all()
@@ -99,7 +100,7 @@ def _refused(done, text):
 
 def test_unfinished_or_foreign_store_is_refused(tmp_path, cortex):
     elastic = tmp_path / "e.h5"
-    text = SUBGRID.replace('task = "protocol_bias"', "").split("[protocol]")[0]
+    text = SUBGRID.replace('task = "analysis.afm.synth.protocol_bias:protocol_bias"', "").split("[protocol]")[0]
     assert cortex("campaign", "run", write(tmp_path, text, "e.toml"), "--store", elastic, "--quiet").returncode == 0
     _refused(cortex("analysis", "build-protocol-map", elastic, "--out", tmp_path / "m"),
              "not a store of a protocol-bias campaign")
@@ -115,7 +116,7 @@ def test_unfinished_or_foreign_store_is_refused(tmp_path, cortex):
     (("exponents = [[0.0, 0.0], [0.1, 0.3]]", "exponents = [[0.1, 1.2]]"), "each in [0, 1)"),
     (("frequency_hz = 1.0", "frequency_hz = 0.0"), "frequency_hz must be a number > 0"),
     (("wait_s = 30.0\n", ""), "[protocol] needs wait_s"),
-    (('task = "protocol_bias"', ""), "a [protocol] section go together"),
+    (('task = "analysis.afm.synth.protocol_bias:protocol_bias"', ""), "a [protocol] section go together"),
 ])
 def test_bad_protocol_section_is_one_line(tmp_path, cortex, change, message):
     path = write(tmp_path, SUBGRID.replace(*change))

@@ -1,4 +1,4 @@
-"""The shell ramp table as a campaign (`[campaign] task = "ramp_table"`): a
+"""The shell ramp table as a campaign (`[campaign] task = "analysis.afm.tension.shell_table:ramp_table"`): a
 small sub-grid run on 1 and 2 ranks, the table built from the store
 (`cortex analysis build-ramp-table`) against the nodes computed directly
 (`shell_table.unit_forces`), its refusals, and the shipped campaign file's grid
@@ -13,12 +13,13 @@ import pytest
 from analysis.afm.tension.shell_table import DEPTHS, GAMMAS, RADII_UM, SHEARS
 from campaign.config import load
 from campaign.store.reader import read_results
-from campaign.store.schema import RAMP_RESULTS, TABLE_RESULTS
+from analysis.afm.tension.shell_table import RAMP_RESULTS
+from analysis.calibration.viscoelastic_table import TABLE_RESULTS
 from tests.conftest import ROOT, in_one_thread, on_one_and_two_ranks
 
 VOLUMES = [float(4.0 * np.pi * r ** 3 / 3.0) for r in RADII_UM[[0, 3]]]
 SUBGRID = f"""[campaign]
-task = "ramp_table"
+task = "analysis.afm.tension.shell_table:ramp_table"
 
 [grid]
 volume_um3 = {VOLUMES!r}
@@ -81,7 +82,7 @@ def test_table_from_the_store_is_the_nodes_computed_directly(stores, tmp_path, c
 
 def test_unfinished_or_foreign_store_is_refused(tmp_path, cortex):
     elastic = tmp_path / "e.h5"
-    text = SUBGRID.replace('task = "ramp_table"', "").replace(f"{VOLUMES!r}", "4300.0")
+    text = SUBGRID.replace('task = "analysis.afm.tension.shell_table:ramp_table"', "").replace(f"{VOLUMES!r}", "4300.0")
     text = text.replace(f"[{float(GAMMAS[0])!r}, {float(GAMMAS[8])!r}]", "0.1")
     assert cortex("campaign", "run", write(tmp_path, text, "e.toml"), "--store", elastic, "--quiet").returncode == 0
     with h5py.File(elastic, "r") as f:          # a compression store keeps its layout: no table columns

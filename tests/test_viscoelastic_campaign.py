@@ -1,4 +1,4 @@
-"""The viscoelastic table as a campaign (`[campaign] task = "viscoelastic_table"`):
+"""The viscoelastic table as a campaign (`[campaign] task = "analysis.calibration.viscoelastic_table:viscoelastic_table"`):
 its file's checks, a small sub-grid run on 1 and 2 ranks, and the table built
 from the store (`cortex analysis build-viscoelastic-table`) against the
 one-process node computation and the solver itself."""
@@ -12,11 +12,11 @@ import pytest
 from analysis.calibration.viscoelastic_table import ANGLES, TERMS
 from campaign.config import load
 from campaign.store.reader import read_results
-from campaign.store.schema import TABLE_RESULTS
+from analysis.calibration.viscoelastic_table import TABLE_RESULTS
 from tests.conftest import in_one_thread, on_one_and_two_ranks
 
 SUBGRID = """[campaign]
-task = "viscoelastic_table"
+task = "analysis.calibration.viscoelastic_table:viscoelastic_table"
 
 [grid]
 volume_um3 = [3000.0, 6500.0]
@@ -45,10 +45,10 @@ def one_process(nodes):
 
 def test_the_task_is_checked_and_changes_the_fingerprint(tmp_path, cortex):
     table = load(write(tmp_path, SUBGRID))
-    plain = load(write(tmp_path, SUBGRID.replace('task = "viscoelastic_table"', ""), "p.toml"))
+    plain = load(write(tmp_path, SUBGRID.replace('task = "analysis.calibration.viscoelastic_table:viscoelastic_table"', ""), "p.toml"))
     assert table.task == "viscoelastic_table" and plain.task == "compression"
     assert len(table.shells) == len(NODES) and table.fingerprint != plain.fingerprint
-    for old, new in (('task = "viscoelastic_table"', 'task = "relax"'),
+    for old, new in (('task = "analysis.calibration.viscoelastic_table:viscoelastic_table"', 'task = "relax"'),
                      ("[grid]", '[solver]\nmethod = "explicit"\n[grid]'),
                      ("[grid]", "[grid]\nviscosity_Pa_s = 1.0\nfrequency_hz = 1.0")):
         path = write(tmp_path, SUBGRID.replace(old, new), "bad.toml")
@@ -94,7 +94,7 @@ def test_table_from_the_store_is_the_one_process_table(stores, tmp_path, cortex)
 
 def test_unfinished_or_foreign_store_is_refused_and_a_rerun_finishes_it(stores, tmp_path, cortex):
     elastic = tmp_path / "e.h5"
-    text = SUBGRID.replace('task = "viscoelastic_table"', "").replace("[0.43, 0.835]", "0.835")
+    text = SUBGRID.replace('task = "analysis.calibration.viscoelastic_table:viscoelastic_table"', "").replace("[0.43, 0.835]", "0.835")
     text = text.replace("[3000.0, 6500.0]", "4300.0")
     assert cortex("campaign", "run", write(tmp_path, text, "e.toml"), "--store", elastic, "--quiet").returncode == 0
     with h5py.File(elastic, "r") as f:          # a compression store keeps its layout: no table columns

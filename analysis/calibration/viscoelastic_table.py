@@ -26,8 +26,8 @@ Only the `standard` bending variant is tabulated (the factor C changes with B by
 less than with the angles: B/(K_B R²) ~ 1e-5).
 
 The table is built by the campaign engine: `campaigns/viscoelastic.toml` (`[campaign]
-task = "viscoelastic_table"`) runs one task per node (`node_results`, any number of
-ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
+task = "analysis.calibration.viscoelastic_table:viscoelastic_table"`, the kind `KIND`) runs one
+task per node (`node_results`, any number of ranks, resumable), and `from_store` (`cortex analysis build-viscoelastic-table`) makes
 the table's document from the finished store.
 """
 
@@ -43,14 +43,20 @@ import numpy.typing as npt
 from scipy.interpolate import BSpline, NdBSpline
 
 from analysis.calibration.emulator import evaluate, tensor_spline
-from campaign.store.schema import TABLE_DEGREE as DEGREE, TABLE_RESULTS, TABLE_TERMS as TERMS
+from campaign.kinds import Kind, register
 from common.errors import InputError
 
 if TYPE_CHECKING:
     from solver.model import Shell
 ANGLES = tuple(np.linspace(0.0, 1.0, 7))
 BULK_MN_PER_M = 25.0        # K_B of `node_coefficients`'s shells (C depends on the ratios only)
-TASK = "viscoelastic_table"        # the campaign task (`campaign.config.TASKS`) that computes a node
+TASK = "viscoelastic_table"        # the task kind (`campaign.kinds`, `KIND`) that computes a node
+# a node's results, the store's columns: the complex coefficients of ln C's polynomial in the loss
+# angles, the real and the imaginary part of the term δ_B^i δ_S^j (0 < i + j <= DEGREE) as
+# ln_c_re_b{i}_s{j} and ln_c_im_b{i}_s{j} (dimensionless)
+DEGREE = 4
+TERMS = tuple((i, j) for i in range(DEGREE + 1) for j in range(DEGREE + 1 - i) if i + j > 0)
+TABLE_RESULTS = tuple(f"ln_c_{part}_b{i}_s{j}" for part in ("re", "im") for i, j in TERMS)
 
 
 def _monomials(db: npt.ArrayLike, ds: npt.ArrayLike) -> tuple[Any, Any, Any]:
@@ -119,9 +125,11 @@ def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     doc = tomllib.loads(text) if text else {}
     grid = {**DEFAULTS, **doc.get("grid", {})}
     keys = ("volume_um3", "h_tilde", "ks_tilde", "gamma_tilde")
-    if doc.get("campaign", {}).get("task") != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
+    task = str(doc.get("campaign", {}).get("task", "")).rpartition(":")[2]      # MODULE:NAME, or a bare name
+    if task != TASK or grid["bending"] != "standard" or not set(keys) <= set(grid):
         raise InputError(f"{path}: not a store of a viscoelastic-table campaign over h_tilde, ks_tilde and "
-                         f"gamma_tilde, standard bending ([campaign] task = \"{TASK}\": campaigns/viscoelastic.toml)")
+                         "gamma_tilde, standard bending ([campaign] task = "
+                         f"\"analysis.calibration.viscoelastic_table:{TASK}\": campaigns/viscoelastic.toml)")
     axes = [np.atleast_1d(np.asarray(grid[k], float)) for k in keys]
     rows = read_results(path)
     undone = int((rows["state"] != "done").sum())
@@ -202,3 +210,7 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+
+
+KIND = register(Kind(TASK, 1, dict.fromkeys(TABLE_RESULTS, "1"), node_results,
+                     doc="one node of the complex correspondence table: ln C's coefficients (SPEC 10)"))

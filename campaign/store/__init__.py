@@ -16,7 +16,8 @@ Public API (imported on first use):
 Its modules, one job each: `schema` (the datasets, written once), `journal`
 (the binary journal codec), `rows` (journal entries into rows), `store`
 (`Store`), `mpio_writer`, `files` (which files are ours), `reader`,
-`provenance`.
+`checksum` (the checksum a row carries), `verify` (damaged rows found and
+rewritten from the journal), `provenance`.
 """
 
 from typing import TYPE_CHECKING

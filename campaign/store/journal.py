@@ -7,7 +7,7 @@ A record holds every entry of one flush (`encode`):
 The header is JSON: per array of the data its name, dtype and shape, the
 messages of failed tasks by position, and per trial task its scalars. The
 data are the arrays' raw bytes: a compression's columns (row, state,
-attempts, rank, started, converged and each of RESULTS present), and per
+attempts, rank, started, converged and each result present), and per
 trial task its cells' states and float64 arrays (CELL_KEYS, HEIGHT_KEYS), so
 values come back bit for bit. Entries are those of `campaign.task_key`
 (`CompressionEntry`, `TrialEntry`), as `campaign.tasks.entry` makes them.
@@ -20,10 +20,15 @@ number of entries not yet journalled.
 
 A record is complete when all its bytes and its CRC are there: a kill or a
 full disk can only cut the last one, which `trim_cut` removes before a run
-appends (no row holds it: rows follow the journal's fsync).
+appends (no row holds it: rows follow the journal's fsync). A record damaged
+later (its CRC fails: a flipped bit, a bad sector) is skipped by the readers,
+which find the next record by its MAGIC and check it: the records after it
+are read, and its tasks are pending again unless their rows hold them.
 """
 
+import contextlib
 import json
+import mmap
 import os
 import struct
 import zlib
@@ -34,7 +39,7 @@ import numpy as np
 
 from campaign.entry_batch import COLUMNS, CompressionBatch, compression_columns
 from campaign.entry_batch import split as split_chunks
-from campaign.store.schema import ALL_RESULTS, STATES
+from campaign.store.schema import STATES
 from campaign.task_key import Entry, compression_entry, is_compression, trial_entry
 
 MAGIC = b"\x00cxj"
@@ -76,7 +81,7 @@ def encode(entries: Sequence[Entry | CompressionBatch]) -> bytes:
 
 def _compression_arrays(chunks, arrays, errors):
     """The compressions' arrays (entries and `CompressionBatch`es, in order): `COLUMNS`,
-    then each of ALL_RESULTS some task has; their messages by position."""
+    then each result some task has; their messages by position."""
     columns = compression_columns(chunks)
     for key in COLUMNS:
         arrays[f"c.{key}"] = columns[key]
@@ -114,7 +119,7 @@ def _compression_entries(arrays, errors):
     if "c.row" not in arrays:
         return []
     c = {key: arrays[f"c.{key}"].tolist() for key in COLUMNS}
-    r = {key: arrays[f"r.{key}"].tolist() for key in ALL_RESULTS if f"r.{key}" in arrays}
+    r = {name[2:]: a.tolist() for name, a in arrays.items() if name.startswith("r.")}
     out = []
     for i in range(len(c["row"])):
         results = {key: values[i] for key, values in r.items()}
@@ -138,45 +143,89 @@ def _trial_entry(k, t, arrays):
     return trial_entry(t["task"], cells, t["state"], t["error"], t["attempts"], t["rank"], t["started"])
 
 
-def _frames(fh):
-    """(end offset, entries) of each complete record from the file's position
-    on, up to the first one cut short."""
-    while True:
-        lead = fh.read(_HEAD)
-        if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
-            return
-        n_head, n_data = _SIZES.unpack(lead[len(MAGIC):])
-        body, crc = fh.read(n_head + n_data), fh.read(_CRC.size)
-        if len(body) < n_head + n_data or len(crc) < _CRC.size or _CRC.unpack(crc)[0] != zlib.crc32(body):
-            return
-        yield fh.tell(), decode(json.loads(body[:n_head]), body[n_head:])
+def _record(buf, at, decoded=True):
+    """(end, entries) of the record at byte `at` of `buf`, or None if no whole record that checks is there
+    (`decoded` False: entries [] unless its header is not JSON, only its CRC checked)."""
+    lead = buf[at:at + _HEAD]
+    if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
+        return None
+    n_head, n_data = _SIZES.unpack(lead[len(MAGIC):])
+    end = at + _HEAD + n_head + n_data + _CRC.size
+    if end > len(buf):
+        return None
+    body = buf[at + _HEAD:end - _CRC.size]
+    if _CRC.unpack(buf[end - _CRC.size:end])[0] != zlib.crc32(body):
+        return None
+    try:
+        return end, (decode(json.loads(body[:n_head]), body[n_head:]) if decoded else [])
+    except (ValueError, KeyError, TypeError):       # a header that checks but is not ours
+        return None
+
+
+def _frames(buf, at=0, decoded=True):
+    """(start, end, entries) of each stretch of `buf` from byte `at` on: a record that checks, or
+    (entries None) a damaged stretch up to the next record that does (found by its MAGIC), or to the
+    end (a record a kill cut)."""
+    while at < len(buf):
+        got = _record(buf, at, decoded)
+        if got is not None:
+            yield at, got[0], got[1]
+            at = got[0]
+            continue
+        start = at
+        while got is None:
+            at = buf.find(MAGIC, at + 1)
+            if at < 0:
+                yield start, len(buf), None
+                return
+            got = _record(buf, at, decoded)
+        yield start, at, None
+
+
+@contextlib.contextmanager
+def _mapped(path):
+    """The journal's bytes (memory-mapped; b'' for an empty or missing one)."""
+    if not os.path.exists(path) or os.path.getsize(path) == 0:
+        yield b""
+        return
+    with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        yield buf
 
 
 def read(path: str | os.PathLike[str], start: int = 0) -> list[Entry]:
     """Entries of a journal from byte `start` on (a store's `journal_bytes`:
-    everything before is in its rows); a record cut by a kill is ignored."""
-    entries = []
-    if os.path.exists(path):
-        with open(path, "rb") as fh:
-            fh.seek(int(start))
-            for _, batch in _frames(fh):
-                entries.extend(batch)
+    everything before is in its rows); a damaged record (its CRC fails) is skipped, the records
+    after it read; a record cut by a kill is ignored."""
+    entries: list[Entry] = []
+    with _mapped(path) as buf:
+        for _, _, batch in _frames(buf, int(start)):
+            entries.extend(batch or ())
     return entries
 
 
+def read_all(path: str | os.PathLike[str], decoded: bool = True) -> list[tuple[int, int, list[Entry] | None]]:
+    """(start, end, entries) of every stretch of the journal: its records, and (entries None) its
+    damaged stretches (`_frames`); `decoded` False: each record's entries [] (its CRC checked only)."""
+    with _mapped(path) as buf:
+        return list(_frames(buf, 0, decoded))
+
+
 def complete_bytes(path: str | os.PathLike[str]) -> int:
-    """How many leading bytes of the journal are complete records."""
+    """How many leading bytes of the journal end with a complete record (damaged records before
+    it included: they stay, and are skipped when read)."""
     end = 0
-    with open(path, "rb") as fh:
-        for end, _ in _frames(fh):
-            pass
+    with _mapped(path) as buf:
+        for _, stop, batch in _frames(buf, 0, False):
+            if batch is not None:
+                end = stop
     return end
 
 
 def trim_cut(path: str | os.PathLike[str]) -> None:
     """Cut the journal after its last complete record: a kill or a full disk
     may have left the last one unfinished; it was never fsync'd whole, so no
-    row holds it, and records appended after it must stay readable."""
+    row holds it, and records appended after it must stay readable. A damaged
+    record with complete ones after it is kept (skipped when read)."""
     if os.path.exists(path) and os.path.getsize(path) > 0:
         end = complete_bytes(path)
         if end < os.path.getsize(path):

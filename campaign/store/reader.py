@@ -8,26 +8,32 @@ yet), so it also works while a campaign is running:
 - `read_trials`: the Monte-Carlo trial curves, one row per trial and height;
 - `read_provenance`: what made the store;
 - `summary`: counts by state, failures with their messages, throughput and
-  ETA, from the state, start-time and wall-time columns only (the task table
-  is not built: at a million tasks it answers in well under a second).
+  ETA, from the state, start-time and wall-time columns and those the check
+  reads (the task table is not built).
 
 Error messages are read only for rows that can hold one (attempted and not
 done): a done row's message is always empty.
+
+Every reader checks the rows it reads against their checksums (`campaign.store.checksum`): a
+damaged row (and a trial row) is read as pending, its results NaN, and said in one line on
+stderr (`cortex campaign verify` lists them, `cortex campaign repair` rewrites them from the
+journal); a row the journal overlays is taken from the journal. A store made before rows had
+checksums is read unchecked.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from campaign.store import journal
+from campaign.store import checksum, journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (ALL_RESULTS, DONE, FAILED, PARAMS, PROTOCOL_PARAMS, STATES, stored_params,
-                                   stored_results,
+from campaign.store.schema import (CHECKSUM, DONE, FAILED, PARAMS, PENDING, STATES, stored_params, stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
@@ -38,6 +44,7 @@ if TYPE_CHECKING:
 
 _OVERLAY = {"state": "state", "attempts": "attempts", "rank": "rank", "error": "error",
             "started": "started_unix_s"}
+_NOT_FLOAT = ("state", "attempts", "rank", "error", "converged")     # the task rows' other columns
 FLOATS = "float columns"                # the key of `_task_columns`'s float block
 _TRIAL_RUN = ("error", "attempts")      # after TRIAL_COLUMNS in `read_trials`: how its study's run went
 
@@ -51,11 +58,11 @@ def _open_store(path):
 
 
 def _task_columns(path, names):
-    """The compression rows' columns `names` (any of PARAMS, ALL_RESULTS,
+    """The compression rows' columns `names` (any of the parameters, the results,
     started_unix_s, converged, rank, error; state and attempts always), journal
     overlaid. The float columns are rows of one array, `cols[FLOATS]` (so a
     DataFrame takes them without a copy)."""
-    floats = [k for k in names if k in PARAMS + PROTOCOL_PARAMS + ALL_RESULTS + ("started_unix_s",)]
+    floats = [k for k in names if k not in _NOT_FLOAT]
     with _open_store(path) as f:
         n = len(f["state"])
         block = np.empty((len(floats), n))
@@ -64,12 +71,40 @@ def _task_columns(path, names):
         cols = {k: f[k][:] for k in ("state", "attempts") + names if k not in floats and k != "error"}
         cols.update(zip(floats, block))
         cols[FLOATS] = block
+        bad, results = _damaged_rows(f, cols), stored_results(f)
         if "error" in names:
             cols["error"] = _errors(f["error"], (cols["state"] != DONE) & (cols["attempts"] > 0))
         start = f.attrs.get("journal_bytes", 0)
+    overlaid = set()
     for entry in split(journal.read(str(path) + ".journal", start))[0]:
         _overlay(cols, entry)
+        overlaid.add(entry["row"])
+    bad = np.array([i for i in bad.tolist() if i not in overlaid], np.int64)
+    if len(bad):
+        cols["state"][bad] = PENDING
+        for key in results:
+            if key in cols:
+                cols[key][bad] = np.nan          # a row of the float block: the frame's column too
+        if "converged" in cols:
+            cols["converged"][bad] = False
+        _say_damaged(path, "rows", bad)
     return cols
+
+
+def _damaged_rows(f, cols):
+    """The rows of the open store `f` whose checksum fails (none checked in a store without checksums);
+    `cols`: the columns read already (the others are read here)."""
+    if CHECKSUM not in f:
+        return np.zeros(0, np.int64)
+    names = checksum.task_names(stored_results(f))
+    return checksum.damaged(lambda k: cols[k] if k in cols else f[k][:], names)
+
+
+def _say_damaged(path, what, rows):
+    """One line on stderr: the damaged rows read as pending."""
+    shown = ", ".join(map(str, rows[:5].tolist())) + (", ..." if len(rows) > 5 else "")
+    print(f"{path}: {len(rows)} damaged {what} (checksum fails: {shown}) read as pending; "
+          f"cortex campaign repair {path} rewrites them from the journal", file=sys.stderr, flush=True)
 
 
 def _overlay(cols, entry):
@@ -81,7 +116,7 @@ def _overlay(cols, entry):
             cols[name][i] = STATES.index(value) if key == "state" else value
     results = entry.get("results") or {}
     for key, value in results.items():
-        if key in cols and key in ALL_RESULTS:
+        if key in cols and key not in _NOT_FLOAT:
             cols[key][i] = value
     if "converged" in cols:
         cols["converged"][i] = bool(results.get("converged", False))
@@ -137,11 +172,18 @@ def _trial_arrays(path):
         a = {key: (g[key].asstr()[:] if h5py.check_string_dtype(g[key].dtype) else g[key][:]) for key in g}
         N = int(g.attrs["cells_per_study"])
         start = f.attrs.get("journal_bytes", 0)
+    bad = checksum.damaged(a.__getitem__, checksum.TRIAL_COVERED) if CHECKSUM in a else np.zeros(0, np.int64)
     a["error"] = a["error"].astype(object)
     for e in split(journal.read(str(path) + ".journal", start))[1]:
         rows = trial_rows(e["task"], N)
         for key, values in trial_columns(e, N, a["h0_true_um"].shape[1]).items():
             a[key][rows.start:rows.stop] = values
+        bad = bad[(bad < rows.start) | (bad >= rows.stop)]
+    if len(bad):
+        a["state"][bad] = PENDING
+        for key in checksum.TRIAL_COVERED[4:]:
+            a[key][bad] = np.nan
+        _say_damaged(path, "trial rows", bad)
     return a
 
 

@@ -6,7 +6,8 @@ its task's own: `schema.stored_results`); a trial task's entry (`task` j) fills
 its study's N trial rows j N .. j N + N - 1 (`trial_columns`). Rows are
 written one HDF5 write per column and run of consecutive rows (on the rank0
 path one scattered write per column where the runs are many; `put`); the
-last entry of a row wins.
+last entry of a row wins. Each row written gets its checksum (`campaign.store.checksum`), from
+the values written.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from campaign.entry_batch import CompressionBatch, compression_columns, split
-from campaign.store.schema import CELL_KEYS, HEIGHT_KEYS, STATES, clip, stored_results, trial_rows
+from campaign.store.checksum import TRIAL_COVERED, row_checksums, task_names
+from campaign.store.schema import CELL_KEYS, CHECKSUM, HEIGHT_KEYS, STATES, clip, stored_results, trial_rows
 from campaign.task_key import Entry, TrialEntry
 
 if TYPE_CHECKING:
@@ -45,6 +47,8 @@ def write_entries(f: h5py.File, entries: Sequence[Entry | CompressionBatch], cel
         "state": c["state"][last], "attempts": c["attempts"][last], "rank": c["rank"][last],
         "error": errors[last], "converged": c["converged"][last], "started_unix_s": c["started"][last]}
     columns.update((key, values[last]) for key, values in c["results"].items())
+    if CHECKSUM in f:               # (a store made before rows had checksums has none)
+        columns[CHECKSUM] = row_checksums([columns[k] for k in task_names(c["results"])])
     for key, values in columns.items():
         put(f[key], rows, values, contiguous)
 
@@ -86,8 +90,11 @@ def _write_trials(f, by_task, N):
     for start, stop, _ in runs(tasks):
         parts = [trial_columns(by_task[t], N, g["h0_true_um"].shape[1]) for t in range(start, stop)]
         rows = trial_rows(start, N, stop - start)
-        for key in parts[0]:
-            g[key][rows.start:rows.stop] = _fit(g[key], np.concatenate([p[key] for p in parts]))
+        columns = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+        if CHECKSUM in g:
+            columns[CHECKSUM] = row_checksums([columns[k] for k in TRIAL_COVERED])
+        for key, values in columns.items():
+            g[key][rows.start:rows.stop] = _fit(g[key], values)
 
 
 def trial_columns(entry: TrialEntry, N: int, m: int) -> dict[str, np.ndarray]:

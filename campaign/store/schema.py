@@ -1,9 +1,8 @@
 """The store's schema, written once: its datasets, their dtypes, and how a new file is laid out.
 
 One row per compression task (the grid, `campaign.config`): its parameters
-(PARAMS), its results (RESULTS, NaN until done; a viscoelastic-table
-campaign's rows also TABLE_RESULTS, the node's coefficients, a ramp-table
-campaign's RAMP_RESULTS, the node's forces), `converged`, `state` (an
+(PARAMS, and its task kind's own: `campaign.kinds`), its results (RESULTS,
+NaN until done, and its kind's own), `converged`, `state` (an
 index into STATES), `attempts`, worker `rank`, `started_unix_s` and `error`
 (fixed-length UTF-8 of ERROR_BYTES: parallel HDF5 cannot write
 variable-length strings; the journal keeps a message whole); `task_id` and
@@ -34,6 +33,7 @@ if TYPE_CHECKING:
     import h5py
 
     from campaign.grid import Grid
+    from campaign.kinds import Kind
     from campaign.trials import Study
     from solver.model import Shell
 
@@ -46,31 +46,13 @@ RESULTS = ("force_nN", "active_force_nN", "gamma_eff_mN_per_m", "delta_gamma_mN_
            # a viscous cell's (solver.viscous; NaN for an elastic one)
            "compression_modulus_mN_per_m", "storage_modulus_mN_per_m", "loss_modulus_mN_per_m",
            "loss_angle_rad", "elastic_modulus_mN_per_m", "viscous_wall_s")
-# a viscoelastic-table node's results instead (`[campaign] task = "viscoelastic_table"`,
-# `analysis.calibration.viscoelastic_table`; their datasets only in such a store): the complex coefficients
-# of ln C's polynomial in the loss angles, the real and the imaginary part of the term
-# δ_B^i δ_S^j (0 < i + j <= TABLE_DEGREE) as ln_c_re_b{i}_s{j} and ln_c_im_b{i}_s{j} (dimensionless)
-TABLE_DEGREE = 4
-TABLE_TERMS = tuple((i, j) for i in range(TABLE_DEGREE + 1) for j in range(TABLE_DEGREE + 1 - i) if i + j > 0)
-TABLE_RESULTS = tuple(f"ln_c_{part}_b{i}_s{j}" for part in ("re", "im") for i, j in TABLE_TERMS)
-# a shell-ramp-table node's results instead (`[campaign] task = "ramp_table"`,
-# `analysis.afm.tension.shell_table`; their datasets only in such a store): F/(K_B R) at each of the
-# table's RAMP_DEPTHS depths δ/R as force_over_kb_r_d{i:02d} (dimensionless, a stalled depth filled
-# along depth), and `filled_depths`, how many were filled
-RAMP_DEPTHS = 48
-RAMP_RESULTS = tuple(f"force_over_kb_r_d{i:02d}" for i in range(RAMP_DEPTHS)) + ("filled_depths",)
-# a protocol-bias node's (`[campaign] task = "protocol_bias"`, `campaign.protocol_grid`,
-# `analysis.afm.synth.protocol_bias`; their datasets only in such a store): its protocol as parameters
-# PROTOCOL_PARAMS, and beside RESULTS' modulus_mN_per_m, loss_angle_rad (the segment fit's),
-# gamma_eff_mN_per_m (its mean γ_eff), h_tilde, h_mean_um and wall_s the results PROTOCOL_RESULTS
-PROTOCOL_PARAMS = ("bulk_exponent", "shear_exponent", "wait_s", "protocol_frequency_hz")
-PROTOCOL_RESULTS = ("model_modulus_mN_per_m", "model_loss_angle_rad", "bulk_loss_angle_rad",
-                    "shear_loss_angle_rad", "modulus_ratio", "loss_angle_error_rad", "solves")
-TASK_RESULTS = {"compression": (), "viscoelastic_table": TABLE_RESULTS, "ramp_table": RAMP_RESULTS,
-                "protocol_bias": PROTOCOL_RESULTS}
-ALL_RESULTS = RESULTS + TABLE_RESULTS + RAMP_RESULTS + PROTOCOL_RESULTS   # what a journal record or a row may hold
+# a kind's own columns (`campaign.kinds`: the tables' in analysis) are the store's attributes
+# `task_params` and `task_results` (JSON {column: unit}); a store made before kinds had them holds
+# the protocol's parameter columns OLD_PARAMS and result columns of no other name (`_extra`)
+OLD_PARAMS = ("bulk_exponent", "shear_exponent", "wait_s", "protocol_frequency_hz")
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
+CHECKSUM = "checksum"       # a done or failed row's checksum column (`campaign.store.checksum`)
 ERROR_BYTES = 256           # an error message's room in its row
 # a trial task's results per cell (`campaign.trials.run_study`, beside `state` and `error`): one value,
 # and one per height
@@ -109,6 +91,8 @@ class StoredCampaign(Protocol):
     def fingerprint(self) -> str: ...
     @property
     def trials_fingerprint(self) -> str: ...
+    @property
+    def kind(self) -> Kind: ...
 
 
 _SORTED_JSON = json.JSONEncoder(sort_keys=True)    # json.dumps(..., sort_keys=True) without making one per call
@@ -190,6 +174,8 @@ def _bookkeeping(g, n):
         g[key] = np.full(n, {"rank": -1, "started_unix_s": np.nan}.get(key, 0), dtype)
     g.create_dataset("error", (n,), error_dtype(), dcpl=_allocated(), fill_time="alloc")   # HDF5 writes the
     # empty messages itself, a buffer at a time: no n x ERROR_BYTES array (256 MB at a million rows)
+    g.create_dataset(CHECKSUM, (n,), np.uint64, dcpl=_allocated(), fill_time="alloc")   # zeros; set where
+    # a row is written (`campaign.store.checksum`)
 
 
 def _allocated():
@@ -206,9 +192,8 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
     n = len(campaign.shells)
     columns = campaign.shells.columns()             # no shell made
-    for key in PARAMS + PROTOCOL_PARAMS:
-        if key in columns:              # PROTOCOL_PARAMS: a protocol-bias campaign's alone
-            f[key] = columns[key]
+    for key in PARAMS + tuple(campaign.kind.params):
+        f[key] = columns[key]
     f.create_dataset("bending", data=fixed_strings(columns["bending"]))
     del columns                                     # (at a million tasks 80 MB, not kept while the ids are made)
     f.create_dataset("task_id", data=task_id_column(campaign.shells, campaign.method))
@@ -218,23 +203,35 @@ def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> No
     _bookkeeping(f, n)
     if campaign.studies:
         fill_trials(f.create_group("trials"), campaign)
-    f.attrs.update(attrs, format=FORMAT)
+    kind = campaign.kind
+    f.attrs.update(attrs, format=FORMAT, task_kind=kind.name, task_version=kind.version,
+                   task_params=json.dumps(dict(kind.params)), task_results=json.dumps(dict(kind.results)))
 
 
 def result_names(campaign: StoredCampaign) -> tuple[str, ...]:
-    """The result columns of `campaign`'s rows: RESULTS, and its task's own
-    (TASK_RESULTS: TABLE_RESULTS, RAMP_RESULTS) for a table campaign (`campaign.config.TASKS`)."""
-    return RESULTS + TASK_RESULTS[getattr(campaign, "task", "compression")]
+    """The result columns of `campaign`'s rows: RESULTS, and its kind's own (`campaign.kinds.Kind.results`)."""
+    return RESULTS + tuple(campaign.kind.results)
 
 
 def stored_results(f: h5py.File | h5py.Group) -> tuple[str, ...]:
-    """The result columns of the open store `f`: RESULTS and the task's own its rows hold."""
-    return RESULTS + next((own for own in TASK_RESULTS.values() if own and own[0] in f), ())
+    """The result columns of the open store `f`: RESULTS and its kind's own (attribute `task_results`)."""
+    if "task_results" in f.attrs:
+        return RESULTS + tuple(json.loads(f.attrs["task_results"]))
+    return RESULTS + tuple(k for k in _extra(f) if k not in OLD_PARAMS)
 
 
 def stored_params(f: h5py.File | h5py.Group) -> tuple[str, ...]:
-    """The parameter columns of the open store `f`: PARAMS, and PROTOCOL_PARAMS in a protocol-bias store."""
-    return PARAMS + (PROTOCOL_PARAMS if PROTOCOL_PARAMS[0] in f else ())
+    """The parameter columns of the open store `f`: PARAMS and its kind's own (attribute `task_params`)."""
+    if "task_params" in f.attrs:
+        return PARAMS + tuple(json.loads(f.attrs["task_params"]))
+    return PARAMS + tuple(k for k in OLD_PARAMS if k in f)
+
+
+def _extra(f):
+    """A store made before kinds: its float row columns that are neither PARAMS nor RESULTS nor bookkeeping."""
+    n, known = len(f["state"]), set(PARAMS + RESULTS) | set(BOOKKEEPING) | {"converged", CHECKSUM}
+    return sorted(k for k, d in f.items() if k not in known and getattr(d, "shape", None) == (n,)
+                  and d.dtype == np.float64)
 
 
 def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:

@@ -54,7 +54,7 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, cast
 
 from campaign.entry_batch import CompressionBatch, is_batch
-from campaign.store import journal, provenance, schema
+from campaign.store import journal, provenance, schema, verify
 from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
 from campaign.store.files import check_store_path, open_read, set_aside
@@ -81,7 +81,7 @@ class Store:
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.parallel, self.on_record = parallel, on_record
         check_store_path(self.path)               # before anything is created beside it
-        self.lock = _lock(self.path)
+        self.lock = hold_lock(self.path)
         try:
             self.file = self._open(campaign, new, ranks)
         except BaseException:
@@ -113,6 +113,7 @@ class Store:
         write_entries(self.file, journal.read(self.journal_path, self.file.attrs.get("journal_bytes", 0)),
                       self.cells, contiguous=self.parallel)
         self._pending_again()
+        self._damaged_pending()
         self.journal = open(self.journal_path, "ab")
         self._log_run(ranks)
         self.unjournalled, self.unjournalled_bytes, self.unwritten = [], 0, []
@@ -124,8 +125,10 @@ class Store:
         try:
             with open_read(self.path) as f:
                 fingerprint, trials = f.attrs.get("fingerprint"), f.attrs.get("trials_fingerprint", "")
+                kind, version = f.attrs.get("task_kind"), f.attrs.get("task_version")
         except InputError:
             return            # unreadable: rebuilt from the journal
+        _check_kind(self.path, kind, version, campaign.kind)
         if fingerprint != campaign.fingerprint:
             raise InputError(f"{self.path} was made from a different campaign file; "
                              "use --new to start over (the old store is kept as a backup)")
@@ -180,6 +183,14 @@ class Store:
                 if (state == RUNNING).any():
                     state[state == RUNNING] = PENDING
                     self.file[name][:] = state
+
+    def _damaged_pending(self):
+        """Rows whose checksum fails (`campaign.store.verify`) are pending again: this run computes
+        them; said in one line."""
+        bad = verify.pending_again(self.file)
+        if len(bad["rows"]) or len(bad["trials"]):
+            print(f"campaign: {self.path}: {len(bad['rows'])} damaged rows and {len(bad['trials'])} damaged "
+                  "trial rows (checksum fails) set pending, computed again by this run", flush=True)
 
     def _log_run(self, ranks):
         """Provenance of this run (appended to the JSON list `runs`); the rows
@@ -327,7 +338,19 @@ class Store:
         self.lock.close()
 
 
-def _lock(path):
+def _check_kind(path, kind, version, want):
+    """InputError (one line) unless the store at `path` was made by task kind `want` at its version
+    (a store made before kinds had versions has neither attribute: refused too)."""
+    if kind is None:
+        raise InputError(f"{path} was made by an older cortex (no task kind version, no row checksums); "
+                         "use --new to start over (the old store is kept as a backup)")
+    if (str(kind), int(version)) != (want.name, want.version):
+        raise InputError(f"{path} was made by task kind {kind} version {version}, not {want.name} version "
+                         f"{want.version}: its rows would mix two codes; use --new to start over "
+                         "(the old store is kept as a backup)")
+
+
+def hold_lock(path: str):
     """The store's lock file, held exclusively; InputError if another run holds it."""
     lock = open(path + ".lock", "a")
     try:

@@ -1,6 +1,7 @@
-"""`cortex campaign run|status`. Both take `--json`: the store's summary (the
-object `cortex campaign status --json` prints) on stdout; progress and
-messages go to stderr."""
+"""`cortex campaign run|status|verify|repair`. `run` and `status` take `--json`: the store's
+summary (the object `cortex campaign status --json` prints) on stdout; progress and
+messages go to stderr. `verify` prints one line per damaged row (exit 1 if any), `repair`
+one line per row it rewrote from the journal."""
 
 from __future__ import annotations
 
@@ -40,6 +41,23 @@ def register(sub: Commands) -> None:
                    "tasks_per_s, eta_s, failures ([task_id, error]), failed_tasks (each with its parameters, rank, "
                    "host and error) (and trials)")
     s.set_defaults(handler=status)
+    v = cs.add_parser("verify", help="check every row against its checksum, and the journal's records",
+                      description="Check every done or failed row of STORE (and its Monte-Carlo trial rows) "
+                                  "against the checksum it carries, and every record of STORE.journal against "
+                                  "its CRC: one line per damaged row or record (exit 1), or one line saying "
+                                  "none is (exit 0). Reads only; also while the campaign runs.")
+    v.add_argument("store", metavar="STORE.h5")
+    v.add_argument("--json", action="store_true", help="one JSON object: store, rows ([row, task_id]), "
+                   "trial_rows ([row, trial task, cell]), journal ([start, end] bytes of damaged stretches)")
+    v.set_defaults(handler=verify)
+    rp = cs.add_parser("repair", help="rewrite damaged rows from the journal",
+                       description="Rewrite every damaged row of STORE (see `verify`) from its task's entry in "
+                                   "STORE.journal, with the values and checksum the run wrote; a damaged row the "
+                                   "journal does not hold is set pending (the next run computes it). Writes only "
+                                   "those rows of STORE, under its lock (not while a run holds it).")
+    rp.add_argument("store", metavar="STORE.h5")
+    rp.add_argument("--json", action="store_true", help="one JSON object: store, repaired (one line per row)")
+    rp.set_defaults(handler=repair)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,4 +110,30 @@ def status(args: argparse.Namespace) -> int:
             f"{t[s]} {s}" for s in ("done", "failed", "running", "pending")))
         for err in t["failures"]:
             print(f"failed trials: {err}")
+    return 0
+
+
+def verify(args: argparse.Namespace) -> int:
+    import json
+    from campaign.store.verify import findings, verify as check
+    from common.errors import EXIT_SOME_FAILED
+    found = findings(args.store)
+    lines = check(args.store, found)
+    if args.json:
+        print(json.dumps({"store": args.store, **found}))
+    else:
+        print("\n".join(lines) if lines else f"{args.store}: no damaged row or journal record")
+    return EXIT_SOME_FAILED if lines else 0
+
+
+def repair(args: argparse.Namespace) -> int:
+    import json
+    from campaign.store.verify import repair as rewrite
+    lines = rewrite(args.store)
+    if args.json:
+        print(json.dumps({"store": args.store, "repaired": lines}))
+        return 0
+    for line in lines:
+        print(line)
+    print(f"{args.store}: {len(lines)} damaged rows repaired" if lines else f"{args.store}: no damaged row")
     return 0

@@ -15,16 +15,29 @@ h_m, holds T_w and oscillates 5 periods of 0.5 µm peak to peak at f. The segmen
 node's bias:
 
     modulus_ratio = |K*|_td / |K*|_model,   loss_angle_error_rad = δ_td - δ_model.
+
+A node is one task of the kind `KIND` (`campaign.kinds`; a campaign file's
+`[campaign] task = "analysis.afm.synth.protocol_bias:protocol_bias"`): its parameters the shell's and
+the protocol's (`campaign.protocol_grid.PROTOCOL_PARAMS`), its own results PROTOCOL_RESULTS beside the
+compression's columns it fills (`modulus_mN_per_m`, `loss_angle_rad`, `gamma_eff_mN_per_m`,
+`h_tilde`, `h_mean_um`, `wall_s`).
 """
 
 from typing import Any
 
 from analysis.afm.synth.time_domain import segment_fit
+from campaign.kinds import Kind, register
+from campaign.protocol_grid import PROTOCOL_PARAMS
 from solver.protocol_simulation import Sampling, simulate
 from solver.relaxed_state import relaxed_state
 from solver.time_domain import power_law_cortex
 
 SAMPLING = Sampling(sample_hz=100.0, approach_hz=100.0, min_samples_per_period=20)
+
+PROTOCOL_RESULTS = {"model_modulus_mN_per_m": "mN/m", "model_loss_angle_rad": "rad", "bulk_loss_angle_rad": "rad",
+                    "shear_loss_angle_rad": "rad", "modulus_ratio": "1", "loss_angle_error_rad": "rad",
+                    "solves": "1"}          # a node's own results (column -> unit)
+PROTOCOL_UNITS = dict(zip(PROTOCOL_PARAMS, ("1", "1", "s", "Hz")))   # its protocol's parameters
 
 
 def node_results(node: Any) -> dict[str, float]:
@@ -46,3 +59,7 @@ def node_results(node: Any) -> dict[str, float]:
             "modulus_ratio": modulus / model["modulus_mN_per_m"],
             "loss_angle_error_rad": loss - model["loss_angle_rad"],
             "solves": float(rec.steps)}
+
+
+KIND = register(Kind("protocol_bias", 1, PROTOCOL_RESULTS, node_results, PROTOCOL_UNITS,
+                     doc="one recording of the protocol in time, read against the relaxed-state model (SPEC 12)"))

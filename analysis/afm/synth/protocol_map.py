@@ -47,9 +47,10 @@ def nodes(path: str | os.PathLike[str]) -> pd.DataFrame:
 
     from campaign.store.reader import read_provenance, read_results
     text = read_provenance(path).get("config_text", "")        # the campaign file, as run
-    if (tomllib.loads(text) if text else {}).get("campaign", {}).get("task") != TASK:
-        raise InputError(f"{path}: not a store of a protocol-bias campaign ([campaign] task = \"{TASK}\": "
-                         "campaigns/protocol.toml)")
+    task = str((tomllib.loads(text) if text else {}).get("campaign", {}).get("task", ""))
+    if task.rpartition(":")[2] != TASK:
+        raise InputError(f"{path}: not a store of a protocol-bias campaign ([campaign] task = "
+                         f"\"analysis.afm.synth.protocol_bias:{TASK}\": campaigns/protocol.toml)")
     rows = read_results(path)
     unfinished = int(rows["state"].isin(["pending", "running"]).sum())
     if unfinished or not (rows["state"] == "done").any():

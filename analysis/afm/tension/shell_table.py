@@ -35,9 +35,9 @@ by `fill`).
 The grid: DEPTHS δ/R to 0.3 (48, denser near the sphere, where the force bends
 most), GAMMAS γ̃_a 0.003-0.5, SHEARS K̃_S 0.08-2.5, both log-spaced, RADII
 4-13.5 µm. The table is built by the campaign engine: `campaigns/ramp.toml`
-(`[campaign] task = "ramp_table"`) runs one task per node (γ̃_a, K̃_S, R) over
-any number of ranks, resumably (`node_results`: f at every depth, a depth
-whose continuation stalls filled in along depth by `fill`), and `from_store`
+(`[campaign] task = "analysis.afm.tension.shell_table:ramp_table"`, the kind `KIND`) runs one
+task per node (γ̃_a, K̃_S, R) over any number of ranks, resumably (`node_results`: f at every
+depth, a depth whose continuation stalls filled in along depth by `fill`), and `from_store`
 (`cortex analysis build-ramp-table`) makes the table's document
 (f[depth][gamma][shear][radius]) from the finished store.
 """
@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from campaign.store.schema import RAMP_DEPTHS, RAMP_RESULTS
+from campaign.kinds import Kind, register
 from common.errors import InputError, SolverError
 
 if TYPE_CHECKING:
@@ -59,13 +59,17 @@ if TYPE_CHECKING:
 D0 = 0.0        # the reference: the free sphere itself
 RADII_UM = np.geomspace(4.0, 13.5, 5)
 BULK_MN_PER_M = 10.0
+RAMP_DEPTHS = 48
 DEPTHS = 0.3 * np.linspace(0.0, 1.0, RAMP_DEPTHS + 1)[1:] ** 1.4
 GAMMAS = np.geomspace(0.003, 0.5, 12)
 SHEARS = np.geomspace(0.08, 2.5, 9)
 MESH_RATIO = 2.0        # the second mesh: MESH_RATIO times the node's resolution
 ORDER = 2.0             # the mesh error's order p, measured (module doc)
 FORMAT = "cortex-shell-ramp-table"
-TASK = "ramp_table"        # the campaign task (`campaign.config.TASKS`) that computes a node
+TASK = "ramp_table"        # the task kind (`campaign.kinds`, `KIND`) that computes a node
+# a node's results, the store's columns: F/(K_B R) at each depth δ/R as force_over_kb_r_d{i:02d}
+# (dimensionless, a stalled depth filled along depth), and `filled_depths`, how many were filled
+RAMP_RESULTS = tuple(f"force_over_kb_r_d{i:02d}" for i in range(RAMP_DEPTHS)) + ("filled_depths",)
 
 
 def radius_um(volume_um3: float) -> float:
@@ -170,10 +174,11 @@ def from_store(path: str | os.PathLike[str]) -> dict[str, Any]:
     doc = tomllib.loads(text) if text else {}
     grid = {**DEFAULTS, **doc.get("grid", {})}
     keys = ("volume_um3", "gamma_tilde", "ks_tilde")
-    if doc.get("campaign", {}).get("task") != TASK or not isinstance(grid["bending"], str) \
+    if str(doc.get("campaign", {}).get("task", "")).rpartition(":")[2] != TASK or not isinstance(grid["bending"], str) \
             or not set(keys) <= set(grid):
         raise InputError(f"{path}: not a store of a ramp-table campaign over volume_um3, gamma_tilde and "
-                         f"ks_tilde, one bending ([campaign] task = \"{TASK}\": campaigns/ramp.toml)")
+                         f"ks_tilde, one bending ([campaign] task = \"analysis.afm.tension.shell_table:{TASK}\": "
+                         "campaigns/ramp.toml)")
     volumes, gammas, shears = (np.atleast_1d(np.asarray(grid[k], float)) for k in keys)
     rows = read_results(path)
     undone = int((rows["state"] != "done").sum())
@@ -201,3 +206,7 @@ if __name__ == "__main__":
     print("the shell ramp table is built by the campaign engine: make ramp-table "
           "(campaigns/ramp.toml, then cortex analysis build-ramp-table; docs/ramp.md)", file=sys.stderr)
     sys.exit(2)
+
+
+KIND = register(Kind(TASK, 1, dict.fromkeys(RAMP_RESULTS, "1"), node_results,
+                     doc="one node of the shell ramp table: F/(K_B R) over its depths, two meshes extrapolated"))
