@@ -468,7 +468,8 @@ def _tension_line(r: dict[str, Any]) -> str:
         if r["model"] == "shell":
             text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "
                      f"{r['bulk_modulus_hi95_mN_per_m']:.3g}], droplet T {r['droplet_tension_mN_per_m']:.4g}, "
-                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m")
+                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m, baseline slope "
+                     f"{r['baseline_slope_nN_per_um']:.3g} nN/um" + (" (bimodal)" if r["bimodal"] else ""))
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     elif r["part"] == "pause":

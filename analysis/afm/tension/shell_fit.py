@@ -68,10 +68,12 @@ SHEAR_TILDE = 1.0 / 3.0          # K_S/K_B of an isotropic sheet with ν = 0.5 (
 START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
-PROFILE = 2.0 ** np.arange(-4, 7)   # K_B / γ_a of the bound's profile (1/16 to 64)
-EDGE = 5                 # bisections of each edge of its 95 % set
+PROFILE = 2.0 ** np.arange(-2, 7)   # K_B / γ_a of the bound's profile (1/4 to 64)
+EDGE = 3                 # bisections of each edge of its 95 % set
+FAR = 30.0               # the profile stops once Δχ² passes this, rising
 TOL = 1e-12              # least_squares' xtol and ftol of a fit
-PROFILE_TOL = 1e-8       # and of a profile's (over K_B at the bound, over K̃_S: `shell_shear`): Δχ² to 1e-3
+PROFILE_TOL = 1e-8       # and of the profile over K̃_S (`shell_shear`): Δχ² to 1e-3
+BOUND_TOL = 1e-6         # and of the profile over K_B at the bound: Δχ² to about 0.01, against its 3.84
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
                          # and at least ln n (BIC; module doc)
@@ -209,32 +211,34 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
                sd_g: float, sd_k: float) -> tuple[float, float]:
     """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold: the
     accepted K_B of `bound_profile`, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse + CHI2_95 * sigma ** 2)
+    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
 
 
 def bound_profile(x: np.ndarray, f: np.ndarray, radius: float, shear: float, p: Sequence[float] | np.ndarray,
-                  limit: float) -> tuple[float, float, float, bool]:
-    """(lowest γ_a, highest γ_a, highest K_B, split) of the 95 % set {K_B : SSE ≤ `limit`} of the
-    profile over K_B from a fit θ = `p` at K_B = 0 on the window (x, f), K̃_S = `shear`: refits at
-    K_B = γ_a · PROFILE, each from its neighbour, each edge found by EDGE bisections between an
-    accepted and a rejected K_B. The whole grid is walked: the SSE may have two valleys (`split`:
-    the set is not one interval from K_B = 0)."""
+                  sse: float, sigma: float) -> tuple[float, float, float, bool]:
+    """(lowest γ_a, highest γ_a, highest K_B, split) of the 95 % set {K_B : SSE ≤ sse + CHI2_95 σ²}
+    of the profile over K_B from a fit θ = `p` (SSE `sse`, noise σ) at K_B = 0 on the window (x, f),
+    K̃_S = `shear`: refits at K_B = γ_a · PROFILE, each from its neighbour, each edge found by EDGE
+    bisections between an accepted and a rejected K_B (from 0 arithmetic, else geometric). The grid
+    is walked until Δχ² passes FAR and still rises: the SSE may have two valleys (`split`: the set
+    is not one interval from K_B = 0)."""
+    limit, far, last_s = sse + CHI2_95 * sigma ** 2, sse + FAR * sigma ** 2, sse
 
-    def at(k: float, near: np.ndarray) -> tuple[np.ndarray, bool]:
-        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k)), near, PROFILE_TOL)
-        return theta, s <= limit
+    def at(k: float, near: np.ndarray) -> tuple[np.ndarray, bool, float]:
+        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k)), near, BOUND_TOL)
+        return theta, s <= limit, s
 
     lo_g, hi_g, hi_k, runs = p[2], p[2], 0.0, 1
     last_k, last_theta, last_ok = 0.0, np.asarray(p, float), True
     for k in p[2] * PROFILE:
-        theta, ok = at(k, last_theta)
+        theta, ok, s = at(k, last_theta)
         runs += int(ok and not last_ok)
         if ok != last_ok:                          # an edge of the set between last_k and k: bisect it
             a, b, near = (last_k, k, last_theta) if last_ok else (k, last_k, theta)
             for _ in range(EDGE):
                 mid = 0.5 * (a + b) if min(a, b) == 0 else float(np.sqrt(a * b))
-                t_mid, ok_mid = at(mid, near)
+                t_mid, ok_mid, _ = at(mid, near)
                 if ok_mid:
                     a, near = mid, t_mid
                     lo_g, hi_g, hi_k = min(lo_g, t_mid[2]), max(hi_g, t_mid[2]), max(hi_k, mid)
@@ -242,7 +246,9 @@ def bound_profile(x: np.ndarray, f: np.ndarray, radius: float, shear: float, p: 
                     b = mid
         if ok:
             lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), max(hi_k, float(k))
-        last_k, last_theta, last_ok = float(k), theta, ok
+        if s > far and s > last_s:
+            break
+        last_k, last_theta, last_ok, last_s = float(k), theta, ok, s
     return float(lo_g), float(hi_g), float(hi_k), runs > 1
 
 

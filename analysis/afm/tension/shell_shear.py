@@ -137,11 +137,10 @@ def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, 
     profile over K_B at each end of K̃_S's range (`bound_profile`, the limit SSE_0 + CHI2_95 σ²);
     bimodal also where a profile's set is split (two valleys)."""
     xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
-    limit = fit.sse_nN2 + CHI2_95 * fit.noise_nN ** 2
     g, half = fit.tension_mN_per_m, Z95 * fit.tension_sd_mN_per_m
     lo_g, hi_g, hi_k, split = g - half, g + half, fit.bulk_mN_per_m + Z95 * fit.bulk_sd_mN_per_m, False
     for shear in shear_range():
-        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), limit)
+        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN)
         lo_g, hi_g, hi_k, split = min(lo_g, a), max(hi_g, b), max(hi_k, k), split or two
     return replace(fit, shear_band=shear_range(), tension_band_mN_per_m=(max(lo_g, 0.0), hi_g),
                    bulk_band_mN_per_m=(0.0, hi_k), bimodal=fit.bimodal or split)
