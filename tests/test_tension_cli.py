@@ -1,8 +1,11 @@
 """`cortex afm tension`: synthetic droplets through JPK archives and the native
 format, the bad-input paths (one line, exit 2, nothing written; in a batch the
-rest analysed, exit 1), and the real JPK exports in ../shared/data/jpk/."""
+rest analysed, exit 1), and the real JPK and Bruker files in ../shared/data/ (`CORTEX_SHARED_DATA`
+names another data folder)."""
 
 import json
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +19,7 @@ from cortex.cli import main
 from jpk_writer import write_force
 from solver.geometry import cell_radius
 
-DATA = ROOT.parent / "shared" / "data" / "jpk"
+DATA = Path(os.environ.get("CORTEX_SHARED_DATA", ROOT.parent / "shared" / "data")) / "jpk"
 TEXT = DATA / "force-save-2020.10.29-12.06.06.196.txt"
 QI = DATA / "qi-data-2021.05.30-14.22.26.978_8777_8777.txt"
 need = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared test data not found at {DATA}")
@@ -101,7 +104,7 @@ def test_bad_input_is_one_line_and_exit_2_with_nothing_written(tmp_path, capsys)
     write_force(tmp_path / "ok.jpk-force", _cell("ok", 1.0))
     assert "no volume" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force")
     assert "--radius-um" in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force", "--radius-um", -3)
-    for option in ("--shear-ratio", "--bulk-mN-per-m", "--max-depth-um"):
+    for option in ("--shear-ratio", "--bulk-mN-per-m", "--max-depth-um", "--ramp-speed-um-per-s"):
         assert option in _bad(tmp_path, capsys, tmp_path / "ok.jpk-force", "--volume", VOLUME, option, 0)
     assert "apply to instrument files only" in _bad(tmp_path, capsys, flat, "--volume", VOLUME)
     assert "no such file" in _bad(tmp_path, capsys, tmp_path / "missing.txt", "--volume", VOLUME)
@@ -181,3 +184,36 @@ def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
         assert row["tension_lo95_mN_per_m"] < row["tension_mN_per_m"] < row["tension_hi95_mN_per_m"]
     assert text["depth_um"] == pytest.approx(binary["depth_um"], abs=0.05)
     assert text["compare_tension_mN_per_m"] == pytest.approx(binary["compare_tension_mN_per_m"], rel=0.03)
+    # the baseline's slope fitted: each reading within the other's interval (they were 2.38 [1.67, 3.09]
+    # and 1.28 [0.96, 1.74] with a level baseline), the slopes apart by about the tilt NanoScope
+    # Analysis took off (1.359e-3 nm/nm of Z x k = 0.106 nN/um, tests/test_bruker.py; on windows that
+    # differ by 4 % of their samples)
+    for one, other in ((binary, text), (text, binary)):
+        assert other["tension_lo95_mN_per_m"] <= one["tension_mN_per_m"] <= other["tension_hi95_mN_per_m"]
+        assert one["bulk_modulus_lo95_mN_per_m"] == 0.0 and not one["bimodal"]
+    tilt = binary["baseline_slope_nN_per_um"] - text["baseline_slope_nN_per_um"]
+    assert 0.5 < tilt / (1.359e-3 * 0.0777945 * 1e3) < 1.5
+    assert binary["ramp_speed_source"] == "recorded"
+    assert binary["ramp_speed_um_per_s"] == pytest.approx(16.8717 * 178.0978e-3, rel=0.02)   # Forward vel. x Zsens
+
+
+@need_bruker
+def test_a_text_export_alone_is_read_for_its_ramp(tmp_path, capsys):
+    """Without its NanoScope file the export has no sample times: its ramp is fitted all the
+    same (as with the file beside it), its speed the option's or unknown; too deep a
+    --max-depth-um is a warning. afm import still refuses it (it needs the times)."""
+    alone = tmp_path / BRUKER_TEXT.name
+    alone.write_bytes(BRUKER_TEXT.read_bytes())
+    _, beside = _json(capsys, BRUKER_TEXT, "--radius-um", 6.8)
+    status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945)
+    row, = doc["rows"]
+    assert status == 0 and row["tension_mN_per_m"] == pytest.approx(beside["rows"][0]["tension_mN_per_m"], rel=1e-9)
+    assert (row["ramp_speed_um_per_s"], row["ramp_speed_source"], row["warning"]) == (None, "unknown", "")
+    status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945,
+                        "--ramp-speed-um-per-s", 3.0, "--max-depth-um", 2.0)
+    row, = doc["rows"]
+    assert (row["ramp_speed_um_per_s"], row["ramp_speed_source"]) == (3.0, "--ramp-speed-um-per-s")
+    assert row["warning"].startswith("--max-depth-um 2 exceeds") and "reaches 0.4" in row["warning"]
+    assert main(["afm", "import", str(alone), "--volume", "4000", "--spring-constant", "0.08", "--dish-height-um",
+                 "-5", "--out", str(tmp_path / "imp")]) == 2 and not (tmp_path / "imp").exists()
+    assert "sample times unknown" in capsys.readouterr().err

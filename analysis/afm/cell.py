@@ -15,7 +15,10 @@ it came from (`source`) and, from an instrument file, what the file said of
 the recording (`recorded`: `formats.recording.Recording.summary`); neither is
 written to the experiment file. `dish_known` False: the heights are the
 instrument's channel, not gaps from the dish (`formats.reader.ImportOptions.
-contact_heights`), and are not checked to be positive.
+contact_heights`), and are not checked to be positive. `timed` False: the file
+holds no sample times (a NanoScope Analysis export alone, read for its ramp by
+`afm tension`: `ImportOptions.untimed_ramps`); time_s is NaN and only approach
+and retract segments are allowed.
 """
 
 from dataclasses import dataclass, field
@@ -52,6 +55,7 @@ class Cell:
     source: str = ""
     recorded: dict[str, Any] | None = None
     dish_known: bool = True
+    timed: bool = True
 
     @property
     def frequencies_hz(self) -> list[float]:
@@ -68,7 +72,7 @@ class Cell:
         if v is None or not np.isfinite(v) or v <= 0:
             raise InputError(f"{at}: volume_um3 missing or not a positive number (got {v!r})")
         n = len(self.time_s)
-        for name in ("time_s", "force_nN", "height_um"):
+        for name in ("time_s", "force_nN", "height_um")[0 if self.timed else 1:]:
             a = np.asarray(getattr(self, name))
             if a.ndim != 1 or a.size != n:
                 raise InputError(f"{at}: column {name} has {a.size} values, time_s has {n}")
@@ -77,7 +81,9 @@ class Cell:
                 raise InputError(f"{at}: column {name} has a NaN or infinite value at sample {bad}")
         if n < 2:
             raise InputError(f"{at}: recording has {n} sample(s)")
-        dt = np.diff(self.time_s)
+        dt = np.diff(self.time_s) if self.timed else np.ones(n - 1)
+        if not self.timed and any(s.kind not in ("approach", "retract") for s in self.segments):
+            raise InputError(f"{at}: a recording without sample times holds only approach and retract segments")
         if np.any(dt <= 0):
             raise InputError(f"{at}: time_s is not increasing at sample {int(np.flatnonzero(dt <= 0)[0]) + 1}")
         if self.dish_known and np.any(self.height_um <= 0):

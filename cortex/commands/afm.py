@@ -54,12 +54,14 @@ def _import_options(p: argparse.ArgumentParser, free_radius: bool = False, dish_
                         "(default: that of the NanoScope file each was exported from, beside it; docs/bruker.md)")
 
 
-def import_options(args: argparse.Namespace, contact_heights: bool = False) -> ImportOptions:
+def import_options(args: argparse.Namespace, contact_heights: bool = False, untimed_ramps: bool = False
+                   ) -> ImportOptions:
     """The `ImportOptions` of the parsed options (checked)."""
     from analysis.afm.formats.reader import ImportOptions
     return ImportOptions(volume_um3=args.volume, volumes_csv=args.volumes, radius_um=getattr(args, "radius_um", None),
                          dish_um=args.dish_height_um, dish_curve=args.dish_curve,
-                         spring_constant_N_per_m=args.spring_constant, contact_heights=contact_heights).check()
+                         spring_constant_N_per_m=args.spring_constant, contact_heights=contact_heights,
+                         untimed_ramps=untimed_ramps).check()
 
 
 def register(sub: Commands) -> None:
@@ -204,7 +206,12 @@ def _add_tension(s: Commands) -> None:
                         "(default: fitted)")
     t.add_argument("--max-depth-um", type=float, default=None, metavar="D",
                    help="deepest deformation of the fit window, um (default: the deepest reached, at most R; "
-                        "for the shell at most 0.3 R, its table's depth)")
+                        "for the shell at most 0.3 R, its table's depth; a warning when the ramp does not reach it)")
+    t.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
+                   help="approach speed (um/s) of recordings whose files hold no sample times (a NanoScope "
+                        "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
+                        "ramp_speed_source say which speed each ramp has (the elastic shell's reading does not "
+                        "use it)")
     add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
@@ -455,7 +462,8 @@ def tension(args: argparse.Namespace) -> int:
     from analysis.afm.tension.pipeline import Options, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     options = Options(model=args.model, shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
-                      max_depth_um=args.max_depth_um, import_options=import_options(args, contact_heights=True),
+                      max_depth_um=args.max_depth_um, ramp_speed_um_per_s=args.ramp_speed_um_per_s,
+                      import_options=import_options(args, contact_heights=True, untimed_ramps=True),
                       errors=measurement_errors(args, DRAWS))
     result = run(args.files, options, args.out)
     if args.json:
@@ -466,6 +474,8 @@ def tension(args: argparse.Namespace) -> int:
     else:
         for r in result["rows"]:
             print(_tension_line(r))
+            if r.get("warning"):
+                print(f"warning: {r['cell_id']}: {r['part']} {r['segment']}: {r['warning']}")
         for what, reason in result["skipped"].items():
             print(f"not analysed: {what}: {reason}")
         if result["report"]:
@@ -486,7 +496,8 @@ def _tension_line(r: dict[str, Any]) -> str:
         if r["model"] == "shell":
             text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "
                      f"{r['bulk_modulus_hi95_mN_per_m']:.3g}], droplet T {r['droplet_tension_mN_per_m']:.4g}, "
-                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m")
+                     f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m, baseline slope "
+                     f"{r['baseline_slope_nN_per_um']:.3g} nN/um" + (" (bimodal)" if r["bimodal"] else ""))
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     elif r["part"] == "pause":

@@ -197,9 +197,10 @@ def dish_from_curve(path: str | Path) -> float:
 
 
 def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: float = 0.0,
-            dish_known: bool = True) -> Cell:
+            dish_known: bool = True, untimed: bool = False) -> Cell:
     """One recording as a native `Cell` (h = z + F/k - Z), validated; with `dish_known` False
-    (no dish reference) the heights are not checked to be gaps."""
+    (no dish reference) the heights are not checked to be gaps; with `untimed` a recording
+    without sample times is kept (`Cell.timed` False) instead of refused."""
     segs, parts, n0 = [], [], 0
     for s in rec.segments:
         if not s.n_samples:
@@ -210,14 +211,17 @@ def to_cell(rec: Recording, volume_um3: float, volume_source: str, dish_um: floa
     if not parts:
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': no samples in any segment")
     t, f, h = (np.concatenate(c) for c in zip(*parts))
-    if np.isnan(t).any():
+    timed = not np.isnan(t).any()
+    if not timed and not untimed:
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': sample times unknown (a NanoScope Analysis "
-                         "export without the NanoScope file it was exported from beside it)")
+                         "export without the NanoScope file it was exported from beside it; afm tension reads "
+                         "its ramp)")
     if dish_known and np.min(h) <= 0:
         raise InputError(f"{rec.source}: cell '{rec.cell_id}': height z + F/k - Z reaches {np.min(h):.4g} um "
                          f"with dish reference Z = {dish_um:g} um: give the dish with --dish-height-um or "
                          "--dish-curve")
     cell = Cell(cell_id=rec.cell_id, volume_um3=float(volume_um3), time_s=t, force_nN=f, height_um=h,
                 segments=segs, volume_source=volume_source,
-                spring_constant_N_per_m=float(rec.spring_constant_N_per_m), date=rec.date, dish_known=dish_known)
+                spring_constant_N_per_m=float(rec.spring_constant_N_per_m), date=rec.date, dish_known=dish_known,
+                timed=timed)
     return cell.validate(f"{rec.source}: ")

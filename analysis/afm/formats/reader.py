@@ -10,7 +10,10 @@ height   h = z + F/k - Z (`instruments.to_cell`), Z the dish reference: `dish_um
          `dish_curve` (`instruments.dish_from_curve`), else 0, the height channel taken as the
          gap and checked for it (h > 0); with `contact_heights` a recording without a dish
          reference keeps the channel unchecked (`Cell.dish_known` False), for `afm tension` to
-         refer it to the approach's contact point.
+         refer it to the approach's contact point;
+times    with `untimed_ramps` a recording whose file holds no sample times (a NanoScope
+         Analysis export without its NanoScope file) is read with NaN times (`Cell.timed`
+         False: `afm tension` fits its ramps, which need none); refused otherwise.
 
 Every instrument cell keeps the file it came from (`Cell.source`) and what the file said of
 the recording (`Cell.recorded`, `Recording.summary`: `afm import`'s lines). The first file
@@ -32,7 +35,8 @@ NATIVE = (".h5", ".hdf5", ".csv")       # the native formats: one file, volumes 
 @dataclass(frozen=True)
 class ImportOptions:
     """How to read instrument recordings: one of the volume sources, the dish reference, the
-    spring constant of exports that hold none, and whether heights may stay unreferenced."""
+    spring constant of exports that hold none, whether heights may stay unreferenced, and
+    whether a recording without sample times is read (its ramps only: `Cell.timed` False)."""
 
     volume_um3: float | None = None
     volumes_csv: str | None = None
@@ -41,6 +45,7 @@ class ImportOptions:
     dish_curve: str | None = None
     spring_constant_N_per_m: float | None = None
     contact_heights: bool = False
+    untimed_ramps: bool = False
 
     def given(self) -> list[str]:
         """The options of instrument files that are given, as the command line names them."""
@@ -111,7 +116,7 @@ def _instrument_cells(paths: Sequence[str | Path], options: ImportOptions) -> li
     for r in recs:
         volume, how = _volume(r.cell_id, options, table)
         known = dish is not None or not options.contact_heights
-        cell = to_cell(r, volume, how, dish or 0.0, dish_known=known)
+        cell = to_cell(r, volume, how, dish or 0.0, dish_known=known, untimed=options.untimed_ramps)
         cell.source, cell.recorded = r.source or str(paths[0]), r.summary()
         cells.append(cell)
     return cells

@@ -15,7 +15,10 @@ analyse  per recording, in order until its first retract: every approach ramp
          window beside it; each model against the window's depth, `depths`),
          or a tension-only one (`ramp`, with the other for comparison, each on
          its own automatic window; the interval from the volume error,
-         `pause.ramp_interval`), every pause's tension and pressure
+         `pause.ramp_interval`), with the ramp's speed and where it comes from
+         (`_ramp_speed`: recorded times, `--ramp-speed-um-per-s` for a recording
+         without them, or unknown) and a warning where `--max-depth-um` is deeper
+         than the data (`_depth_warning`); every pause's tension and pressure
          (`pause.pause_tension`) from its relaxed force (`relaxation`; the
          last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
@@ -45,7 +48,8 @@ import numpy as np
 from analysis.afm.cell import Cell
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
-from analysis.afm.tension.depths import depth_flag, depth_rows
+from analysis.afm.tension import shell_ramp
+from analysis.afm.tension.depths import depth_rows, depth_test
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
@@ -58,6 +62,9 @@ from common.errors import InputError
 from common.names import RAMP_MODELS
 from solver.geometry import cell_radius
 
+MIN_FREE = 10            # samples above the contact to read a ramp's speed from
+
+
 @dataclass(frozen=True)
 class Options:
     """What to analyse with: the ramp model (and for the shell: K̃_S, K_B if known, the deepest
@@ -68,7 +75,8 @@ class Options:
     shear_tilde: float | None = None          # None: unknown, fitted (`shell_shear`)
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
-    import_options: ImportOptions = ImportOptions(contact_heights=True)
+    ramp_speed_um_per_s: float | None = None   # of ramps whose files hold no sample times
+    import_options: ImportOptions = ImportOptions(contact_heights=True, untimed_ramps=True)
     errors: MeasurementErrors = TENSION_ERRORS
 
 
@@ -83,13 +91,14 @@ class Trace:
     volume_source: str
     parts: list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]
     dish_known: bool
+    timed: bool = True
 
 
 def _trace(cell: Cell) -> Trace:
     """A cell (`formats.open`) as the analysis takes it: its segments' samples in order."""
     parts = [(i, s.kind, cell.time_s[s.start:s.stop], cell.force_nN[s.start:s.stop], cell.height_um[s.start:s.stop])
              for i, s in enumerate(cell.segments)]
-    return Trace(cell.cell_id, cell.source, cell.volume_um3, cell.volume_source, parts, cell.dish_known)
+    return Trace(cell.cell_id, cell.source, cell.volume_um3, cell.volume_source, parts, cell.dish_known, cell.timed)
 
 
 def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
@@ -98,7 +107,7 @@ def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], di
     if options.model not in RAMP_MODELS:
         raise InputError(f"--model {options.model!r}: not one of {', '.join(RAMP_MODELS)}")
     for name, value in (("--shear-ratio", options.shear_tilde), ("--bulk-mN-per-m", options.bulk_mN_per_m),
-                        ("--max-depth-um", options.max_depth_um)):
+                        ("--max-depth-um", options.max_depth_um), ("--ramp-speed-um-per-s", options.ramp_speed_um_per_s)):
         if value is not None and not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive number (got {value})")
     reading = options.import_options.check()
@@ -140,6 +149,7 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
     fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m)       # the volume refits and nested windows: at the fit's
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
+    verdict, why = depth_test(rows)
     try:
         cmp = fit_ramp(x, f, radius, "droplet", cap_um=fit.depth_um)
     except InputError:
@@ -151,16 +161,33 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "pressure_hi95_Pa": float(pressure_Pa(t_hi, 1.0 / radius)),
            "bulk_modulus_mN_per_m": fit.bulk_mN_per_m, "bulk_modulus_lo95_mN_per_m": k_lo,
            "bulk_modulus_hi95_mN_per_m": k_hi, **_shear_columns(fit), "elastic_term": fit.elastic_term,
-           "elastic_term_lr": fit.elastic_lr,
-           "tension_bulk_correlation": fit.correlation,
+           "elastic_term_lr": fit.elastic_lr, "bimodal": fit.bimodal,
+           "tension_bulk_correlation": fit.correlation, "baseline_slope_nN_per_um": fit.baseline_slope_nN_per_um,
+           "baseline_slope_sd_nN_per_um": fit.baseline_slope_sd_nN_per_um,
            "droplet_tension_mN_per_m": rows[-1].droplet_tension_mN_per_m,
            "small_deformation_tension_mN_per_m": rows[-1].small_deformation_tension_mN_per_m,
-           "depth_flag": depth_flag(rows),
+           "depth_test": verdict, "depth_flag": why,
            "force_nN": float(fit.force_nN(fit.contact_um - fit.depth_um, radius)) - fit.baseline_nN,
            **_window(fit, radius), "compare_model": "droplet",
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
+    row["warning"] = _depth_warning(options.max_depth_um, fit, x, shell_ramp.shipped().max_depth * radius)
     return row, ("approach", index, x, f, fit, cmp, rows)
+
+
+def _depth_warning(max_depth_um: float | None, fit: Any, x: np.ndarray, table_um: float | None) -> str:
+    """The warning when `--max-depth-um` exceeds the depth the ramp reaches below its contact (or
+    the shell table's depth `table_um`), '' otherwise: the window ends there, not at the option."""
+    if max_depth_um is None:
+        return ""
+    reached = float(fit.contact_um - np.min(x))
+    if reached < max_depth_um:
+        why = f"the ramp reaches {reached:.3g} um below its contact"
+    elif table_um is not None and table_um < max_depth_um:
+        why = f"the shell table ends at {table_um:.3g} um (δ/R = {shell_ramp.shipped().max_depth:.2g})"
+    else:
+        return ""
+    return f"--max-depth-um {max_depth_um:g} exceeds the depth of the data: {why}; the window is {fit.depth_um:.3g} um deep"
 
 
 def _shear_columns(fit: ShellFit) -> dict[str, Any]:
@@ -203,8 +230,22 @@ def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: O
            "force_nN": fit.tension_mN_per_m * float(force_per_tension_um(fit.model, fit.depth_um, radius)),
            **_window(fit, radius), "compare_model": other,
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
-           "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
+           "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan"),
+           "warning": _depth_warning(options.max_depth_um, fit, x, None)}
     return row, ("approach", index, x, f, fit, cmp, None)
+
+
+def _ramp_speed(t: np.ndarray, x: np.ndarray, contact_um: float, given: float | None) -> dict[str, Any]:
+    """The row's approach speed (µm/s) and where it comes from: the recorded times (the slope of x
+    over the samples above the contact, where the cantilever's bending does not change; all
+    samples if fewer than MIN_FREE), else `--ramp-speed-um-per-s`, else unknown (NaN)."""
+    if np.all(np.isfinite(t)) and t.size > 1:
+        free = x > contact_um
+        use = free if free.sum() >= MIN_FREE else np.ones_like(free)
+        return {"ramp_speed_um_per_s": float(abs(np.polyfit(t[use], x[use], 1)[0])), "ramp_speed_source": "recorded"}
+    if given is not None:
+        return {"ramp_speed_um_per_s": float(given), "ramp_speed_source": "--ramp-speed-um-per-s"}
+    return {"ramp_speed_um_per_s": float("nan"), "ramp_speed_source": "unknown"}
 
 
 def _pause_row(trace: Trace, index: int, t: np.ndarray, x: np.ndarray, f: np.ndarray,
@@ -253,6 +294,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
         try:
             if kind == "approach":
                 row, plot = _ramp_row(trace, index, x, f, options, radius)
+                row.update(_ramp_speed(t, x, plot[4].contact_um, options.ramp_speed_um_per_s))
                 ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)

@@ -15,6 +15,9 @@ cell of radius R) the deformation is δ_i = max(x0 - x_i, 0), and
 
 with F_b the baseline force (the deflection's offset). For a fixed x0 both are
 linear in (F_b, T): least squares in closed form (variable projection), T ≥ 0.
+The baseline is level: these are the published readings, and with a free tilt a
+tension-only model loses its contact (a contact above the data and a tilt mimic
+the small-deformation form's linear term); the shell fits the tilt (`shell_fit`).
 x0 minimises the residual sum of squares: a grid of GRID candidates across the
 window, then a bounded Brent search between the best candidate's neighbours
 (in later rounds and refits, Brent alone within a quarter of the window of the
@@ -80,6 +83,10 @@ class RampFit:
     window_hi_um: float
     window: npt.NDArray[np.bool_]
     depth_um: float
+
+    def baseline_at(self, x_um: npt.ArrayLike) -> np.ndarray:
+        """The fitted baseline at wedge heights x (µm): level, F_b."""
+        return np.full(np.shape(x_um), self.baseline_nN)
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""

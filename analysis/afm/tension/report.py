@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.invert.measurement_errors import MeasurementErrors
+from analysis.afm.tension.depths import HOLDS, MOVES, NOT_TESTABLE
 from analysis.afm.tension.relaxation import COLUMNS as RELAXATION_COLUMNS
 from analysis.afm.tension.relaxation import NONE
 
@@ -29,12 +30,13 @@ TABLE, REPORT = "tension.csv", "report.md"
 COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
            "tension_hi95_mN_per_m", "bulk_modulus_mN_per_m", "bulk_modulus_lo95_mN_per_m",
            "bulk_modulus_hi95_mN_per_m", "shear_ratio", "shear_ratio_lo95", "shear_ratio_hi95", "shear_ratio_source",
-           "shear_ratio_identified", "elastic_term", "elastic_term_lr",
-           "tension_bulk_correlation", "droplet_tension_mN_per_m",
-           "small_deformation_tension_mN_per_m", "depth_flag", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
+           "shear_ratio_identified", "elastic_term", "elastic_term_lr", "bimodal",
+           "tension_bulk_correlation", "baseline_slope_nN_per_um", "baseline_slope_sd_nN_per_um", "droplet_tension_mN_per_m",
+           "small_deformation_tension_mN_per_m", "depth_test", "depth_flag", "pressure_Pa", "pressure_lo95_Pa", "pressure_hi95_Pa", "force_nN",
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
-           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source")
+           "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
+           "warning")
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
@@ -67,15 +69,17 @@ def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
 def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     _, index, x, f, fit, cmp, _ = plot
     depth = fit.contact_um - x
-    ax.plot(depth, f - fit.baseline_nN, ".", ms=2, color="0.7", label="data")
-    ax.plot(depth[fit.window], f[fit.window] - fit.baseline_nN, ".", ms=2, color="tab:blue", label="fit window")
+    base = fit.baseline_at(x)
+    ax.plot(depth, f - base, ".", ms=2, color="0.7", label="data")
+    ax.plot(depth[fit.window], (f - base)[fit.window], ".", ms=2, color="tab:blue", label="fit window")
     d = np.linspace(-fit.depth_um, fit.depth_um, 300)
     what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
             else f"T = {fit.tension_mN_per_m:.3g} mN/m")
-    ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_nN, color="tab:red",
+    ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_at(fit.contact_um - d), color="tab:red",
             label=f"{fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
-        ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_nN, "--", color="tab:green",
+        ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_at(fit.contact_um - d), "--",
+                color="tab:green",
                 label=f"{cmp.model}: T = {cmp.tension_mN_per_m:.3g} mN/m, R² = {cmp.r2:.4f}")
     for edge in (-fit.depth_um, fit.depth_um):
         ax.axvline(edge, color="0.4", lw=0.8, ls=":")
@@ -202,9 +206,11 @@ def depth_lines(done: dict[str, Analysed]) -> list[str]:
                 h = 1.96 * r.tension_sd_mN_per_m
                 lines.append(f"| {r.depth_um:.3g} | {r.tension_mN_per_m:.4g} | ±{h:.2g} | {r.bulk_mN_per_m:.4g} | "
                              f"{r.droplet_tension_mN_per_m:.4g} | {r.small_deformation_tension_mN_per_m:.4g} |")
-            flag = next((r["depth_flag"] for r in analysed.rows
-                         if r["part"] == "approach" and r["segment"] == plot[1]), "")
-            lines += ["", f"**Flagged**: {flag}." if flag else "The active tension holds across the windows."]
+            row: dict[str, Any] = next((r for r in analysed.rows
+                                        if r["part"] == "approach" and r["segment"] == plot[1]), {})
+            verdict, why = row.get("depth_test", HOLDS), row.get("depth_flag", "")
+            lines += ["", f"**Flagged**: {why}." if verdict == MOVES else f"Across the windows: {why}."
+                      if verdict == NOT_TESTABLE else "The active tension holds across the windows."]
     return (["", "## Tension against the window's depth"] + lines) if lines else []
 
 
@@ -229,6 +235,10 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
     lines += _shell_lines(rows)
     lines += _pause_lines(rows)
     lines += depth_lines(done or {})
+    warned = [r for r in rows if r.get("warning")]
+    if warned:
+        lines += ["", "## Warnings", ""] + [f"- {r['cell_id']} {r['part']} {r['segment']}: {r['warning']}"
+                                             for r in warned]
     lines += ["", "Figures: " + ", ".join(f"[{p.name}]({p.name})" for p in figures), ""]
     if skipped:
         lines += ["## Not analysed", ""] + [f"- {k}: {v}" for k, v in skipped.items()] + [""]

@@ -3,27 +3,33 @@ model (`shell_ramp`: the cortex of SPEC 2 pressed from its free sphere).
 
 The model of the window's samples (x_i, F_i), δ_i = max(x0 - x_i, 0):
 
-    F_i = F_b + F_shell(δ_i; R, γ_a, K_B, K̃_S),
+    F_i = F_b + s (x_i - x0) + F_shell(δ_i; R, γ_a, K_B, K̃_S),
 
-fitted by least squares in θ = (x0, F_b, γ_a, K_B) (scipy least_squares, γ_a > 0,
+fitted by least squares in θ = (x0, F_b, γ_a, K_B, s) (scipy least_squares, γ_a > 0,
 K_B ≥ 0: K_B = 0 is the tension-only droplet), K̃_S fixed (`Fixed.shear_tilde`,
 default 1/3: ν = 0.5, SPEC 2; unknown: `shell_shear` profiles it), and K_B too where a
-lab knows it from the same cell's oscillations (`Fixed.bulk_mN_per_m`).
+lab knows it from the same cell's oscillations (`Fixed.bulk_mN_per_m`). The
+baseline is a line: F_b the free deflection's force at the contact and s (nN/µm)
+its slope against the wedge height x, the tilt a deflection signal keeps where
+it was not levelled (a NanoScope file against its NanoScope Analysis export:
+0.1 nN/µm on the shared one). The window holds as much baseline above the
+contact as compression below it, which pins s; a tilt left out mimics (s < 0) or
+hides (s > 0) force that grows with depth, and moves γ_a by tens of per cent.
 
 Window: the droplet fit's (`ramp.fit_ramp`) with its depth capped at the
 table's deepest δ/R (and at `cap_um`); its contact and baseline start the fit.
 Starts: for each γ̃_a of a log grid (and K_B = 0) the model is linear in
-(F_b, K_B) at a given contact, which a Brent search finds near the droplet's;
+(F_b, s, K_B) at a given contact, which a Brent search finds near the droplet's;
 the fit runs from each local minimum of their SSE over γ̃_a (at most STARTS)
 and keeps the best.
 
 Errors: σ² = SSE / (n - p) from the residuals, Cov θ = σ² (JᵀJ)⁻¹ (J the
-Jacobian at the optimum); `sd` holds the SDs of γ_a and K_B and `correlation`
-their correlation. At the bound K_B = 0 the Jacobian's SDs do not hold (a ramp
+Jacobian at the optimum); `sd` holds the SDs of γ_a, K_B and s and `correlation`
+that of γ_a with K_B. At the bound K_B = 0 the Jacobian's SDs do not hold (a ramp
 that cannot tell γ_a from K_B often lands there): the fit is redone at
-K_B = γ_a · PROFILE and the SDs widened to the span of the accepted ones
-(`_bound_sds`). `shell_interval`: the 95 %
-intervals with the volume error.
+K_B = γ_a · PROFILE (the profile over K_B), the edges of its 95 % set
+(Δχ² ≤ CHI2_95) bisected, and the SDs widened to the span of the accepted
+ones (`_bound_sds`). `shell_interval`: the 95 % intervals with the volume error.
 
 Elastic term (K_B free only): the droplet (K_B = 0) is nested in the shell, so
 on the same window Λ = (SSE_0 - SSE_1) / σ² (σ² the shell's) tests K_B = 0.
@@ -39,7 +45,9 @@ the elastic term is "not significant" and the fit returned is the droplet's (γ_
 with intervals that still cover the shell's: the SD of γ_a such that
 γ_0 ± Z95 sd holds γ_1 ± Z95 sd_1, and K_B's upper 95 % bound that of the
 shell (its profile where it sits at the bound), so the selection never makes
-an interval narrower than the shell's (`_select`).
+an interval narrower than the shell's (`_select`). Both valleys lie in the 95 %
+set when Λ ≤ CHI2_95 and the shell's optimum is another valley (K_B > 0, its γ_a
+beyond its own Z95 · sd of the droplet's): `bimodal`, the ramp cannot choose.
 """
 
 from collections.abc import Sequence
@@ -60,12 +68,16 @@ SHEAR_TILDE = 1.0 / 3.0          # K_S/K_B of an isotropic sheet with ν = 0.5 (
 START_GAMMAS = np.geomspace(0.002, 1.0, 13)
 STARTS = 3
 BOUND = 1e-6            # K_B below this share of γ_a: the fit is at the droplet's bound
-PROFILE = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0])   # K_B / γ_a of the bound's profile
+PROFILE = 2.0 ** np.arange(-2, 7)   # K_B / γ_a of the bound's profile (1/4 to 64)
+EDGE = 3                 # bisections of each edge of its 95 % set
+FAR = 30.0               # the profile stops once Δχ² passes this, rising
 TOL = 1e-12              # least_squares' xtol and ftol of a fit
-PROFILE_TOL = 1e-8       # and of a profile's (over K_B at the bound, over K̃_S: `shell_shear`): Δχ² to 1e-3
+PROFILE_TOL = 1e-8       # and of the profile over K̃_S (`shell_shear`): Δχ² to 1e-3
+BOUND_TOL = 1e-6         # and of the profile over K_B at the bound: Δχ² to about 0.01, against its 3.84
 SPAN = 0.1               # the starts' contacts within this share of the window of the droplet's
 LR_THRESHOLD = 2.71      # Λ of the elastic term at least this: χ²_1 at 0.90, the 5 % level of ½χ²_0 + ½χ²_1,
                          # and at least ln n (BIC; module doc)
+CHI2_95 = 3.84           # χ²_1 at 0.95: the 95 % set of a profile likelihood
 SIGNIFICANT, NOT_SIGNIFICANT, GIVEN = "significant", "not significant", "K_B given"
 
 
@@ -85,7 +97,9 @@ class ShellFit:
     droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ; `sse_nN2`
     the residual sum of squares (nN²). The bands are the statistical 95 % ends of γ_a,
     K_B and K̃_S where they are not value ± Z95 · sd (K̃_S profiled: `shell_shear`); None
-    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window."""
+    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window.
+    `baseline_slope_nN_per_um` s and its SD: the baseline's slope against x (module doc).
+    `bimodal`: the droplet's valley (K_B = 0) and the shell's (K_B > 0) both in the 95 % set."""
 
     tension_mN_per_m: float
     bulk_mN_per_m: float
@@ -109,26 +123,39 @@ class ShellFit:
     bulk_band_mN_per_m: tuple[float, float] | None = None
     shear_band: tuple[float, float] | None = None
     droplet_tension_mN_per_m: float = float("nan")
+    baseline_slope_nN_per_um: float = 0.0
+    baseline_slope_sd_nN_per_um: float = 0.0
+    bimodal: bool = False
+
+    def baseline_at(self, x_um: npt.ArrayLike) -> np.ndarray:
+        """The fitted baseline F_b + s (x - x0) at wedge heights x (µm)."""
+        return self.baseline_nN + self.baseline_slope_nN_per_um * (np.asarray(x_um, float) - self.contact_um)
 
     def force_nN(self, x_um: npt.ArrayLike, radius_um: float) -> np.ndarray:
         """The fitted force at wedge heights x (µm)."""
-        return self.baseline_nN + shell_ramp.force_nN(self.contact_um - np.asarray(x_um, float), radius_um,
-                                                      self.tension_mN_per_m, self.bulk_mN_per_m, self.shear_tilde)
+        return self.baseline_at(x_um) + shell_ramp.force_nN(self.contact_um - np.asarray(x_um, float), radius_um,
+                                                            self.tension_mN_per_m, self.bulk_mN_per_m,
+                                                            self.shear_tilde)
+
+    def theta(self) -> tuple[float, float, float, float, float]:
+        """θ = (x0, F_b, γ_a, K_B, s): a start for another fit of the same ramp."""
+        return (self.contact_um, self.baseline_nN, self.tension_mN_per_m, self.bulk_mN_per_m,
+                self.baseline_slope_nN_per_um)
 
 
 def _linear(x: np.ndarray, f: np.ndarray, x0: float, radius: float, shear: float, gt: float
-            ) -> tuple[float, float, float, float]:
-    """(SSE, F_b, γ_a, K_B) of the fit linear in (F_b, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0)."""
+            ) -> tuple[float, float, float, float, float]:
+    """(SSE, F_b, γ_a, K_B, s) of the fit linear in (F_b, s, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0)."""
     b = shell_ramp.force_nN(np.clip(x0 - x, 0.0, None), radius, 1.0, 0.0 if np.isinf(gt) else 1.0 / gt, shear)
-    a = np.stack([np.ones_like(b), b], axis=1)
+    a = np.stack([np.ones_like(b), x - x0, b], axis=1)
     coef, *_ = np.linalg.lstsq(a, f, rcond=None)
-    sse = float(np.sum((f - a @ coef) ** 2)) if coef[1] > 0 else np.inf
-    return sse, float(coef[0]), float(coef[1]), 0.0 if np.isinf(gt) else float(coef[1] / gt)
+    sse = float(np.sum((f - a @ coef) ** 2)) if coef[2] > 0 else np.inf
+    return sse, float(coef[0]), float(coef[2]), 0.0 if np.isinf(gt) else float(coef[2] / gt), float(coef[1])
 
 
 def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float, shear: float
             ) -> list[tuple[float, ...]]:
-    """[(x0, F_b, γ_a, K_B)]: for each γ̃_a of START_GAMMAS and K_B = 0 the best contact
+    """[(x0, F_b, γ_a, K_B, s)]: for each γ̃_a of START_GAMMAS and K_B = 0 the best contact
     within `span` of x0 (Brent; the rest linear), the local minima of their SSE
     over γ̃_a, best first, at most STARTS."""
     found = []
@@ -146,65 +173,120 @@ def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float,
 
 def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray,
            tol: float = TOL) -> tuple[np.ndarray, float, np.ndarray]:
-    """least_squares from θ0 = (x0, F_b, γ_a, K_B) to `tol` (relative, in θ and SSE); K_B fixed when
-    `fixed` says so."""
+    """least_squares from θ0 = (x0, F_b, γ_a, K_B, s) to `tol` (relative, in θ and SSE); K_B fixed when
+    `fixed` says so. (θ, SSE, Jacobian): the Jacobian's columns those of the free parameters in θ's
+    order (x0, F_b, γ_a, [K_B], s)."""
     free_k = fixed.bulk_mN_per_m is None
     kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
+    t0 = np.asarray(theta0, float)
 
     def model(p: np.ndarray) -> np.ndarray:
         k = p[3] if free_k else kb
-        return p[1] + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
+        return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
 
-    p0 = np.asarray(theta0 if free_k else theta0[:3], float)
+    p0 = np.append(t0[:4] if free_k else t0[:3], t0[4] if t0.size > 4 else 0.0)
     p0[2] = max(p0[2], 1e-6)
-    lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else [])
-    scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else [])
+    lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else []) + [-np.inf]
+    scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else []) + [0.01]
     res = least_squares(lambda p: model(p) - f, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
                         diff_step=1e-6, xtol=tol, ftol=tol)
-    p = np.append(res.x, [] if free_k else [kb])
+    p = res.x if free_k else np.insert(res.x, 3, kb)
     return p, float(2.0 * res.cost), res.jac
 
 
-def _errors(sse: float, jac: np.ndarray, n: int) -> tuple[float, float, float, float]:
-    """(σ, SD of γ_a, SD of K_B, their correlation) from the Jacobian (module doc)."""
+def _errors(sse: float, jac: np.ndarray, n: int) -> tuple[float, float, float, float, float]:
+    """(σ, SD of γ_a, SD of K_B, their correlation, SD of s) from the Jacobian (module doc;
+    its columns as `_solve` returns them: four where K_B is fixed)."""
     p = jac.shape[1]
     sigma2 = sse / max(n - p, 1)
     cov = sigma2 * np.linalg.pinv(jac.T @ jac)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    if p < 4:
-        return float(np.sqrt(sigma2)), float(sd[2]), 0.0, float("nan")
+    if p < 5:
+        return float(np.sqrt(sigma2)), float(sd[2]), 0.0, float("nan"), float(sd[-1])
     corr = cov[2, 3] / (sd[2] * sd[3]) if sd[2] > 0 and sd[3] > 0 else float("nan")
-    return float(np.sqrt(sigma2)), float(sd[2]), float(sd[3]), float(corr)
+    return float(np.sqrt(sigma2)), float(sd[2]), float(sd[3]), float(corr), float(sd[-1])
 
 
 def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.ndarray, sse: float, sigma: float,
                sd_g: float, sd_k: float) -> tuple[float, float]:
-    """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold:
-    refits at K_B = γ_a · PROFILE; the K_B whose SSE stays within Z95² σ² of the
-    best, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    theta, lo_g, hi_g, hi_k = np.asarray(p, float), p[2], p[2], 0.0
-    for k in p[2] * PROFILE:
-        theta, s, _ = _solve(x, f, radius, Fixed(fixed.shear_tilde, float(k)), theta, PROFILE_TOL)
-        if s - sse <= Z95 ** 2 * sigma ** 2:          # every accepted K_B: the SSE may have two valleys
-            lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), float(k)
+    """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold: the
+    accepted K_B of `bound_profile`, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
+    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
 
 
+def bound_profile(x: np.ndarray, f: np.ndarray, radius: float, shear: float, p: Sequence[float] | np.ndarray,
+                  sse: float, sigma: float) -> tuple[float, float, float, bool]:
+    """(lowest γ_a, highest γ_a, highest K_B, split) of the 95 % set {K_B : SSE ≤ sse + CHI2_95 σ²}
+    of the profile over K_B from a fit θ = `p` (SSE `sse`, noise σ) at K_B = 0 on the window (x, f),
+    K̃_S = `shear`: refits at K_B = γ_a · PROFILE, each from its neighbour, each edge found by EDGE
+    bisections between an accepted and a rejected K_B (from 0 arithmetic, else geometric). The grid
+    is walked until Δχ² passes FAR and still rises: the SSE may have two valleys (`split`: the set
+    is not one interval from K_B = 0)."""
+    limit, far, last_s = sse + CHI2_95 * sigma ** 2, sse + FAR * sigma ** 2, sse
+
+    def at(k: float, near: np.ndarray) -> tuple[np.ndarray, bool, float]:
+        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k)), near, BOUND_TOL)
+        return theta, s <= limit, s
+
+    lo_g, hi_g, hi_k, runs = p[2], p[2], 0.0, 1
+    last_k, last_theta, last_ok = 0.0, np.asarray(p, float), True
+    for k in p[2] * PROFILE:
+        theta, ok, s = at(k, last_theta)
+        runs += int(ok and not last_ok)
+        if ok != last_ok:                          # an edge of the set between last_k and k: bisect it
+            a, b, near = (last_k, k, last_theta) if last_ok else (k, last_k, theta)
+            for _ in range(EDGE):
+                mid = 0.5 * (a + b) if min(a, b) == 0 else float(np.sqrt(a * b))
+                t_mid, ok_mid, _ = at(mid, near)
+                if ok_mid:
+                    a, near = mid, t_mid
+                    lo_g, hi_g, hi_k = min(lo_g, t_mid[2]), max(hi_g, t_mid[2]), max(hi_k, mid)
+                else:
+                    b = mid
+        if ok:
+            lo_g, hi_g, hi_k = min(lo_g, theta[2]), max(hi_g, theta[2]), max(hi_k, float(k))
+        if s > far and s > last_s:
+            break
+        last_k, last_theta, last_ok, last_s = float(k), theta, ok, s
+    return float(lo_g), float(hi_g), float(hi_k), runs > 1
+
+
+@dataclass(frozen=True)
+class _Selected:
+    """What `_select` returns: θ, SSE, the SDs of γ_a, K_B and s, the correlation, the elastic
+    term, Λ and whether both valleys are in the 95 % set."""
+
+    theta: np.ndarray
+    sse: float
+    sd_g: float
+    sd_k: float
+    sd_s: float
+    corr: float
+    term: str
+    lr: float
+    bimodal: bool
+
+
 def _select(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.ndarray, sse: float, sigma: float,
-            sd_g: float, sd_k: float, corr: float, starts: list[tuple[float, ...]]
-            ) -> tuple[np.ndarray, float, float, float, float, str, float]:
-    """(θ, SSE, SD γ_a, SD K_B, correlation, elastic term, Λ): the shell's fit or, where
-    its elastic term is not significant, the droplet's (the best from the shell's
-    optimum and each start) with the widened SDs (module doc)."""
+            sds: tuple[float, float, float], corr: float, starts: list[tuple[float, ...]]) -> _Selected:
+    """The shell's fit or, where its elastic term is not significant, the droplet's (the best from
+    the shell's optimum and each start) with the widened SDs (module doc); `sds` the shell's SDs of
+    γ_a, K_B and s. Bimodal: the shell's optimum inside K_B > 0, Λ ≤ CHI2_95 (the droplet inside
+    the 95 % set) and the two γ_a further apart than the shell's own Z95 · sd (two valleys, not
+    one long one)."""
+    sd_g, sd_k, sd_s = sds
     drop = Fixed(fixed.shear_tilde, 0.0)
     p0, sse0, jac0 = min((_solve(x, f, radius, drop, t) for t in [p] + starts), key=lambda t: t[1])
     lr = max(sse0 - sse, 0.0) / sigma ** 2
+    bimodal = bool(p[3] > BOUND * p[2] and lr <= CHI2_95 and abs(p[2] - p0[2]) > Z95 * sd_g)
     if lr > max(LR_THRESHOLD, float(np.log(x.size))):
-        return p, sse, sd_g, sd_k, corr, SIGNIFICANT, float(lr)
-    _, sd_g0, _, _ = _errors(sse0, jac0, x.size)
+        return _Selected(p, sse, sd_g, sd_k, sd_s, corr, SIGNIFICANT, float(lr), bimodal)
+    _, sd_g0, _, _, sd_s0 = _errors(sse0, jac0, x.size)
     wide_g = max(sd_g0, (abs(p[2] - p0[2]) + Z95 * sd_g) / Z95)
     wide_k = max(sd_k, (p[3] + Z95 * sd_k) / Z95)
-    return p0, sse0, wide_g, wide_k, float("nan"), NOT_SIGNIFICANT, float(lr)
+    wide_s = max(sd_s0, (abs(p[4] - p0[4]) + Z95 * sd_s) / Z95)
+    return _Selected(p0, sse0, wide_g, wide_k, wide_s, float("nan"), NOT_SIGNIFICANT, float(lr), bimodal)
 
 
 def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fixed: Fixed = Fixed(),
@@ -218,26 +300,28 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
     drop = fit_ramp(x, f, radius_um, "droplet", cap_um=cap)
     xs, fs = x[drop.window], f[drop.window]
     span = SPAN * (drop.window_hi_um - drop.window_lo_um)
-    starts = [(near.contact_um, near.baseline_nN, near.tension_mN_per_m, near.bulk_mN_per_m)] if near else \
-        _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)
-    tries = [_solve(xs, fs, radius_um, fixed, (x0, fb, ga, kb if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m))
-             for x0, fb, ga, kb in starts]
+    starts = [near.theta()] if near else _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)
+    kb = fixed.bulk_mN_per_m
+    tries = [_solve(xs, fs, radius_um, fixed, (t[0], t[1], t[2], t[3] if kb is None else kb, t[4])) for t in starts]
     p, sse, jac = min(tries, key=lambda t: t[1])
-    sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
-    if fixed.bulk_mN_per_m is None and p[3] < BOUND * p[2]:
+    sigma, sd_g, sd_k, corr, sd_s = _errors(sse, jac, xs.size)
+    if kb is None and p[3] < BOUND * p[2]:
         sd_g, sd_k = _bound_sds(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k)
-    term, lr = GIVEN, float("nan")
-    if fixed.bulk_mN_per_m is None:
-        droplet_start = (drop.contact_um, drop.baseline_nN, drop.tension_mN_per_m, 0.0)
-        p, sse, sd_g, sd_k, corr, term, lr = _select(xs, fs, radius_um, fixed, p, sse, sigma, sd_g, sd_k, corr,
-                                                     [droplet_start] + list(starts))
+    chosen = _Selected(p, sse, sd_g, sd_k, sd_s, corr, GIVEN, float("nan"), False)
+    if kb is None:
+        droplet_start = (drop.contact_um, drop.baseline_nN, drop.tension_mN_per_m, 0.0, 0.0)
+        chosen = _select(xs, fs, radius_um, fixed, p, sse, sigma, (sd_g, sd_k, sd_s), corr,
+                         [droplet_start] + list(starts))
+    p, sse = chosen.theta, chosen.sse
     sst = float(np.sum((fs - fs.mean()) ** 2))
-    return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
-                    bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
-                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
+    return ShellFit(tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=chosen.sd_g,
+                    bulk_sd_mN_per_m=chosen.sd_k, correlation=chosen.corr, contact_um=float(p[0]),
+                    baseline_nN=float(p[1]), r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                     window_lo_um=drop.window_lo_um, window_hi_um=drop.window_hi_um, window=drop.window,
                     depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
-                    elastic_term=term, elastic_lr=lr, sse_nN2=sse, droplet_tension_mN_per_m=drop.tension_mN_per_m)
+                    elastic_term=chosen.term, elastic_lr=chosen.lr, sse_nN2=sse,
+                    droplet_tension_mN_per_m=drop.tension_mN_per_m, baseline_slope_nN_per_um=float(p[4]),
+                    baseline_slope_sd_nN_per_um=chosen.sd_s, bimodal=chosen.bimodal)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
@@ -246,11 +330,13 @@ def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, rad
     (least squares to `tol`)."""
     xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
     kb = fit.bulk_mN_per_m if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
-    p, sse, jac = _solve(xs, fs, radius_um, fixed, (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb), tol)
-    sigma, sd_g, sd_k, corr = _errors(sse, jac, xs.size)
+    start = (fit.contact_um, fit.baseline_nN, fit.tension_mN_per_m, kb, fit.baseline_slope_nN_per_um)
+    p, sse, jac = _solve(xs, fs, radius_um, fixed, start, tol)
+    sigma, sd_g, sd_k, corr, sd_s = _errors(sse, jac, xs.size)
     sst = float(np.sum((fs - fs.mean()) ** 2))
     return replace(fit, tension_mN_per_m=float(p[2]), bulk_mN_per_m=float(p[3]), tension_sd_mN_per_m=sd_g,
                    bulk_sd_mN_per_m=sd_k, correlation=corr, contact_um=float(p[0]), baseline_nN=float(p[1]),
+                   baseline_slope_nN_per_um=float(p[4]), baseline_slope_sd_nN_per_um=sd_s,
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde, sse_nN2=sse,
                    tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None)

@@ -23,6 +23,11 @@ the conditional one does (conservative: the profile likelihood's own interval of
 γ_a is its subset with Δχ² + ((γ − γ_a(K̃_S))/sd)² ≤ 3.84). K̃_S is IDENTIFIED when
 both ends of its interval lie inside the range, BOUNDED when one does (the ramp
 tells one side only), NOT_IDENTIFIED when neither.
+
+The droplet's valley (K_B = 0) is in the same 95 % set where Λ ≤ CHI2_95 (`shell_fit`:
+its Δχ² is Λ; `ShellFit.bimodal` when the shell's valley is another one); there the
+row is the droplet's, its interval widened to hold the shell's at K̃_S = 1/3 and the
+profile over K_B from 0 at 1/3 and at both ends of K̃_S's range (`_droplet_bands`).
 """
 
 from dataclasses import dataclass, replace
@@ -33,13 +38,12 @@ from scipy.optimize import minimize_scalar
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.pause import Z95
-from analysis.afm.tension.shell_fit import (NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit, fit_shell,
-                                            refit_shell)
+from analysis.afm.tension.shell_fit import (CHI2_95, NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit,
+                                            bound_profile, fit_shell, refit_shell)
 
 NODES = 9
 XATOL = 0.02             # Brent's tolerance in ln K̃_S
 FINE = 400               # points of the linear reading of the profile over ln K̃_S
-CHI2_95 = 3.84           # χ²_1 at 0.95
 IDENTIFIED, BOUNDED, NOT_IDENTIFIED, GIVEN = "identified", "bounded", "not identified", "given"
 
 
@@ -114,7 +118,7 @@ def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: f
     term is not significant, its K̃_S band the whole range."""
     fit = fit_shell(x_um, force_nN, radius_um, Fixed(SHEAR_TILDE, bulk_mN_per_m), cap_um=cap_um)
     if fit.elastic_term == NOT_SIGNIFICANT:
-        return replace(fit, shear_band=shear_range())
+        return _droplet_bands(fit, x_um, force_nN, radius_um)
     prof = profile(fit, x_um, force_nN, radius_um, bulk_mN_per_m)
     shear, tension, bulk = _bands(prof)
     best = prof.best
@@ -124,7 +128,22 @@ def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: f
     if bulk_mN_per_m is not None:
         bulk = (bulk_mN_per_m, bulk_mN_per_m)
     return replace(best, elastic_term=fit.elastic_term, elastic_lr=float(lr), shear_band=shear,
-                   tension_band_mN_per_m=tension, bulk_band_mN_per_m=bulk)
+                   tension_band_mN_per_m=tension, bulk_band_mN_per_m=bulk, bimodal=fit.bimodal and lr <= CHI2_95)
+
+
+def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float) -> ShellFit:
+    """The droplet's row (the elastic term not significant) with the bands of γ_a and K_B that hold
+    the 95 % set over K̃_S too: its own interval (`shell_fit._select`, at K̃_S = 1/3) joined with the
+    profile over K_B at each end of K̃_S's range (`bound_profile`, the limit SSE_0 + CHI2_95 σ²);
+    bimodal also where a profile's set is split (two valleys)."""
+    xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
+    g, half = fit.tension_mN_per_m, Z95 * fit.tension_sd_mN_per_m
+    lo_g, hi_g, hi_k, split = g - half, g + half, fit.bulk_mN_per_m + Z95 * fit.bulk_sd_mN_per_m, False
+    for shear in shear_range():
+        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN)
+        lo_g, hi_g, hi_k, split = min(lo_g, a), max(hi_g, b), max(hi_k, k), split or two
+    return replace(fit, shear_band=shear_range(), tension_band_mN_per_m=(max(lo_g, 0.0), hi_g),
+                   bulk_band_mN_per_m=(0.0, hi_k), bimodal=fit.bimodal or split)
 
 
 def identification(fit: ShellFit) -> str:
