@@ -40,10 +40,15 @@ Array = npt.NDArray[np.float64]
 
 
 def power_law_cortex(bulk_1s_mN_per_m: float, shear_1s_mN_per_m: float, bulk_exponent: float,
-                     shear_exponent: float) -> Cortex:
-    """K_B(t) = K_B,1s (t/1 s)^-β_B and K_S(t) = K_S,1s (t/1 s)^-β_S as Prony series."""
-    return Cortex(fit_power_law(bulk_exponent, bulk_1s_mN_per_m).prony,
-                  fit_power_law(shear_exponent, shear_1s_mN_per_m).prony)
+                     shear_exponent: float, memory_s: float = float("inf"),
+                     shear_memory_s: float | None = None) -> Cortex:
+    """K_B(t) = K_B,1s (t/1 s)^-β_B e^(-t/τ_c) and K_S(t) = K_S,1s (t/1 s)^-β_S e^(-t/τ_c) as
+    Prony series (`solver.prony.fit_power_law`), τ_c = `memory_s` (s; inf: no turnover, the pure
+    power law). One τ_c for both moduli by default: the actin network's turnover renews the
+    whole material, its bulk and shear response alike; `shear_memory_s` gives K_S its own."""
+    shear_memory = memory_s if shear_memory_s is None else shear_memory_s
+    return Cortex(fit_power_law(bulk_exponent, bulk_1s_mN_per_m, memory_s=memory_s).prony,
+                  fit_power_law(shear_exponent, shear_1s_mN_per_m, memory_s=shear_memory).prony)
 
 
 @dataclass(frozen=True)
