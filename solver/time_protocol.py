@@ -9,8 +9,7 @@ From the relaxed droplet at h0 (the stress-free reference, t = 0) the plate
 3. oscillates h(t) = h_m + A sin(2π f (t - t_osc)) for `cycles` periods (A = 0.25 µm: 0.5 µm
    peak to peak) in STEPS_PER_PERIOD equal simulation steps a period, whatever the sampling.
 
-A step whose equilibrium the Newton iteration does not find is taken again in two halves
-(the gap linear between; `step`), at most MAX_HALVINGS times over.
+Every step is `TimeShell.advance`, which takes it in the sub-steps its equilibria need.
 
 The instrument samples at `sample_hz` (100 Hz), or 20 samples a period where f > sample_hz/20.
 The returned recording holds every sample: the plate's height is h(t) itself; the force of
@@ -35,7 +34,6 @@ WAIT_GROWTH = 1.2         # ratio of consecutive steps during the wait
 WAIT_LARGEST_S = 2.0      # largest step during the wait
 MIN_SAMPLES_PER_PERIOD = 20
 STEPS_PER_PERIOD = 64     # simulation steps a period of the oscillation
-MAX_HALVINGS = 4          # a step whose equilibrium fails is split in two, at most this often over
 
 Array = npt.NDArray[np.float64]
 
@@ -92,18 +90,9 @@ class Steps:
     force_nN: Array
 
 
-def step(state: TimeShell, h_um: float, dt_s: float, halvings: int = MAX_HALVINGS) -> float:
-    """`state.step(h, Δt)`; where its equilibrium is not found, the step in two halves (the gap
-    linear between), at most `halvings` times over."""
-    saved, h_from = state.saved(), state.h_um
-    try:
-        return state.step(h_um, dt_s)
-    except SolverError:
-        if halvings < 1:
-            raise
-    state.restore(saved)
-    step(state, 0.5 * (h_from + h_um), 0.5 * dt_s, halvings - 1)
-    return step(state, h_um, 0.5 * dt_s, halvings - 1)
+def step(state: TimeShell, h_um: float, dt_s: float) -> float:
+    """`state.advance(h, Δt)`: the plate to h over Δt in the sub-steps its equilibria need."""
+    return state.advance(h_um, dt_s)
 
 
 def approach(state: TimeShell, t0_s: float, h_um: float, ramp_um_per_s: float, wait_s: float,

@@ -107,4 +107,4 @@ def test_a_step_without_equilibrium_is_taken_in_two_halves(monkeypatch):
     assert np.allclose(state.channels[1].viscous, direct.channels[1].viscous, rtol=1e-12, atol=1e-15)
     monkeypatch.setattr(TimeShell, "step", lambda self, h_um, dt_s: (_ for _ in ()).throw(SolverError("never")))
     with pytest.raises(SolverError):
-        step(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5, halvings=2)
+        step(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5)
