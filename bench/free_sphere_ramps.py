@@ -23,6 +23,7 @@ import argparse
 import dataclasses
 import itertools
 import json
+import sys
 import time
 from typing import Any
 
@@ -119,7 +120,10 @@ def main() -> None:
     parser.add_argument("--step-um", type=float, default=0.25, help="the plate move of one advance call (um)")
     parser.add_argument("--quick", action="store_true", help="the 16 corners of R 5 um only")
     args = parser.parse_args()
-    results = [run(c, args.step_um) for c in cases(args.cases, args.quick)]
+    results = []
+    for i, case in enumerate(todo := cases(args.cases, args.quick)):
+        results.append(run(case, args.step_um))
+        print(f"{i + 1}/{len(todo)} failures {len(results[-1]['failures'])}", file=sys.stderr, flush=True)
     beta0 = [r["elastic_difference"] for r in results if "elastic_difference" in r]
     versus = [r["compress_difference"] for r in results if r.get("compress_difference") is not None]
     summary = {"cases": len(results), "failed_cases": sum(bool(r["failures"]) for r in results),

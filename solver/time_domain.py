@@ -231,9 +231,9 @@ class TimeShell:
         if not dt_s > 0:
             raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
         saved, h_from, move = self.saved(), self.h_um, h_um - self.h_um
-        largest = 1.0 if move == 0 else min(1.0, CONTINUE_STEP / (self.lag.ref.H * abs(move)))
-        fraction = largest if move == 0 else min(largest, self._stride / abs(move))
-        done, force = 0.0, self.force_nN()
+        largest_um = CONTINUE_STEP / self.lag.ref.H
+        fraction = 1.0 if move == 0 else min(1.0, self._stride / abs(move))
+        done, force = 0.0, np.nan
         while done < 1.0:
             end, before = (1.0 if done + fraction > 1.0 - 1e-9 else done + fraction), self.saved()
             try:
@@ -241,14 +241,15 @@ class TimeShell:
             except SolverError as err:
                 self.restore(before)
                 fraction *= 0.5
+                self._stride = min(self._stride, abs(fraction * move)) if move else self._stride
                 if fraction < SMALLEST_FRACTION:
                     self.restore(saved)
                     raise SolverError(f"no equilibrium in steps of {SMALLEST_FRACTION:g} of the step "
                                       f"from {h_from:.6g} to {h_um:.6g} um: {err}") from None
                 continue
-            if move:
-                self._stride = abs((end - done) * move) * STRIDE_GROWTH
-            done, fraction = end, min(fraction * STRIDE_GROWTH, largest)
+            done = end
+            self._stride = min(self._stride * STRIDE_GROWTH, largest_um)
+            fraction = min(fraction * STRIDE_GROWTH, 1.0 if move == 0 else self._stride / abs(move))
         return force
 
     def saved(self) -> tuple[Any, ...]:

@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
-from common.errors import InputError, SolverError
+from common.errors import InputError
 from solver.model import Shell
 from solver.time_domain import Cortex, TimeShell
 
