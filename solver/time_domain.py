@@ -36,9 +36,9 @@ For a strain linear in time the split is exact (d_j, g_j compose: one step or ma
 same h_j), so sub-steps change only how finely the strain's path is followed. A sub-step moves
 the plate at most CONTINUE_STEP / H_d (`solver.fast`'s continuation, ≈ 0.015 R near the sphere);
 one that finds no equilibrium is undone and halved (down to SMALLEST_FRACTION of the step), one
-that succeeds makes the next STRIDE_GROWTH times longer, and the last accepted plate move is
-where the next call starts. So no step size fails where a smaller one succeeds (bench/
-free_sphere_ramps.py: ramps from 2R - 0.01 µm to δ = R over the physiological range).
+that succeeds makes the next STRIDE_GROWTH times longer; that plate stride carries over to the
+next call. So a step fails only where sub-steps of SMALLEST_FRACTION of it fail (none did on
+the ramps from 2R - 0.01 µm to δ = R over the physiological range, bench/free_sphere_ramps.py).
 
 Material and mesh. The mesh's nodes on the free surface and the strip that rolls onto the plate
 are labelled by their reference angle ψ0, which moves with the contact label l: when l changes
