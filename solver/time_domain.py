@@ -28,6 +28,8 @@ last two steps; accepted only if the free surface stays below the plate and the 
 admissible. Then a_new, s_new of every element give the new internal variables. (The
 extrapolated start first would find other touching labels on ramps from the sphere, 0.25 % off
 the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
+Whichever the start, the history is carried to the extrapolated label for the search: it is
+where the material is expected, and the carried history then does not depend on the start.
 
 Robust stepping (`advance`, what every protocol calls). A step t → t + Δt, h → h', with the gap
 linear in time, is taken in sub-steps [s_k, s_k+1] ⊂ [0, 1] of its own choice: the gap
@@ -184,14 +186,14 @@ class TimeShell:
 
     def _equilibrium(self, h_um: float, dt_s: float, continued: bool) -> float:
         """`step`'s work from the start `_continued` or, if not `continued`, `_extrapolated`: the
-        history carried to the start's label, the contact search (`solver.fast`'s, with its
+        history carried to the extrapolated label, the contact search (`solver.fast`'s, with its
         retreat), the admissible shape checked, the history carried to the solved label and
         advanced."""
         lag = self._step_lagrangian(dt_s)
         _follow_scale(lag, self.shell, h_um)
         bulk, shear = self.channels
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
-        self._carry(u[-2])
+        self._carry(self._extrapolated(lag, h_um)[-2])
         lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
         u, _ = _contact(lag, u, 0.5 * h_um, retreat=True)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
