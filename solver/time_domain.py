@@ -30,6 +30,9 @@ extrapolated start first would find other touching labels on ramps from the sphe
 the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
 Whichever the start, the history is carried to the extrapolated label for the search: it is
 where the material is expected, and the carried history then does not depend on the start.
+The extrapolation is scaled by the plate's move over the last one where that is shorter (a
+sub-step after a longer step would overshoot the label); where the search still finds no
+equilibrium, the history is carried to the start's label instead (`STARTS`).
 
 Robust stepping (`advance`, what every protocol calls). A step t → t + Δt, h → h', with the gap
 linear in time, is taken in sub-steps [s_k, s_k+1] ⊂ [0, 1] of its own choice: the gap
@@ -72,6 +75,9 @@ from solver.prony import Prony
 
 STRIDE_GROWTH = 1.5          # `advance`: a sub-step after an accepted one is this much longer
 SMALLEST_FRACTION = 2.0**-16  # `advance`: a sub-step halved below this fraction of the step gives up
+# `step`'s tries in turn: (start `_continued`, else `_extrapolated`; history carried to the
+# extrapolated label, else to the start's)
+STARTS = ((True, True), (True, False), (False, True))
 
 
 @dataclass(frozen=True)
@@ -176,24 +182,24 @@ class TimeShell:
         if not dt_s > 0:
             raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
         saved = self.saved()
-        for continued in (True, False):
+        for continued, carry_extrapolated in STARTS:
             try:
-                return self._equilibrium(h_um, dt_s, continued)
+                return self._equilibrium(h_um, dt_s, continued, carry_extrapolated)
             except (SolverError, np.linalg.LinAlgError) as err:
                 self.restore(saved)
                 failure = err
         raise SolverError(f"no equilibrium at gap {h_um:.6g} um after {dt_s:.3g} s: {failure}")
 
-    def _equilibrium(self, h_um: float, dt_s: float, continued: bool) -> float:
+    def _equilibrium(self, h_um: float, dt_s: float, continued: bool, carry_extrapolated: bool) -> float:
         """`step`'s work from the start `_continued` or, if not `continued`, `_extrapolated`: the
-        history carried to the extrapolated label, the contact search (`solver.fast`'s, with its
+        history carried to the extrapolated label (or the start's), the contact search (`solver.fast`'s, with its
         retreat), the admissible shape checked, the history carried to the solved label and
         advanced."""
         lag = self._step_lagrangian(dt_s)
         _follow_scale(lag, self.shell, h_um)
         bulk, shear = self.channels
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
-        self._carry(self._extrapolated(lag, h_um)[-2])
+        self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
         lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
         u, _ = _contact(lag, u, 0.5 * h_um, retreat=True)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
@@ -209,10 +215,13 @@ class TimeShell:
 
     def _extrapolated(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
         """The second start at gap h: the last shape squeezed to the new gap, its contact label
-        extrapolated from the last two steps (l_n + (l_n - l_n-1), at least log ψ_min)."""
+        extrapolated from the last two steps, l_n + r (l_n - l_n-1) (at least log ψ_min), r the
+        plate's move over the last one where shorter (a sub-step after a longer step), else 1."""
         v = self.u.copy()
         v[lag.N: -2] *= h_um / self.h_um
-        v[-2] = max(2.0 * self.u[-2] - self._last[1][-2], LOG_PSI_MIN)
+        move, last_move = h_um - self.h_um, self.h_um - self._last[0]
+        ratio = min(1.0, abs(move / last_move)) if move and last_move else 1.0
+        v[-2] = max(self.u[-2] + ratio * (self.u[-2] - self._last[1][-2]), LOG_PSI_MIN)
         return v
 
     def _continued(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
