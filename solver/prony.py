@@ -21,6 +21,17 @@ Power laws (`fit_power_law`). K(t) = K_0 (t/t_0)^-β over t in [t_min, t_max] (0
 τ_j log-spaced from t_min/10 to 10 t_max, `per_decade` a decade, and the weights (K_∞ among
 them) by non-negative least squares on the relative error at log-spaced times (8 a decade);
 elements of zero weight are dropped. β = 0 is the constant K_0 (no Maxwell element).
+
+Memory (`Prony.forgetting`, `fit_power_law`'s `memory_s`). A cortex that turns over in τ_c
+forgets: K(t) = K_0 (t/t_0)^-β e^{-t/τ_c}. Multiplying a Prony series by e^{-t/τ_c} is exact,
+term by term,
+
+    K_j e^{-t/τ_j} e^{-t/τ_c} = K_j e^{-t/τ'_j},   1/τ'_j = 1/τ_j + 1/τ_c,
+
+and the spring K_∞ becomes a Maxwell element K_∞ e^{-t/τ_c}: the series stays a Prony series
+(no K_∞ left), with the same relative error against the cut-off power law as the uncut fit has
+against the power law. τ_c = ∞ is the series unchanged (today's pure power law); τ_c → 0 the
+relaxed state (every element relaxed within any step: K_Δt = Σ_j K_j g_j → 0).
 """
 
 from dataclasses import dataclass
@@ -69,6 +80,18 @@ class Prony:
         g = -np.expm1(-x) / x
         return float(self.infinity + (np.asarray(self.weights) * g).sum()), d, g
 
+    def forgetting(self, memory_s: float) -> "Prony":
+        """The series times e^{-t/τ_c}, τ_c = `memory_s` (s; inf: unchanged): every τ_j to
+        1/(1/τ_j + 1/τ_c), K_∞ to a Maxwell element of time τ_c (module docstring)."""
+        if not memory_s > 0:
+            raise InputError(f"the cortex's memory tau_c must be > 0 s, or inf (got {memory_s:g})")
+        if np.isinf(memory_s):
+            return self
+        times = tuple(1.0 / (1.0 / t + 1.0 / memory_s) for t in self.times_s)
+        if self.infinity > 0:
+            return Prony(0.0, (*self.weights, self.infinity), (*times, float(memory_s)))
+        return Prony(0.0, self.weights, times)
+
     def scaled(self, factor: float) -> "Prony":
         """The same relaxation shape with every weight times `factor`."""
         return Prony(self.infinity * factor, tuple(w * factor for w in self.weights), self.times_s)
@@ -85,15 +108,21 @@ class PowerLawFit:
 
 
 def fit_power_law(exponent: float, modulus_mN_per_m: float = 1.0, t0_s: float = 1.0,
-                  range_s: tuple[float, float] = FIT_RANGE_S, per_decade: int = 2) -> PowerLawFit:
-    """The Prony series closest (relative error, NNLS) to K_0 (t/t_0)^-β over `range_s`."""
+                  range_s: tuple[float, float] = FIT_RANGE_S, per_decade: int = 2,
+                  memory_s: float = np.inf) -> PowerLawFit:
+    """The Prony series closest (relative error, NNLS) to K_0 (t/t_0)^-β over `range_s`, cut off
+    by the memory τ_c = `memory_s` (s; `Prony.forgetting`: the same relative error against
+    K_0 (t/t_0)^-β e^{-t/τ_c}; inf, the default, is the pure power law)."""
+    if not memory_s > 0:
+        raise InputError(f"the cortex's memory tau_c must be > 0 s, or inf (got {memory_s:g})")
     if not (np.isfinite(exponent) and 0.0 <= exponent < 1.0):
         raise InputError(f"a power-law exponent must be in [0, 1) (got {exponent:g})")
     lo, hi = range_s
     t = np.logspace(np.log10(lo), np.log10(hi), int(SAMPLES_PER_DECADE * np.log10(hi / lo)) + 1)
     target = modulus_mN_per_m * (t / t0_s) ** -exponent
     if exponent == 0.0:
-        return PowerLawFit(Prony(float(modulus_mN_per_m)), 0.0, 0, 0.0)
+        constant = Prony(float(modulus_mN_per_m)).forgetting(memory_s)
+        return PowerLawFit(constant, 0.0, len(constant.weights), 0.0)
     decades = np.log10(hi / lo) + 2
     tau = np.logspace(np.log10(lo) - 1, np.log10(hi) + 1, int(round(per_decade * decades)) + 1)
     A = np.column_stack([np.ones_like(t), np.exp(-t[:, None] / tau)]) / target[:, None]
@@ -101,4 +130,5 @@ def fit_power_law(exponent: float, modulus_mN_per_m: float = 1.0, t0_s: float = 
     keep = w[1:] > 0
     prony = Prony(float(w[0]), tuple(map(float, w[1:][keep])), tuple(map(float, tau[keep])))
     error = float(np.abs(prony.relaxation(t) / target - 1.0).max())
-    return PowerLawFit(prony, float(exponent), int(keep.sum()), error)
+    cut = prony.forgetting(memory_s)
+    return PowerLawFit(cut, float(exponent), len(cut.weights), error)

@@ -3,8 +3,8 @@
 `simulate(shell, cortex, protocol, resolution, sampling)` runs a `solver.protocol.Protocol` on
 `solver.time_domain.TimeShell` from the stress-free droplet at the protocol's start (the shell's
 h0 is set to it) and returns the instrument's samples: every equilibrium one step of the fast
-solver, every step through `_advance` (a step whose equilibrium Newton does not find is taken
-again in two halves, the gap linear between, at most MAX_HALVINGS times over).
+solver, every step through `_advance` (`TimeShell.advance`: sub-steps of its own choice, each one
+equilibrium, a failed one undone and halved).
 
 How each step is stepped (`Resolution`; FINE for the synthetic experiments, REPLAY for the
 protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
@@ -13,7 +13,7 @@ protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
   force stops at the step where the force crosses it, that step's gap found by regula falsi;
 - a hold grows its steps from `hold_first_s` (FINE: 1/`sample_hz`) by `hold_growth` up
   to `hold_largest_s`; consecutive height holds are one hold. A constant-force hold finds at
-  every step the gap whose force is the hold's (the secant method on h, `_at_force`);
+  every step the gap whose force is the hold's (bracketed, then Brent on h, `_at_force`);
 - an oscillation takes `steps_per_period` steps a period. FINE: over all its periods, with
   steps doubling from one sample interval up to the first (the plate's speed jumps at its start
   and the fast Maxwell elements answer within their τ), the force splined to the samples (cubic,
@@ -38,6 +38,7 @@ assumption of the published relaxed-state reading); "carried" (default): one cor
 """
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -52,7 +53,6 @@ from solver.protocol import Hold, Oscillate, Protocol, Ramp
 from solver.time_domain import Cortex, TimeShell
 
 Array = npt.NDArray[np.float64]
-MAX_HALVINGS = 4          # a step whose equilibrium fails is split in two, at most this often over
 FORCE_TOL_UM = 1e-6       # µm: the gap of a constant-force step, to this
 
 
@@ -125,19 +125,30 @@ class Recording:
         return [s for s in self.stretches if s.kind == "oscillation"]
 
 
-def _advance(state: TimeShell, h_um: float, dt_s: float, halvings: int = MAX_HALVINGS) -> float:
-    """`state.step(h, Δt)`, the plate force (nN); where its equilibrium is not found, the step in
-    two halves (the gap linear between), at most `halvings` times over. Every step of a
+def _advance(state: TimeShell, h_um: float, dt_s: float) -> float:
+    """The plate force (nN) after moving the plate to h over Δt: `TimeShell.advance`, which
+    chooses its own sub-steps (none fails where a smaller one would succeed). Every step of a
     simulation goes through here."""
-    saved, h_from = state.saved(), state.h_um
-    try:
-        return state.step(h_um, dt_s)
-    except SolverError:
-        if halvings < 1:
-            raise
-    state.restore(saved)
-    _advance(state, 0.5 * (h_from + h_um), 0.5 * dt_s, halvings - 1)
-    return _advance(state, h_um, 0.5 * dt_s, halvings - 1)
+    return state.advance(h_um, dt_s)
+
+
+def _bracket(residual: Callable[[float], float], h0_um: float,
+             first_um: float = 1e-3, tries: int = 12) -> tuple[float | None, float | None]:
+    """Gaps (lo, hi) around h0 where `residual` changes sign: from h0, steps of `first_um`
+    doubling, towards the side the residual's sign asks (below zero: the force is short, so a
+    smaller gap). A bracket, not a secant: the force of a step is smooth in the gap only up to the
+    equilibrium's tolerance, and the sign is what a root needs. (None, None) if none is found."""
+    r0 = residual(h0_um)
+    if r0 == 0.0:
+        return h0_um, h0_um
+    direction = -1.0 if r0 < 0.0 else 1.0
+    step = first_um
+    for _ in range(tries):
+        h = h0_um + direction * step
+        if residual(h) * r0 <= 0.0:
+            return (min(h, h0_um), max(h, h0_um))
+        step *= 2.0
+    return None, None
 
 
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
@@ -291,7 +302,7 @@ class _Run:
         self.pending = 0.0
 
     def _force_hold(self, duration_s: float) -> None:
-        """Hold the force the hold starts with: every step's gap by the secant method on h."""
+        """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method on h."""
         target = self.state.force_nN()
         for dt in self._hold_steps(duration_s):
             self._at_force(target, dt)
@@ -308,13 +319,19 @@ class _Run:
             self.steps += 1
             last[0] = h
             return _advance(self.state, h, dt_s) - force_nN
-        found = root_scalar(residual, x0=h0, x1=h0 - 1e-3, method="secant", xtol=FORCE_TOL_UM, maxiter=30)
-        if not found.converged:
-            raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
-        if last[0] != found.root:
-            residual(found.root)
+        lo, hi = _bracket(residual, h0)
+        if lo is None or hi is None:
+            raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
+        root = lo
+        if hi > lo:
+            found = root_scalar(residual, bracket=(lo, hi), method="brentq", xtol=FORCE_TOL_UM, maxiter=60)
+            if not found.converged:
+                raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
+            root = float(found.root)
+        if last[0] != root:
+            residual(root)
         self.t += dt_s
-        self.points.append((self.t, float(found.root), self.state.force_nN()))
+        self.points.append((self.t, root, self.state.force_nN()))
 
     def _close(self) -> None:
         """Sample the stretch of ramps and holds stepped since `_open` (module docstring)."""

@@ -19,16 +19,38 @@ the history's prestress, linear in the strain,
 
     Σ_e 4π r̄0_e dS_e [σ_hist,a,e (e1+e2) + σ_hist,s,e (e1-e2)],   σ_hist = Σ_j (d_j h_j - K_j g_j a_old)
 
-(`solver.fast.kernel`'s per-element `pa`, `ps`). One equilibrium per step: the fast solver's
-contact search and Newton iteration (exact Hessian), warm-started from the last step's shape
-squeezed to the new gap. Then a_new, s_new of every element give the new internal variables.
+(`solver.fast.kernel`'s per-element `pa`, `ps`). One equilibrium per step (`step`): the fast
+solver's contact search with its retreat and Newton iteration (exact Hessian), started as
+`solver.fast.advance` starts its steps (the secant in the gap through the last two equilibria,
+else the last shape squeezed to the new gap with its contact label raised as the droplet's),
+or, where that finds none, from the squeezed shape with its contact label extrapolated from the
+last two steps; accepted only if the free surface stays below the plate and the shape
+admissible. Then a_new, s_new of every element give the new internal variables. (The
+extrapolated start first would find other touching labels on ramps from the sphere, 0.25 % off
+the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
+Whichever the start, the history is carried to the extrapolated label for the search: it is
+where the material is expected, and the carried history then does not depend on the start.
+The extrapolation is scaled by the plate's move over the last one where that is shorter (a
+sub-step after a longer step would overshoot the label); where the search still finds no
+equilibrium, the history is carried to the start's label instead (`STARTS`).
+
+Robust stepping (`advance`, what every protocol calls). A step t → t + Δt, h → h', with the gap
+linear in time, is taken in sub-steps [s_k, s_k+1] ⊂ [0, 1] of its own choice: the gap
+h + s (h' - h) at time t + s Δt, the exponential integrator over each sub-step's (s_k+1 - s_k) Δt.
+For a strain linear in time the split is exact (d_j, g_j compose: one step or many give the
+same h_j), so sub-steps change only how finely the strain's path is followed. A sub-step moves
+the plate at most CONTINUE_STEP / H_d (`solver.fast`'s continuation, ≈ 0.015 R near the sphere);
+one that finds no equilibrium is undone and halved (down to SMALLEST_FRACTION of the step), one
+that succeeds makes the next STRIDE_GROWTH times longer; that plate stride carries over to the
+next call. So a step fails only where sub-steps of SMALLEST_FRACTION of it fail (none did on
+the ramps from 2R - 0.01 µm to δ = R over the physiological range, bench/free_sphere_ramps.py).
 
 Material and mesh. The mesh's nodes on the free surface and the strip that rolls onto the plate
 are labelled by their reference angle ψ0, which moves with the contact label l: when l changes
 from one step to the next, the internal variables and last strains of those elements are carried
 to their material by linear interpolation in ψ0 (element mid-labels; the disc's material is
-fixed). The step starts from l extrapolated from the last two steps, with the history carried
-there, and is carried again to the solved label; within the contact search it is held per element
+fixed). The history is carried to the start's label, and carried again to the solved label;
+within the contact search it is held per element
 (its derivative in l is left out of the contact line's balance). The label is set where the free
 surface touches the plate in the bending layer, where E*(l) is flat: ψ_c swings by a factor of ~6
 over a 0.05 µm oscillation, so this carry along the strip is the scheme's weakest approximation.
@@ -36,20 +58,26 @@ over a 0.05 µm oscillation, so this carry along the strip is the scheme's weake
 The plate force is -(1/2) ∂L/∂z_p at the step's equilibrium (the prestress included), in nN.
 """
 
+import copy
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from common.errors import InputError
-from solver.fast import _contact, problem
+from common.errors import InputError, SolverError
+from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
+from solver.fast import CONTINUE_STEP, _admissible, _contact, _follow_scale, _gap, problem
 from solver.fast.contact import LOG_PSI_MIN
 from solver.fast.lagrangian import Lagrangian
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
 from solver.prony import Prony, fit_power_law
 
-EXTRAPOLATE = 1.0   # the contact label's start: l_n + EXTRAPOLATE (l_n - l_n-1)
+STRIDE_GROWTH = 1.5          # `advance`: a sub-step after an accepted one is this much longer
+SMALLEST_FRACTION = 2.0**-16  # `advance`: a sub-step halved below this fraction of the step gives up
+# `step`'s tries in turn: (start `_continued`, else `_extrapolated`; history carried to the
+# extrapolated label, else to the start's)
+STARTS = ((True, True), (True, False), (False, True))
 
 
 @dataclass(frozen=True)
@@ -61,11 +89,15 @@ class Cortex:
 
 
 def power_law_cortex(bulk_1s_mN_per_m: float, shear_1s_mN_per_m: float, bulk_exponent: float,
-                     shear_exponent: float) -> Cortex:
-    """K_B(t) = K_B,1s (t/1 s)^-β_B and K_S(t) = K_S,1s (t/1 s)^-β_S as Prony series
-    (`solver.prony.fit_power_law`)."""
-    return Cortex(fit_power_law(bulk_exponent, bulk_1s_mN_per_m).prony,
-                  fit_power_law(shear_exponent, shear_1s_mN_per_m).prony)
+                     shear_exponent: float, memory_s: float = float("inf"),
+                     shear_memory_s: float | None = None) -> Cortex:
+    """K_B(t) = K_B,1s (t/1 s)^-β_B e^(-t/τ_c) and K_S(t) = K_S,1s (t/1 s)^-β_S e^(-t/τ_c) as
+    Prony series (`solver.prony.fit_power_law`), τ_c = `memory_s` (s; inf: no turnover, the pure
+    power law). One τ_c for both moduli by default: the actin network's turnover renews the
+    whole material, its bulk and shear response alike; `shear_memory_s` gives K_S its own."""
+    shear_memory = memory_s if shear_memory_s is None else shear_memory_s
+    return Cortex(fit_power_law(bulk_exponent, bulk_1s_mN_per_m, memory_s=memory_s).prony,
+                  fit_power_law(shear_exponent, shear_1s_mN_per_m, memory_s=shear_memory).prony)
 
 
 @dataclass
@@ -115,20 +147,24 @@ class TimeShell:
     u: npt.NDArray[np.float64] = field(init=False)
     h_um: float = field(init=False)
     channels: tuple[_Channel, _Channel] = field(init=False)
-    _steps: dict = field(init=False, default_factory=dict)
+    equilibria: int = field(init=False, default=0)    # equilibria found (`step`s taken) so far
+    _base: Lagrangian = field(init=False)
     _label: float = field(init=False)
-    _last_label: float = field(init=False)
+    _last: tuple[float, npt.NDArray[np.float64]] = field(init=False)
+    _stride: float = field(init=False)
 
     def __post_init__(self) -> None:
         bulk0, shear0 = (float(p.relaxation(0.0)) for p in (self.cortex.bulk, self.cortex.shear))
         if bulk0 + shear0 <= 0:
             raise InputError("the cortex needs a nonzero instantaneous modulus")
         base = self._elastic(bulk0, shear0)
-        self.lag = base
+        self._base = self.lag = base
         r0, z0 = base.ref.positions(LOG_PSI_MIN)[:2]
         self.u = np.concatenate([r0[1:], z0[base.kc + 1: base.N], [LOG_PSI_MIN, 2.0 * base.gamma * base.ref.H]])
         self.h_um = float(self.shell.h0_um)
-        self._label = self._last_label = float(LOG_PSI_MIN)   # where the internal variables sit
+        self._label = float(LOG_PSI_MIN)          # where the internal variables sit
+        self._last = (self.h_um, self.u)          # the equilibrium before this one (the secant's)
+        self._stride = CONTINUE_STEP / base.ref.H  # `advance`'s next plate move (µm)
         n = base.N
         bulk, shear = (_Channel(p, np.zeros(n), np.zeros((len(p.weights), n)))
                        for p in (self.cortex.bulk, self.cortex.shear))
@@ -144,41 +180,123 @@ class TimeShell:
         return lag
 
     def _step_lagrangian(self, dt_s: float) -> Lagrangian:
-        """The step's Lagrangian with the effective moduli K_Δt (kept per Δt)."""
-        key = round(dt_s, 12)
-        if key not in self._steps:
-            self._steps[key] = self._elastic(self.cortex.bulk.step_factors(dt_s)[0],
-                                             self.cortex.shear.step_factors(dt_s)[0])
-        return self._steps[key]
+        """A Lagrangian of the step with the effective moduli K_Δt (a shallow copy of the
+        elastic one, its moduli replaced; the prestress is set by the step)."""
+        lag = copy.copy(self._base)
+        reg = self._base.KB - float(self.cortex.bulk.relaxation(0.0))   # `Lagrangian`'s regularisation
+        lag.KB, lag.KS = (p.step_factors(dt_s)[0] + reg for p in (self.cortex.bulk, self.cortex.shear))
+        lag.terms = lag.terms._replace(KB=float(lag.KB), KS=float(lag.KS))
+        return lag
 
     def step(self, h_um: float, dt_s: float) -> float:
-        """Move the plate to gap h (µm) over Δt (s) and return the plate force (nN) there."""
+        """One equilibrium: move the plate to gap h (µm) over Δt (s) and return the plate force
+        (nN) there; SolverError (the state unchanged) where none is found (`advance` splits)."""
         if not dt_s > 0:
             raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
+        saved = self.saved()
+        for continued, carry_extrapolated in STARTS:
+            try:
+                return self._equilibrium(h_um, dt_s, continued, carry_extrapolated)
+            except (SolverError, np.linalg.LinAlgError) as err:
+                self.restore(saved)
+                failure = err
+        raise SolverError(f"no equilibrium at gap {h_um:.6g} um after {dt_s:.3g} s: {failure}")
+
+    def _equilibrium(self, h_um: float, dt_s: float, continued: bool, carry_extrapolated: bool) -> float:
+        """`step`'s work from the start `_continued` or, if not `continued`, `_extrapolated`: the
+        history carried to the extrapolated label (or the start's), the contact search (`solver.fast`'s, with its
+        retreat), the admissible shape checked, the history carried to the solved label and
+        advanced."""
         lag = self._step_lagrangian(dt_s)
+        _follow_scale(lag, self.shell, h_um)
         bulk, shear = self.channels
-        u = self.u.copy()
-        u[lag.N: -2] *= h_um / self.h_um              # the last shape squeezed to the new gap
-        u[-2] = max(u[-2] + EXTRAPOLATE * (u[-2] - self._last_label), LOG_PSI_MIN)   # l extrapolated
-        self._last_label = float(self.u[-2])
-        self._carry(u[-2])
+        u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
+        self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
         lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
-        u, _ = _contact(lag, u, 0.5 * h_um)
+        u, _ = _contact(lag, u, 0.5 * h_um, retreat=True)
+        if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
+            raise SolverError("the free surface crossed the plate")
         self._carry(u[-2])
+        self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
         a, s = self.strains()
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
+        self.equilibria += 1
         return self.force_nN()
+
+    def _extrapolated(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
+        """The second start at gap h: the last shape squeezed to the new gap, its contact label
+        extrapolated from the last two steps, l_n + r (l_n - l_n-1) (at least log ψ_min), r the
+        plate's move over the last one where shorter (a sub-step after a longer step), else 1."""
+        v = self.u.copy()
+        v[lag.N: -2] *= h_um / self.h_um
+        move, last_move = h_um - self.h_um, self.h_um - self._last[0]
+        ratio = min(1.0, abs(move / last_move)) if move and last_move else 1.0
+        v[-2] = max(self.u[-2] + ratio * (self.u[-2] - self._last[1][-2]), LOG_PSI_MIN)
+        return v
+
+    def _continued(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
+        """The start at gap h: the secant in the gap through the last two equilibria where both
+        steps move the plate and it gives an admissible shape (`solver.fast.advance`'s), else the
+        last shape squeezed to the new gap with its contact label raised by the droplet's
+        increase (l = log ψ_c, ψ_c ≈ 2 H_d (R_c(h) - a0)); the last shape itself for a hold."""
+        u, h = self.u, self.h_um
+        if h_um == h:
+            return u.copy()
+        h_last, u_last = self._last
+        if h_last != h and (h_last - h) * (h - h_um) > 0:
+            v = u + (u - u_last) * ((h_um - h) / (h - h_last))
+            v[-2] = max(v[-2], LOG_PSI_MIN)
+            if _admissible(lag, v, 0.5 * h_um):
+                return v
+        v = u.copy()
+        v[lag.N: -2] *= h_um / h
+        v[-2] += max(self._label_of(h_um) - self._label_of(h), 0.0)
+        return v
+
+    def _label_of(self, h_um: float) -> float:
+        """log ψ_c of the droplet at gap h: material rolled on ≈ R_c(h) - a0, dψ/ds = 2 H_d."""
+        ref = self.lag.ref
+        rolled = contact_radius_um(self.shell.volume_um3, h_um) - ref.a0
+        return float(np.log(np.clip(rolled * 2.0 * ref.H, np.exp(LOG_PSI_MIN), 0.5)))
+
+    def advance(self, h_um: float, dt_s: float) -> float:
+        """Move the plate to gap h (µm) over Δt (s), linear in time, in sub-steps of its own
+        choice, and return the plate force (nN) at the end: the robust step (module docstring).
+        SolverError (the state unchanged) if a sub-step of SMALLEST_FRACTION of the step fails."""
+        if not dt_s > 0:
+            raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
+        saved, h_from, move = self.saved(), self.h_um, h_um - self.h_um
+        largest_um = CONTINUE_STEP / self.lag.ref.H
+        fraction = 1.0 if move == 0 else min(1.0, self._stride / abs(move))
+        done, force = 0.0, np.nan
+        while done < 1.0:
+            end, before = (1.0 if done + fraction > 1.0 - 1e-9 else done + fraction), self.saved()
+            try:
+                force = self.step(h_from + end * move if end < 1.0 else h_um, (end - done) * dt_s)
+            except SolverError as err:
+                self.restore(before)
+                fraction *= 0.5
+                self._stride = min(self._stride, abs(fraction * move)) if move else self._stride
+                if fraction < SMALLEST_FRACTION:
+                    self.restore(saved)
+                    raise SolverError(f"no equilibrium in steps of {SMALLEST_FRACTION:g} of the step "
+                                      f"from {h_from:.6g} to {h_um:.6g} um: {err}") from None
+                continue
+            done = end
+            self._stride = min(self._stride * STRIDE_GROWTH, largest_um)
+            fraction = min(fraction * STRIDE_GROWTH, 1.0 if move == 0 else self._stride / abs(move))
+        return force
 
     def saved(self) -> tuple[Any, ...]:
         """What a step changes (unknowns, gap, Lagrangian, labels, internal variables), for `restore`."""
-        return (self.u.copy(), self.h_um, self.lag, self._label, self._last_label,
+        return (self.u.copy(), self.h_um, self.lag, self._label, self._last, self._stride,
                 [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         """Back to the state `saved` returned (after a step that failed)."""
-        self.u, self.h_um, self.lag, self._label, self._last_label, channels = saved
+        self.u, self.h_um, self.lag, self._label, self._last, self._stride, channels = saved
         for ch, (strain, viscous) in zip(self.channels, channels):
             ch.strain, ch.viscous = strain.copy(), viscous.copy()
 
@@ -207,6 +325,12 @@ class TimeShell:
         ref, psic = self.lag.ref, np.exp(label)
         psi = np.concatenate([[0.0], psic * ref.zeta, psic + (0.5 * np.pi - psic) * ref.xi])
         return 0.5 * (psi[1:] + psi[:-1])
+
+
+def contact_radius_um(volume_um3: float, h_um: float) -> float:
+    """R_c of the droplet at gap h (µm): A_c = F_a/(2 γ_a H), from `solver.droplet_table`."""
+    g, H = force_per_tension_um(volume_um3, h_um), mean_curvature_per_um(volume_um3, h_um)
+    return float(np.sqrt(g / (2.0 * np.pi * H)))
 
 
 def element_strains(lag: Lagrangian, u: npt.NDArray[np.float64],

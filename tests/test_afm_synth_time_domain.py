@@ -83,7 +83,23 @@ def test_synth_time_domain_holds_the_force_after_fast_ramps(tiny, tmp_path):
         assert np.all(np.diff(cell.height_um[hold]) < 0)
 
 
+def test_synth_time_domain_short_memory_forgets_the_steps(tiny, tmp_path):
+    """--memory-s 1: the cortex forgets each step's stress within the 5 s wait (e^-5), so every
+    segment's mean tension is γ_a's (found within 1 %; the pure power law keeps 14-33 % above
+    it, the test above); truth.json holds τ_c."""
+    out = tmp_path / "exp"
+    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--wait-s", "5", "--no-errors",
+                 "--memory-s", "1", "--out", str(out), "--json"]) == 0
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["time_domain"]["memory_s"] == 1.0
+    (cell,) = open_cells([str(out / "experiment.h5")])
+    tension = np.array([row["tension_mN_per_m"] for row in segment_moduli(cell)])
+    assert np.allclose(tension, truth["cells"][0]["tension_mN_per_m"], rtol=0.03)
+
+
 @pytest.mark.parametrize("args, message", [
+    (["--memory-s", "0"], "--memory-s"),
+    (["--memory-s", "nan"], "--memory-s"),
     (["--bulk-exponent", "0.7"], "must be in"),
     (["--ramp-speed-um-per-s", "0"], "--ramp-speed-um-per-s"),
     (["--hold", "position"], "--hold"),
@@ -99,7 +115,7 @@ def test_impossible_time_domain_settings_are_refused(args, message, tmp_path, ca
 
 
 @pytest.mark.parametrize("args", [["--wait-s", "5"], ["--history", "relaxed"], ["--hold", "force"],
-                                  ["--ramp-speed-um-per-s", "1"]])
+                                  ["--ramp-speed-um-per-s", "1"], ["--memory-s", "5"]])
 def test_time_domain_options_without_time_domain_are_refused(args, tmp_path, capsys):
     assert main(["afm", "synth", "--cells", "1", *args, "--out", str(tmp_path / "x")]) == 2
     assert "--time-domain" in capsys.readouterr().err

@@ -130,7 +130,7 @@ def test_a_step_without_equilibrium_is_taken_in_two_halves(monkeypatch):
     assert np.allclose(state.channels[1].viscous, direct.channels[1].viscous, rtol=1e-12, atol=1e-15)
     monkeypatch.setattr(TimeShell, "step", lambda self, h_um, dt_s: (_ for _ in ()).throw(SolverError("never")))
     with pytest.raises(SolverError):
-        _advance(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5, halvings=2)
+        _advance(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5)
 
 
 def test_a_constant_force_hold_creeps_and_a_ramp_to_a_force_stops_there():

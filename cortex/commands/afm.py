@@ -102,6 +102,9 @@ def _add_synth(s: Commands) -> None:
     g.add_argument("--wait-s", type=float, default=None, metavar="S",
                    help=f"--time-domain: the wait at each mean height before its oscillations (default "
                         f"{TIME_DOMAIN_WAIT_S:g} s)")
+    g.add_argument("--memory-s", type=float, default=None, metavar="S",
+                   help="--time-domain: the cortex's memory tau_c, K(t) ~ t^-beta e^(-t/tau_c), one for both moduli "
+                        "(turnover; default inf: the pure power law, never forgetting)")
     g.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="--time-domain: cells simulated in N processes at once (default 1)")
     g.add_argument("--history", choices=CORTEX_HISTORIES, default=None, metavar="HISTORY",
@@ -236,8 +239,8 @@ def synth(args: argparse.Namespace) -> int:
         from analysis.afm.synth import time_cells
         cells, truth = time_cells.generate(args.cells, args.seed, errors=not args.no_errors, **settings)
     else:
-        if (args.wait_s, args.history, args.hold, args.ramp_speed_um_per_s) != (None,) * 4 or args.jobs != 1:
-            raise InputError("--wait-s, --jobs, --history, --hold and --ramp-speed-um-per-s go with --time-domain")
+        if (args.wait_s, args.history, args.hold, args.ramp_speed_um_per_s, args.memory_s) != (None,) * 5 or args.jobs != 1:
+            raise InputError("--wait-s, --memory-s, --jobs, --history, --hold and --ramp-speed-um-per-s go with --time-domain")
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
         cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
     with out.writing(EXPERIMENT) as experiment:
@@ -274,14 +277,17 @@ def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
     wait = TIME_DOMAIN_WAIT_S if args.wait_s is None else args.wait_s
     if not (math.isfinite(wait) and 0 <= wait <= 1e4):
         raise InputError(f"--wait-s must be a number of seconds in [0, 10000] (got {wait:g})")
+    memory = math.inf if args.memory_s is None else args.memory_s
+    if not memory > 0:
+        raise InputError(f"--memory-s must be a number of seconds > 0, or inf (got {memory:g})")
     if args.jobs < 1:
         raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
     speed = TIME_DOMAIN_RAMP_UM_PER_S if args.ramp_speed_um_per_s is None else args.ramp_speed_um_per_s
     if not (math.isfinite(speed) and 0 < speed <= 100):
         raise InputError(f"--ramp-speed-um-per-s must be a speed in (0, 100] um/s (got {speed:g})")
-    return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "bending": args.bending,
-            "jobs": args.jobs, "progress": not args.json, "history": args.history or "carried",
-            "hold": args.hold or "height", "ramp_speed_um_per_s": speed}
+    return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "memory_s": memory,
+            "bending": args.bending, "jobs": args.jobs, "progress": not args.json,
+            "history": args.history or "carried", "hold": args.hold or "height", "ramp_speed_um_per_s": speed}
 
 
 def new_experiment_folder(path: str, names: list[str]) -> OutputDir:

@@ -5,9 +5,10 @@ draw z, the height step and mean heights, blebbing, spring constant; the publish
 frequencies) with exponents (β_B, β_S) as in `analysis.afm.synth.rheology` (the medians plus
 0.03 ε, clipped to [0, 0.6]). Its cortex relaxes as a power law,
 
-    K_B(t) = K_B,1 (t/1 s)^-β_B,   K_S(t) = K̃_S,1 K_B,1 (t/1 s)^-β_S,   K̃_S,1 = exp(μ_1 + σ_1 z),
+    K_B(t) = K_B,1 (t/1 s)^-β_B e^{-t/τ_c},   K_S(t) = K̃_S,1 K_B,1 (t/1 s)^-β_S e^{-t/τ_c},
 
-written as Prony series (`solver.time_domain.power_law_cortex`); its moduli at f are the
+with K̃_S,1 = exp(μ_1 + σ_1 z) and the memory τ_c (`memory_s`, one for both moduli; inf: the pure
+power law), written as Prony series (`solver.time_domain.power_law_cortex`); its moduli at f are the
 series' K(iω) = |K*| e^{iδ} (about K(1 s) Γ(1-β) (2πf)^β, δ = β π/2), which the truth holds.
 The cell's protocol (`solver.protocol.Protocol.stepped`) starts at the relaxed droplet one step
 above the first mean height: every height's ramp (`ramp_speed_um_per_s`, 0.2 µm/s as
@@ -25,7 +26,8 @@ jump of γ_a adds Δγ_a 2 H A_c(h) to the force; then the measurement errors of
 The simulations are independent per cell: `jobs` processes run them (the draws are made first,
 in order, so the experiment does not depend on `jobs`). A cell whose simulation fails (no
 equilibrium even in halved steps) is left out and named in truth.json's
-`time_domain.failed_cells`; if every cell fails, a SolverError says so.
+`time_domain.failed_cells`; if every cell fails, a SolverError says so. truth.json's
+`time_domain.memory_s` is τ_c in s, null for inf.
 """
 
 import sys
@@ -73,13 +75,13 @@ def _simulate(job: Job) -> tuple[Recording | str, float]:
 
 def _draw(i: int, freqs: tuple[float, ...], rng: np.random.Generator, exp_rng: np.random.Generator,
           medians: tuple[float, float], wait_s: float, bending: str, history: str, hold: str,
-          ramp_speed_um_per_s: float) -> tuple[dict[str, Any], dict[str, Any], Job]:
+          ramp_speed_um_per_s: float, memory_s: float) -> tuple[dict[str, Any], dict[str, Any], Job]:
     """The cell's parameters, truth and simulation."""
     p, truth = sy.parameters(i, rng)
     beta = draw_exponents(exp_rng, medians)
     mu, sigma = sy.POPULATIONS[1.0]
     bulk1, shear1 = p["bulk1"], float(np.exp(mu + sigma * p["z"])) * p["bulk1"]
-    cortex = power_law_cortex(bulk1, shear1, float(beta[0]), float(beta[1]))
+    cortex = power_law_cortex(bulk1, shear1, float(beta[0]), float(beta[1]), memory_s=memory_s)
     truth.update(bulk_exponent=float(beta[0]), shear_exponent=float(beta[1]), wait_s=wait_s,
                  bulk_1s_mN_per_m=bulk1, shear_1s_mN_per_m=shear1)
     for f in freqs:
@@ -115,13 +117,15 @@ def _cell(rng: np.random.Generator, p: dict[str, Any], truth: dict[str, Any], re
 def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: float = 0.1,
              shear_exponent: float = 0.3, wait_s: float = 100.0, bending: str = "standard", jobs: int = 1,
              progress: bool = True, history: str = "carried", hold: str = "height",
-             ramp_speed_um_per_s: float = sy.SPEED_UM_PER_S) -> tuple[list[Cell], dict[str, Any]]:
+             ramp_speed_um_per_s: float = sy.SPEED_UM_PER_S,
+             memory_s: float = float("inf")) -> tuple[list[Cell], dict[str, Any]]:
     """Return (cells, truth) as `cells.generate` does, the recordings simulated in time; the
     truth's `cost` holds the simulation steps and wall time per cell."""
     from tqdm import tqdm
     rng, exp_rng = np.random.default_rng(seed), np.random.default_rng([seed, 10])
     medians = (float(bulk_exponent), float(shear_exponent))
-    drawn = [_draw(i, freqs, rng, exp_rng, medians, float(wait_s), bending, history, hold, float(ramp_speed_um_per_s))
+    drawn = [_draw(i, freqs, rng, exp_rng, medians, float(wait_s), bending, history, hold, float(ramp_speed_um_per_s),
+                   float(memory_s))
              for i, freqs in enumerate(f for freqs, n in sy.subset_sizes(n_cells) for f in [freqs] * n)]
     bar = tqdm(total=n_cells, unit="cell", desc="time-domain cells", file=sys.stderr, disable=not progress)
     with pool(jobs) as workers:
@@ -142,8 +146,14 @@ def generate(n_cells: int, seed: int = 0, errors: bool = True, bulk_exponent: fl
     if not cells:
         raise SolverError(f"no cell could be simulated: {next(iter(failed.values()))}")
     truth_all = {"seed": seed, "errors": errors, "error_model": sy.ERRORS if errors else None,
-                 "time_domain": {"wait_s": float(wait_s), "hold": hold, "ramp_speed_um_per_s": float(ramp_speed_um_per_s),
+                 "time_domain": {"wait_s": float(wait_s), "memory_s": _seconds_or_null(memory_s), "hold": hold,
+                                 "ramp_speed_um_per_s": float(ramp_speed_um_per_s),
                                  "bending": bending, "history": history, "jobs": jobs,
                                  "cost": cost, "failed_cells": failed},
                  **sy.summary(truths, n_cells), **describe(medians)}
     return cells, truth_all
+
+
+def _seconds_or_null(memory_s: float) -> float | None:
+    """truth.json's τ_c: the seconds, or null for inf (no turnover; JSON has no infinity)."""
+    return None if np.isinf(memory_s) else float(memory_s)
