@@ -46,6 +46,7 @@ from common.errors import InputError
 from solver.fast import _contact, problem
 from solver.fast.contact import LOG_PSI_MIN
 from solver.fast.lagrangian import Lagrangian
+from solver.geometry import droplet
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
 from solver.prony import Prony, fit_power_law
 
@@ -107,7 +108,8 @@ class TimeShell:
 
     `shell` gives V, h0 (the stress-free reference droplet), γ_a, the mesh and B (bending
     stays elastic; give `bending_pN_um` to fix it apart from the moduli); its K_B and K_S are
-    not used: `cortex` holds the moduli."""
+    not used: `cortex` holds the moduli. Before its first step it is the reference droplet,
+    whose force is the tension's alone, F_a = 2 γ_a H A_c at (V, h0) (`solver.geometry`)."""
 
     shell: Shell
     cortex: Cortex
@@ -118,13 +120,14 @@ class TimeShell:
     _steps: dict = field(init=False, default_factory=dict)
     _label: float = field(init=False)
     _last_label: float = field(init=False)
+    _reference: Lagrangian = field(init=False)    # `lag` until a step (steps take `_steps`' own)
 
     def __post_init__(self) -> None:
         bulk0, shear0 = (float(p.relaxation(0.0)) for p in (self.cortex.bulk, self.cortex.shear))
         if bulk0 + shear0 <= 0:
             raise InputError("the cortex needs a nonzero instantaneous modulus")
         base = self._elastic(bulk0, shear0)
-        self.lag = base
+        self.lag = self._reference = base
         r0, z0 = base.ref.positions(LOG_PSI_MIN)[:2]
         self.u = np.concatenate([r0[1:], z0[base.kc + 1: base.N], [LOG_PSI_MIN, 2.0 * base.gamma * base.ref.H]])
         self.h_um = float(self.shell.h0_um)
@@ -194,7 +197,12 @@ class TimeShell:
         return True
 
     def force_nN(self) -> float:
-        """The plate force -(1/2) ∂L/∂z_p (nN) at the current state and the last step's prestress."""
+        """The plate force -(1/2) ∂L/∂z_p (nN) at the current state and the last step's prestress;
+        before any step (the unknowns the reference mesh, no equilibrium yet) the reference
+        droplet's F_a = 2 γ_a H A_c (nN)."""
+        if self.lag is self._reference:
+            reference = droplet(self.shell.volume_um3, self.shell.h0_um)
+            return float(self.shell.tension_mN_per_m * reference.force_per_tension_um)
         return float(-0.5 * self.lag.newton_system(self.u, 0.5 * self.h_um, hessian=False)[2])
 
     def strains(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
