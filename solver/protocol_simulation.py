@@ -29,7 +29,8 @@ heights at three frequencies, 3 ms a step.
 
 Sampling (`Sampling`): oscillations at `sample_hz` (or `min_samples_per_period` a period where
 that is finer), the ramps and holds between at `approach_hz` (linear between steps, the last
-sample at their end), the protocol's start (the reference droplet, its force F_a = 2 γ_a H A_c) the first sample. `Recording.stretches` say which
+sample at their end), the protocol's start the first sample (the reference droplet: its force
+the tension's, F_a = 2 γ_a H A_c at (V, h0)). `Recording.stretches` say which
 samples are a ramp, a hold or an oscillation (at which f).
 
 `history` "relaxed": every ramp to a height after the first starts from its own relaxed droplet,
