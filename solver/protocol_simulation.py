@@ -29,7 +29,8 @@ heights at three frequencies, 3 ms a step.
 
 Sampling (`Sampling`): oscillations at `sample_hz` (or `min_samples_per_period` a period where
 that is finer), the ramps and holds between at `approach_hz` (linear between steps, the last
-sample at their end), the protocol's start the first sample. `Recording.stretches` say which
+sample at their end), the protocol's start the first sample (the reference droplet: its force
+the tension's, F_a = 2 γ_a H A_c at (V, h0)). `Recording.stretches` say which
 samples are a ramp, a hold or an oscillation (at which f).
 
 `history` "relaxed": every ramp to a height after the first starts from its own relaxed droplet,
@@ -243,10 +244,13 @@ class _Run:
 
     def _ramp_to_force(self, force_nN: float, speed: float) -> None:
         """Move the plate (down if the force is below `force_nN`, else up; down from the
-        protocol's start, whose force is known after the first step) until the force reaches
-        it; the last step's gap by regula falsi on the force."""
-        f_now = self.state.force_nN() if self.steps else math.nan
-        sign = -1.0 if not force_nN <= f_now else 1.0
+        protocol's start, whose force is the tension's, F_a) until the force reaches it; the
+        last step's gap by regula falsi on the force."""
+        f_now = self.state.force_nN()
+        if not self.steps and force_nN <= f_now:
+            raise InputError(f"a ramp to {force_nN:g} nN from the protocol's start: the force there, "
+                             f"the tension's, is already {f_now:.4g} nN")
+        sign = -1.0 if force_nN > f_now else 1.0
         dh, dt = self.res.ramp_step_um, self.res.ramp_step_um / speed
         while True:
             saved, h0, f0 = self.state.saved(), self.state.h_um, f_now
@@ -254,9 +258,6 @@ class _Run:
                 raise SolverError(f"the ramp closed the gap before the force reached {force_nN:g} nN")
             self.steps += 1
             f_now = _advance(self.state, h0 + sign * dh, dt)
-            if math.isnan(f0) and f_now > force_nN:
-                raise InputError(f"a ramp to {force_nN:g} nN from the protocol's start: the force is "
-                                 f"{f_now:.4g} nN one step in")
             if (f_now - force_nN) * (f0 - force_nN) <= 0:
                 break
             self.t += dt

@@ -70,6 +70,7 @@ from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
 from solver.fast import CONTINUE_STEP, _admissible, _contact, _follow_scale, _gap, problem
 from solver.fast.contact import LOG_PSI_MIN
 from solver.fast.lagrangian import Lagrangian
+from solver.geometry import droplet
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
 from solver.prony import Prony, fit_power_law
 
@@ -139,7 +140,8 @@ class TimeShell:
 
     `shell` gives V, h0 (the stress-free reference droplet), γ_a, the mesh and B (bending
     stays elastic; give `bending_pN_um` to fix it apart from the moduli); its K_B and K_S are
-    not used: `cortex` holds the moduli."""
+    not used: `cortex` holds the moduli. Before its first step it is the reference droplet,
+    whose force is the tension's alone, F_a = 2 γ_a H A_c at (V, h0) (`solver.geometry`)."""
 
     shell: Shell
     cortex: Cortex
@@ -312,7 +314,12 @@ class TimeShell:
         return True
 
     def force_nN(self) -> float:
-        """The plate force -(1/2) ∂L/∂z_p (nN) at the current state and the last step's prestress."""
+        """The plate force -(1/2) ∂L/∂z_p (nN) at the current state and the last step's prestress;
+        before any step (the unknowns the reference mesh, no equilibrium yet) the reference
+        droplet's F_a = 2 γ_a H A_c (nN)."""
+        if self.lag is self._base:        # the untouched reference (a step takes a copy)
+            reference = droplet(self.shell.volume_um3, self.shell.h0_um)
+            return float(self.shell.tension_mN_per_m * reference.force_per_tension_um)
         return float(-0.5 * self.lag.newton_system(self.u, 0.5 * self.h_um, hessian=False)[2])
 
     def strains(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:

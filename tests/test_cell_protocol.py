@@ -10,6 +10,7 @@ import pytest
 
 from common.errors import InputError, SolverError
 from solver.compression import compress
+from solver.geometry import droplet
 from solver.model import Shell
 from solver.prony import Prony
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
@@ -107,6 +108,23 @@ def test_bad_cell_protocols_are_refused():
         Hold(5.0, "position")
 
 
+def test_the_first_sample_is_the_reference_droplets_tension_force():
+    """The protocol's start, before any step, is the stress-free reference droplet: its force is
+    the tension's, F_a = 2 γ_a H A_c at (V, h0) (35.0 nN here; the unsolved reference mesh read
+    -83.6), to 1e-6, and again after a step is undone; the first three steps of 0.005 µm
+    extrapolate back to it (found 5e-5 relative; asked 1e-3): the later samples join on."""
+    f_a = SHELL.tension_mN_per_m * float(droplet(SHELL.volume_um3, SHELL.h0_um).force_per_tension_um)
+    rec = simulate(SHELL, power_law_cortex(25.0, 8.33, 0.1, 0.3), Protocol(13.0, (Ramp(to_um=12.9),)))
+    assert rec.time_s[0] == 0.0 and rec.force_nN[0] == pytest.approx(f_a, rel=1e-6)
+    assert np.all(np.diff(rec.force_nN) > 0)
+    state = TimeShell(SHELL, power_law_cortex(25.0, 8.33, 0.1, 0.3))
+    start = state.saved()
+    f1, f2, f3 = (state.step(SHELL.h0_um - k * 0.005, 0.025) for k in (1, 2, 3))
+    assert 3.0 * f1 - 3.0 * f2 + f3 == pytest.approx(f_a, rel=1e-3)
+    state.restore(start)
+    assert state.force_nN() == pytest.approx(f_a, rel=1e-6)
+
+
 def test_a_step_without_equilibrium_is_taken_in_two_halves(monkeypatch):
     """A step that fails (here: one longer than 0.3 s, after it has changed the state) is undone
     and taken as two halves, the gap linear between: the force and the state are those of the
@@ -152,5 +170,5 @@ def test_a_constant_force_hold_creeps_and_a_ramp_to_a_force_stops_there():
     assert simulate(SHELL, cortex, held).force_nN[-1] < 40.0 - 0.5
     still = simulate(SHELL, Cortex(Prony(25.0), Prony(8.33)), by_force, sampling=Sampling(approach_hz=10.0))
     assert np.ptp(still.height_um[still.stretches[1].start:]) < 1e-6
-    with pytest.raises(InputError, match="one step in"):                # below the tension's own force
+    with pytest.raises(InputError, match="the tension's, is already 35"):    # below F_a at the start
         simulate(SHELL, cortex, Protocol(13.0, (Ramp(to_nN=10.0),)))
