@@ -2,7 +2,9 @@
 in any float column of a done row of a finished store, or of a trial row, is reported by
 `cortex campaign verify` (one line, exit 1), never read as a result (read as pending, said in one
 line), and `cortex campaign repair` rewrites the row from the journal to the store's very bytes; a
-damaged journal record is skipped (the records after it kept) and its tasks are computed again."""
+damaged journal record is skipped (the records after it kept) and its tasks are computed again. A
+bit flipped in a parameter (a task row's or a trial row's) is reported, never read, and repaired from
+the campaign's grid to the store's very bytes."""
 
 import json
 import shutil
@@ -77,7 +79,8 @@ def test_a_flipped_force_is_reported_never_read_and_repaired(finished, tmp_path)
         f"{store}: row {ROW} (task {rows.loc[ROW, 'task_id']}): damaged, its checksum fails"], check.stdout
     found = cortex("campaign", "verify", store, "--json")
     assert found.returncode == 1 and json.loads(found.stdout) == {
-        "store": str(store), "rows": [[ROW, rows.loc[ROW, "task_id"]]], "trial_rows": [], "journal": []}
+        "store": str(store), "rows": [[ROW, rows.loc[ROW, "task_id"]]], "trial_rows": [], "journal": [],
+        "param_rows": [], "trial_param_rows": []}
     fixed = cortex("campaign", "repair", store)
     assert fixed.returncode == 0 and f"row {ROW} rewritten from the journal" in fixed.stdout, fixed.stderr
     assert store.read_bytes() == before
@@ -185,12 +188,15 @@ def test_a_bit_flipped_in_any_parameter_is_seen_and_repaired(finished, tmp_path)
             assert store.read_bytes() == before, (name, bit)
 
 
-def test_a_damaged_parameter_is_never_read(finished, tmp_path):
+def test_a_damaged_parameter_is_never_read(finished, tmp_path, capsys):
     from campaign.store.reader import read_results, read_trials
     store = _copy(finished, tmp_path)
     _flip(store, "shear_mN_per_m", ROW, 52)
     _flip(store, "trials/nu_true", 4, 62)
     rows, trials = read_results(store), read_trials(store)
-    assert rows.loc[ROW, "state"] == "pending" and rows.loc[[ROW], ["shear_mN_per_m", "force_nN"]].isna().all(None)
+    assert rows.loc[ROW, "state"] == "pending" and rows.loc[[ROW], ["shear_mN_per_m", "force_nN"]].isna().all(axis=None)
     assert (rows.drop(ROW)["state"] == "done").all()
     assert trials.loc[trials["trial_id"] == trials["trial_id"].iloc[4 * 5], "nu_true"].isna().all()
+    said = capsys.readouterr().err.splitlines()
+    assert len(said) == 2 and "1 damaged rows' parameters (checksum fails: 7)" in said[0], said
+    assert "1 damaged trial rows' parameters (checksum fails: 4)" in said[1], said
