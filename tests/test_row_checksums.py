@@ -2,7 +2,9 @@
 in any float column of a done row of a finished store, or of a trial row, is reported by
 `cortex campaign verify` (one line, exit 1), never read as a result (read as pending, said in one
 line), and `cortex campaign repair` rewrites the row from the journal to the store's very bytes; a
-damaged journal record is skipped (the records after it kept) and its tasks are computed again."""
+damaged journal record is skipped (the records after it kept) and its tasks are computed again. A
+bit flipped in a parameter (a task row's or a trial row's) is reported, never read, and repaired from
+the campaign's grid to the store's very bytes."""
 
 import json
 import shutil
@@ -77,7 +79,8 @@ def test_a_flipped_force_is_reported_never_read_and_repaired(finished, tmp_path)
         f"{store}: row {ROW} (task {rows.loc[ROW, 'task_id']}): damaged, its checksum fails"], check.stdout
     found = cortex("campaign", "verify", store, "--json")
     assert found.returncode == 1 and json.loads(found.stdout) == {
-        "store": str(store), "rows": [[ROW, rows.loc[ROW, "task_id"]]], "trial_rows": [], "journal": []}
+        "store": str(store), "rows": [[ROW, rows.loc[ROW, "task_id"]]], "trial_rows": [], "journal": [],
+        "param_rows": [], "trial_param_rows": []}
     fixed = cortex("campaign", "repair", store)
     assert fixed.returncode == 0 and f"row {ROW} rewritten from the journal" in fixed.stdout, fixed.stderr
     assert store.read_bytes() == before
@@ -162,3 +165,38 @@ def test_a_damaged_journal_record_is_skipped_and_its_tasks_run_again(finished, t
     assert (rows["state"] == "done").all()
     np.testing.assert_array_equal(rows["force_nN"], good["force_nN"])
     np.testing.assert_array_equal(trials["modulus_mN_per_m"], good_trials["modulus_mN_per_m"])
+
+
+def test_a_bit_flipped_in_any_parameter_is_seen_and_repaired(finished, tmp_path):
+    from campaign.store.checksum import TRIAL_PARAM_COVERED
+    from campaign.store.schema import PARAM_CHECKSUM, PARAMS
+    from campaign.store.verify import repair, verify
+    store = _copy(finished, tmp_path)
+    before = store.read_bytes()
+    flips = [(name, (ROW + k) % 60, f"row {(ROW + k) % 60} ") for k, name in enumerate(PARAMS + (PARAM_CHECKSUM,))]
+    flips += [("task_id", ROW, f"row {ROW} "), ("bending", ROW + 1, f"row {ROW + 1} ")]
+    flips += [(f"trials/{name}", 5 * (k + 3) if name == "h0_true_um" else k + 3, f"trial row {k + 3} ")
+              for k, name in enumerate(TRIAL_PARAM_COVERED + (PARAM_CHECKSUM,))]
+    for name, index, row in flips:
+        with h5py.File(store, "r") as f:
+            bits = (0, 31, 52, 63) if f[name].dtype.itemsize == 8 else (0, 6)
+        for bit in bits:
+            _flip(store, name, index, bit)
+            lines = verify(store)
+            assert len(lines) == 1 and row in lines[0] and "parameters are damaged" in lines[0], (name, bit, lines)
+            assert repair(store) == [f"{store}: {row}parameters rewritten from the campaign's grid"], (name, bit)
+            assert store.read_bytes() == before, (name, bit)
+
+
+def test_a_damaged_parameter_is_never_read(finished, tmp_path, capsys):
+    from campaign.store.reader import read_results, read_trials
+    store = _copy(finished, tmp_path)
+    _flip(store, "shear_mN_per_m", ROW, 52)
+    _flip(store, "trials/nu_true", 4, 62)
+    rows, trials = read_results(store), read_trials(store)
+    assert rows.loc[ROW, "state"] == "pending" and rows.loc[[ROW], ["shear_mN_per_m", "force_nN"]].isna().all(axis=None)
+    assert (rows.drop(ROW)["state"] == "done").all()
+    assert trials.loc[trials["trial_id"] == trials["trial_id"].iloc[4 * 5], "nu_true"].isna().all()
+    said = capsys.readouterr().err.splitlines()
+    assert len(said) == 2 and "1 damaged rows' parameters (checksum fails: 7)" in said[0], said
+    assert "1 damaged trial rows' parameters (checksum fails: 4)" in said[1], said

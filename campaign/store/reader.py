@@ -17,8 +17,10 @@ done): a done row's message is always empty.
 Every reader checks the rows it reads against their checksums (`campaign.store.checksum`): a
 damaged row (and a trial row) is read as pending, its results NaN, and said in one line on
 stderr (`cortex campaign verify` lists them, `cortex campaign repair` rewrites them from the
-journal); a row the journal overlays is taken from the journal. A store made before rows had
-checksums is read unchecked.
+journal); a row the journal overlays is taken from the journal. A row whose parameters fail their
+checksum (`read_results` and `read_trials`, which read them) is read as pending, its parameters and
+results NaN, said in one line (`repair` rewrites them from the campaign's grid). A store made
+before rows had checksums is read unchecked.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import numpy as np
 
 from campaign.store import checksum, journal
 from campaign.store.rows import runs, trial_columns
-from campaign.store.schema import (CHECKSUM, DONE, FAILED, PARAMS, PENDING, STATES, stored_params, stored_results,
+from campaign.store.schema import (CHECKSUM, DONE, FAILED, PARAM_CHECKSUM, PARAMS, PENDING, STATES, stored_params, stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
 from campaign.store.files import open_read
 from campaign.task_key import split
@@ -71,7 +73,8 @@ def _task_columns(path, names):
         cols = {k: f[k][:] for k in ("state", "attempts") + names if k not in floats and k != "error"}
         cols.update(zip(floats, block))
         cols[FLOATS] = block
-        bad, results = _damaged_rows(f, cols), stored_results(f)
+        bad, results, params = _damaged_rows(f, cols), stored_results(f), stored_params(f)
+        bad_params = _damaged_params(f, cols, params)
         if "error" in names:
             cols["error"] = _errors(f["error"], (cols["state"] != DONE) & (cols["attempts"] > 0))
         start = f.attrs.get("journal_bytes", 0)
@@ -88,7 +91,27 @@ def _task_columns(path, names):
         if "converged" in cols:
             cols["converged"][bad] = False
         _say_damaged(path, "rows", bad)
+    if len(bad_params):
+        _as_pending(cols, bad_params, params + results)
+        _say_damaged(path, "rows' parameters", bad_params, "the campaign's grid")
     return cols
+
+
+def _damaged_params(f, cols, params):
+    """The rows whose PARAM_CHECKSUM fails, if `cols` holds the parameters (else none checked)."""
+    if PARAM_CHECKSUM not in f or not set(params) <= set(cols):
+        return np.zeros(0, np.int64)
+    return checksum.bad_params(lambda k: cols[k] if k in cols else f[k][:], checksum.param_names(params))
+
+
+def _as_pending(cols, rows, floats):
+    """Rows `rows` read as pending, their columns `floats` NaN."""
+    cols["state"][rows] = PENDING
+    for key in floats:
+        if key in cols:
+            cols[key][rows] = np.nan
+    if "converged" in cols:
+        cols["converged"][rows] = False
 
 
 def _damaged_rows(f, cols):
@@ -100,11 +123,11 @@ def _damaged_rows(f, cols):
     return checksum.damaged(lambda k: cols[k] if k in cols else f[k][:], names)
 
 
-def _say_damaged(path, what, rows):
+def _say_damaged(path, what, rows, source="the journal"):
     """One line on stderr: the damaged rows read as pending."""
     shown = ", ".join(map(str, rows[:5].tolist())) + (", ..." if len(rows) > 5 else "")
     print(f"{path}: {len(rows)} damaged {what} (checksum fails: {shown}) read as pending; "
-          f"cortex campaign repair {path} rewrites them from the journal", file=sys.stderr, flush=True)
+          f"cortex campaign repair {path} rewrites them from {source}", file=sys.stderr, flush=True)
 
 
 def _overlay(cols, entry):
@@ -173,6 +196,8 @@ def _trial_arrays(path):
         N = int(g.attrs["cells_per_study"])
         start = f.attrs.get("journal_bytes", 0)
     bad = checksum.damaged(a.__getitem__, checksum.TRIAL_COVERED) if CHECKSUM in a else np.zeros(0, np.int64)
+    bad_params = (checksum.bad_params(a.__getitem__, checksum.TRIAL_PARAM_COVERED) if PARAM_CHECKSUM in a
+                  else np.zeros(0, np.int64))
     a["error"] = a["error"].astype(object)
     for e in split(journal.read(str(path) + ".journal", start))[1]:
         rows = trial_rows(e["task"], N)
@@ -184,6 +209,9 @@ def _trial_arrays(path):
         for key in checksum.TRIAL_COVERED[4:]:
             a[key][bad] = np.nan
         _say_damaged(path, "trial rows", bad)
+    if len(bad_params):
+        _as_pending(a, bad_params, checksum.TRIAL_PARAM_COVERED[3:] + checksum.TRIAL_COVERED[4:])
+        _say_damaged(path, "trial rows' parameters", bad_params, "the campaign's grid")
     return a
 
 

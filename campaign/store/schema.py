@@ -53,6 +53,7 @@ OLD_PARAMS = ("bulk_exponent", "shear_exponent", "wait_s", "protocol_frequency_h
 STATES = ("pending", "running", "done", "failed")
 PENDING, RUNNING, DONE, FAILED = range(4)
 CHECKSUM = "checksum"       # a done or failed row's checksum column (`campaign.store.checksum`)
+PARAM_CHECKSUM = "param_checksum"   # every row's parameters' checksum, written with them (`fill`)
 ERROR_BYTES = 256           # an error message's room in its row
 # a trial task's results per cell (`campaign.trials.run_study`, beside `state` and `error`): one value,
 # and one per height
@@ -190,13 +191,18 @@ def _allocated():
 def fill(f: h5py.File, campaign: StoredCampaign, attrs: Mapping[str, Any]) -> None:
     """Lay out a new store in the open file `f`: every dataset at its final
     size, every row pending; `attrs` (provenance) and FORMAT as attributes."""
-    n = len(campaign.shells)
+    from campaign.store.checksum import row_checksums
+    n, params = len(campaign.shells), PARAMS + tuple(campaign.kind.params)
     columns = campaign.shells.columns()             # no shell made
-    for key in PARAMS + tuple(campaign.kind.params):
+    for key in params:
         f[key] = columns[key]
+    sums = row_checksums([columns[key] for key in params])     # the parameters' part (`checksum.param_names`)
     f.create_dataset("bending", data=fixed_strings(columns["bending"]))
     del columns                                     # (at a million tasks 80 MB, not kept while the ids are made)
     f.create_dataset("task_id", data=task_id_column(campaign.shells, campaign.method))
+    with np.errstate(over="ignore"):
+        sums += row_checksums([f["bending"][:], f["task_id"][:]], first=len(params))
+    f[PARAM_CHECKSUM] = sums
     for key in result_names(campaign):
         f.create_dataset(key, data=np.full(n, np.nan))
     f["converged"] = np.zeros(n, np.int8)
@@ -229,7 +235,7 @@ def stored_params(f: h5py.File | h5py.Group) -> tuple[str, ...]:
 
 def _extra(f):
     """A store made before kinds: its float row columns that are neither PARAMS nor RESULTS nor bookkeeping."""
-    n, known = len(f["state"]), set(PARAMS + RESULTS) | set(BOOKKEEPING) | {"converged", CHECKSUM}
+    n, known = len(f["state"]), set(PARAMS + RESULTS) | set(BOOKKEEPING) | {"converged", CHECKSUM, PARAM_CHECKSUM}
     return sorted(k for k, d in f.items() if k not in known and getattr(d, "shape", None) == (n,)
                   and d.dtype == np.float64)
 
@@ -256,4 +262,6 @@ def fill_trials(g: h5py.Group, campaign: StoredCampaign) -> None:
     for key in HEIGHT_KEYS:
         g.create_dataset(key, data=np.full((n, m), np.nan))
     _bookkeeping(g, n)
+    from campaign.store.checksum import TRIAL_PARAM_COVERED, row_checksums
+    g[PARAM_CHECKSUM] = row_checksums([g[key][:] for key in TRIAL_PARAM_COVERED])
     g.attrs["cells_per_study"] = N

@@ -43,17 +43,19 @@ def register(sub: Commands) -> None:
     s.set_defaults(handler=status)
     v = cs.add_parser("verify", help="check every row against its checksum, and the journal's records",
                       description="Check every done or failed row of STORE (and its Monte-Carlo trial rows) "
-                                  "against the checksum it carries, and every record of STORE.journal against "
-                                  "its CRC: one line per damaged row or record (exit 1), or one line saying "
+                                  "against the checksum it carries, every row's parameters against theirs, and every "
+                                  "record of STORE.journal against its CRC: one line per damaged row or record (exit 1), or one line saying "
                                   "none is (exit 0). Reads only; also while the campaign runs.")
     v.add_argument("store", metavar="STORE.h5")
     v.add_argument("--json", action="store_true", help="one JSON object: store, rows ([row, task_id]), "
-                   "trial_rows ([row, trial task, cell]), journal ([start, end] bytes of damaged stretches)")
+                   "trial_rows ([row, trial task, cell]), journal ([start, end] bytes of damaged stretches), "
+                   "param_rows and trial_param_rows (rows whose parameters are damaged, as rows and trial_rows)")
     v.set_defaults(handler=verify)
     rp = cs.add_parser("repair", help="rewrite damaged rows from the journal",
                        description="Rewrite every damaged row of STORE (see `verify`) from its task's entry in "
                                    "STORE.journal, with the values and checksum the run wrote; a damaged row the "
-                                   "journal does not hold is set pending (the next run computes it). Writes only "
+                                   "journal does not hold is set pending (the next run computes it); damaged parameters "
+                                   "are rewritten from the campaign's grid (the config the store keeps). Writes only "
                                    "those rows of STORE, under its lock (not while a run holds it).")
     rp.add_argument("store", metavar="STORE.h5")
     rp.add_argument("--json", action="store_true", help="one JSON object: store, repaired (one line per row)")
