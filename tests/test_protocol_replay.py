@@ -99,6 +99,8 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
     assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
     said = json.loads((tmp_path / "aware" / "summary.json").read_text())
     assert said["protocol"]["wait_s"] == "recorded"
+    assert said["protocol"]["cells_not_corrected"] == said["protocol"]["cells_not_settled"] == []
+    assert "1 of 1 cells corrected" in (tmp_path / "aware" / "report.md").read_text()
     assert said["reading"] == "protocol-aware (synthetic, time-domain)"      # read as it was made
 
 

@@ -64,6 +64,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_reading import corrected, is_on
+from analysis.afm.protocol_reading import markdown as protocol_markdown
 from analysis.afm.protocol_reading import summary as protocol_summary
 from analysis.afm.provenance import Provenance, Reading, of_data, reading
 from analysis.afm.provenance import markdown as made_markdown
@@ -261,6 +262,8 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, settings.method, fitted.tables, fitted.sums, figs,
                     fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
+    if aware:
+        text += "\n".join(protocol_markdown(fitted.segments)) + "\n"
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
         _write(out, "rheology.csv", _csv(fitted.rheology))
