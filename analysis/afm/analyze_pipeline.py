@@ -22,7 +22,8 @@ DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
 random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
-report.md, which also lists the recordings not analysed. summary.json's
+report.md, which also lists the recordings not analysed and, on stderr too, the cells that do
+not look like plate confinement (`analysis.afm.confinement`). summary.json's
 `tension_tolerance` is the tension filter's (`Settings.tension_tolerance`; null: lifted, inf).
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
@@ -53,6 +54,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -64,6 +66,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_reading import corrected, is_on
+from analysis.afm.confinement import warnings as confinement_warnings
 from analysis.afm.protocol_reading import markdown as protocol_markdown
 from analysis.afm.protocol_reading import summary as protocol_summary
 from analysis.afm.provenance import Provenance, Reading, of_data, reading
@@ -180,6 +183,8 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     a process beside this one (`common.beside`: forked, where two CPUs serve) while this one
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
+    for line in confinement_warnings(rec.cells):
+        print(line, file=sys.stderr)
     measured = measure(rec.cells)
     if rec.protocol_aware(settings):
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
@@ -264,6 +269,8 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
                     fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
     if aware:
         text += "\n".join(protocol_markdown(fitted.segments)) + "\n"
+    if odd := confinement_warnings(rec.cells):
+        text += "\n## Recordings that may not be plate confinement\n\n" + "".join(f"- {w}\n" for w in odd)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
         _write(out, "rheology.csv", _csv(fitted.rheology))
