@@ -183,8 +183,6 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     a process beside this one (`common.beside`: forked, where two CPUs serve) while this one
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
-    for line in confinement_warnings(rec.cells):
-        print(line, file=sys.stderr)
     measured = measure(rec.cells)
     if rec.protocol_aware(settings):
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
@@ -269,7 +267,9 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
                     fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
     if aware:
         text += "\n".join(protocol_markdown(fitted.segments)) + "\n"
-    if odd := confinement_warnings(rec.cells):
+    for line in (odd := confinement_warnings(rec.cells)):
+        print(line, file=sys.stderr)        # once the analysis stands: bad input keeps its one line
+    if odd:
         text += "\n## Recordings that may not be plate confinement\n\n" + "".join(f"- {w}\n" for w in odd)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
