@@ -41,7 +41,8 @@ DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instr
 phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a
 protocol-aware reading the segments are first corrected for the stress each cell keeps from its
 earlier height steps (`analysis.afm.protocol_reading`), every variant reads the corrected segments,
-segments.csv gains the correction's columns and summary.json `protocol`.
+segments.csv gains the correction's columns, summary.json `protocol` and report.md a section naming
+the cells not corrected or not settled, and why.
 
 The reading follows the data's provenance (`analysis.afm.provenance`, `Settings.as_made`, the
 default): a relaxed synthetic experiment (frequency-domain `afm synth`) in the relaxed state, exactly
