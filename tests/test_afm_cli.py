@@ -1,6 +1,7 @@
 """`cortex afm`: synth and analyze end to end; the tension filter's tolerance; malformed input ->
 one line, status 2."""
 
+import dataclasses
 import json
 
 import h5py
@@ -198,3 +199,18 @@ def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys
     assert {"cells_double.csv", "cells_none.csv", "summary_double.json", "population.json"} <= set(names)
     for name in names:
         assert (tmp_path / "forked" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes(), name
+
+
+def test_a_tip_cantilever_warns_once_on_stderr_and_in_the_report(setup, tmp_path, capsys):
+    """A cell recorded with a 0.01 N/m cantilever (tip microrheology's) gets one warning line on
+    stderr and in report.md; the plate cells none."""
+    d, cal, _, cells = setup
+    tipped = [dataclasses.replace(c, spring_constant_N_per_m=0.01) if i == 1 else c for i, c in enumerate(cells)]
+    write_experiment(tmp_path / "tip.h5", tipped, FREQUENCY_DOMAIN)
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(tmp_path / "tip.h5"), "--calibration", str(cal), "--out",
+                 str(tmp_path / "out"), "--no-phase"]) in (0, 1)
+    said = [x for x in capsys.readouterr().err.splitlines() if "plate confinement" in x]
+    assert len(said) == 1 and cells[1].cell_id in said[0] and "spring constant 0.01 N/m" in said[0]
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert report.count("does not look like plate confinement") == 1 and said[0] in report

@@ -13,7 +13,8 @@ import pytest
 from scipy.special import gamma
 
 from analysis.afm.recorded_protocol import protocol_of
-from analysis.afm.replayed import replayed_segments
+from analysis.afm.cell import Cell, Segment
+from analysis.afm.replayed import cell_correction, replayed_segments
 from analysis.afm.rheology import cortex_laws
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
@@ -99,6 +100,8 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
     assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
     said = json.loads((tmp_path / "aware" / "summary.json").read_text())
     assert said["protocol"]["wait_s"] == "recorded"
+    assert said["protocol"]["cells_not_corrected"] == said["protocol"]["cells_not_settled"] == []
+    assert "1 of 1 cells corrected" in (tmp_path / "aware" / "report.md").read_text()
     assert said["reading"] == "protocol-aware (synthetic, time-domain)"      # read as it was made
 
 
@@ -114,3 +117,18 @@ def test_wait_s_bad_values_exit_2(tmp_path, capsys, args, message):
     assert main(["afm", "analyze", str(tmp_path / "exp"), "--out", str(tmp_path / "a"), *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0]
+
+
+def test_a_jpk_pause_of_half_a_second_is_corrected():
+    """A JPK-like recording (approach 20 -> 15 µm over 10 s, a 0.5 s pause, 5 periods at 1 Hz):
+    the pause times the hold, so the cell is corrected; 0.5 s after the step it keeps much of the
+    step's stress (found |c| 1.16, Δγ 2.0 mN/m with γ_a 1 mN/m)."""
+    t = np.arange(0.0, 15.5, 0.01)
+    h = np.interp(t, [0.0, 10.0, 15.5], [20.0, 15.0, 15.0])
+    h[t >= 10.5] -= 0.25 * np.sin(2 * np.pi * (t[t >= 10.5] - 10.5))
+    i10, i105 = np.searchsorted(t, 10.0), np.searchsorted(t, 10.5)
+    segs = [Segment("approach", 0, i10), Segment("pause", i10, i105), Segment("oscillation", i105, t.size, 1.0)]
+    law = {"bulk_1s": 25.0, "shear_1s": 10.0, "bulk_beta": 0.1, "shear_beta": 0.3, "tension": 1.0}
+    found = cell_correction(Cell("jpk", 4300.0, t, np.zeros_like(t), h, segs), law, "standard")
+    assert isinstance(found, np.ndarray) and found.shape == (1, 3)
+    assert found[0, 0] > 1.05 and found[0, 2] > 1.0

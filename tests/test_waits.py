@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from analysis.afm.cell import Cell, Segment
-from analysis.afm.recorded_protocol import protocol_of
+from analysis.afm.recorded_protocol import MIN_HOLD_S, protocol_of, read_protocol
 from solver.protocol import Hold, Oscillate, Protocol
 
 
@@ -97,3 +97,19 @@ def test_protocol_of_is_the_recorded_protocol_or_one_with_a_given_wait():
     assert [s for s in given.steps if not isinstance(s, Hold)] == [s for s in p.steps if not isinstance(s, Hold)]
     no_hold = _native([(12.0, 11.0, 0.2, 0.0, (1.0,))])
     assert protocol_of(no_hold) is None and protocol_of(no_hold, wait_s=30.0) is not None
+
+
+def test_a_short_pause_timed_by_pause_segments_is_a_wait_an_untimed_one_is_not():
+    """JPK times its pauses exactly: a 0.5 s pause before the oscillations is a 0.5 s wait (the
+    MIN_HOLD_S rule is for holds inferred from 1 Hz approach samples, which say why not)."""
+    t = np.arange(0.0, 15.5, 0.01)
+    h = np.interp(t, [0.0, 10.0, 15.5], [20.0, 15.0, 15.0])
+    osc = t >= 10.5
+    h[osc] -= 0.25 * np.sin(2 * np.pi * (t[osc] - 10.5))
+    i10, i105 = np.searchsorted(t, 10.0), np.searchsorted(t, 10.5)
+    segs = [Segment("approach", 0, i10), Segment("pause", i10, i105), Segment("oscillation", i105, t.size, 1.0)]
+    cell = Cell("jpk", 4300.0, t, np.zeros_like(t), h, segs)
+    assert step_ages_s(cell) == [pytest.approx(0.5, abs=0.011)]
+    native = _native([(12.0, 11.0, 0.2, 1.0, (1.0,))])
+    assert 1.0 < MIN_HOLD_S and protocol_of(native) is None
+    assert "no recorded wait" in read_protocol(native)

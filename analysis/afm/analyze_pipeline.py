@@ -22,7 +22,8 @@ DIR gets cells.csv, segments.csv, summary.json (the selected variant),
 population.json (the selected variant's population answer: per frequency the
 random-effects fit, the paired tests, the trend; `analysis.afm.population.answer`),
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
-report.md, which also lists the recordings not analysed. summary.json's
+report.md, which also lists the recordings not analysed and, on stderr too, the cells that do
+not look like plate confinement (`analysis.afm.confinement`). summary.json's
 `tension_tolerance` is the tension filter's (`Settings.tension_tolerance`; null: lifted, inf).
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
@@ -40,7 +41,8 @@ DIR/rheology.csv the power laws per cell, summary.json `viscoelastic` (the instr
 phase and the paired test), report.md a section (`analysis.afm.rheology`). With it and a
 protocol-aware reading the segments are first corrected for the stress each cell keeps from its
 earlier height steps (`analysis.afm.protocol_reading`), every variant reads the corrected segments,
-segments.csv gains the correction's columns and summary.json `protocol`.
+segments.csv gains the correction's columns, summary.json `protocol` and report.md a section naming
+the cells not corrected or not settled, and why.
 
 The reading follows the data's provenance (`analysis.afm.provenance`, `Settings.as_made`, the
 default): a relaxed synthetic experiment (frequency-domain `afm synth`) in the relaxed state, exactly
@@ -53,6 +55,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -64,6 +67,8 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_reading import corrected, is_on
+from analysis.afm.confinement import warnings as confinement_warnings
+from analysis.afm.protocol_reading import markdown as protocol_markdown
 from analysis.afm.protocol_reading import summary as protocol_summary
 from analysis.afm.provenance import Provenance, Reading, of_data, reading
 from analysis.afm.provenance import markdown as made_markdown
@@ -261,6 +266,12 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     figs += population_figures(fitted.tables[bending], fitted.population, out)
     text = markdown(rec.name, bending, settings.method, fitted.tables, fitted.sums, figs,
                     fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
+    if aware:
+        text += "\n".join(protocol_markdown(fitted.segments)) + "\n"
+    for line in (odd := confinement_warnings(rec.cells)):
+        print(line, file=sys.stderr)        # once the analysis stands: bad input keeps its one line
+    if odd:
+        text += "\n## Recordings that may not be plate confinement\n\n" + "".join(f"- {w}\n" for w in odd)
     if fitted.rheology is not None:
         from analysis.afm.rheology import markdown as rheology_markdown
         _write(out, "rheology.csv", _csv(fitted.rheology))

@@ -13,9 +13,12 @@ round's fit leaves out keeps its last correction), until none moved or MAX_ROUND
 filter on the corrected mean tensions, the population, the viscoelastic reading and its
 intervals) reads the last S_i. The cells' replays run in `jobs` processes.
 
-The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`) and `protocol_corrected`: False
-for a cell without a fit, without a recorded protocol or whose replay found no equilibrium; its
-segments stay as recorded (and the tension filter, on their kept stress, mostly excludes it).
+The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
+`protocol_reason` and `protocol_settled`. A cell is not corrected (False, the reason beside it)
+without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
+a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`refused`: the correction is refused,
+never used); its segments stay as recorded (and the tension filter, on their kept stress, mostly
+excludes it). `protocol_settled` False: the cell's power laws still moved after MAX_ROUNDS.
 
 `wait_s`: None takes each recording's own waits, a number sets T_w at every height; inf (the
 relaxed-state reading) is no correction and does not come here.
@@ -50,12 +53,46 @@ def is_on(wait_s: float | None) -> bool:
     return wait_s is None or math.isfinite(wait_s)
 
 
+def _cells(segments: pd.DataFrame) -> pd.DataFrame:
+    """Per cell: corrected, reason, settled."""
+    return segments.groupby("cell_id", sort=False).agg(
+        corrected=("protocol_corrected", "all"), reason=("protocol_reason", "first"),
+        settled=("protocol_settled", "all"))
+
+
 def summary(segments: pd.DataFrame, wait_s: float | None) -> dict[str, object]:
-    """summary.json's `protocol`: the wait (s, or "recorded") and which cells were corrected."""
-    done = segments.groupby("cell_id", sort=False)["protocol_corrected"].all()
+    """summary.json's `protocol`: the wait (s, or "recorded"), which cells were corrected, why
+    the others were not, and which did not settle in MAX_ROUNDS."""
+    cells = _cells(segments)
+    left = cells[~cells["corrected"]]
     return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
-            "wait_s": "recorded" if wait_s is None else wait_s, "cells_corrected": int(done.sum()),
-            "cells_not_corrected": [str(c) for c in done.index[~done.to_numpy()]]}
+            "wait_s": "recorded" if wait_s is None else wait_s, "cells_corrected": int(cells["corrected"].sum()),
+            "cells_not_corrected": [str(c) for c in left.index],
+            "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
+            "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]]}
+
+
+def markdown(segments: pd.DataFrame) -> list[str]:
+    """report.md's section: every cell not corrected and every cell not settled, and why."""
+    cells = _cells(segments)
+    lines = ["", "## Protocol-aware correction", "",
+             f"{int(cells['corrected'].sum())} of {len(cells)} cells corrected for the stress kept from "
+             "their earlier height steps; a cell not corrected keeps its recorded segments.", ""]
+    rows = [f"| {c} | not corrected: {r.reason} |" for c, r in cells[~cells["corrected"]].iterrows()]
+    rows += [f"| {c} | not settled: its power laws still moved after {MAX_ROUNDS} rounds (its last "
+             "correction is used) |" for c in cells.index[~cells["settled"].to_numpy()]]
+    return lines + (["| cell | reason |", "|---|---|", *rows, ""] if rows else [])
+
+
+def refused(tension_mN_per_m: np.ndarray, factors: np.ndarray) -> str | None:
+    """Why a cell's correction is refused: a corrected mean tension <γ_eff>_j - Δγ_j ≤ 0; None if none."""
+    after = np.asarray(tension_mN_per_m, float) - factors[:, 2]
+    bad = np.flatnonzero(after <= 0)
+    if not bad.size:
+        return None
+    j = int(bad[0])
+    return (f"corrected tension ≤ 0 refused (segment {j}: {tension_mN_per_m[j]:.3g} - "
+            f"{factors[j, 2]:.3g} = {after[j]:.3g} mN/m)")
 
 
 def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[str]:
@@ -70,16 +107,15 @@ def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[st
     return moved
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None]) -> np.ndarray:
-    """The cell's factors; NaN rows where it is not corrected (`cell_correction` None)."""
+def _one(job: tuple[Cell, dict[str, float], str, float | None]) -> np.ndarray | str:
+    """The cell's factors, or why it is not corrected (`cell_correction`)."""
     cell, law, bending, wait_s = job
-    found = cell_correction(cell, law, bending, wait_s)
-    return np.full((len(cell.oscillations()), 3), np.nan) if found is None else found
+    return cell_correction(cell, law, bending, wait_s)
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
-             jobs: int, label: str) -> list[np.ndarray]:
-    """Per cell of `cells` its (segments, 3) correction factors, `jobs` processes."""
+             jobs: int, label: str) -> list[np.ndarray | str]:
+    """Per cell of `cells` its (segments, 3) correction factors or why not, `jobs` processes."""
     bar = tqdm(total=len(cells), unit="cell", desc=label)
     with pool(jobs) as workers:
         out = []
@@ -98,7 +134,9 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
     factors = np.full((len(raw), 3), np.nan)
-    table, now = inverted(measured, inversion, bending, errors, math.inf), _measured(raw, factors, volumes, measured)
+    why = {c.cell_id: "no viscoelastic point fit of its segments" for c in cells}
+    now = _measured(raw, factors, volumes, measured, why, [])
+    table, tension = inverted(measured, inversion, bending, errors, math.inf), raw["tension_mN_per_m"].to_numpy(float)
     laws: dict[str, dict[str, float]] = {}
     for i in range(MAX_ROUNDS):
         found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
@@ -109,14 +147,22 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         replay_cells = [c for c in cells if c.cell_id in todo]
         for c, f in zip(replay_cells, _factors(replay_cells, laws, bending, wait_s, jobs,
                                                f"protocol round {i + 1} (at most {MAX_ROUNDS})")):
-            factors[rows[c.cell_id]] = f
-        now = _measured(raw, factors, volumes, measured)
+            at = rows[c.cell_id]
+            why[c.cell_id] = f if isinstance(f, str) else (refused(tension[at], f) or "")
+            factors[at] = np.nan if why[c.cell_id] else f
+        now = _measured(raw, factors, volumes, measured, why, [])
         table = inverted(now, inversion, bending, errors, math.inf)
+    else:
+        now = _measured(raw, factors, volumes, measured, why, todo)
     return now
 
 
-def _measured(raw: pd.DataFrame, factors: np.ndarray, volumes: pd.Series, measured: Measured) -> Measured:
-    """The `Measured` of the raw segments corrected by `factors` (NaN rows: not corrected)."""
+def _measured(raw: pd.DataFrame, factors: np.ndarray, volumes: pd.Series, measured: Measured,
+              why: dict[str, str], moving: list[str]) -> Measured:
+    """The `Measured` of the raw segments corrected by `factors` (NaN rows: not corrected, for
+    the reason `why` gives); `moving` the cells not settled."""
     segments = apply(raw, factors)
     segments["protocol_corrected"] = ~np.isnan(factors[:, 0])
+    segments["protocol_reason"] = segments["cell_id"].map(why).fillna("").where(~segments["protocol_corrected"], "")
+    segments["protocol_settled"] = ~segments["cell_id"].isin(moving)
     return measured_of(segments.assign(volume_um3=segments["cell_id"].map(volumes)), measured.order)

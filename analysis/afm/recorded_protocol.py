@@ -21,7 +21,8 @@ Per oscillation segment j, starting at t_j at mean height h_j, f_j, n_j periods:
 With a wait S (`afm analyze --wait-s S`) every height's hold is S instead of the recorded one.
 None where an oscillation has no approach before it, where the heights are not gaps from the
 dish (`Cell.dish_known`) or, without S, where an approach holds its height less than MIN_HOLD_S
-before the oscillations (no recorded wait).
+before the oscillations (no recorded wait; the rule of the native format's 1 Hz approach samples:
+a hold timed by pause segments counts at any length). `read_protocol` gives the reason instead.
 
 The protocol's `ages_s()` are then the age of each oscillation's step stress: the wait, plus the
 oscillations before it at the same height.
@@ -42,21 +43,22 @@ AMPLITUDE_UM = 0.25      # µm: the oscillations' amplitude
 SHORTEST_RAMP_S = 1e-3   # s: a ramp takes at least this long
 
 
-def _step_end(cell: Cell, oscillation: Segment) -> tuple[float, str, float]:
-    """(t_s, the hold's kind, the height at t_s) of the height step before `oscillation`; NaN if none."""
+def _step_end(cell: Cell, oscillation: Segment) -> tuple[float, str, float, bool]:
+    """(t_s, the hold's kind, the height at t_s, whether pause segments time the hold) of the
+    height step before `oscillation`; NaN if none."""
     before = [s for s in cell.segments if s.kind == "approach" and s.stop <= oscillation.start]
     if not before:
-        return math.nan, "height", math.nan
+        return math.nan, "height", math.nan, False
     approach = before[-1]
     pauses = [s for s in cell.segments if s.kind == "pause" and approach.stop <= s.start < oscillation.start]
     if pauses:
         h = np.concatenate([cell.height_um[p.start:p.stop] for p in pauses])
         kind = "force" if np.ptp(h) > STEP_TOL_UM else "height"
-        return float(cell.time_s[approach.stop - 1]), kind, float(cell.height_um[approach.stop - 1])
+        return float(cell.time_s[approach.stop - 1]), kind, float(cell.height_um[approach.stop - 1]), True
     h = cell.height_um[approach.start:approach.stop]
     moved = np.flatnonzero(np.abs(h - h[-1]) > STEP_TOL_UM)
     at = approach.start + (int(moved[-1]) + 1 if moved.size else 0)
-    return float(cell.time_s[at]), "height", float(cell.height_um[at])
+    return float(cell.time_s[at]), "height", float(cell.height_um[at]), False
 
 
 def _periods(cell: Cell, seg: Segment) -> int:
@@ -67,25 +69,32 @@ def _periods(cell: Cell, seg: Segment) -> int:
 
 def protocol_of(cell: Cell, wait_s: float | None = None) -> Protocol | None:
     """The cell's protocol (module docstring); None where it is not recorded."""
+    found = read_protocol(cell, wait_s)
+    return found if isinstance(found, Protocol) else None
+
+
+def read_protocol(cell: Cell, wait_s: float | None = None) -> Protocol | str:
+    """The cell's protocol (module docstring), or why it is not recorded."""
     osc = cell.oscillations()
-    if not cell.dish_known:                          # heights not gaps from the dish
-        return None
+    if not cell.dish_known:
+        return "heights not gaps from the dish"
     first = next((s for s in cell.segments if s.kind == "approach"), None)
     if not osc or first is None or first.start >= osc[0].start:
-        return None
+        return "no approach before the oscillations"
     at = max(first.start - 1, 0)
     ref = min(float(cell.height_um[at]), FREE_SPHERE * 2 * float(cell_radius(cell.volume_um3)))
     steps: list[Step] = []
     now, level, shift, last_end = float(cell.time_s[at]), ref, 0.0, math.nan
     for seg in osc:
-        end, kind, h_end = _step_end(cell, seg)
+        end, kind, h_end, timed = _step_end(cell, seg)
         start, mean = float(cell.time_s[seg.start]), float(cell.height_um[seg.start:seg.stop].mean())
         if math.isnan(end):
-            return None
+            return f"no approach before the oscillation at {start:g} s"
         if end != last_end:                          # the first oscillation after a height step
             held = start - end
-            if wait_s is None and held < MIN_HOLD_S:
-                return None
+            if wait_s is None and not timed and held < MIN_HOLD_S:
+                return (f"the approach holds its height {held:.2g} s before the oscillation at {start:g} s "
+                        f"(< {MIN_HOLD_S:g} s of untimed approach samples: no recorded wait)")
             target = h_end if kind == "force" else mean
             if abs(target - level) > 1e-9:
                 ramp_s = max(end + shift - now, SHORTEST_RAMP_S)

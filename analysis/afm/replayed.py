@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.afm.cell import Cell
-from analysis.afm.recorded_protocol import protocol_of
+from analysis.afm.recorded_protocol import read_protocol
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
 from common.errors import SolverError
@@ -45,20 +45,20 @@ def replayed_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
 
 
 def cell_correction(cell: Cell, law: dict[str, float], bending: str,
-                    wait_s: float | None = None) -> np.ndarray | None:
+                    wait_s: float | None = None) -> np.ndarray | str:
     """(segments, 3): |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws
-    `law` (a row of `cortex_laws`); None where the protocol is not recorded or the replay finds
-    no equilibrium (the segments stay as recorded)."""
-    protocol = protocol_of(cell, wait_s)
-    if protocol is None:
-        return None
+    `law` (a row of `cortex_laws`); where the protocol is not recorded or the replay finds no
+    equilibrium, why (the segments stay as recorded)."""
+    protocol = read_protocol(cell, wait_s)
+    if isinstance(protocol, str):
+        return f"protocol not recorded: {protocol}"
     cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"])
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     try:
         rows = replayed_segments(cell, simulate(shell, cortex, protocol, REPLAY))
-    except SolverError:
-        return None
+    except SolverError as e:
+        return f"the replay found no equilibrium ({e})"
     oscillations = [s for s in protocol.steps if isinstance(s, Oscillate)]
     out = np.empty((len(rows), 3))
     for k, (row, osc, seg) in enumerate(zip(rows, oscillations, cell.oscillations())):
