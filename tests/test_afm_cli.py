@@ -17,12 +17,14 @@ from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
 from cortex.cli import main
 
+BORROW = ("emulator", "viscoelastic_table")      # a law-only file that borrows the shipped emulator and table
+
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     d = tmp_path_factory.mktemp("afm")
     cal = d / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal, borrow=BORROW)
     cells, _ = generate(4, seed=2, errors=True, forward=law_forward(reference_law()))
     good = d / "good.h5"
     write_experiment(good, cells, FREQUENCY_DOMAIN)
@@ -61,7 +63,7 @@ def test_tension_tolerance_excludes_or_keeps_a_blebbing_cell(setup, tmp_path, ca
         out = tmp_path / f"out{given}"
         option = [] if given is None else ["--tension-tolerance", given]
         assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out), "--no-phase",
-                     *option]) == 0
+                     "--method", "law", *option]) == 0
         table = pd.read_csv(out / "cells.csv")
         assert table.loc[table["cell_id"] == "cell002", "tension_deviation"].iloc[0] == pytest.approx(0.343, abs=0.01)
         by_tension = table["excluded_reason"].astype("string").str.contains("tension", na=False)
@@ -182,7 +184,8 @@ def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     monkeypatch.setattr(analysis.calibration.file, "read_document", lambda path: reads.append(path) or real(path))
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
                  "--out", str(tmp_path / "out")]) == 0
-    assert [str(p) for p in reads] == [str(cal)]
+    from analysis.calibration.file import shipped_path
+    assert [str(p) for p in reads] == [str(cal), str(shipped_path())]      # the file, and the bundle it borrows from
 
 
 def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys):
