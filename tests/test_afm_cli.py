@@ -43,6 +43,8 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
     keys = {"frequency_hz", "n_cells", "n_excluded", "median_nu", "iqr_nu", "lognormal_mu", "lognormal_sigma"}
     assert s["frequencies"] and all(keys <= set(r) for r in s["frequencies"])
     assert (tmp_path / "out/report.md").read_text().count("|") > 20
+    assert s["calibration_parts"] == {"law": str(cal), "emulator": "shipped", "viscoelastic_table": "shipped"}
+    assert "| emulator | shipped |" in (tmp_path / "out/report.md").read_text()
     for name in ("nu_histograms.png", "nu_boxplots.png", "k_curves.png", "cells_double.csv", "cells_none.csv"):
         assert (tmp_path / "out" / name).is_file()
     # refuses to overwrite
@@ -175,6 +177,22 @@ def test_bad_calibration_and_variant(setup, tmp_path, capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 3
 
 
+def test_a_law_only_calibration_does_not_borrow_the_shipped_emulator(setup, tmp_path, capsys):
+    """A law-only file without a manifest: the viscoelastic reading (on by default) is refused in one
+    line, before any output; with --no-phase it reads with its law, and summary.json says so."""
+    _, _, good, _ = setup
+    law_only = Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(tmp_path / "law.json")
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(good), "--calibration", str(law_only), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "viscoelastic reading" in err and '"shipped"' in err
+    assert not (tmp_path / "o").exists()
+    assert main(["afm", "analyze", str(good), "--calibration", str(law_only), "--out", str(tmp_path / "o"),
+                 "--no-phase"]) == 0
+    said = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert said["method"] == "law" and said["calibration_parts"] == {"law": str(law_only)}
+
+
 def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     """The calibration file is read and parsed once per `afm analyze` and handed down."""
     import analysis.calibration.file
@@ -182,6 +200,7 @@ def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     reads = []
     real = analysis.calibration.file.read_document
     monkeypatch.setattr(analysis.calibration.file, "read_document", lambda path: reads.append(path) or real(path))
+    analysis.calibration.file._shipped.cache_clear()            # as in a new process
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
                  "--out", str(tmp_path / "out")]) == 0
     from analysis.calibration.file import shipped_path

@@ -95,7 +95,8 @@ class CalibrationFile:
     """A calibration bundle as read: its law and its emulator (either may be None, not both),
     its provenance, how messages name it (the path given, or `SHIPPED_WHERE`), where each
     part it has comes from (`sources`: part -> path or "shipped") and the files of the
-    parts it names but reads on first use (`files`: part -> path)."""
+    parts it names but reads on first use (`files`: part -> path), and its manifest as read (the
+    embedded parts listed: written back as `parts`, the same bundle)."""
 
     calibration: Calibration | None
     emulator: Emulator | None
@@ -103,6 +104,7 @@ class CalibrationFile:
     where: str
     sources: dict[str, str] = field(default_factory=dict)
     files: dict[str, Path] = field(default_factory=dict)
+    manifest: dict[str, str] = field(default_factory=dict)    # as read: part -> embedded, shipped or a path
 
     @property
     def default_method(self) -> str:
@@ -214,7 +216,7 @@ def load_calibration(path: str | PathLike[str] | None = None) -> CalibrationFile
     if "law" not in embedded and "emulator" not in embedded:
         raise InputError(f"{path}: holds neither a calibration law ('variants') nor an emulator")
     return CalibrationFile(embedded.get("law"), embedded.get("emulator"), doc.get("provenance", {}), where,
-                           sources, files)
+                           sources, files, manifest)
 
 
 @lru_cache(maxsize=1)
