@@ -121,3 +121,11 @@ def test_settings_defaults_are_the_commands(tmp_path):
     assert (defaults.as_made, defaults.wait_s) == (as_made, wait)
     assert (defaults.method, defaults.jobs, defaults.bending) == (args.method, args.jobs, args.bending)
     assert defaults.tension_tolerance == TENSION_TOLERANCE and args.tension_tolerance is None
+
+
+def test_a_built_bundle_names_the_tables_beside_it_or_borrows_the_shipped_ones(tmp_path):
+    from analysis.calibration.file import _table_parts
+    assert _table_parts(tmp_path) == {"viscoelastic_table": "shipped", "ramp_table": "shipped"}
+    shutil.copy(shipped_path(TABLE_NAME), tmp_path / TABLE_NAME)
+    assert _table_parts(tmp_path) == {"viscoelastic_table": TABLE_NAME, "ramp_table": "shipped"}
+    assert _table_parts(shipped_path().parent) == {"viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME}

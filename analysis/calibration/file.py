@@ -29,7 +29,8 @@ only where its manifest says "shipped". A named part that is missing or unreadab
 InputError (one line). `CalibrationFile.sources` says for each part where it came from (the
 file's path, or "shipped"); `afm analyze` writes it to summary.json and report.md.
 
-`build` makes the document from two finished stores (`make calibration`).
+`build` makes the document from two finished stores (`make calibration`); its manifest names
+the tables beside it, or borrows the shipped ones.
 Every command reads the file here once and hands its parts on; no other code opens it.
 """
 
@@ -153,14 +154,16 @@ def _store_provenance(path: str | PathLike[str]) -> dict[str, Any]:
 
 
 def build(emulator_store: str | PathLike[str], law_store: str | PathLike[str] | None = None,
-          progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+          progress: Callable[[str], None] | None = None, folder: str | PathLike[str] | None = None) -> dict[str, Any]:
     """The calibration document from an emulator campaign's store and (optionally)
-    the paper campaign's store (its law fitted by `analysis.calibration.law.calibrate`)."""
+    the paper campaign's store (its law fitted by `analysis.calibration.law.calibrate`). Its
+    manifest names each table (`SHIPPED_PARTS`) by its file where `folder` (where the document
+    goes) holds one, and borrows the shipped one elsewhere."""
     from analysis.calibration.law import calibrate
     from analysis.calibration.command.pipeline import read_store
     results, _ = read_store(emulator_store)
     emulator = from_results(results, progress)
-    doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "parts": dict(SHIPPED_PARTS), "variants": {},
+    doc: dict[str, Any] = {"format": FORMAT, "version": VERSION, "parts": _table_parts(folder), "variants": {},
            "emulator": emulator.to_json(),
            "provenance": {"emulator": _store_provenance(emulator_store),
                           "built": {"date": time.strftime("%Y-%m-%d"), "code_version": version("cortex-poisson")}}}
@@ -173,6 +176,12 @@ def build(emulator_store: str | PathLike[str], law_store: str | PathLike[str] | 
         doc["variants"] = cal.to_json()["variants"]
         doc["provenance"]["law"] = _store_provenance(law_store)
     return _nan_to_none(doc)
+
+
+def _table_parts(folder: str | PathLike[str] | None) -> dict[str, str]:
+    """The built document's manifest of its tables: the file in `folder` where it is there, else "shipped"."""
+    return {part: name if folder is not None and (Path(folder) / name).is_file() else SHIPPED
+            for part, name in SHIPPED_PARTS.items()}
 
 
 def write(doc: dict[str, Any], path: str | PathLike[str]) -> Path:
