@@ -64,7 +64,5 @@ def inversion_settings(args: argparse.Namespace) -> tuple[CalibrationFile, Measu
     """(the `CalibrationFile`, read once, and the `MeasurementErrors`) from the shared options."""
     from analysis.calibration.file import load_calibration
     file = load_calibration(args.calibration)
-    if args.method is None:
-        args.method = file.default_method
     errors = measurement_errors(args, args.draws, args.seed)
     return file, errors

@@ -435,7 +435,7 @@ def analyze(args: argparse.Namespace) -> int:
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
     tolerance = TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance   # Settings checks it
-    file, errors = inversion_settings(args)          # also settles the default --method
+    file, errors = inversion_settings(args)          # --method None: the calibration's own (Settings)
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
     as_made, wait = wait_setting(args.wait_s, phase)

@@ -221,7 +221,7 @@ def invert(args: argparse.Namespace) -> int:
     file, errors = inversion_settings(args)
     out = OutputDir(args.out)
     out.check(["cells.csv"])                        # refused before any work if not ours
-    table = invert_rows(rows, args.method, file.calibration, file.emulator, args.bending, errors)
+    table = invert_rows(rows, args.method or file.default_method, file.calibration, file.emulator, args.bending, errors)
     with out.writing("cells.csv") as path:
         table.to_csv(path, index=False)
     if args.json:
