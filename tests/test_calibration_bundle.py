@@ -73,7 +73,8 @@ def test_replacing_the_viscoelastic_table_changes_only_the_complex_factor(tmp_pa
     assert np.real(moved) == pytest.approx(0.1 * 0.1, abs=1e-9) and np.imag(moved) == pytest.approx(0.0, abs=1e-12)
     assert mine.viscoelastic.emulator.ratio(**POINT) == shipped.emulator.ratio(**POINT)
     d = np.linspace(0.01, 0.2, 5)
-    np.testing.assert_array_equal(mine.shell_ramp.elastic(d, 0.01, 1.0, 8.0), shipped.shell_ramp.elastic(d, 0.01, 1.0, 8.0))
+    np.testing.assert_array_equal(mine.shell_ramp.elastic(d, 0.01, 1.0, 8.0),
+                                  shipped.shell_ramp.elastic(d, 0.01, 1.0, 8.0))
     assert mine.sources["viscoelastic_table"] == str(tmp_path / TABLE_NAME)
 
 
@@ -98,7 +99,8 @@ def test_the_manifest_round_trips(tmp_path):
     """The manifest as read, written back as `parts`, reads as the same bundle."""
     cal = _bundle(tmp_path)
     first = load_calibration(cal)
-    assert first.manifest == {"law": "embedded", "emulator": "embedded", "viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME}
+    assert first.manifest == {"law": "embedded", "emulator": "embedded", "viscoelastic_table": TABLE_NAME,
+                              "ramp_table": RAMP_TABLE_NAME}
     again = tmp_path / "again.json"
     again.write_text(json.dumps({**json.loads(cal.read_text()), "parts": first.manifest}))
     second = load_calibration(again)
