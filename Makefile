@@ -97,11 +97,11 @@ test-mpi-parallel:
 
 # Calibration laws, reconstruction check, Monte-Carlo study and report of a
 # finished store: make analysis [STORE=results/paper.h5] [OUT=results/analysis]
-# [DATA=experiment.h5] (DATA: also the measured cells, with this calibration).
+# [DATA=experiment.h5] (DATA: also the measured cells, with this law-only calibration: --no-phase).
 .PHONY: analysis
 analysis: setup
 	$(BIN)/cortex analysis calibrate $(or $(STORE),results/paper.h5) --out $(or $(OUT),results/analysis)
-	$(if $(DATA),$(BIN)/cortex afm analyze $(DATA) --calibration $(or $(OUT),results/analysis)/calibration.json --out $(or $(OUT),results/analysis)/afm)
+	$(if $(DATA),$(BIN)/cortex afm analyze $(DATA) --calibration $(or $(OUT),results/analysis)/calibration.json --no-phase --out $(or $(OUT),results/analysis)/afm)
 	@echo "report: $(or $(OUT),results/analysis)/report.md"
 
 # The shipped calibration: the emulator campaign and the paper campaign under

@@ -16,8 +16,8 @@ Public API (imported on first use):
   `campaign.read_results(store)`.
 - `load_calibration(path=None)` -> `CalibrationFile` (its `calibration`, `emulator`,
   `provenance`, the viscoelastic reading's `viscoelastic` and the tension analysis's
-  `shell_ramp`): a calibration file, by default the one shipped in the package
-  (`shipped_path()`).
+  `shell_ramp`, `sources`: where each part came from): a calibration bundle, by default the one
+  shipped in the package (`shipped_path()`); it holds only the parts it embeds or names.
 - `invert_cell(h_tilde, K, gamma_a, calibration, bending)` -> `CellInversion`
   (ν of one cell by the law); `invert_rows(rows, method, ...)`: a table of
   K(h̃) per cell by either method, with 95 % intervals (`MeasurementErrors`); `METHODS`,

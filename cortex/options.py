@@ -30,7 +30,9 @@ def add_bending(p: argparse.ArgumentParser, what: str = "bending variant") -> No
 def add_inversion_options(p: argparse.ArgumentParser) -> None:
     """--calibration, --method, --bending and the interval's error options (shared with `cortex afm analyze`)."""
     p.add_argument("--calibration", metavar="CAL.json",
-                   help="calibration file (default: the one shipped with the package)")
+                   help="calibration bundle (default: the one shipped with the package): the parts it holds or "
+                        "names replace the shipped ones; a part it does not name comes from the shipped bundle only "
+                        "where its manifest says \"shipped\" (docs/calibration.md)")
     p.add_argument("--method", choices=INVERSION_METHODS, default=None, metavar="METHOD",
                    help="inversion method, %(choices)s: emulator (the default: K_B and K_S/K_B fitted on the "
                         "solver's tables) or law "
@@ -62,7 +64,5 @@ def inversion_settings(args: argparse.Namespace) -> tuple[CalibrationFile, Measu
     """(the `CalibrationFile`, read once, and the `MeasurementErrors`) from the shared options."""
     from analysis.calibration.file import load_calibration
     file = load_calibration(args.calibration)
-    if args.method is None:
-        args.method = "emulator" if file.emulator is not None else "law"
     errors = measurement_errors(args, args.draws, args.seed)
     return file, errors

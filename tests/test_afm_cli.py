@@ -18,12 +18,14 @@ from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
 from cortex.cli import main
 
+BORROW = ("emulator", "viscoelastic_table")      # a law-only file that borrows the shipped emulator and table
+
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     d = tmp_path_factory.mktemp("afm")
     cal = d / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal, borrow=BORROW)
     cells, _ = generate(4, seed=2, errors=True, forward=law_forward(reference_law()))
     good = d / "good.h5"
     write_experiment(good, cells, FREQUENCY_DOMAIN)
@@ -42,6 +44,8 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
     keys = {"frequency_hz", "n_cells", "n_excluded", "median_nu", "iqr_nu", "lognormal_mu", "lognormal_sigma"}
     assert s["frequencies"] and all(keys <= set(r) for r in s["frequencies"])
     assert (tmp_path / "out/report.md").read_text().count("|") > 20
+    assert s["calibration_parts"] == {"law": str(cal), "emulator": "shipped", "viscoelastic_table": "shipped"}
+    assert "| emulator | shipped |" in (tmp_path / "out/report.md").read_text()
     for name in ("nu_histograms.png", "nu_boxplots.png", "k_curves.png", "cells_double.csv", "cells_none.csv"):
         assert (tmp_path / "out" / name).is_file()
     # refuses to overwrite
@@ -62,7 +66,7 @@ def test_tension_tolerance_excludes_or_keeps_a_blebbing_cell(setup, tmp_path, ca
         out = tmp_path / f"out{given}"
         option = [] if given is None else ["--tension-tolerance", given]
         assert main(["afm", "analyze", str(data), "--calibration", str(cal), "--out", str(out), "--no-phase",
-                     *option]) == 0
+                     "--method", "law", *option]) == 0
         table = pd.read_csv(out / "cells.csv")
         assert table.loc[table["cell_id"] == "cell002", "tension_deviation"].iloc[0] == pytest.approx(0.343, abs=0.01)
         by_tension = table["excluded_reason"].astype("string").str.contains("tension", na=False)
@@ -174,6 +178,22 @@ def test_bad_calibration_and_variant(setup, tmp_path, capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 3
 
 
+def test_a_law_only_calibration_does_not_borrow_the_shipped_emulator(setup, tmp_path, capsys):
+    """A law-only file without a manifest: the viscoelastic reading (on by default) is refused in one
+    line, before any output; with --no-phase it reads with its law, and summary.json says so."""
+    _, _, good, _ = setup
+    law_only = Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(tmp_path / "law.json")
+    capsys.readouterr()
+    assert main(["afm", "analyze", str(good), "--calibration", str(law_only), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "viscoelastic reading" in err and '"shipped"' in err
+    assert not (tmp_path / "o").exists()
+    assert main(["afm", "analyze", str(good), "--calibration", str(law_only), "--out", str(tmp_path / "o"),
+                 "--no-phase"]) == 0
+    said = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert said["method"] == "law" and said["calibration_parts"] == {"law": str(law_only)}
+
+
 def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     """The calibration file is read and parsed once per `afm analyze` and handed down."""
     import analysis.calibration.file
@@ -181,9 +201,11 @@ def test_analyze_reads_the_calibration_file_once(setup, tmp_path, monkeypatch):
     reads = []
     real = analysis.calibration.file.read_document
     monkeypatch.setattr(analysis.calibration.file, "read_document", lambda path: reads.append(path) or real(path))
+    analysis.calibration.file._shipped.cache_clear()            # as in a new process
     assert main(["afm", "analyze", str(good), "--calibration", str(cal), "--no-phase",
                  "--out", str(tmp_path / "out")]) == 0
-    assert [str(p) for p in reads] == [str(cal)]
+    from analysis.calibration.file import shipped_path
+    assert [str(p) for p in reads] == [str(cal), str(shipped_path())]      # the file, and the bundle it borrows from
 
 
 def test_the_second_process_changes_no_byte(setup, tmp_path, monkeypatch, capsys):

@@ -94,7 +94,8 @@ def test_a_bending_variant_that_does_not_exist_is_refused_everywhere(capsys):
 def test_out_is_a_folder_in_behaviour(tmp_path, capsys):
     """afm synth writes DIR/experiment.h5 and DIR/truth.json, afm analyze reads that
     folder; an --out that is a file is refused with one line, before any work."""
-    cal = Calibration({b: reference_law(b) for b in BENDING_VARIANTS}).save(tmp_path / "cal.json")
+    cal = Calibration({b: reference_law(b) for b in BENDING_VARIANTS}).save(tmp_path / "cal.json",
+                                                                         borrow=("emulator", "viscoelastic_table"))
     exp = tmp_path / "exp"
     assert main(["afm", "synth", "--cells", "3", "--seed", "4", "--solver", "law", "--calibration", str(cal),
                  "--out", str(exp), "--json"]) == 0

@@ -19,6 +19,8 @@ from studies.synthetic import reference_law
 from cortex.cli import main
 from jpk_writer import write_force, write_map
 
+BORROW = ("emulator", "viscoelastic_table")      # a law-only file that borrows the shipped emulator and table
+
 FORCE_NN, HEIGHT_UM = 1e-6, 1e-6        # the writer's quantisation is far below these
 
 
@@ -34,7 +36,7 @@ def exp(tmp_path_factory):
     pd.DataFrame({"cell_id": [c.cell_id for c in cells], "volume_um3": [c.volume_um3 for c in cells],
                   "volume_source": "confocal"}).to_csv(vol, index=False)
     cal = d / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal, borrow=BORROW)
     return d, cells, folder, vol, cal
 
 

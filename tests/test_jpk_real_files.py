@@ -156,7 +156,8 @@ def test_analyze_lists_recordings_without_modulation(tmp_path, capsys):
     from analysis.calibration.law import Calibration
     from studies.synthetic import reference_law
     cal = tmp_path / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(
+        cal, borrow=("emulator", "viscoelastic_table"))      # the shipped emulator and table, named
     capsys.readouterr()
     status = main(["afm", "analyze", str(DATA), "--volume", "4000", "--calibration", str(cal),
                    "--out", str(tmp_path / "out")])

@@ -130,7 +130,8 @@ def test_an_unreadable_file_without_our_journal_is_not_ours(tmp_path):
 def afm(tmp_path_factory):
     d = tmp_path_factory.mktemp("afm")
     cal = d / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(
+        cal, borrow=("emulator", "viscoelastic_table"))      # the shipped emulator and table, named
     cells, _ = generate(3, seed=2, errors=False, forward=law_forward(reference_law()))
     data = write_experiment(d / "exp.h5", cells, FREQUENCY_DOMAIN)
     return cal, data

@@ -197,7 +197,8 @@ def test_afm_analyze_writes_population_json_and_opens_the_report_with_the_trend(
     from studies.synthetic import reference_law
     from cortex.cli import main
     cal = tmp_path / "cal.json"
-    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(cal)
+    Calibration({b: reference_law(b) for b in ("standard", "double", "none")}).save(
+        cal, borrow=("emulator", "viscoelastic_table"))      # the shipped emulator and table, named
     assert main(["afm", "synth", "--cells", "12", "--seed", "3", "--out", str(tmp_path / "exp"), "--solver", "law",
                  "--calibration", str(cal)]) == 0
     truth = json.loads((tmp_path / "exp" / "truth.json").read_text())

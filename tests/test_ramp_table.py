@@ -11,7 +11,7 @@ import pytest
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.shell_table import DEPTHS, forces, unit_forces
-from analysis.calibration.file import RAMP_TABLE_NAME, load_calibration, shipped_path
+from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
 from analysis.calibration.ramp_table import ShellTable, from_document, read
 from common.errors import InputError
 from solver.droplet_table import unit_force_per_tension
@@ -62,11 +62,16 @@ def test_elastic_share_at_the_sphere_is_the_shells_bending_stretching_response()
 
 
 def test_calibration_file_carries_the_ramp_table(tmp_path):
-    """The shipped calibration's and a calibration file given by path both carry the shipped
-    shell ramp table, read on first use; the tension model's table is that one."""
+    """The shipped calibration's and a copy of the bundle given by path both carry the shell ramp
+    table their manifest names, read on first use; the tension model's table is the shipped one.
+    A copy of the file without the table it names is one clear error."""
     shipped = load_calibration(None).shell_ramp
     mine = tmp_path / "calibration.json"
     shutil.copy(shipped_path(), mine)
+    with pytest.raises(InputError, match="table it names.*is missing"):
+        load_calibration(mine)
+    for name in (RAMP_TABLE_NAME, TABLE_NAME):
+        shutil.copy(shipped_path(name), tmp_path / name)
     given = load_calibration(mine).shell_ramp
     for table in (shipped, given, shell_ramp.shipped()):
         assert isinstance(table, ShellTable) and table.max_depth == pytest.approx(0.3)

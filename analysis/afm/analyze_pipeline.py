@@ -24,13 +24,16 @@ random-effects fit, the paired tests, the trend; `analysis.afm.population.answer
 cells_<variant>.csv and summary_<variant>.json for every variant, figures and
 report.md, which also lists the recordings not analysed and, on stderr too, the cells that do
 not look like plate confinement (`analysis.afm.confinement`). summary.json's
-`tension_tolerance` is the tension filter's (`Settings.tension_tolerance`; null: lifted, inf).
+`tension_tolerance` is the tension filter's (`Settings.tension_tolerance`; null: lifted, inf);
+its `calibration_parts`, and report.md's Calibration section, say where each part of the
+calibration bundle came from (`CalibrationFile.sources`: a path or "shipped"). `Settings()`
+is the command's defaults; the command only parses.
 
 Recordings: one experiment (.h5/.hdf5), one single-cell CSV, or JPK or Bruker
 NanoScope files and folders of them (`analysis.afm.formats.reader.open`, with the volume and dish
 options of `cortex afm import`, `Settings.import_options`).
 
-With the emulator (the default method) every cell and frequency has a 95 %
+With the emulator (the default method where the calibration has one) every cell and frequency has a 95 %
 interval of ν and K̃_S (`nu_lo95`, `nu_hi95`, `ks_lo95`, `ks_hi95` in cells.csv),
 and every frequency's median ν a bootstrap 95 % interval (`median_nu_lo95`,
 `median_nu_hi95` in the summaries); figure `nu_intervals.png`.
@@ -75,6 +78,7 @@ from analysis.afm.provenance import markdown as made_markdown
 from analysis.invert.method import Inversion, choose
 from outputs.ownership import OutputDir
 from common.beside import beside
+from common.pool import usable_cores
 from common.errors import InputError
 
 if TYPE_CHECKING:
@@ -94,16 +98,16 @@ class Settings:
     negative or NaN)."""
 
     bending: str = "standard"
-    method: str = "emulator"     # the command's default (`cortex.options.inversion_settings`)
+    method: str | None = None    # None: the calibration's own (`CalibrationFile.default_method`)
     errors: MeasurementErrors | None = None
     import_options: ImportOptions = ImportOptions()
-    phase: bool = False          # the viscoelastic reading (`analysis.afm.rheology`)
+    phase: bool = True           # the viscoelastic reading (`analysis.afm.rheology`)
     lags: dict[float, float] | None = None     # instrument phase lag (rad) per frequency (Hz)
     lag_source: str | None = None
     tension_tolerance: float = TENSION_TOLERANCE
     as_made: bool = True          # read each experiment as its provenance says (`analysis.afm.provenance`)
     wait_s: float | None = None   # with as_made False: T_w (s), None each recording's own, inf the relaxed state
-    jobs: int = 1                 # processes for the protocol-aware reading's replays
+    jobs: int | None = None       # processes for the protocol-aware reading's replays (None: usable CPUs)
 
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
@@ -111,7 +115,7 @@ class Settings:
             raise InputError(f"a wait of {self.wait_s:g} s is given: it goes with as_made=False")
         if self.wait_s is not None and not self.wait_s >= 0:
             raise InputError(f"the wait must be a number of seconds >= 0, or inf (got {self.wait_s:g})")
-        if self.jobs < 1:
+        if self.jobs is not None and self.jobs < 1:
             raise InputError(f"jobs must be >= 1 (got {self.jobs})")
 
 
@@ -125,6 +129,7 @@ class Recordings:
     cells: list[Cell]
     skipped: dict[str, str]
     inversion: Inversion
+    method: str
     calibration: CalibrationFile
     variants: list[str]
     provenance: Provenance
@@ -162,12 +167,15 @@ def read(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
     calibration file (`analysis.calibration.file.load_calibration`) serves. InputError for bad input."""
     cells = open_cells(data, settings.import_options)
     provenance = of_data([data] if isinstance(data, (str, Path)) else data)
-    inversion = _inversion(calibration, settings.method, settings.bending)
+    method = settings.method or calibration.default_method
+    inversion = _inversion(calibration, method, settings.bending)
+    if settings.phase:
+        calibration.require(("emulator", "viscoelastic_table"), "the viscoelastic reading (--no-phase: off)")
     skipped = {c.cell_id: NO_OSCILLATION for c in cells if not c.oscillations()}
     name = Path(data).name if isinstance(data, (str, Path)) else ", ".join(Path(d).name for d in data)
     variants = [settings.bending] + [v for v in inversion.variants() if v != settings.bending]
     return Recordings(name=name, cells=[c for c in cells if c.oscillations()], skipped=skipped,
-                      inversion=inversion, calibration=calibration, variants=variants, provenance=provenance,
+                      inversion=inversion, method=method, calibration=calibration, variants=variants, provenance=provenance,
                       reading=reading(provenance, settings.wait_s, settings.as_made, settings.phase))
 
 
@@ -187,7 +195,8 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     measured = measure(rec.cells)
     if rec.protocol_aware(settings):
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
-                             settings.errors, rec.reading.wait_s, settings.lags, settings.jobs)
+                             settings.errors, rec.reading.wait_s, settings.lags,
+                             usable_cores() if settings.jobs is None else settings.jobs)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
@@ -240,6 +249,12 @@ def _csv(table: pd.DataFrame) -> Callable[[Path], None]:
     return lambda p: table.to_csv(p, index=False)
 
 
+def parts_markdown(calibration: CalibrationFile) -> str:
+    """report.md's section: where each part of the calibration bundle came from (path or "shipped")."""
+    rows = "".join(f"| {name} | {where} |\n" for name, where in calibration.sources.items())
+    return f"\n## Calibration\n\n| part | from |\n|---|---|\n{rows}"
+
+
 def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -> Path:
     """The tables, summaries, figures and report.md into the `OutputDir` out; the report's path."""
     from analysis.afm.analyze import has_intervals
@@ -256,16 +271,18 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
     aware = {"protocol": protocol_summary(fitted.segments, rec.reading.wait_s)} if rec.protocol_aware(settings) else {}
     made = {"reading": rec.reading.label(), "provenance": rec.provenance.to_dict()}
-    _write(out, "summary.json", _json({"bending": bending, "method": settings.method, "tension_tolerance": tolerance,
-                                       **made, **aware, **fitted.sums[bending]}))
-    _write(out, "population.json", _json({"bending": bending, "method": settings.method, **fitted.population}))
+    parts = {"calibration_parts": rec.calibration.sources}
+    _write(out, "summary.json", _json({"bending": bending, "method": rec.method, "tension_tolerance": tolerance,
+                                       **parts, **made, **aware, **fitted.sums[bending]}))
+    _write(out, "population.json", _json({"bending": bending, "method": rec.method, **fitted.population}))
     figs = figures(fitted.tables, fitted.sums, fitted.segments, out)
     if has_intervals(fitted.tables[bending]):
         figs.append(nu_intervals(fitted.tables[bending], out))
     from analysis.afm.population.answer_figures import population_figures
     figs += population_figures(fitted.tables[bending], fitted.population, out)
-    text = markdown(rec.name, bending, settings.method, fitted.tables, fitted.sums, figs,
-                    fitted.population) + made_markdown(rec.reading, rec.provenance) + markdown_skipped(None, rec.skipped)
+    text = markdown(rec.name, bending, rec.method, fitted.tables, fitted.sums, figs,
+                    fitted.population) + made_markdown(rec.reading, rec.provenance) + parts_markdown(rec.calibration)
+    text += markdown_skipped(None, rec.skipped)
     if aware:
         text += "\n".join(protocol_markdown(fitted.segments)) + "\n"
     for line in (odd := confinement_warnings(rec.cells)):

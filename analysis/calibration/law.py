@@ -107,11 +107,15 @@ class Calibration:
         return {"format": FORMAT, "version": 1,
                 "variants": {name: law.to_json() for name, law in self.laws.items()}}
 
-    def save(self, path: str | PathLike[str]) -> Path:
-        """Write `path` (JSON, NaN written as null); atomic replace."""
+    def save(self, path: str | PathLike[str], borrow: tuple[str, ...] = ()) -> Path:
+        """Write `path` (JSON, NaN written as null); atomic replace. A law-only bundle: its manifest
+        borrows the shipped bundle's parts `borrow` (e.g. "emulator"; `analysis.calibration.file`)."""
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(_nan_to_none(self.to_json()), indent=1) + "\n")
+        doc = self.to_json()
+        if borrow:
+            doc["parts"] = {"law": "embedded", **{name: "shipped" for name in borrow}}
+        tmp.write_text(json.dumps(_nan_to_none(doc), indent=1) + "\n")
         tmp.replace(path)
         return path
 

@@ -440,16 +440,14 @@ def analyze(args: argparse.Namespace) -> int:
     from analysis.afm.analyze import TENSION_TOLERANCE
     from analysis.afm.analyze_pipeline import Settings, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    from common.pool import usable_cores
     tolerance = TENSION_TOLERANCE if args.tension_tolerance is None else args.tension_tolerance   # Settings checks it
-    file, errors = inversion_settings(args)          # also settles the default --method
+    file, errors = inversion_settings(args)          # --method None: the calibration's own (Settings)
     data, options = experiment_in(args.data), import_options(args)
     phase, lags, lag_source = phase_settings(args)
     as_made, wait = wait_setting(args.wait_s, phase)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
                         phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance,
-                        as_made=as_made, wait_s=wait,
-                        jobs=usable_cores() if args.jobs is None else args.jobs)
+                        as_made=as_made, wait_s=wait, jobs=args.jobs)
     result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],

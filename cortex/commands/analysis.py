@@ -63,8 +63,9 @@ def _add_build_calibration(s: Commands) -> None:
     b = s.add_parser("build-calibration", help="the calibration file: emulator tables + paper law + provenance",
                      description="Build DIR/calibration.json (format version 2) from a finished emulator "
                                  "campaign store (campaigns/emulator.toml) and, optionally, the paper "
-                                 "campaign's store (its law, for --method law). `make calibration` "
-                                 "rebuilds the one shipped in the package this way.")
+                                 "campaign's store (its law, for --method law). Its manifest names the viscoelastic and "
+                                 "ramp tables DIR holds and borrows the shipped ones otherwise (docs/calibration.md). "
+                                 "`make calibration` rebuilds the one shipped in the package this way.")
     b.add_argument("--emulator-store", required=True, metavar="STORE.h5")
     b.add_argument("--law-store", metavar="STORE.h5", help="store of campaigns/paper.toml (optional)")
     b.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP + "; a folder holding only a "
@@ -152,7 +153,7 @@ def build_calibration(args: argparse.Namespace) -> int:
     from outputs.ownership import OutputDir
     out = OutputDir(args.out)
     out.check([CALIBRATION_FILE])                   # a folder or file that is not ours is left alone
-    doc = file.build(args.emulator_store, args.law_store, progress=_say)
+    doc = file.build(args.emulator_store, args.law_store, progress=_say, folder=args.out)
     with out.writing(CALIBRATION_FILE) as path:
         file.write(doc, path)
     say_result(args, {"calibration": str(path), "emulator_variants": list(doc["emulator"]),
@@ -220,7 +221,7 @@ def invert(args: argparse.Namespace) -> int:
     file, errors = inversion_settings(args)
     out = OutputDir(args.out)
     out.check(["cells.csv"])                        # refused before any work if not ours
-    table = invert_rows(rows, args.method, file.calibration, file.emulator, args.bending, errors)
+    table = invert_rows(rows, args.method or file.default_method, file.calibration, file.emulator, args.bending, errors)
     with out.writing("cells.csv") as path:
         table.to_csv(path, index=False)
     if args.json:
