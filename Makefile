@@ -72,14 +72,15 @@ typecheck: setup
 
 # The serial suite in two passes (docs/testing.md), each printing its 20 slowest tests (the
 # suite stays under 20 minutes): the tests not marked `serial` on TEST_WORKERS processes
-# (pytest-xdist; a file's tests stay on one worker, so its module fixtures are built once), then
-# the `serial` ones alone. A pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none
+# (pytest-xdist; a file's tests stay on one worker, so its module fixtures are built once; each
+# on one BLAS thread, as a campaign rank: two workers' BLAS threads would wait on each other's
+# cores), then the `serial` ones alone. A pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none
 # of its tests) is not a failure unless the other pass collected none either.
 TEST_WORKERS ?= 2
 test-serial: setup
 	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)
 	@a=0; b=0; set -x; \
-	$(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
 	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests || b=$$?; \
 	{ set +x; } 2>/dev/null; \
 	for s in $$a $$b; do [ $$s = 0 ] || [ $$s = 5 ] || exit $$s; done; \
