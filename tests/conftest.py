@@ -5,6 +5,10 @@ one way a test waits for something: `poll_until` a condition it can observe
 (a journal entry, a state in the store, a job's state), never a guessed
 number of seconds. `journal_counts` is the progress a campaign test observes.
 
+`--serial {only,skip}` picks the tests marked `serial` (those that must not run
+beside another test: docs/testing.md) or all the others; `make test-serial`
+runs the others on two processes (pytest-xdist, `-n 2`), then these alone.
+
 The test suite's faults (`faults.py`: a campaign file's `[test]` section) are
 installed here for the session and every process it starts (`cortex` under
 mpiexec, the task processes): the environment names them
@@ -25,6 +29,24 @@ ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 POLL_S = 0.01           # between two looks: short against any task a test waits for
 CORTEX = BIN / "cortex"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--serial", choices=("only", "skip"), default=None,
+                     help="only the tests marked `serial`, or all but them (default: every test)")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Deselect by `--serial`: a test is serial if it, its class or its module has the marker."""
+    pick = config.getoption("serial")
+    if pick is None:
+        return
+    wanted = pick == "only"
+    keep = [item for item in items if (item.get_closest_marker("serial") is not None) == wanted]
+    drop = [item for item in items if (item.get_closest_marker("serial") is not None) != wanted]
+    if drop:
+        config.hook.pytest_deselected(items=drop)
+        items[:] = keep
 
 
 def cortex(*args, env=None, mpi=0, timeout=600):
