@@ -35,6 +35,15 @@ def open_read(path: str | os.PathLike[str]) -> h5py.File:
         raise InputError(f"{path}: not a readable HDF5 store ({err})") from None
 
 
+def open_store(path: str | os.PathLike[str]) -> h5py.File:
+    """`open_read`, and InputError (one line) for an HDF5 file that is not a campaign store."""
+    f = open_read(path)
+    if "fingerprint" not in f.attrs or "state" not in f:
+        f.close()
+        raise InputError(f"{path}: not a campaign store")
+    return f
+
+
 def is_our_store(path: str | os.PathLike[str]) -> bool:
     """Whether `path` is a campaign store (see the module's docstring)."""
     path = str(path)

@@ -37,7 +37,7 @@ from campaign.store import checksum, journal
 from campaign.store.rows import runs, trial_columns
 from campaign.store.schema import (CHECKSUM, DONE, FAILED, PARAM_CHECKSUM, PARAMS, PENDING, STATES, stored_params, stored_results,
                                    TRIAL_PER_CELL, TRIAL_PER_HEIGHT, trial_rows)
-from campaign.store.files import open_read
+from campaign.store.files import open_read, open_store
 from campaign.task_key import split
 from common.errors import InputError
 
@@ -51,21 +51,13 @@ FLOATS = "float columns"                # the key of `_task_columns`'s float blo
 _TRIAL_RUN = ("error", "attempts")      # after TRIAL_COLUMNS in `read_trials`: how its study's run went
 
 
-def _open_store(path):
-    f = open_read(path)
-    if "fingerprint" not in f.attrs or "state" not in f:
-        f.close()
-        raise InputError(f"{path}: not a campaign store")
-    return f
-
-
 def _task_columns(path, names):
     """The compression rows' columns `names` (any of the parameters, the results,
     started_unix_s, converged, rank, error; state and attempts always), journal
     overlaid. The float columns are rows of one array, `cols[FLOATS]` (so a
     DataFrame takes them without a copy)."""
     floats = [k for k in names if k not in _NOT_FLOAT]
-    with _open_store(path) as f:
+    with open_store(path) as f:
         n = len(f["state"])
         block = np.empty((len(floats), n))
         for i, key in enumerate(floats):
@@ -172,7 +164,7 @@ def read_results(path: str | os.PathLike[str]) -> pd.DataFrame:
     not done; a table campaign's store also its task's, `stored_results`), with the
     journal of a running campaign overlaid."""
     import pandas as pd           # here: a campaign run need not load it
-    with _open_store(path) as f:
+    with open_store(path) as f:
         ids, bending = _strings(f["task_id"]), _strings(f["bending"], few=True)
         results, params = stored_results(f), stored_params(f)
     cols = _task_columns(path, params + results + ("converged", "rank", "error"))
@@ -262,7 +254,7 @@ def _failures(path, state, error):
     failed = np.flatnonzero(state == FAILED)
     if not len(failed):
         return []
-    with _open_store(path) as f:
+    with open_store(path) as f:
         ids = _strings(f["task_id"])[failed]
     return [[str(t), str(error[i])] for t, i in zip(ids, failed)]
 
@@ -275,7 +267,7 @@ def failed_tasks(path: str | os.PathLike[str], state: np.ndarray, rank: np.ndarr
     failed = np.flatnonzero(state == FAILED)
     if not len(failed):
         return []
-    with _open_store(path) as f:
+    with open_store(path) as f:
         ids = _strings(f["task_id"])[failed]
         bending = _strings(f["bending"], few=True)[failed]
         params = {k: f[k][failed] for k in PARAMS if k in f}

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from campaign.store import checksum, journal
+from campaign.store.files import open_store
 from campaign.store.rows import write_entries
 from campaign.store.schema import (CHECKSUM, PARAM_CHECKSUM, PENDING, TRIAL_PARAMS, stored_params, stored_results,
                                    trial_rows)
@@ -82,22 +83,11 @@ def journal_damage(path: str | os.PathLike[str]) -> list[tuple[int, int]]:
     return [(a, b) for i, (a, b, e) in enumerate(stretches) if e is None and i < last]
 
 
-def _open_store(path):
-    """Store `path` opened read-only; InputError (one line) for a file that is not one."""
-    from campaign.store.files import open_read
-    from common.errors import InputError
-    f = open_read(path)
-    if "fingerprint" not in f.attrs or "state" not in f:
-        f.close()
-        raise InputError(f"{path}: not a campaign store")
-    return f
-
-
 def findings(path: str | os.PathLike[str]) -> dict[str, list]:
     """What is damaged in store `path`: {'rows': [[row, task id]], 'trial_rows': [[row, trial task,
     cell]], 'journal': [[start, end]] (damaged stretches, bytes), 'param_rows': [[row, task id]],
     'trial_param_rows': [[row, trial task, cell]] (rows whose parameters are damaged)}."""
-    with _open_store(path) as f:
+    with open_store(path) as f:
         bad = damaged_rows(f)
         cells = int(f["trials"].attrs["cells_per_study"]) if "trials" in f else 1
         _drop_newer(bad, journal.read(str(path) + ".journal", f.attrs.get("journal_bytes", 0)), cells)
