@@ -16,9 +16,11 @@ import numpy as np
 import pytest
 from conftest import BIN, ROOT, journal_counts, poll_until
 
+from campaign.store.verify import verify
+
 DEMO = ROOT / "campaigns" / "demo.toml"
 N_COMPRESSIONS, N_TRIAL_TASKS = 60, 20                 # the demo's tasks
-TIMING = {"rank", "started_unix_s", "wall_s"}          # who and when: differ between any two runs
+TIMING = {"rank", "started_unix_s", "wall_s", "checksum"}   # who and when (a row's checksum covers both): differ between any two runs
 MPI_H5PY = bool(h5py.get_config().mpi)
 needs_mpio = pytest.mark.skipif(not MPI_H5PY, reason="h5py here was built without MPI "
                                 "(make test-mpi-parallel runs this with .venv-mpio, which has it)")
@@ -35,7 +37,9 @@ def run(store, ranks, *extra, env=None, wait=True, config=DEMO):
 
 
 def rows(store):
-    """Every dataset of the store but the timing ones, and the runs' provenance."""
+    """Every dataset of the store but the timing ones, and the runs' provenance; every row's
+    checksum holds (`campaign.store.verify`: the rank that wrote it computed it)."""
+    assert verify(store) == []
     out = {}
     with h5py.File(store, "r") as f:
         def take(name, obj):
