@@ -35,6 +35,7 @@ relaxed state (every element relaxed within any step: K_Δt = Σ_j K_j g_j → 0
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -74,11 +75,9 @@ class Prony:
         return complex(self.infinity + (np.asarray(self.weights) * iwt / (1.0 + iwt)).sum())
 
     def step_factors(self, dt_s: float) -> tuple[float, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """(K_Δt, d_j, g_j) of one step Δt (module docstring)."""
-        x = dt_s / np.asarray(self.times_s, float)
-        d = np.exp(-x)
-        g = -np.expm1(-x) / x
-        return float(self.infinity + (np.asarray(self.weights) * g).sum()), d, g
+        """(K_Δt, d_j, g_j) of one step Δt (module docstring); read-only arrays, remembered
+        per (series, Δt): a protocol repeats its steps' Δt thousands of times."""
+        return _step_factors(self, float(dt_s))
 
     def forgetting(self, memory_s: float) -> "Prony":
         """The series times e^{-t/τ_c}, τ_c = `memory_s` (s; inf: unchanged): every τ_j to
@@ -95,6 +94,15 @@ class Prony:
     def scaled(self, factor: float) -> "Prony":
         """The same relaxation shape with every weight times `factor`."""
         return Prony(self.infinity * factor, tuple(w * factor for w in self.weights), self.times_s)
+
+
+@lru_cache(maxsize=256)
+def _step_factors(prony: Prony, dt_s: float) -> tuple[float, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    x = dt_s / np.asarray(prony.times_s, float)
+    d = np.exp(-x)
+    g = -np.expm1(-x) / x
+    d.flags.writeable = g.flags.writeable = False
+    return float(prony.infinity + (np.asarray(prony.weights) * g).sum()), d, g
 
 
 @dataclass(frozen=True)

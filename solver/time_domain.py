@@ -154,12 +154,14 @@ class TimeShell:
     _label: float = field(init=False)
     _last: tuple[float, npt.NDArray[np.float64]] = field(init=False)
     _stride: float = field(init=False)
+    _instant_bulk: float = field(init=False)     # K_B(0) (mN/m)
 
     def __post_init__(self) -> None:
         bulk0, shear0 = (float(p.relaxation(0.0)) for p in (self.cortex.bulk, self.cortex.shear))
         if bulk0 + shear0 <= 0:
             raise InputError("the cortex needs a nonzero instantaneous modulus")
         base = self._elastic(bulk0, shear0)
+        self._instant_bulk = bulk0
         self._base = self.lag = base
         r0, z0 = base.ref.positions(LOG_PSI_MIN)[:2]
         self.u = np.concatenate([r0[1:], z0[base.kc + 1: base.N], [LOG_PSI_MIN, 2.0 * base.gamma * base.ref.H]])
@@ -185,7 +187,7 @@ class TimeShell:
         """A Lagrangian of the step with the effective moduli K_Δt (a shallow copy of the
         elastic one, its moduli replaced; the prestress is set by the step)."""
         lag = copy.copy(self._base)
-        reg = self._base.KB - float(self.cortex.bulk.relaxation(0.0))   # `Lagrangian`'s regularisation
+        reg = self._base.KB - self._instant_bulk   # `Lagrangian`'s regularisation
         lag.KB, lag.KS = (p.step_factors(dt_s)[0] + reg for p in (self.cortex.bulk, self.cortex.shear))
         lag.terms = lag.terms._replace(KB=float(lag.KB), KS=float(lag.KS))
         return lag
