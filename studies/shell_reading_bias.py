@@ -17,13 +17,15 @@ tension-only droplet's (`studies.tension_synth.droplet_force_nN`: 0 above 2R), f
 
 Results: γ_a read/true (`tension_ratio`) with its 95 % interval over the truth (`tension_lo95_ratio`,
 `tension_hi95_ratio`), `tension_covered` (1 if the interval holds γ_a, else 0), K_B read
-(`bulk_read_mN_per_m`, against K_B at 1 s), K̃_S read, the elastic term's Λ, the droplet's T
-over γ_a on the same window and `depth_moves` (1 where the nested windows flag the reading).
+(`bulk_read_mN_per_m`, against K_B at 1 s; 0 where the droplet is returned), K̃_S read
+(`shear_ratio_read`, 0 there), the elastic term's Λ, the droplet's T over γ_a on the same window,
+`depth_moves` (1 where the nested windows flag the reading), the samples and the window's h̃.
 
 One ramp is one task of the kind `KIND` (`campaign.kinds`; `[campaign] task =
 "studies.shell_reading_bias:shell_reading_bias"`, the grid's shells and a `[params]` section of
 `beta`, `speed_um_per_s` and `seed`: `campaigns/tension-bias.toml`); `bias_table` turns the store
-into the table of docs/tension.md (median γ_a read/true and the intervals' coverage per β and v).
+into the table of docs/tension.md (median γ_a read/true and the intervals' coverage per β and v),
+`python -m studies.shell_reading_bias STORE [--json]` prints it (`markdown`, `make tension-bias`).
 """
 
 import math

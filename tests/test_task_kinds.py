@@ -145,13 +145,14 @@ scale = [1.0, 2.0, 3.0]
 """
 
 
-def test_a_kind_with_parameters_of_its_own_runs_over_the_params_product(tmp_path):
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_kind_with_parameters_of_its_own_runs_over_the_params_product(tmp_path, ranks):
     """`[params]` (`campaign.params_grid`): every shell under every point of the product, the
     parameters fastest, each task with its own id, the parameters as columns with their units."""
     config = tmp_path / "c.toml"
     config.write_text(PARAMS_CAMPAIGN)
     store = tmp_path / "s.h5"
-    done = cortex("campaign", "run", config, "--store", store, "--quiet")
+    done = cortex("campaign", "run", config, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
     assert done.returncode == 0, done.stderr
     from campaign.store.reader import read_results
     rows = read_results(store)
