@@ -10,6 +10,7 @@
 #   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
 #   make ramp-table      rebuild the shipped shell ramp table (analysis/calibration/data/shell_ramp_table.json)
 #   make protocol-map    the protocol's bias map (results/protocol-map/: JSON table and figures)
+#   make tension-bias    the shell's reading of power-law ramps (results/tension-bias.md: the table)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
 #   make bench-full      every script in bench/; the others take minutes to an hour and more each
 #                        (the solver-forward round trip and error sources, the Monte-Carlo study by
@@ -150,6 +151,14 @@ ramp-table: setup
 protocol-map: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/protocol.toml --store results/protocol.h5 || [ $$? = 1 ]
 	$(BIN)/cortex analysis build-protocol-map results/protocol.h5 --out results/protocol-map
+
+# The elastic shell's reading of power-law ramps (docs/tension.md, docs/studies/tension-bias.md): its
+# campaign under mpiexec (the kind is a study's, so the repository root goes on PYTHONPATH; about 5 min
+# on 2 ranks; reruns resume), then the table from the store.
+.PHONY: tension-bias
+tension-bias: setup
+	PYTHONPATH=$(CURDIR) $(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/tension-bias.toml --store results/tension-bias.h5 || [ $$? = 1 ]
+	PYTHONPATH=$(CURDIR) $(BIN)/python -m studies.shell_reading_bias results/tension-bias.h5 > results/tension-bias.md
 
 # Benchmarks: one JSON object each on stdout; every script runs as `python bench/X.py` (no script
 # is named like a package: tests/test_bench_scripts.py) and the target fails if one did.

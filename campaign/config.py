@@ -38,6 +38,10 @@
                 [β_B, β_S]), wait_s, frequency_hz (a number or a list each;
                 `campaign.protocol_grid`); the campaign's tasks are the grid's
                 shells times their product, the protocol fastest
+    [params]    a kind's with parameters of its own (`campaign.kinds.Kind.params`,
+                not the protocol's): each of them, and only them, a number or a
+                list (`campaign.params_grid`); the campaign's tasks are the
+                grid's shells times their product, the parameters fastest
     [test]      for the test suite only: read by the module the environment
                 variable CORTEX_TASK_HOOKS names (`campaign.task_hooks`; the
                 suite's `tests/faults.py`: injected faults, no-op tasks, a
@@ -70,6 +74,8 @@ from functools import cached_property
 from campaign import task_hooks
 from campaign.kinds import Kind, find as find_kind
 from campaign.grid import GRID_KEYS, OPTIONAL, Grid, check as check_grid
+from campaign.params_grid import ParamGrid, params_axes
+from campaign.store.schema import PARAMS, RESULTS
 from campaign.protocol_grid import PROTOCOL_KEYS, PROTOCOL_PARAMS, BiasGrid, protocol_axes
 from campaign.task_key import TaskNumbers
 from campaign.trials import MODES, Study, grid_shear
@@ -87,6 +93,7 @@ SECTIONS = {"campaign": {"name", "store", "max_tasks", "task"},
             "montecarlo": {"nu", "cells", "studies", "volume_error_rel_sd", "height_error_sd_um",
                            "height_error_mode", "tension_mN_per_m", "bending", "seed"},
             "protocol": set(PROTOCOL_KEYS),
+            "params": None,     # its keys: the task kind's parameters (`campaign.params_grid`)
             "test": None}       # its keys: the hooks' module's to check (`campaign.task_hooks`)
 MC_DEFAULTS = {"cells": 55, "studies": 100, "volume_error_rel_sd": 0.075, "height_error_sd_um": 0.5,
                "height_error_mode": list(MODES), "seed": 0}
@@ -99,7 +106,7 @@ class Campaign:
     method: str
     resolution: float
     timeout_s: float
-    shells: Grid | BiasGrid   # every compression (or protocol node), in grid order (made when asked for)
+    shells: Grid | BiasGrid | ParamGrid   # every compression (or protocol node, parameter point), in grid order (made when asked for)
     text: str              # the file's text, kept in the store
     test: task_hooks.TaskHooks | None = None   # the [test] section (the test suite's only)
     studies: tuple = ()    # Monte-Carlo trial tasks (`campaign.trials.Study`), after the compressions
@@ -163,11 +170,14 @@ def load(path: str | os.PathLike[str]) -> Campaign:
     kind = _kind(path, meta, grid, method, "montecarlo" in data)
     limit = _max_tasks(path, meta)
     protocol = _protocol(path, data, kind)
-    points = math.prod(len(v) for v in protocol.values()) if protocol else 1
+    own = params_axes(path, data["params"], tuple(kind.params)) if "params" in data else {}
+    points = math.prod(len(v) for v in (protocol or own).values())
     _refuse_above(path, math.prod(len(axes[k]) for k in GRID_KEYS) * points, limit, "compressions")
     shells = check_grid(path, axes, ratios, resolution)
     if protocol:
         shells = BiasGrid(shells, protocol)
+    elif own:
+        shells = ParamGrid(shells, own)
     test = task_hooks.parse(path, data["test"], len(shells)) if "test" in data else None
     mc = data.get("montecarlo")
     _check_montecarlo_grid(path, mc, grid, ratios)
@@ -272,16 +282,23 @@ def _kind(path, meta, grid, method, montecarlo):
         if montecarlo or any(key in grid for key in OPTIONAL):
             raise InputError(f"{path}: [campaign] task {kind.name} takes elastic cells without "
                              "[montecarlo] (drop viscosity_Pa_s, frequency_hz and [montecarlo])")
-    extra = tuple(kind.params)
-    if extra not in ((), PROTOCOL_PARAMS):
-        raise InputError(f"{path}: [campaign] task {kind.name}: its parameters {', '.join(extra)} are "
-                         f"not a grid's (the shell's, or those and the protocol's: {', '.join(PROTOCOL_PARAMS)})")
+    taken = set(kind.params) & set(PARAMS + RESULTS + tuple(kind.results))
+    if taken:
+        raise InputError(f"{path}: [campaign] task {kind.name}: its parameters {', '.join(sorted(taken))} "
+                         "are a store's columns already")
     return kind
 
 
 def _protocol(path, data, kind):
     """The [protocol] axes of a campaign whose kind takes the protocol's parameters
-    (`campaign.protocol_grid`), {} for another; the section belongs to such a kind alone."""
+    (`campaign.protocol_grid`), {} for another; the section belongs to such a kind alone, as
+    `[params]` to a kind with parameters of its own (`campaign.params_grid`)."""
+    own = bool(kind.params) and tuple(kind.params) != PROTOCOL_PARAMS
+    if own != ("params" in data):
+        raise InputError(f"{path}: [campaign] task ({kind.name!r} here) is a kind with parameters of its own "
+                         f"({', '.join(kind.params) or 'none here'}), and a [params] section giving them go together")
+    if own:
+        return {}
     if bool(kind.params) != ("protocol" in data):
         raise InputError(f"{path}: [campaign] task ({kind.name!r} here) is a kind with the protocol's "
                          "parameters, as \"analysis.afm.synth.protocol_bias:protocol_bias\", "

@@ -5,10 +5,11 @@ A kind (`Kind`) names
 - its parameters: the grid's axes its point is made of, each column with its unit (every kind has
   the shell's, `campaign.store.schema.PARAMS`; a kind with the protocol's columns,
   `campaign.protocol_grid.PROTOCOL_PARAMS`, takes a `[protocol]` section and its points are
-  `campaign.protocol_grid.BiasNode`s);
+  `campaign.protocol_grid.BiasNode`s; a kind with other columns of its own takes a `[params]`
+  section giving each, and its points are `campaign.params_grid.ParamPoint`s);
 - its result columns beyond the compression's (`campaign.store.schema.RESULTS`, always there),
   each with its unit (`"1"`: dimensionless);
-- its compute function, a point (a `solver.model.Shell` or a `BiasNode`) into
+- its compute function, a point (a `solver.model.Shell`, a `BiasNode` or a `ParamPoint`) into
   {result column: value} (None: the engine's own compression, `campaign.tasks.compute`);
 - its version, an integer raised whenever the numbers it computes change. The store's fingerprint
   holds the kind's name and version (`campaign.config.Campaign.fingerprint`), and the store keeps

@@ -7,6 +7,7 @@ Each study's record is a page of docs/studies/.
 Modules: `synthetic` (store tables generated from the calibration laws, for tests and
 benchmarks of the analysis), `tension_synth` (force curves of known truth for `cortex afm
 tension`), `viscous_time` (the viscous cell's linear response in time: the check of K*(ω)),
-`prestressed_response` (complex moduli of a prestressed shell on the material stiffness only)
-and `waited_state` (the frequency-domain reading about the state after the wait).
+`prestressed_response` (complex moduli of a prestressed shell on the material stiffness only),
+`waited_state` (the frequency-domain reading about the state after the wait) and
+`shell_reading_bias` (power-law ramps read by `afm tension`'s shell: a campaign task kind).
 """

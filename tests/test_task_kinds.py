@@ -136,3 +136,46 @@ def test_a_store_made_before_kinds_is_refused_for_a_run_and_still_read(tmp_path)
 def _read_rows(store):
     from campaign.store.reader import read_results
     return read_results(store)[["state", "h0_squared_um2", "shear_over_bulk", "force_nN", "rank"]].to_dict("list")
+
+
+PARAMS_CAMPAIGN = CAMPAIGN.replace("made_up_kinds:squares", "made_up_kinds:shifted") + """
+[params]
+offset_um = [0.5, -1.0]
+scale = [1.0, 2.0, 3.0]
+"""
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_kind_with_parameters_of_its_own_runs_over_the_params_product(tmp_path, ranks):
+    """`[params]` (`campaign.params_grid`): every shell under every point of the product, the
+    parameters fastest, each task with its own id, the parameters as columns with their units."""
+    config = tmp_path / "c.toml"
+    config.write_text(PARAMS_CAMPAIGN)
+    store = tmp_path / "s.h5"
+    done = cortex("campaign", "run", config, "--store", store, "--quiet", mpi=ranks if ranks > 1 else 0)
+    assert done.returncode == 0, done.stderr
+    from campaign.store.reader import read_results
+    rows = read_results(store)
+    h0, shear, offset, scale = (a.ravel() for a in np.meshgrid(H0, SHEARS, [0.5, -1.0], [1.0, 2.0, 3.0],
+                                                                indexing="ij"))
+    assert list(rows["state"]) == ["done"] * 72 and rows["task_id"].nunique() == 72
+    np.testing.assert_array_equal(rows["h0_um"], h0)
+    np.testing.assert_array_equal(rows["shear_mN_per_m"], shear)
+    np.testing.assert_array_equal(rows["offset_um"], offset)
+    np.testing.assert_array_equal(rows["shifted_um"], (h0 + offset) * scale)
+    with h5py.File(store, "r") as f:
+        assert json.loads(f.attrs["task_params"]) == {"offset_um": "µm", "scale": "1"}
+
+
+@pytest.mark.parametrize("change, says", [
+    (lambda t: t.replace("scale = [1.0, 2.0, 3.0]", ""), "missing: scale"),
+    (lambda t: t + "speed = 1.0\n", "unknown: speed"),
+    (lambda t: t.replace("[1.0, 2.0, 3.0]", "[]"), "[params] scale must be a finite number"),
+    (lambda t: t.split("[params]")[0], "a [params] section giving them go together"),
+    (lambda t: t.replace("made_up_kinds:shifted", "made_up_kinds:squares"), "go together")])
+def test_a_params_section_that_does_not_fit_its_kind_is_refused_in_one_line(tmp_path, change, says):
+    config = tmp_path / "c.toml"
+    config.write_text(change(PARAMS_CAMPAIGN))
+    done = cortex("campaign", "run", config, "--store", tmp_path / "s.h5")
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert says in done.stderr and not (tmp_path / "s.h5").exists()
