@@ -20,6 +20,7 @@ import pandas as pd
 
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.depths import HOLDS, MOVES, NOT_TESTABLE
+from analysis.afm.tension.priors import COLUMNS as PRIOR_COLUMNS
 from analysis.afm.tension.relaxation import COLUMNS as RELAXATION_COLUMNS
 from analysis.afm.tension.relaxation import NONE
 
@@ -36,7 +37,7 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
-           "warning")
+           "warning") + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
