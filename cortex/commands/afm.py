@@ -217,8 +217,8 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
                    help="approach speed (um/s) of recordings whose files hold no sample times (a NanoScope "
                         "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
-                        "ramp_speed_source say which speed each ramp has (the elastic shell's reading does not "
-                        "use it)")
+                        "ramp_speed_source say which speed each ramp has (the elastic shell uses it only for the "
+                        "time scale of its priors from the recording's oscillations)")
     add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
