@@ -5,10 +5,14 @@ oscillation segments of `afm synth` (power-law moduli, the emulator's forward mo
 cell; the ramp's K_B and K_S are the oscillations' laws at the ramp's time scale (`ramp_modulus`),
 its K_S/K_B near 0.3, which one shallow ramp alone cannot tell from 2.5."""
 
+import json
+
 import numpy as np
 import pytest
 
 from analysis.afm.cell import Cell, Segment
+from cortex.cli import main
+from jpk_writer import write_force
 from analysis.afm.rheology import modulus_1s
 from analysis.afm.synth import cells as sy
 from analysis.afm.synth.rheology import ViscoelasticForward, emulator_complex
@@ -37,12 +41,13 @@ def recording():
     t = (x[0] - x) / SPEED
     n = x.size
     ramp_only = Cell("c", c["volume_um3"], np.r_[t, t[-1] + t + t[1]], np.r_[f, f[::-1]], np.r_[x, x[::-1]],
-                     [Segment("approach", 0, n), Segment("retract", n, 2 * n)], volume_source="synthetic")
+                     [Segment("approach", 0, n), Segment("retract", n, 2 * n)], volume_source="synthetic",
+                     spring_constant_N_per_m=0.1)
     t0 = ramp_only.time_s[-1] + 1.0
     segs = ramp_only.segments + [Segment(s.kind, s.start + 2 * n, s.stop + 2 * n, s.frequency_hz, s.amplitude_um)
                                  for s in osc.segments]
     both = Cell("c", c["volume_um3"], np.r_[ramp_only.time_s, t0 + osc.time_s], np.r_[ramp_only.force_nN, osc.force_nN],
-                np.r_[ramp_only.height_um, osc.height_um], segs, volume_source="synthetic")
+                np.r_[ramp_only.height_um, osc.height_um], segs, volume_source="synthetic", spring_constant_N_per_m=0.1)
     return both, ramp_only, (c["tension_mN_per_m"], kb, ks / kb)
 
 
@@ -78,3 +83,20 @@ def test_without_oscillations_or_with_the_option_nothing_changes_but_the_columns
     assert {k: alone[k] for k in same} == pytest.approx({k: off[k] for k in same}, nan_ok=True)
     assert "prior_source" not in _row(ramp_only, model="droplet")      # tension-only readings take no priors
 
+
+
+def test_a_jpk_archive_with_modulations_and_the_option_that_switches_them_off(recording, tmp_path, capsys):
+    """The same recording as a JPK archive read without a dish reference (the oscillations' gaps from
+    the ramp's contact point): the same priors; `--no-oscillation-priors` says none."""
+    both, _, _ = recording
+    path = write_force(tmp_path / "c.jpk-force", both, dish_um=20.0)
+    rows = {}
+    for flag in ([], ["--no-oscillation-priors"]):
+        assert main(["afm", "tension", str(path), "--volume", str(both.volume_um3), "--json", *flag]) == 0
+        rows[bool(flag)], = json.loads(capsys.readouterr().out)["rows"]
+    on, off = rows[False], rows[True]
+    direct = _row(both)
+    assert on["prior_source"] == "oscillations" and off["prior_source"] == "none"
+    assert off["prior_note"] == "--no-oscillation-priors" and off["prior_bulk_modulus_mN_per_m"] is None
+    for key in ("prior_bulk_modulus_mN_per_m", "prior_shear_ratio", "tension_mN_per_m"):
+        assert on[key] == pytest.approx(direct[key], rel=0.02), key

@@ -12,7 +12,9 @@ analyse  per recording, in order until its first retract: every approach ramp
          by its profile; where the recording holds oscillations, with the
          Gaussian priors on K_B and K_S/K_B at the ramp's time scale that their
          viscoelastic reading gives (`priors`; `_laws` once per recording,
-         `_ramp_prior` per ramp; off with Options.oscillation_priors False), window capped at the shell table's depth and
+         its heights from the first ramp's contact without a dish reference,
+         `_ramp_prior` per ramp; off with Options.oscillation_priors False),
+         window capped at the shell table's depth and
          `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
@@ -148,28 +150,42 @@ def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: floa
         return float("nan")
 
 
-def _laws(trace: Trace, options: Options) -> Laws | str:
-    """The relaxation laws of the recording's oscillations for the shell's priors (`priors.read_laws`),
-    or why there are none."""
+def _no_laws(trace: Trace, options: Options) -> str:
+    """Why the recording gives the shell no priors before any reading ('' where it may)."""
     if not options.oscillation_priors:
         return "--no-oscillation-priors"
-    if trace.cell is None:
-        return "no oscillation segment in the recording"
-    return read_laws(trace.cell, options.errors)
+    return "" if trace.cell is not None else "no oscillation segment in the recording"
 
 
-def _ramp_prior(laws: Laws | str, t: np.ndarray, x: np.ndarray, f: np.ndarray, options: Options, radius: float
-                ) -> tuple[Prior | None, str]:
-    """(the ramp's priors, '') or (None, why): the laws at the ramp's time scale T = d / v (`priors`;
-    d the depth of the shell's window, the droplet fit's, v the ramp's speed)."""
+def _laws(trace: Trace, options: Options, contact_um: float, radius: float) -> Laws | str:
+    """The relaxation laws of the recording's oscillations for the shell's priors (`priors.read_laws`),
+    or why there are none. Without a dish reference the heights are the wedge's x: the gaps are
+    h = 2R - (x0 - x) from the first ramp's contact x0 = `contact_um`, as for the pauses."""
+    cell = trace.cell
+    assert cell is not None, "_no_laws first"
+    if not trace.dish_known:
+        cell = replace(cell, height_um=cell.height_um + (2.0 * radius - contact_um))
+    return read_laws(cell, options.errors)
+
+
+def _ramp_prior(trace: Trace, laws: Laws | str | None, t: np.ndarray, x: np.ndarray, f: np.ndarray,
+                options: Options, radius: float) -> tuple[tuple[Prior | None, str], Laws | str]:
+    """((the ramp's priors, '') or (None, why), the recording's laws, read at its first ramp when
+    `laws` is None, `_laws`): the laws at the ramp's time scale T = d / v (`priors`; d the depth of
+    the shell's window, the droplet fit's, v the ramp's speed)."""
+    laws = laws if laws is not None else (_no_laws(trace, options) or None)
     if isinstance(laws, str):
-        return None, laws
+        return (None, laws), laws
     cap = shell_ramp.shipped().max_depth * radius
-    drop = fit_ramp(x, f, radius, "droplet", cap_um=cap if options.max_depth_um is None else min(cap, options.max_depth_um))
+    cap = cap if options.max_depth_um is None else min(cap, options.max_depth_um)
+    drop = fit_ramp(x, f, radius, "droplet", cap_um=cap)
+    laws = _laws(trace, options, drop.contact_um, radius) if laws is None else laws
+    if isinstance(laws, str):
+        return (None, laws), laws
     speed = _ramp_speed(t, x, drop.contact_um, options.ramp_speed_um_per_s)["ramp_speed_um_per_s"]
     if not (np.isfinite(speed) and speed > 0 and drop.depth_um > 0):
-        return None, "the ramp's speed is unknown: no time scale to read the oscillations' moduli at"
-    return prior(laws, drop.depth_um / speed, baseline_noise(f)[1]), ""
+        return (None, "the ramp's speed is unknown: no time scale to read the oscillations' moduli at"), laws
+    return (prior(laws, drop.depth_um / speed, baseline_noise(f)[1]), ""), laws
 
 
 def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float,
@@ -324,16 +340,17 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     """Every approach ramp and pause of `trace` before its first retract; InputError
     (the recording's reason) if one cannot be analysed or there is none."""
     radius = float(cell_radius(trace.volume_um3))
-    done, ramp, laws = Analysed(rows=[], radius_um=radius), None, None
+    done, ramp = Analysed(rows=[], radius_um=radius), None
+    laws: Laws | str | None = None
     for index, kind, t, f, x in trace.parts:
         if kind == "retract":
             break
         where = f"{kind} segment {index}"
         try:
             if kind == "approach":
-                shell = options.model == "shell"
-                laws = laws if laws is not None or not shell else _laws(trace, options)
-                pr = _ramp_prior(laws, t, x, f, options, radius) if laws is not None else (None, "")
+                pr: tuple[Prior | None, str] = (None, "")
+                if options.model == "shell":
+                    pr, laws = _ramp_prior(trace, laws, t, x, f, options, radius)
                 row, plot = _ramp_row(trace, index, x, f, options, radius, pr)
                 row.update(_ramp_speed(t, x, plot[4].contact_um, options.ramp_speed_um_per_s))
                 ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
