@@ -91,9 +91,12 @@ def test_a_jpk_archive_with_modulations_and_the_option_that_switches_them_off(re
     both, _, _ = recording
     path = write_force(tmp_path / "c.jpk-force", both, dish_um=20.0)
     rows = {}
-    for flag in ([], ["--no-oscillation-priors"]):
+    for flag in (["--out", str(tmp_path / "out")], ["--no-oscillation-priors"]):
         assert main(["afm", "tension", str(path), "--volume", str(both.volume_um3), "--json", *flag]) == 0
-        rows[bool(flag)], = json.loads(capsys.readouterr().out)["rows"]
+        rows[flag[0] != "--out"], = json.loads(capsys.readouterr().out)["rows"]
+    import pandas as pd
+    assert pd.read_csv(tmp_path / "out" / "tension.csv")["prior_source"].tolist() == ["oscillations"]
+    assert "| oscillations: K_B " in (tmp_path / "out" / "report.md").read_text()
     on, off = rows[False], rows[True]
     direct = _row(both)
     assert on["prior_source"] == "oscillations" and off["prior_source"] == "none"
