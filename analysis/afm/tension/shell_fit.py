@@ -96,7 +96,7 @@ class Fixed:
 
     shear_tilde: float = SHEAR_TILDE
     bulk_mN_per_m: float | None = None
-    prior: "Prior | None" = None
+    prior: Prior | None = None
 
 
 @dataclass(frozen=True)

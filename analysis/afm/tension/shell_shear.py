@@ -2,9 +2,9 @@
 likelihood over the ramp table's range, and γ_a's and K_B's intervals widened by
 what K̃_S leaves open.
 
-The fit at the reference K̃_S = 1/3 (the prior's where the oscillations give one,
-`priors`; every fit then reads the posterior) (`shell_fit.fit_shell`) tests the elastic
-term. Where it is not significant the row is the droplet's (K_B = 0, where the
+The fit at the reference K̃_S (1/3, or the prior's where the recording's oscillations
+give one, `priors`: every fit then reads the posterior; `shell_fit.fit_shell`) tests the
+elastic term. Where it is not significant the row is the droplet's (K_B = 0, where the
 force does not depend on K̃_S: K̃_S is not identified). Otherwise the fit is redone
 at each K̃_S of NODES log-spaced nodes over the table's range [K̃_lo, K̃_hi]
 (0.08-2.5), each started from its neighbour's optimum, then by Brent's method in
