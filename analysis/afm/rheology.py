@@ -16,8 +16,10 @@ intervals of β. A power-law (structural damping) material has δ = βπ/2 at ev
 frequency: `bulk_power_law_consistent` says whether the mean fitted δ_B over the
 frequencies minus β_B π/2 has a 95 % interval holding 0 (likewise shear).
 
-The same slope gives the laws a cell's protocol is replayed with (`cortex_laws`, the
-protocol-aware reading: K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β), one frequency: β = 2δ/π).
+The same slope gives the relaxation laws K(t) = K(1 s) t^-β (`power_law`, `modulus_1s`:
+K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β), one frequency: β = 2δ/π) a cell's protocol is replayed
+with (`cortex_laws`, the protocol-aware reading) and `cortex afm tension` takes its priors from
+(`analysis.afm.tension.priors`).
 
 Population: medians and quartiles of β_B and β_S and the Wilcoxon signed-rank test of
 β_S - β_B over the cells (`scipy.stats.wilcoxon`; one-sided, β_S > β_B, as the
@@ -231,27 +233,39 @@ def power_laws(table: pd.DataFrame, theta: Any, th_m: Any) -> pd.DataFrame:
 EXPONENT_RANGE = (0.0, 0.9)      # the exponents a cell's cortex is replayed with
 
 
+def power_law(log_f: Any, log_abs: Any, delta: Any) -> tuple[Any, Any]:
+    """(β, ln |K*(1 Hz)|) of one cell's moduli at frequencies exp(`log_f`): the slope and value at
+    1 Hz of the line through ln |K*| (`_slopes`, as `power_laws`; rows of `log_abs` and `delta`
+    the frequencies, columns e.g. bootstrap draws); one frequency: β = 2δ/π (δ its loss angle)."""
+    x, y = np.asarray(log_f, float), np.asarray(log_abs, float)
+    if x.size > 1:
+        return _slopes(x, y)
+    slope = 2.0 * np.asarray(delta, float)[0] / np.pi
+    return slope, y[0] - slope * x[0]
+
+
+def modulus_1s(abs_1hz: Any, beta: Any) -> Any:
+    """K(1 s) of the relaxation law K(t) = K(1 s) t^-β whose |K*(ω)| = K(1 s) Γ(1-β) ω^β has the
+    value `abs_1hz` at 1 Hz: K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β)."""
+    from scipy.special import gamma
+    return np.asarray(abs_1hz) / (gamma(1.0 - np.asarray(beta)) * (2 * np.pi) ** np.asarray(beta))
+
+
 def cortex_laws(moduli: pd.DataFrame) -> pd.DataFrame:
     """Per cell the relaxation laws K(t) = K(1 s) t^-β its protocol is replayed with, from the
-    point fits at each frequency (`point_moduli`: `bulk_abs`, `bulk_delta`, ...): β the slope of
-    ln |K*| in ln f (`_slopes`, as `power_laws`; one frequency: 2δ/π), clipped to EXPONENT_RANGE,
-    K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β) from the line's value at 1 Hz, and γ_a the median
+    point fits at each frequency (`point_moduli`: `bulk_abs`, `bulk_delta`, ...): β and ln |K*(1 Hz)|
+    of `power_law`, β clipped to EXPONENT_RANGE, K(1 s) = `modulus_1s`, and γ_a the median
     tension. Columns `cell_id`, `tension`, `bulk_beta`, `bulk_1s`, `shear_beta`, `shear_1s`."""
-    from scipy.special import gamma
     rows = []
     for cell, g in moduli.dropna(subset=["bulk_abs", "shear_abs", "bulk_delta", "shear_delta"]).groupby("cell_id"):
         x = np.log(g["frequency_hz"].to_numpy(float))
         row: dict[str, Any] = {"cell_id": cell, "tension": float(g["tension"].median())}
         for name in ("bulk", "shear"):
-            y = np.log(g[f"{name}_abs"].to_numpy(float))
-            if len(g) > 1:
-                slope, at_1hz = (float(v[0]) for v in _slopes(x, y[:, None]))
-            else:
-                slope = 2 * float(g[f"{name}_delta"].iloc[0]) / np.pi
-                at_1hz = float(y[0]) - slope * float(x[0])
+            y = np.log(g[f"{name}_abs"].to_numpy(float))[:, None]
+            slope, at_1hz = (float(np.ravel(v)[0]) for v in power_law(x, y, g[f"{name}_delta"].to_numpy(float)))
             beta = float(np.clip(slope, *EXPONENT_RANGE))
             row[f"{name}_beta"] = beta
-            row[f"{name}_1s"] = float(np.exp(at_1hz) / (gamma(1.0 - beta) * (2 * np.pi) ** beta))
+            row[f"{name}_1s"] = float(modulus_1s(np.exp(at_1hz), beta))
         rows.append(row)
     return pd.DataFrame(rows, columns=["cell_id", "tension", "bulk_beta", "bulk_1s", "shear_beta", "shear_1s"])
 

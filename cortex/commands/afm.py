@@ -199,6 +199,10 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--model", choices=RAMP_MODELS, default="shell", metavar="MODEL",
                    help="ramp model, %(choices)s (default shell: the active tension and bulk modulus of an elastic "
                         "cortex; the droplet and small-deformation apparent tensions beside it)")
+    t.add_argument("--no-oscillation-priors", action="store_true",
+                   help="do not take the shell's priors from the recording's own oscillation segments (by default "
+                        "a recording that holds them is read as `afm analyze` reads it, and K_B and K_S/K_B at the "
+                        "ramp's time scale become Gaussian priors of the shell fit; the row's prior_source says so)")
     t.add_argument("--shear-ratio", type=float, default=None, metavar="KS_OVER_KB",
                    help="K_S/K_B of the shell model when known from the same cell's oscillations (default: "
                         "fitted over the ramp table's range by its profile likelihood; the row says "
@@ -213,8 +217,8 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
                    help="approach speed (um/s) of recordings whose files hold no sample times (a NanoScope "
                         "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
-                        "ramp_speed_source say which speed each ramp has (the elastic shell's reading does not "
-                        "use it)")
+                        "ramp_speed_source say which speed each ramp has (the elastic shell uses it only for the "
+                        "time scale of its priors from the recording's oscillations)")
     add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
@@ -465,7 +469,8 @@ def tension(args: argparse.Namespace) -> int:
     from analysis.afm.tension.pause import DRAWS
     from analysis.afm.tension.pipeline import Options, run
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
-    options = Options(model=args.model, shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
+    options = Options(model=args.model, oscillation_priors=not args.no_oscillation_priors,
+                      shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
                       max_depth_um=args.max_depth_um, ramp_speed_um_per_s=args.ramp_speed_um_per_s,
                       import_options=import_options(args, contact_heights=True, untimed_ramps=True),
                       errors=measurement_errors(args, DRAWS))
@@ -501,7 +506,8 @@ def _tension_line(r: dict[str, Any]) -> str:
             text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "
                      f"{r['bulk_modulus_hi95_mN_per_m']:.3g}], droplet T {r['droplet_tension_mN_per_m']:.4g}, "
                      f"small-deformation T {r['small_deformation_tension_mN_per_m']:.4g} mN/m, baseline slope "
-                     f"{r['baseline_slope_nN_per_um']:.3g} nN/um" + (" (bimodal)" if r["bimodal"] else ""))
+                     f"{r['baseline_slope_nN_per_um']:.3g} nN/um" + (" (bimodal)" if r["bimodal"] else "")
+                     + (", priors from its oscillations" if r.get("prior_source") == "oscillations" else ""))
         text += (f", contact {r['contact_um']:.5g} um, R2 {r['r2']:.4f} ({r['model']}); "
                  f"{r['compare_model']} T {r['compare_tension_mN_per_m']:.4g} mN/m, R2 {r['compare_r2']:.4f}")
     elif r["part"] == "pause":

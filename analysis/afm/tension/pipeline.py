@@ -9,7 +9,12 @@ read     every FILE on its own by the one reader, `formats.open`: an experiment
 analyse  per recording, in order until its first retract: every approach ramp
          fitted by the selected model: `shell` (`shell_fit`: γ_a and K_B of the
          elastic cortex at the given K_S/K_B, or `shell_shear` with K_S/K_B fitted
-         by its profile, window capped at the shell table's depth and
+         by its profile; where the recording holds oscillations, with the
+         Gaussian priors on K_B and K_S/K_B at the ramp's time scale that their
+         viscoelastic reading gives (`priors`; `_laws` once per recording,
+         its heights from the first ramp's contact without a dish reference,
+         `_ramp_prior` per ramp; off with Options.oscillation_priors False),
+         window capped at the shell table's depth and
          `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
@@ -50,6 +55,8 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.depths import depth_rows, depth_test
+from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
+from analysis.afm.tension.priors import columns as prior_columns
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
@@ -67,11 +74,12 @@ MIN_FREE = 10            # samples above the contact to read a ramp's speed from
 
 @dataclass(frozen=True)
 class Options:
-    """What to analyse with: the ramp model (and for the shell: K̃_S, K_B if known, the deepest
-    deformation), how to read the files (one of the volume sources, the dish reference; heights
+    """What to analyse with: the ramp model (and for the shell: whether the recording's
+    oscillations give it priors, K̃_S, K_B if known, the deepest deformation), how to read the files (one of the volume sources, the dish reference; heights
     refer to the approach's contact point without one), the errors."""
 
     model: str = "shell"
+    oscillation_priors: bool = True           # the shell's priors from the recording's oscillations (`priors`)
     shear_tilde: float | None = None          # None: unknown, fitted (`shell_shear`)
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
@@ -83,7 +91,8 @@ class Options:
 @dataclass
 class Trace:
     """One recording ready for the analysis: its parts (segment index, kind, t (s),
-    F (nN), x (µm)); `dish_known` when x is the gap itself."""
+    F (nN), x (µm)); `dish_known` when x is the gap itself; `cell` the recording itself when it
+    holds oscillation segments (the shell's priors, `priors`), else None."""
 
     cell_id: str
     source: str
@@ -92,13 +101,15 @@ class Trace:
     parts: list[tuple[int, str, np.ndarray, np.ndarray, np.ndarray]]
     dish_known: bool
     timed: bool = True
+    cell: Cell | None = None
 
 
 def _trace(cell: Cell) -> Trace:
     """A cell (`formats.open`) as the analysis takes it: its segments' samples in order."""
     parts = [(i, s.kind, cell.time_s[s.start:s.stop], cell.force_nN[s.start:s.stop], cell.height_um[s.start:s.stop])
              for i, s in enumerate(cell.segments)]
-    return Trace(cell.cell_id, cell.source, cell.volume_um3, cell.volume_source, parts, cell.dish_known, cell.timed)
+    return Trace(cell.cell_id, cell.source, cell.volume_um3, cell.volume_source, parts, cell.dish_known, cell.timed,
+                 cell if cell.oscillations() else None)
 
 
 def read(paths: Sequence[str | Path], options: Options) -> tuple[list[Trace], dict[str, str]]:
@@ -139,14 +150,55 @@ def _apparent(x: np.ndarray, f: np.ndarray, radius: float, model: str, cap: floa
         return float("nan")
 
 
-def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
-               ) -> tuple[dict[str, Any], tuple[Any, ...]]:
-    """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same window)."""
+def _no_laws(trace: Trace, options: Options) -> str:
+    """Why the recording gives the shell no priors before any reading ('' where it may)."""
+    if not options.oscillation_priors:
+        return "--no-oscillation-priors"
+    return "" if trace.cell is not None else "no oscillation segment in the recording"
+
+
+def _laws(trace: Trace, options: Options, contact_um: float, radius: float) -> Laws | str:
+    """The relaxation laws of the recording's oscillations for the shell's priors (`priors.read_laws`),
+    or why there are none. Without a dish reference the heights are the wedge's x: the gaps are
+    h = 2R - (x0 - x) from the first ramp's contact x0 = `contact_um`, as for the pauses."""
+    cell = trace.cell
+    assert cell is not None, "_no_laws first"
+    if not trace.dish_known:
+        cell = replace(cell, height_um=cell.height_um + (2.0 * radius - contact_um))
+    return read_laws(cell, options.errors)
+
+
+def _ramp_prior(trace: Trace, laws: Laws | str | None, t: np.ndarray, x: np.ndarray, f: np.ndarray,
+                options: Options, radius: float) -> tuple[tuple[Prior | None, str], Laws | str]:
+    """((the ramp's priors, '') or (None, why), the recording's laws, read at its first ramp when
+    `laws` is None, `_laws`): the laws at the ramp's time scale T = d / v (`priors`; d the depth of
+    the shell's window, the droplet fit's, v the ramp's speed)."""
+    laws = laws if laws is not None else (_no_laws(trace, options) or None)
+    if isinstance(laws, str):
+        return (None, laws), laws
+    cap = shell_ramp.shipped().max_depth * radius
+    cap = cap if options.max_depth_um is None else min(cap, options.max_depth_um)
+    drop = fit_ramp(x, f, radius, "droplet", cap_um=cap)
+    laws = _laws(trace, options, drop.contact_um, radius) if laws is None else laws
+    if isinstance(laws, str):
+        return (None, laws), laws
+    speed = _ramp_speed(t, x, drop.contact_um, options.ramp_speed_um_per_s)["ramp_speed_um_per_s"]
+    if not (np.isfinite(speed) and speed > 0 and drop.depth_um > 0):
+        return (None, "the ramp's speed is unknown: no time scale to read the oscillations' moduli at"), laws
+    return (prior(laws, drop.depth_um / speed, baseline_noise(f)[1]), ""), laws
+
+
+def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float,
+               ramp_prior: tuple[Prior | None, str] = (None, "")) -> tuple[dict[str, Any], tuple[Any, ...]]:
+    """The row and plot of one approach ramp by the shell (the droplet for comparison, on the same
+    window), with the priors `ramp_prior` (`_ramp_prior`: the prior or None and why)."""
+    pr = ramp_prior[0]
     if options.shear_tilde is not None:
-        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m), cap_um=options.max_depth_um)
+        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m, pr),
+                        cap_um=options.max_depth_um)
     else:
-        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um)
-    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m)       # the volume refits and nested windows: at the fit's
+        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um, prior=pr)
+    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m, pr)   # the volume refits and nested windows: at the fit's
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
     verdict, why = depth_test(rows)
@@ -170,7 +222,8 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            "force_nN": float(fit.force_nN(fit.contact_um - fit.depth_um, radius)) - fit.baseline_nN,
            **_window(fit, radius), "compare_model": "droplet",
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
-           "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan")}
+           "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan"),
+           **prior_columns(*ramp_prior)}
     row["warning"] = _depth_warning(options.max_depth_um, fit, x, shell_ramp.shipped().max_depth * radius)
     return row, ("approach", index, x, f, fit, cmp, rows)
 
@@ -209,11 +262,12 @@ def _window(fit: Any, radius: float) -> dict[str, Any]:
             "window_samples": int(fit.window.sum()), "r2": fit.r2}
 
 
-def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float
-              ) -> tuple[dict[str, Any], tuple[Any, ...]]:
-    """The row and plot of one approach ramp (the selected model, the other for comparison)."""
+def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: Options, radius: float,
+              ramp_prior: tuple[Prior | None, str] = (None, "")) -> tuple[dict[str, Any], tuple[Any, ...]]:
+    """The row and plot of one approach ramp (the selected model, the other for comparison; the
+    shell with `ramp_prior`)."""
     if options.model == "shell":
-        return _shell_row(trace, index, x, f, options, radius)
+        return _shell_row(trace, index, x, f, options, radius, ramp_prior)
     fit = fit_ramp(x, f, radius, options.model, cap_um=options.max_depth_um)
     other = next(m for m in MODELS if m != options.model)
     try:
@@ -287,13 +341,17 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     (the recording's reason) if one cannot be analysed or there is none."""
     radius = float(cell_radius(trace.volume_um3))
     done, ramp = Analysed(rows=[], radius_um=radius), None
+    laws: Laws | str | None = None
     for index, kind, t, f, x in trace.parts:
         if kind == "retract":
             break
         where = f"{kind} segment {index}"
         try:
             if kind == "approach":
-                row, plot = _ramp_row(trace, index, x, f, options, radius)
+                pr: tuple[Prior | None, str] = (None, "")
+                if options.model == "shell":
+                    pr, laws = _ramp_prior(trace, laws, t, x, f, options, radius)
+                row, plot = _ramp_row(trace, index, x, f, options, radius, pr)
                 row.update(_ramp_speed(t, x, plot[4].contact_um, options.ramp_speed_um_per_s))
                 ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
             elif kind == "pause":

@@ -20,6 +20,7 @@ import pandas as pd
 
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.depths import HOLDS, MOVES, NOT_TESTABLE
+from analysis.afm.tension.priors import COLUMNS as PRIOR_COLUMNS
 from analysis.afm.tension.relaxation import COLUMNS as RELAXATION_COLUMNS
 from analysis.afm.tension.relaxation import NONE
 
@@ -36,7 +37,7 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
-           "warning")
+           "warning") + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
@@ -155,17 +156,29 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
     lines = ["", "## Approach ramps: the elastic shell", "",
              "K_S/K_B given, or fitted over the ramp table's range by its profile likelihood: identified (its 95 % "
              "interval inside the range), bounded (one end inside) or not identified; where fitted, the intervals "
-             "of γ_a and K_B hold every K_S/K_B of its interval (see docs/tension.md).", "",
-             "| cell | part | γ_a (mN/m) | 95 % | K_B (mN/m) | 95 % | K_S/K_B | 95 % | K_S/K_B is | elastic term (Λ) |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "of γ_a and K_B hold every K_S/K_B of its interval. Priors: the Gaussian priors on K_B and K_S/K_B "
+             "at the ramp's time scale T from the recording's own oscillations, or why none (see "
+             "docs/tension.md).", "",
+             "| cell | part | γ_a (mN/m) | 95 % | K_B (mN/m) | 95 % | K_S/K_B | 95 % | K_S/K_B is | elastic term (Λ) "
+             "| priors |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in ramps:
         lines.append(f"| {r['cell_id']} | approach {r['segment']} | {_num(r, 'tension_mN_per_m', '.4g')} | "
                      f"[{_num(r, 'tension_lo95_mN_per_m', '.3g')}, {_num(r, 'tension_hi95_mN_per_m', '.3g')}] | "
                      f"{_num(r, 'bulk_modulus_mN_per_m', '.4g')} | [{_num(r, 'bulk_modulus_lo95_mN_per_m', '.3g')}, "
                      f"{_num(r, 'bulk_modulus_hi95_mN_per_m', '.3g')}] | {_num(r, 'shear_ratio', '.3g')} | "
                      f"[{_num(r, 'shear_ratio_lo95', '.3g')}, {_num(r, 'shear_ratio_hi95', '.3g')}] | "
-                     f"{r['shear_ratio_identified']} | {r['elastic_term']} ({_num(r, 'elastic_term_lr', '.3g')}) |")
+                     f"{r['shear_ratio_identified']} | {r['elastic_term']} ({_num(r, 'elastic_term_lr', '.3g')}) | "
+                     f"{_prior_cell(r)} |")
     return lines
+
+
+def _prior_cell(r: dict[str, Any]) -> str:
+    """The shell table's priors: K_B ± sd and K_S/K_B ×/÷ e^sd at T, or none and why."""
+    if r.get("prior_source") != "oscillations":
+        return f"none ({r.get('prior_note', '')})"
+    return (f"oscillations: K_B {_num(r, 'prior_bulk_modulus_mN_per_m', '.3g')} ± "
+            f"{_num(r, 'prior_bulk_modulus_sd_mN_per_m', '.2g')} mN/m, K_S/K_B {_num(r, 'prior_shear_ratio', '.3g')} "
+            f"×/÷ e^{_num(r, 'prior_shear_ratio_log_sd', '.2g')}, T {_num(r, 'prior_time_scale_s', '.3g')} s")
 
 
 def _pause_lines(rows: list[dict[str, Any]]) -> list[str]:

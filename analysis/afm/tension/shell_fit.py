@@ -48,6 +48,12 @@ shell (its profile where it sits at the bound), so the selection never makes
 an interval narrower than the shell's (`_select`). Both valleys lie in the 95 %
 set when Λ ≤ CHI2_95 and the shell's optimum is another valley (K_B > 0, its γ_a
 beyond its own Z95 · sd of the droplet's): `bimodal`, the ramp cannot choose.
+
+Priors (`Fixed.prior`, `priors`): where the same recording's oscillations give K_B and K̃_S
+at the ramp's time scale, their Gaussian priors are two more rows of the residual vector,
+σ (K_B - K̄_B)/sd_K and σ ln(K̃_S/K̄_S)/sd_lnS (σ the ramp's noise), so SSE/σ² is -2 ln of the
+posterior: the Jacobian's covariance, Λ, the profiles over K_B and K̃_S and the intervals all
+read it (σ² is taken from that SSE: the rows add about 2 to a χ² of n).
 """
 
 from collections.abc import Sequence
@@ -59,6 +65,7 @@ from scipy.optimize import least_squares, minimize_scalar
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.pause import TENSION_ERRORS, Z95
+from analysis.afm.tension.priors import Prior
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.ramp import fit_ramp
 from common.errors import InputError
@@ -83,10 +90,13 @@ SIGNIFICANT, NOT_SIGNIFICANT, GIVEN = "significant", "not significant", "K_B giv
 
 @dataclass(frozen=True)
 class Fixed:
-    """What the fit does not fit: K̃_S, and K_B (mN/m) when known (None: fitted)."""
+    """What the fit does not fit: K̃_S, and K_B (mN/m) when known (None: fitted); and what it
+    knows beforehand: the Gaussian priors of the same cell's oscillations (`priors.Prior`, None:
+    none), rows of the residual vector in every fit that uses this `Fixed` (module doc)."""
 
     shear_tilde: float = SHEAR_TILDE
     bulk_mN_per_m: float | None = None
+    prior: Prior | None = None
 
 
 @dataclass(frozen=True)
@@ -174,8 +184,9 @@ def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float,
 def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Sequence[float] | np.ndarray,
            tol: float = TOL) -> tuple[np.ndarray, float, np.ndarray]:
     """least_squares from θ0 = (x0, F_b, γ_a, K_B, s) to `tol` (relative, in θ and SSE); K_B fixed when
-    `fixed` says so. (θ, SSE, Jacobian): the Jacobian's columns those of the free parameters in θ's
-    order (x0, F_b, γ_a, [K_B], s)."""
+    `fixed` says so, the prior's rows appended to the residuals where it has one (the SSE then
+    includes them). (θ, SSE, Jacobian): the Jacobian's columns those of the free parameters in θ's
+    order (x0, F_b, γ_a, [K_B], s), its rows the samples' and the prior's."""
     free_k = fixed.bulk_mN_per_m is None
     kb = 0.0 if fixed.bulk_mN_per_m is None else fixed.bulk_mN_per_m
     t0 = np.asarray(theta0, float)
@@ -184,11 +195,17 @@ def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Se
         k = p[3] if free_k else kb
         return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
 
+    def residuals(p: np.ndarray) -> np.ndarray:
+        r = model(p) - f
+        if fixed.prior is None:
+            return r
+        return np.append(r, fixed.prior.penalty(p[3] if free_k else kb, fixed.shear_tilde))
+
     p0 = np.append(t0[:4] if free_k else t0[:3], t0[4] if t0.size > 4 else 0.0)
     p0[2] = max(p0[2], 1e-6)
     lo = [-np.inf, -np.inf, 1e-9] + ([0.0] if free_k else []) + [-np.inf]
     scale = [0.01, 0.01, max(p0[2], 1e-3)] + ([max(p0[3], p0[2], 1e-3)] if free_k else []) + [0.01]
-    res = least_squares(lambda p: model(p) - f, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
+    res = least_squares(residuals, np.maximum(p0, lo), bounds=(lo, np.inf), x_scale=scale,
                         diff_step=1e-6, xtol=tol, ftol=tol)
     p = res.x if free_k else np.insert(res.x, 3, kb)
     return p, float(2.0 * res.cost), res.jac
@@ -211,22 +228,22 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
                sd_g: float, sd_k: float) -> tuple[float, float]:
     """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold: the
     accepted K_B of `bound_profile`, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma)
+    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma, fixed.prior)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
 
 
 def bound_profile(x: np.ndarray, f: np.ndarray, radius: float, shear: float, p: Sequence[float] | np.ndarray,
-                  sse: float, sigma: float) -> tuple[float, float, float, bool]:
+                  sse: float, sigma: float, prior: Prior | None = None) -> tuple[float, float, float, bool]:
     """(lowest γ_a, highest γ_a, highest K_B, split) of the 95 % set {K_B : SSE ≤ sse + CHI2_95 σ²}
     of the profile over K_B from a fit θ = `p` (SSE `sse`, noise σ) at K_B = 0 on the window (x, f),
     K̃_S = `shear`: refits at K_B = γ_a · PROFILE, each from its neighbour, each edge found by EDGE
     bisections between an accepted and a rejected K_B (from 0 arithmetic, else geometric). The grid
     is walked until Δχ² passes FAR and still rises: the SSE may have two valleys (`split`: the set
-    is not one interval from K_B = 0)."""
+    is not one interval from K_B = 0). `prior`: the fits' (`Fixed.prior`)."""
     limit, far, last_s = sse + CHI2_95 * sigma ** 2, sse + FAR * sigma ** 2, sse
 
     def at(k: float, near: np.ndarray) -> tuple[np.ndarray, bool, float]:
-        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k)), near, BOUND_TOL)
+        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k), prior), near, BOUND_TOL)
         return theta, s <= limit, s
 
     lo_g, hi_g, hi_k, runs = p[2], p[2], 0.0, 1
@@ -276,7 +293,7 @@ def _select(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.nda
     the 95 % set) and the two γ_a further apart than the shell's own Z95 · sd (two valleys, not
     one long one)."""
     sd_g, sd_k, sd_s = sds
-    drop = Fixed(fixed.shear_tilde, 0.0)
+    drop = replace(fixed, bulk_mN_per_m=0.0)
     p0, sse0, jac0 = min((_solve(x, f, radius, drop, t) for t in [p] + starts), key=lambda t: t[1])
     lr = max(sse0 - sse, 0.0) / sigma ** 2
     bimodal = bool(p[3] > BOUND * p[2] and lr <= CHI2_95 and abs(p[2] - p0[2]) > Z95 * sd_g)
@@ -350,7 +367,7 @@ def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, 
     window with `fixed`, as `pause.ramp_interval`) added in quadrature on each side;
     the refits of a fit that chose the droplet keep K_B = 0."""
     if fit.elastic_term == NOT_SIGNIFICANT and fixed.bulk_mN_per_m is None:
-        fixed = Fixed(fixed.shear_tilde, 0.0)
+        fixed = replace(fixed, bulk_mN_per_m=0.0)
     shifted = [refit_shell(fit, x_um, force_nN, float(cell_radius(volume_um3 * (1.0 + s * Z95 * errors.volume_rel_sd))),
                            fixed) for s in (-1.0, 1.0)]
     out = []

@@ -2,8 +2,9 @@
 likelihood over the ramp table's range, and γ_a's and K_B's intervals widened by
 what K̃_S leaves open.
 
-The fit at the reference K̃_S = 1/3 (`shell_fit.fit_shell`) tests the elastic
-term. Where it is not significant the row is the droplet's (K_B = 0, where the
+The fit at the reference K̃_S (1/3, or the prior's where the recording's oscillations
+give one, `priors`: every fit then reads the posterior; `shell_fit.fit_shell`) tests the
+elastic term. Where it is not significant the row is the droplet's (K_B = 0, where the
 force does not depend on K̃_S: K̃_S is not identified). Otherwise the fit is redone
 at each K̃_S of NODES log-spaced nodes over the table's range [K̃_lo, K̃_hi]
 (0.08-2.5), each started from its neighbour's optimum, then by Brent's method in
@@ -38,6 +39,7 @@ from scipy.optimize import minimize_scalar
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.pause import Z95
+from analysis.afm.tension.priors import Prior
 from analysis.afm.tension.shell_fit import (CHI2_95, NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit,
                                             bound_profile, fit_shell, refit_shell)
 
@@ -64,14 +66,14 @@ def shear_range() -> tuple[float, float]:
 
 
 def profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
-            bulk_mN_per_m: float | None = None) -> Profile:
+            bulk_mN_per_m: float | None = None, prior: Prior | None = None) -> Profile:
     """The profile of `fit` (a shell fit of the ramp, at any K̃_S) over K̃_S (module doc);
-    K_B fixed at `bulk_mN_per_m` when given."""
+    K_B fixed at `bulk_mN_per_m` when given; with `prior` (`shell_fit.Fixed.prior`) the posterior's."""
     nodes = np.geomspace(*shear_range(), NODES)
     done: dict[float, ShellFit] = {}
 
     def at(s: float, near: ShellFit) -> ShellFit:
-        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m), PROFILE_TOL)
+        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m, prior), PROFILE_TOL)
         return done[s]
 
     start = int(np.argmin(np.abs(np.log(nodes / fit.shear_tilde))))
@@ -112,14 +114,17 @@ def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tup
 
 
 def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
-                      bulk_mN_per_m: float | None = None, cap_um: float | None = None) -> ShellFit:
+                      bulk_mN_per_m: float | None = None, cap_um: float | None = None,
+                      prior: Prior | None = None) -> ShellFit:
     """The shell fit of one ramp with K̃_S unknown (module doc): the best K̃_S's fit with
     the bands of K̃_S, γ_a and K_B; the droplet's (`fit_shell` at 1/3) where the elastic
-    term is not significant, its K̃_S band the whole range."""
-    fit = fit_shell(x_um, force_nN, radius_um, Fixed(SHEAR_TILDE, bulk_mN_per_m), cap_um=cap_um)
+    term is not significant, its K̃_S band the whole range. With `prior` (the oscillations',
+    `priors.Prior`) every fit reads the posterior and the reference K̃_S is the prior's."""
+    ref = SHEAR_TILDE if prior is None else float(np.clip(prior.shear_tilde, *shear_range()))
+    fit = fit_shell(x_um, force_nN, radius_um, Fixed(ref, bulk_mN_per_m, prior), cap_um=cap_um)
     if fit.elastic_term == NOT_SIGNIFICANT:
-        return _droplet_bands(fit, x_um, force_nN, radius_um)
-    prof = profile(fit, x_um, force_nN, radius_um, bulk_mN_per_m)
+        return _droplet_bands(fit, x_um, force_nN, radius_um, prior)
+    prof = profile(fit, x_um, force_nN, radius_um, bulk_mN_per_m, prior)
     shear, tension, bulk = _bands(prof)
     best = prof.best
     lr = fit.elastic_lr
@@ -131,7 +136,8 @@ def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: f
                    tension_band_mN_per_m=tension, bulk_band_mN_per_m=bulk, bimodal=fit.bimodal and lr <= CHI2_95)
 
 
-def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float) -> ShellFit:
+def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
+                   prior: Prior | None = None) -> ShellFit:
     """The droplet's row (the elastic term not significant) with the bands of γ_a and K_B that hold
     the 95 % set over K̃_S too: its own interval (`shell_fit._select`, at K̃_S = 1/3) joined with the
     profile over K_B at each end of K̃_S's range (`bound_profile`, the limit SSE_0 + CHI2_95 σ²);
@@ -140,7 +146,7 @@ def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, 
     g, half = fit.tension_mN_per_m, Z95 * fit.tension_sd_mN_per_m
     lo_g, hi_g, hi_k, split = g - half, g + half, fit.bulk_mN_per_m + Z95 * fit.bulk_sd_mN_per_m, False
     for shear in shear_range():
-        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN)
+        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN, prior)
         lo_g, hi_g, hi_k, split = min(lo_g, a), max(hi_g, b), max(hi_k, k), split or two
     return replace(fit, shear_band=shear_range(), tension_band_mN_per_m=(max(lo_g, 0.0), hi_g),
                    bulk_band_mN_per_m=(0.0, hi_k), bimodal=fit.bimodal or split)
