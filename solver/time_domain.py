@@ -26,9 +26,9 @@ admissible contact label of lowest energy (`solver.fast.lowest_contact`), starte
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate and the shape
-admissible. Then a_new, s_new of every element give the new internal variables. (The
-extrapolated start first would find other touching labels on ramps from the sphere, 0.25 % off
-the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
+admissible. Then a_new, s_new of every element give the new internal variables. (With the
+extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
+force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
 Whichever the start, the history is carried to the extrapolated label for the search: it is
 where the material is expected, and the carried history then does not depend on the start.
 The extrapolation is scaled by the plate's move over the last one where that is shorter (a
