@@ -11,12 +11,12 @@ reference) is taken over the same gaps; where it stops, the case says so.
 Cases: the 32 corners of R 5-10 µm, γ_a 0.2-2 mN/m, K_B 5-50 mN/m, K̃_S 0.1-2, β 0-0.4 plus
 --cases points of a Latin hypercube over it (seed 0; γ_a, K_B, K̃_S uniform in log).
 Prints one JSON object: per case the parameters, the depth reached (µm, δ = h0 + 0.01 - h),
-the calls and sub-steps (equilibria), the failures (calls without an equilibrium), the elastic
-solver's depth and, at β = 0, the largest relative force difference from it and from
+the calls and sub-steps (equilibria), the failures (calls without an equilibrium), the seconds of
+the ramp and of the elastic solver's, the elastic solver's depth and, at β = 0, the largest relative force difference from it and from
 `solver.compress` at each gap; then a summary.
 
-    .venv/bin/python bench/free_sphere_ramps.py [--cases 200] [--step-um 0.25] [--quick]
-    (--quick: the corners with R 5 µm only)
+    .venv/bin/python bench/free_sphere_ramps.py [--cases 200] [--step-um 0.25] [--quick] [--beta-zero]
+    (--quick: the corners with R 5 µm only; --beta-zero: the corners with β = 0 only)
 """
 
 import argparse
@@ -44,11 +44,16 @@ RANGE = {"radius_um": (5.0, 10.0), "tension_mN_per_m": (0.2, 2.0), "bulk_mN_per_
 LOG = ("tension_mN_per_m", "bulk_mN_per_m", "ks_tilde")
 
 
-def cases(n: int, quick: bool) -> list[dict[str, float]]:
-    """The corners, then n Latin-hypercube points (module docstring)."""
+def cases(n: int, quick: bool, beta_zero: bool = False) -> list[dict[str, float]]:
+    """The corners, then n Latin-hypercube points (module docstring); `beta_zero`: the corners
+    with β = 0 only."""
     corners = [dict(zip(RANGE, c)) for c in itertools.product(*RANGE.values())]
+    if beta_zero:
+        corners = [c for c in corners if c["beta"] == 0.0]
     if quick:
         return [c for c in corners if c["radius_um"] == 5.0]
+    if beta_zero:
+        return corners
     unit = qmc.LatinHypercube(d=len(RANGE), seed=0).random(n)
     points = []
     for row in unit:
@@ -75,10 +80,13 @@ def run(case: dict[str, float], step_um: float) -> dict[str, Any]:
             failures.append({"gap_um": float(h), "error": str(err)})
             break
     seconds = time.perf_counter() - start
+    start = time.perf_counter()
     elastic = elastic_forces(shell, gaps)
+    elastic_seconds = time.perf_counter() - start
     out: dict[str, Any] = {**case, "depth_reached_um": float(shell.h0_um + START_UM - state.h_um),
                               "depth_asked_um": float(shell.h0_um + START_UM - R), "calls": len(forces),
                               "equilibria": state.equilibria, "failures": failures, "seconds": seconds,
+                              "elastic_seconds": elastic_seconds,
                               "elastic_depth_um": float(shell.h0_um + START_UM - gaps[len(elastic) - 1])
                               if elastic else 0.0}
     if case["beta"] == 0.0:
@@ -118,10 +126,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--cases", type=int, default=200, help="Latin-hypercube points beside the 32 corners")
     parser.add_argument("--step-um", type=float, default=0.25, help="the plate move of one advance call (um)")
-    parser.add_argument("--quick", action="store_true", help="the 16 corners of R 5 um only")
+    parser.add_argument("--quick", action="store_true", help="the corners of R 5 um only")
+    parser.add_argument("--beta-zero", action="store_true", help="the 16 corners of beta 0 only")
     args = parser.parse_args()
     results = []
-    for i, case in enumerate(todo := cases(args.cases, args.quick)):
+    for i, case in enumerate(todo := cases(args.cases, args.quick, args.beta_zero)):
         results.append(run(case, args.step_um))
         print(f"{i + 1}/{len(todo)} failures {len(results[-1]['failures'])}", file=sys.stderr, flush=True)
     beta0 = [r["elastic_difference"] for r in results if "elastic_difference" in r]
@@ -133,6 +142,7 @@ def main() -> None:
                "largest_beta0_compress_difference": max(versus) if versus else None,
                "equilibria_per_case": float(np.mean([r["equilibria"] for r in results])),
                "seconds_per_case": float(np.mean([r["seconds"] for r in results])),
+               "elastic_seconds_per_case": float(np.mean([r["elastic_seconds"] for r in results])),
                "step_um": args.step_um, "ramp_um_per_s": RAMP_UM_PER_S}
     print(json.dumps({"summary": summary, "results": results}, indent=1))
 

@@ -20,14 +20,15 @@ the history's prestress, linear in the strain,
     Σ_e 4π r̄0_e dS_e [σ_hist,a,e (e1+e2) + σ_hist,s,e (e1-e2)],   σ_hist = Σ_j (d_j h_j - K_j g_j a_old)
 
 (`solver.fast.kernel`'s per-element `pa`, `ps`). One equilibrium per step (`step`): the fast
-solver's contact search with its retreat and Newton iteration (exact Hessian), started as
+solver's contact search with its retreat and Newton iteration (exact Hessian), ended on the
+admissible contact label of lowest energy (`solver.fast.lowest_contact`), started as
 `solver.fast.advance` starts its steps (the secant in the gap through the last two equilibria,
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate and the shape
-admissible. Then a_new, s_new of every element give the new internal variables. (The
-extrapolated start first would find other touching labels on ramps from the sphere, 0.25 % off
-the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
+admissible. Then a_new, s_new of every element give the new internal variables. (With the
+extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
+force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
 Whichever the start, the history is carried to the extrapolated label for the search: it is
 where the material is expected, and the carried history then does not depend on the start.
 The extrapolation is scaled by the plate's move over the last one where that is shorter (a
@@ -67,7 +68,7 @@ import numpy.typing as npt
 
 from common.errors import InputError, SolverError
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
-from solver.fast import CONTINUE_STEP, _admissible, _contact, _follow_scale, _gap, problem
+from solver.fast import CONTINUE_STEP, _admissible, _follow_scale, _gap, lowest_contact, problem
 from solver.fast.contact import LOG_PSI_MIN
 from solver.fast.lagrangian import Lagrangian
 from solver.geometry import droplet
@@ -217,7 +218,7 @@ class TimeShell:
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
         self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
         lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
-        u, _ = _contact(lag, u, 0.5 * h_um, retreat=True)
+        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
             raise SolverError("the free surface crossed the plate")
         self._carry(u[-2])

@@ -8,6 +8,7 @@ import pytest
 
 from common.errors import InputError, SolverError
 from solver.time_domain import power_law_cortex
+from solver import fast
 from solver.compression import compress
 from solver.model import Shell
 from solver.prony import Prony, fit_power_law
@@ -19,6 +20,7 @@ SMALL = Shell(volume_um3=V_SMALL, h0_um=2 * R - 0.01, bulk_mN_per_m=25.0, shear_
               tension_mN_per_m=0.5)                       # the issue's small stiff cell
 PAPER = Shell(volume_um3=4300.0, h0_um=12.5, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
 ELASTIC = Cortex(Prony(25.0), Prony(8.33))
+ELASTIC_STIFF = Cortex(Prony(50.0), Prony(100.0))
 
 
 def _ramp(shell, cortex, depth_um, step_um, speed_um_per_s=1.0):
@@ -34,8 +36,7 @@ def test_beta_zero_is_the_elastic_solver_from_near_the_free_sphere(step_um):
     """The issue's cell (R 6.8 µm, γ_a 0.5, K_B 25, K_S 8.33) pressed from 2R - 0.01 µm to
     1.4 µm deep in calls of 0.05, 0.15 (plain steps failed after 2-3 of either) and 0.7 µm: every
     call finds its equilibrium, and the force after the first call and at 1.4 µm is
-    `solver.compress`'s to 0.1 % (found at most 3.4e-4: the contact label's tolerance along two
-    paths)."""
+    `solver.compress`'s to 0.1 % (found at most 8.3e-6)."""
     forces, state = _ramp(SMALL, ELASTIC, 1.4, step_um)
     assert state.h_um == pytest.approx(SMALL.h0_um - 1.4)
     for depth, force in ((step_um, forces[0]), (1.4, forces[-1])):
@@ -46,6 +47,48 @@ def test_beta_zero_is_the_elastic_solver_at_a_paper_height():
     """h0 12.5 → 12 µm (V 4300 µm³) in one call: compress's force to 0.1 % (found 7e-8)."""
     force = TimeShell(PAPER, ELASTIC).advance(12.0, 2.5)
     assert force == pytest.approx(compress(PAPER).solution.force_nN, rel=1e-3)
+
+
+STIFF_SMALL = Shell(volume_um3=4.0 * np.pi / 3.0 * 5.0**3, h0_um=10.0 - 0.01, bulk_mN_per_m=50.0,
+                    shear_mN_per_m=100.0, tension_mN_per_m=0.2)   # the grid's worst β = 0 corner
+
+
+def test_beta_zero_ramp_ends_where_compress_does_where_the_contact_has_two_minima():
+    """R 5 µm, γ_a 0.2, K_B 50, K̃_S 2 pressed from 2R - 0.01 µm in calls of 0.25 µm: at δ 0.76
+    and 1.01 µm E*(l) has two admissible minima (the label where the free surface touches the
+    plate, which a continued step reaches first, and a lower one above it, compress's); the
+    time-domain force and the elastic continuation's are compress's to 0.1 % (found 4e-11 and
+    2e-8; 4.7e-3 on the touching label)."""
+    forces, _ = _ramp(STIFF_SMALL, ELASTIC_STIFF, 1.0, 0.25)
+    lag = fast.problem(STIFF_SMALL)
+    u, h, step, last = fast.reference_state(lag), STIFF_SMALL.h0_um, None, None
+    for depth, force in zip((0.25, 0.5, 0.75, 1.0), forces):
+        u, _, step, last = fast.advance(lag, STIFF_SMALL, u, h, STIFF_SMALL.h0_um - depth, step, last)
+        h = STIFF_SMALL.h0_um - depth
+        if depth >= 0.75:
+            expected = compress(replace(STIFF_SMALL, dh_um=depth)).solution.force_nN
+            assert force == pytest.approx(expected, rel=1e-3)
+            assert fast.plate_force_nN(lag, u, h) == pytest.approx(expected, rel=1e-3)
+
+
+def test_the_contact_search_keeps_the_lower_of_two_admissible_labels():
+    """At δ 0.76 µm of that cell, the search from just above the touching label (where E*(l)
+    falls towards it) ends there (G = dE*/dl > 0, held by the plate); `lowest_contact` also finds the minimum with G = 0 above
+    it, 0.07 higher in log ψ_c, its free surface below the plate and E* lower (by 2.8e-4
+    mN/m·µm²), and keeps that."""
+    shell = replace(STIFF_SMALL, dh_um=0.75)
+    lag, zp = fast.problem(shell), 0.5 * shell.h1_um
+    lowest, _ = fast.lowest_contact(lag, shell, fast.equilibrium(shell)[1], zp)
+    start = lowest.copy()
+    start[-2] -= 0.065
+    touching, _ = fast._contact(lag, start, zp, retreat=True)
+    assert lag.newton_system(touching, zp, hessian=False)[1][-2] > 1e-3 * lag.force_scale
+    assert fast._gap(lag, touching, zp) == pytest.approx(0.0, abs=1e-5)
+    assert abs(lag.newton_system(lowest, zp, hessian=False)[1][-2]) < 1e-6 * lag.force_scale
+    assert fast._gap(lag, lowest, zp) < -1e-4 and lowest[-2] - touching[-2] > 0.05
+    assert fast.equilibrium_energy(lag, lowest, zp) < fast.equilibrium_energy(lag, touching, zp) - 1e-4
+    again, _ = fast.lowest_contact(lag, shell, start, zp)
+    assert again[-2] == pytest.approx(lowest[-2], abs=1e-4)
 
 
 def _maxwell(dh_um=0.5):

@@ -23,6 +23,13 @@ every step: steps of CONTINUE_STEP / H_d at most, halved on a rejected step
 (down to CONTINUE_LEAST / H_d), grown by half after an accepted one, each
 started from the secant through the last two equilibria (the first from the
 last one squeezed to the new gap, its contact label raised as the droplet's).
+A continued step reaches its label from below and would stop on the first
+admissible one, where the free surface touches the plate, even where E*(l)
+has a lower minimum above it (a coarse mesh's bending layer: R 5 µm, K̃_S 2);
+the step keeps the admissible minimum of lowest E* (`lowest_contact`), the
+one a compression from the reference finds, so the equilibrium at a gap does
+not depend on the path to it (an elastic, frictionless, non-adhesive contact
+has no hysteresis).
 
 Constraints:
 - contact: material on the plate may not lift off, so l ≥ log ψ_min, and the
@@ -61,6 +68,7 @@ STEPS = (1, 2, 4, 8)         # continuation steps tried in turn
 NEWTON_MAXIT = 30            # Newton iterations at one contact label at most
 CONTINUE_STEP = 0.015        # `advance`: largest plate step, in units of 1/H_d (≈ R near the sphere)
 CONTINUE_LEAST = 1e-6        # `advance`: a step halved below this (× 1/H_d) gives up
+SECOND_START = 0.1           # `lowest_contact`: the second search starts at least this far above in l
 
 
 def _admissible(lag, u, zp):
@@ -96,19 +104,19 @@ def _newton(lag, u, zp, tol=1e-6, maxit=None):
         np.asarray(u, dtype=float), float(zp), lag.ref.positions(u[-2]), lag.terms, lag.band_order,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit))
     if status != newton.CONVERGED:
-        _newton_failed(status, g, it, maxit)
+        raise _newton_error(status, g, it, maxit)
     return u, g, NewtonMatrix(band, lp[0], lp[1]), it
 
 
-def _newton_failed(status, g, it, maxit):
-    """SolverError saying why Newton's method stopped (`newton.newton`'s status)."""
+def _newton_error(status, g, it, maxit):
+    """The SolverError saying why Newton's method stopped (`newton.newton`'s status)."""
     if status == newton.SINGULAR:
-        raise SolverError(f"singular Newton matrix at iteration {it}")
+        return SolverError(f"singular Newton matrix at iteration {it}")
     if status == newton.REJECTED:
-        raise SolverError(f"Newton step rejected at iteration {it} (left the admissible "
-                          "shapes or made the residual explode)")
-    raise SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
-                      f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
+        return SolverError(f"Newton step rejected at iteration {it} (left the admissible "
+                           "shapes or made the residual explode)")
+    return SolverError(f"Newton did not converge in {maxit} iterations (largest residual "
+                       f"force {np.abs(g[:-2]).max():.3g} nN, volume residual {g[-1]:.3g} um3)")
 
 
 def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
@@ -123,18 +131,57 @@ def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
     `retreat`). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
+    return _search(lag, u, zp, tol, maxit, retreat)[:2]
+
+
+def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
+    """`_contact`, and whether its answer is the touching label (held by the
+    plate, G > 0 there)."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat))
     if status == contact.FOUND:
-        return u, iterations
+        return u, iterations, last == contact.HELD
     if status == contact.TANGENT_SINGULAR:
         raise np.linalg.LinAlgError(f"singular Newton matrix (zero pivot {last})")
     if status == contact.NO_CONTACT:
         raise SolverError(f"no contact line found (l = log psi_c in [{lo:.4g}, {hi:.4g}] after "
                           f"{maxit} steps)")
-    _newton_failed(status, g, last, NEWTON_MAXIT)
+    raise _newton_error(status, g, last, NEWTON_MAXIT)
+
+
+def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp: float,
+                   retreat: bool = True) -> tuple[npt.NDArray[np.float64], int]:
+    """The contact search from u at z_p (`_contact`), ended on the admissible
+    local minimum of E*(l) of lowest energy. The search from a label below
+    the answer (a continued step's) ends on the least admissible label, where
+    the free surface touches the plate and G = dE*/dl > 0; on a coarse mesh
+    E*(l) also has an unconstrained minimum (G = 0) a few % of ψ_c above it
+    and lower, which a search from above (a compression from the reference)
+    finds. So where the search ends touching, a second one starts from the
+    droplet's label at 2 z_p (at least SECOND_START above), and the
+    admissible answer of lower E* is kept. Returns the unknowns and the
+    Newton iterations of both searches."""
+    u, iterations, held = _search(lag, u, zp, retreat=retreat)
+    if not held:
+        return u, iterations                    # G = 0, or the least label
+    v = u.copy()
+    v[-2] = max(_predicted_label(lag, shell, 2.0 * zp), u[-2] + SECOND_START)
+    try:
+        v, more = _contact(lag, v, zp, retreat=retreat)
+    except (SolverError, np.linalg.LinAlgError):
+        return u, iterations
+    iterations += more
+    if (_gap(lag, v, zp) <= _slack(lag, v, zp) and _admissible(lag, v, zp)
+            and equilibrium_energy(lag, v, zp) < equilibrium_energy(lag, u, zp)):
+        return v, iterations
+    return u, iterations
+
+
+def equilibrium_energy(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float) -> float:
+    """E* = L + p (V - V0) at the equilibrium u at z_p (mN/m·µm²; = E there)."""
+    return float(lag.newton_system(u, zp, hessian=False)[0] + u[-1] * (lag.volume(u, zp) - lag.V0))
 
 
 def reference_state(lag: Lagrangian) -> npt.NDArray[np.float64]:
@@ -198,8 +245,7 @@ def advance(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], h_from: f
         h_next = max(h - step, h_to)
         _follow_scale(lag, shell, h_next)
         try:
-            v, it = _contact(lag, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next,
-                             retreat=True)
+            v, it = lowest_contact(lag, shell, _predicted(lag, shell, u, h, h_next, last), 0.5 * h_next)
             if not (_gap(lag, v, 0.5 * h_next) <= _slack(lag, v, 0.5 * h_next)
                     and _admissible(lag, v, 0.5 * h_next)):
                 raise SolverError("the free surface crossed the plate")
@@ -289,9 +335,7 @@ def energy(shell: Shell) -> float:
     """E* = min E at fixed volume and gap h1 (mN/m·µm², = 1e-15 J): the energy
     whose derivative -dE*/dh1 is the plate force (virtual work)."""
     lag, u, _ = equilibrium(shell)
-    zp = 0.5 * shell.h1_um
-    value = lag.evaluate(u, zp, hessian=False)[0]
-    return value + u[-1] * (lag.volume(u, zp) - lag.V0)
+    return equilibrium_energy(lag, u, 0.5 * shell.h1_um)
 
 
 def plate_force_nN(lag: Lagrangian, u: npt.NDArray[np.float64], h_um: float) -> float:

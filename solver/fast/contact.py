@@ -42,6 +42,7 @@ TOL_L = 1e-3                 # bracket width at which the touching label is acce
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
 FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
+HELD = 1                     # `contact`'s `last` with FOUND: the answer is the touching label
 
 
 @njit(cache=True)
@@ -102,7 +103,8 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     labels, Newton's method at each for at most `newton_maxit` steps; labels
     and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`).
     Returns (status, u, g, iterations, last, lo, hi): FOUND with the
-    solution; Newton's status with its last state and `last` its iteration;
+    solution, `last` HELD where the free surface touching the plate holds its
+    label (G > 0 there), else 0; Newton's status with its last state and `last` its iteration;
     TANGENT_SINGULAR with `last` the zero pivot; NO_CONTACT with the bracket
     [lo, hi]."""
     lo, hi, iterations, kc = LOG_PSI_MIN, LOG_PSI_MAX, 0, terms.kc
@@ -142,10 +144,10 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             # minimum over the admissible labels is where it touches
             touch = t0_l - t0_gap * (t0_l - t1_l) / (t0_gap - t1_gap) if t0_gap != t1_gap else lo
             if abs(touch - t0_l) < TOL_L:
-                return FOUND, t0_u, g, iterations, 0, lo, hi
+                return FOUND, t0_u, g, iterations, HELD, lo, hi
             target = max(target, touch + 0.3 * TOL_L)
         if hi - lo < TOL_L and touching:
-            return FOUND, t0_u, g, iterations, 0, lo, hi
+            return FOUND, t0_u, g, iterations, HELD, lo, hi
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
         solved, solved_tangent = u, tangent if above <= 0 else np.empty(0)
