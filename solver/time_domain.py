@@ -67,8 +67,8 @@ import numpy.typing as npt
 
 from common.errors import InputError, SolverError
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
-from solver.fast import CONTINUE_STEP, _admissible, _contact, _follow_scale, _gap, problem
-from solver.fast.contact import LOG_PSI_MIN
+from solver.fast import CONTINUE_STEP, NO_HISTORY, _admissible, _contact, _follow_scale, _gap, problem
+from solver.fast.contact import LOG_PSI_MAX, LOG_PSI_MIN, carry_history
 from solver.fast.lagrangian import Lagrangian
 from solver.geometry import droplet
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
@@ -145,6 +145,7 @@ class TimeShell:
 
     shell: Shell
     cortex: Cortex
+    contact_history: bool = False      # the history's share of dE/dl in the contact search
     lag: Lagrangian = field(init=False)
     u: npt.NDArray[np.float64] = field(init=False)
     h_um: float = field(init=False)
@@ -214,10 +215,17 @@ class TimeShell:
         bulk, shear = self.channels
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
         self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
-        lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
-        u, _ = _contact(lag, u, 0.5 * h_um, retreat=True)
+        pa, ps = bulk.history(dt_s), shear.history(dt_s)
+        lag.terms = lag.terms._replace(pa=pa, ps=ps)
+        history = (self.labels(self._label), pa[lag.nd:].copy(), ps[lag.nd:].copy()) \
+            if self.contact_history else NO_HISTORY
+        u, _ = _contact(lag, u, 0.5 * h_um, retreat=True, history=history)
+        if self.contact_history:      # the prestress of the label found (the search's last may differ)
+            carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
             raise SolverError("the free surface crossed the plate")
+        if not u[-2] <= LOG_PSI_MAX:
+            raise SolverError("the contact label left the search's range")
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag

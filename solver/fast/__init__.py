@@ -116,17 +116,21 @@ def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
-def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
+NO_HISTORY = (np.empty(0), np.empty(0), np.empty(0))
+
+
+def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
     `solver.fast.contact.contact`, whose docstring has the search and
-    `retreat`). Returns
+    `retreat`, and `history`: the stored history that moves with the material). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
-        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat))
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat),
+        history)
     if status == contact.FOUND:
         return u, iterations
     if status == contact.TANGENT_SINGULAR:
