@@ -31,8 +31,11 @@ the material: at every label l the elements' P are read off it at their mid-labe
     G_hist = Σ_e 4π r̄0_e dS_e [(e1+e2)_e dP_a/dψ0 + (e1-e2)_e dP_s/dψ0] dψ̄0_e/dl,
 
 joins G (`history_share`); k is then the secant of G through the last two labels solved where
-that is positive (the history's share of k is left out of the tangent), else the tangent's. With
-no history (empty arrays: the elastic solver) nothing changes.
+that is positive (the history's share of k is left out of the tangent), else the tangent's. The
+history's share nearly cancels the elastic one (G is small and positive down to the touching
+label, and jumps where an element's mid-label crosses a sample), so towards a side not yet
+bracketed a step is at least OPEN_STEP_L. With no history (empty arrays: the elastic solver)
+nothing changes.
 
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
 returns a status, which `solver.fast` turns into its errors.
@@ -50,6 +53,7 @@ LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled 
 LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate (< π/2: the equator stays free)
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
+OPEN_STEP_L = 0.1            # with a history: the least step of l towards a side not yet bracketed
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
 FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
@@ -216,6 +220,8 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             else:
                 lo = l
             step = _step(G, k)
+            if carried and (lo if step < 0 else hi) in (LOG_PSI_MIN, LOG_PSI_MAX) and abs(step) < OPEN_STEP_L:
+                step = OPEN_STEP_L if step > 0 else -OPEN_STEP_L
         target = l + step
         if touching == 2 and above <= 0 and G > 0:
             # less contact would lift the free surface through the plate: the
