@@ -33,6 +33,9 @@ sample at their end), the protocol's start the first sample (the reference dropl
 the tension's, F_a = 2 γ_a H A_c at (V, h0)). `Recording.stretches` say which
 samples are a ramp, a hold or an oscillation (at which f).
 
+`contact_history`: the stored history's share of dE/dl in the contact line's balance
+(`solver.time_domain.TimeShell`; off by default).
+
 `history` "relaxed": every ramp to a height after the first starts from its own relaxed droplet,
 the first ramp's depth above its target (a fresh `TimeShell`: no stress from earlier steps, the
 assumption of the published relaxed-state reading); "carried" (default): one cortex history.

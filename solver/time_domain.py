@@ -25,7 +25,8 @@ solver's contact search with its retreat and Newton iteration (exact Hessian), s
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate and the shape
-admissible. Then a_new, s_new of every element give the new internal variables. (The
+admissible and its contact label within the search's range (ψ_c ≤ 1.4 rad, `LOG_PSI_MAX`).
+Then a_new, s_new of every element give the new internal variables. (The
 extrapolated start first would find other touching labels on ramps from the sphere, 0.25 % off
 the elastic solver at β = 0; at paper heights both starts give the elastic force to 5e-6.)
 Whichever the start, the history is carried to the extrapolated label for the search: it is
@@ -50,8 +51,10 @@ are labelled by their reference angle ψ0, which moves with the contact label l:
 from one step to the next, the internal variables and last strains of those elements are carried
 to their material by linear interpolation in ψ0 (element mid-labels; the disc's material is
 fixed). The history is carried to the start's label, and carried again to the solved label;
-within the contact search it is held per element
-(its derivative in l is left out of the contact line's balance). The label is set where the free
+within the contact search it is held per element (its derivative in l left out of the contact
+line's balance), or, with `contact_history`, read off its material at every trial label, its
+share of dE/dl in the balance (`solver.fast.contact.carry_history`, `history_share`; what it
+changes: docs/studies/contact-history.md). The label is set where the free
 surface touches the plate in the bending layer, where E*(l) is flat: ψ_c swings by a factor of ~6
 over a 0.05 µm oscillation, so this carry along the strip is the scheme's weakest approximation.
 
