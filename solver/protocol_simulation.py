@@ -33,6 +33,9 @@ sample at their end), the protocol's start the first sample (the reference dropl
 the tension's, F_a = 2 γ_a H A_c at (V, h0)). `Recording.stretches` say which
 samples are a ramp, a hold or an oscillation (at which f).
 
+`contact_history`: the stored history's share of dE/dl in the contact line's balance
+(`solver.time_domain.TimeShell`; off by default).
+
 `history` "relaxed": every ramp to a height after the first starts from its own relaxed droplet,
 the first ramp's depth above its target (a fresh `TimeShell`: no stress from earlier steps, the
 assumption of the published relaxed-state reading); "carried" (default): one cortex history.
@@ -153,7 +156,8 @@ def _bracket(residual: Callable[[float], float], h0_um: float,
 
 
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
-             sampling: Sampling = Sampling(), history: str = "carried") -> Recording:
+             sampling: Sampling = Sampling(), history: str = "carried",
+             contact_history: bool = False) -> Recording:
     """The recording of `protocol` on `shell` (its h0 the protocol's start) with `cortex`
     (module docstring); SolverError where a step finds no equilibrium."""
     if history not in CORTEX_HISTORIES:
@@ -163,21 +167,23 @@ def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resol
                                      and first.to_um < protocol.start_um):
         raise InputError("a relaxed history needs a first ramp down to a height below the protocol's start")
     try:
-        return _Run(shell, cortex, protocol, resolution, sampling, history).run()
+        return _Run(shell, cortex, protocol, resolution, sampling, history, contact_history).run()
     except SolverError:
         if resolution.retry_finer <= 1:
             raise
-        return _Run(shell, cortex, protocol, resolution.finer(resolution.retry_finer), sampling, history).run()
+        return _Run(shell, cortex, protocol, resolution.finer(resolution.retry_finer), sampling, history,
+                    contact_history).run()
 
 
 class _Run:
     """One simulation: the state, the samples so far and the stretch of ramps and holds being stepped."""
 
     def __init__(self, shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution,
-                 sampling: Sampling, history: str):
+                 sampling: Sampling, history: str, contact_history: bool):
         self.shell, self.cortex, self.protocol = replace(shell, h0_um=protocol.start_um), cortex, protocol
         self.res, self.sampling, self.history = resolution, sampling, history
-        self.state = TimeShell(self.shell, cortex)
+        self.contact_history = contact_history
+        self.state = TimeShell(self.shell, cortex, contact_history)
         self.t, self.level, self.steps, self.pending = protocol.start_s, protocol.start_um, 0, 0.0
         f0 = self.state.force_nN()
         self.samples: list[tuple[Array, Array, Array]] = [(np.array([self.t]), np.array([self.level]), np.array([f0]))]
@@ -223,7 +229,8 @@ class _Run:
         """A fresh cortex, relaxed the first ramp's depth above `to_um` (module docstring)."""
         first = self.protocol.steps[0]
         assert isinstance(first, Ramp) and first.to_um is not None
-        self.state = TimeShell(replace(self.shell, h0_um=to_um + self.protocol.start_um - first.to_um), self.cortex)
+        self.state = TimeShell(replace(self.shell, h0_um=to_um + self.protocol.start_um - first.to_um), self.cortex,
+                               self.contact_history)
         self.level = self.state.h_um
         if not self.points:
             self.origin = (self.t, self.state.h_um, self.state.force_nN())

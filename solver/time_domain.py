@@ -26,7 +26,8 @@ admissible contact label of lowest energy (`solver.fast.lowest_contact`), starte
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate and the shape
-admissible. Then a_new, s_new of every element give the new internal variables. (With the
+admissible and its contact label within the search's range (ψ_c ≤ 1.4 rad, `LOG_PSI_MAX`).
+Then a_new, s_new of every element give the new internal variables. (With the
 extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
 force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
 Whichever the start, the history is carried to the extrapolated label for the search: it is
@@ -51,8 +52,10 @@ are labelled by their reference angle ψ0, which moves with the contact label l:
 from one step to the next, the internal variables and last strains of those elements are carried
 to their material by linear interpolation in ψ0 (element mid-labels; the disc's material is
 fixed). The history is carried to the start's label, and carried again to the solved label;
-within the contact search it is held per element
-(its derivative in l is left out of the contact line's balance). The label is set where the free
+within the contact search it is held per element (its derivative in l left out of the contact
+line's balance), or, with `contact_history`, read off its material at every trial label, its
+share of dE/dl in the balance (`solver.fast.contact.carry_history`, `history_share`; what it
+changes: docs/studies/contact-history.md). The label is set where the free
 surface touches the plate in the bending layer, where E*(l) is flat: ψ_c swings by a factor of ~6
 over a 0.05 µm oscillation, so this carry along the strip is the scheme's weakest approximation.
 
@@ -68,8 +71,8 @@ import numpy.typing as npt
 
 from common.errors import InputError, SolverError
 from solver.droplet_table import force_per_tension_um, mean_curvature_per_um
-from solver.fast import CONTINUE_STEP, _admissible, _follow_scale, _gap, lowest_contact, problem
-from solver.fast.contact import LOG_PSI_MIN
+from solver.fast import CONTINUE_STEP, NO_HISTORY, _admissible, _follow_scale, _gap, lowest_contact, problem
+from solver.fast.contact import LOG_PSI_MAX, LOG_PSI_MIN, carry_history
 from solver.fast.lagrangian import Lagrangian
 from solver.geometry import droplet
 from solver.model import PN_UM_PER_MN_PER_M_UM2, Shell
@@ -146,6 +149,7 @@ class TimeShell:
 
     shell: Shell
     cortex: Cortex
+    contact_history: bool = False      # the history's share of dE/dl in the contact search
     lag: Lagrangian = field(init=False)
     u: npt.NDArray[np.float64] = field(init=False)
     h_um: float = field(init=False)
@@ -217,10 +221,17 @@ class TimeShell:
         bulk, shear = self.channels
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
         self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
-        lag.terms = lag.terms._replace(pa=bulk.history(dt_s), ps=shear.history(dt_s))
-        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um)
+        pa, ps = bulk.history(dt_s), shear.history(dt_s)
+        lag.terms = lag.terms._replace(pa=pa, ps=ps)
+        history = (self.labels(self._label), pa[lag.nd:].copy(), ps[lag.nd:].copy()) \
+            if self.contact_history else NO_HISTORY
+        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history)
+        if self.contact_history:      # the prestress of the label found (the search's last may differ)
+            carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
             raise SolverError("the free surface crossed the plate")
+        if not u[-2] <= LOG_PSI_MAX:
+            raise SolverError("the contact label left the search's range")
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag

@@ -124,23 +124,27 @@ def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
     return u[-2] <= LOG_PSI_MIN + 1e-12
 
 
-def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
+NO_HISTORY = (np.empty(0), np.empty(0), np.empty(0))
+
+
+def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
     `solver.fast.contact.contact`, whose docstring has the search and
-    `retreat`). Returns
+    `retreat`, and `history`: the stored history that moves with the material). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
-    return _search(lag, u, zp, tol, maxit, retreat)[:2]
+    return _search(lag, u, zp, tol, maxit, retreat, history)[:2]
 
 
-def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
+def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
     """`_contact`, and whether its answer is the touching label (held by the
     plate, G > 0 there)."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
-        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat))
+        lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat),
+        history)
     if status == contact.FOUND:
         return u, iterations, last == contact.HELD
     if status == contact.TANGENT_SINGULAR:
@@ -152,7 +156,7 @@ def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False):
 
 
 def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp: float,
-                   retreat: bool = True) -> tuple[npt.NDArray[np.float64], int]:
+                   retreat: bool = True, history: tuple = NO_HISTORY) -> tuple[npt.NDArray[np.float64], int]:
     """The contact search from u at z_p (`_contact`), ended on the admissible
     local minimum of E*(l) of lowest energy. The search from a label below
     the answer (a continued step's) ends on the least admissible label, where
@@ -162,9 +166,11 @@ def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp
     finds. So where the search ends touching, a second one starts from the
     droplet's label at 2 z_p (at least SECOND_START above), and the
     admissible answer of lower E* is kept. Returns the unknowns and the
-    Newton iterations of both searches."""
-    u, iterations, held = _search(lag, u, zp, retreat=retreat)
-    if not held:
+    Newton iterations of both searches. With a `history` that moves with the
+    material (`_contact`) the first search's answer is kept: E* of two labels
+    would need the history carried to each."""
+    u, iterations, held = _search(lag, u, zp, retreat=retreat, history=history)
+    if not held or history[0].size:
         return u, iterations                    # G = 0, or the least label
     v = u.copy()
     v[-2] = max(_predicted_label(lag, shell, 2.0 * zp), u[-2] + SECOND_START)

@@ -23,6 +23,20 @@ is not the end: the next label is halfway back to the last one it solved
 is shortened instead of failing the search (the continuation of
 `solver.fast.advance` asks for that; a single compression does not).
 
+A stored history (`solver.time_domain`: the prestress P_a, P_s of each element, linear in its
+strain, sampled at the material labels ψ0 of the elements from the disc's edge on) moves with
+the material: at every label l the elements' P are read off it at their mid-labels ψ̄0_e(l)
+(linear in ψ0, as `numpy.interp`; `carry_history`), and the history's share of dE*/dl,
+
+    G_hist = Σ_e 4π r̄0_e dS_e [(e1+e2)_e dP_a/dψ0 + (e1-e2)_e dP_s/dψ0] dψ̄0_e/dl,
+
+joins G (`history_share`); k is then the secant of G through the last two labels solved where
+that is positive (the history's share of k is left out of the tangent), else the tangent's. The
+history's share nearly cancels the elastic one (G is small and positive down to the touching
+label, and jumps where an element's mid-label crosses a sample), so towards a side not yet
+bracketed a step is at least OPEN_STEP_L. With no history (empty arrays: the elastic solver)
+nothing changes.
+
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
 returns a status, which `solver.fast` turns into its errors.
 """
@@ -39,6 +53,7 @@ LOG_PSI_MIN = np.log(2e-3)   # least contact label (≈ 8 nm of material rolled 
 LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate (< π/2: the equator stays free)
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
+OPEN_STEP_L = 0.1            # with a history: the least step of l towards a side not yet bracketed
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
 FOUND, TANGENT_SINGULAR, NO_CONTACT = 0, 4, 5
@@ -50,6 +65,63 @@ def gap(u: npt.NDArray[np.float64], zp: float, N: int, kc: int) -> float:
     """How far the free surface rises above the plate (µm; > 0: it crosses)."""
     z = nodes(u, zp, N, kc)[1]
     return np.max(z[kc + 1:]) - zp * (1.0 + 1e-9)
+
+
+@njit(cache=True)
+def _node_labels(l, zeta, xi):
+    """ψ0 and dψ0/dl of the nodes from the disc's edge on at contact label l (`solver.fast.mesh`)."""
+    psic, nn = np.exp(l), zeta.size
+    psi, dpsi = np.zeros(1 + nn + xi.size), np.zeros(1 + nn + xi.size)
+    for j in range(nn):
+        psi[1 + j] = dpsi[1 + j] = psic * zeta[j]
+    for j in range(xi.size):
+        psi[1 + nn + j] = psic + (0.5 * np.pi - psic) * xi[j]
+        dpsi[1 + nn + j] = psic * (1.0 - xi[j])
+    return psi, dpsi
+
+
+@njit(cache=True)
+def carry_history(l: float, zeta: npt.NDArray[np.float64], xi: npt.NDArray[np.float64],
+                  history: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]],
+                  terms: Terms) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Set terms.pa, terms.ps of the elements from the disc's edge on to the history
+    (ψ̄0 samples, P_a, P_s) at their mid-labels at contact label l, linear in ψ0 (held beyond the
+    samples, as `numpy.interp`); return dP_a/dl, dP_s/dl of those elements."""
+    at, pa0, ps0 = history
+    psi, dpsi = _node_labels(l, zeta, xi)
+    m, nd = psi.size - 1, terms.kc - zeta.size
+    dpa, dps = np.zeros(m), np.zeros(m)
+    for e in range(m):
+        x = 0.5 * (psi[e] + psi[e + 1])
+        i = np.searchsorted(at, x)
+        if i == 0 or i == at.size:
+            j = 0 if i == 0 else at.size - 1
+            terms.pa[nd + e], terms.ps[nd + e] = pa0[j], ps0[j]
+            continue
+        w = at[i] - at[i - 1]
+        sa, ss = (pa0[i] - pa0[i - 1]) / w, (ps0[i] - ps0[i - 1]) / w
+        terms.pa[nd + e] = pa0[i - 1] + sa * (x - at[i - 1])
+        terms.ps[nd + e] = ps0[i - 1] + ss * (x - at[i - 1])
+        dx = 0.5 * (dpsi[e] + dpsi[e + 1])
+        dpa[e], dps[e] = sa * dx, ss * dx
+    return dpa, dps
+
+
+@njit(cache=True)
+def history_share(u: npt.NDArray[np.float64], zp: float, r0: npt.NDArray[np.float64],
+                  z0: npt.NDArray[np.float64], N: int, kc: int, nd: int,
+                  dpa: npt.NDArray[np.float64], dps: npt.NDArray[np.float64]) -> float:
+    """G_hist (module docstring) at the unknowns u, reference nodes (r0, z0) of u's label, with
+    the elements' dP/dl from the disc's edge (element nd) on (mN/m·µm²)."""
+    r, z = nodes(u, zp, N, kc)
+    G = 0.0
+    for e in range(dpa.size):
+        k = nd + e
+        ds, dS = np.hypot(r[k + 1] - r[k], z[k + 1] - z[k]), np.hypot(r0[k + 1] - r0[k], z0[k + 1] - z0[k])
+        rm, r0m = 0.5 * (r[k + 1] + r[k]), 0.5 * (r0[k + 1] + r0[k])
+        e1, e2 = ds / dS - 1.0, rm / r0m - 1.0
+        G += 4.0 * np.pi * r0m * dS * ((e1 + e2) * dpa[e] + (e1 - e2) * dps[e])
+    return G
 
 
 @njit(cache=True)
@@ -98,10 +170,12 @@ def _step(G, k):
 @njit(cache=True)
 def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]], shape: npt.NDArray[np.float64], terms: Terms,
             order: npt.NDArray[np.int64], keep: npt.NDArray[np.int64], N: int, V0: float, force_scale: float, tol: float, maxit: int,
-            newton_maxit: int, retreat: bool) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
+            newton_maxit: int, retreat: bool,
+            history: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> tuple[int, npt.NDArray[np.float64], npt.NDArray[np.float64], int, int, float, float]:
     """The contact search from u at z_p (module docstring): at most `maxit`
     labels, Newton's method at each for at most `newton_maxit` steps; labels
-    and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`).
+    and shape those of `solver.fast.mesh.label_positions` (`Reference.arrays`);
+    `history` the stored history (ψ̄0, P_a, P_s), empty for none (module docstring).
     Returns (status, u, g, iterations, last, lo, hi): FOUND with the
     solution, `last` HELD where the free surface touching the plate holds its
     label (G > 0 there), else 0; Newton's status with its last state and `last` its iteration;
@@ -111,8 +185,13 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     touching, t0_l, t0_gap, t0_u, t1_l, t1_gap = 0, 0.0, 0.0, u, 0.0, 0.0
     tangent, G = np.empty(0), 0.0
     solved, solved_tangent = np.empty(0), np.empty(0)     # the last label solved (`retreat`)
+    carried, nd = history[0].size > 0, kc - labels[1].size
+    dpa, dps = np.empty(0), np.empty(0)
+    last_l, last_G = np.nan, np.nan          # the last label solved below the plate and its G
     for _ in range(maxit):
         ref = label_positions(u[-2], labels, shape)
+        if carried:
+            dpa, dps = carry_history(u[-2], labels[1], labels[2], history, terms)
         tried = u[-2]
         status, u, g, band, lp, it = newton(u, zp, ref, terms, order, N, V0, force_scale, 1e-6, newton_maxit)
         if status != CONVERGED:
@@ -128,6 +207,11 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             G, k, tangent, info = _tangent(g, band, lp, order, keep, terms.band)
             if info != 0:
                 return TANGENT_SINGULAR, u, g, iterations, info, lo, hi
+            if carried:
+                G += history_share(u, zp, ref[0], ref[1], N, kc, nd, dpa, dps)
+                if l != last_l and (G - last_G) / (l - last_l) > 0:
+                    k = (G - last_G) / (l - last_l)
+                last_l, last_G = l, G
             if abs(G) < tol * force_scale or (G > 0 and u[-2] <= LOG_PSI_MIN + 1e-12):
                 return FOUND, u, g, iterations, 0, lo, hi
             if G > 0:
@@ -138,6 +222,8 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             else:
                 lo = l
             step = _step(G, k)
+            if carried and (lo if step < 0 else hi) in (LOG_PSI_MIN, LOG_PSI_MAX) and abs(step) < OPEN_STEP_L:
+                step = OPEN_STEP_L if step > 0 else -OPEN_STEP_L
         target = l + step
         if touching == 2 and above <= 0 and G > 0:
             # less contact would lift the free surface through the plate: the
