@@ -21,7 +21,11 @@ the history's prestress, linear in the strain,
 
 (`solver.fast.kernel`'s per-element `pa`, `ps`). One equilibrium per step (`step`): the fast
 solver's contact search with its retreat and Newton iteration (exact Hessian), ended on the
-admissible contact label of lowest energy (`solver.fast.lowest_contact`), started as
+admissible contact label of lowest energy (`solver.fast.lowest_contact`) where the plate presses
+deeper than it has before (a ramp into new depth: where a continued search and a compression from
+the reference can end on two labels), else on the continued search's (holds, oscillations and
+retracts over depths already visited follow the branch taken there; a second search at every
+such step would double the cost of a protocol), started as
 `solver.fast.advance` starts its steps (the secant in the gap through the last two equilibria,
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
@@ -159,6 +163,7 @@ class TimeShell:
     _label: float = field(init=False)
     _last: tuple[float, npt.NDArray[np.float64]] = field(init=False)
     _stride: float = field(init=False)
+    _deepest_um: float = field(init=False)     # the least gap reached so far (µm)
     _instant_bulk: float = field(init=False)     # K_B(0) (mN/m)
 
     def __post_init__(self) -> None:
@@ -174,6 +179,7 @@ class TimeShell:
         self._label = float(LOG_PSI_MIN)          # where the internal variables sit
         self._last = (self.h_um, self.u)          # the equilibrium before this one (the secant's)
         self._stride = CONTINUE_STEP / base.ref.H  # `advance`'s next plate move (µm)
+        self._deepest_um = self.h_um
         n = base.N
         bulk, shear = (_Channel(p, np.zeros(n), np.zeros((len(p.weights), n)))
                        for p in (self.cortex.bulk, self.cortex.shear))
@@ -225,7 +231,7 @@ class TimeShell:
         lag.terms = lag.terms._replace(pa=pa, ps=ps)
         history = (self.labels(self._label), pa[lag.nd:].copy(), ps[lag.nd:].copy()) \
             if self.contact_history else NO_HISTORY
-        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history)
+        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history, second=h_um < self._deepest_um)
         if self.contact_history:      # the prestress of the label found (the search's last may differ)
             carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
@@ -235,6 +241,7 @@ class TimeShell:
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
+        self._deepest_um = min(self._deepest_um, self.h_um)
         a, s = self.strains()
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
@@ -307,12 +314,12 @@ class TimeShell:
 
     def saved(self) -> tuple[Any, ...]:
         """What a step changes (unknowns, gap, Lagrangian, labels, internal variables), for `restore`."""
-        return (self.u.copy(), self.h_um, self.lag, self._label, self._last, self._stride,
+        return (self.u.copy(), self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um,
                 [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         """Back to the state `saved` returned (after a step that failed)."""
-        self.u, self.h_um, self.lag, self._label, self._last, self._stride, channels = saved
+        self.u, self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um, channels = saved
         for ch, (strain, viscous) in zip(self.channels, channels):
             ch.strain, ch.viscous = strain.copy(), viscous.copy()
 

@@ -156,7 +156,8 @@ def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
 
 
 def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp: float,
-                   retreat: bool = True, history: tuple = NO_HISTORY) -> tuple[npt.NDArray[np.float64], int]:
+                   retreat: bool = True, history: tuple = NO_HISTORY,
+                   second: bool = True) -> tuple[npt.NDArray[np.float64], int]:
     """The contact search from u at z_p (`_contact`), ended on the admissible
     local minimum of E*(l) of lowest energy. The search from a label below
     the answer (a continued step's) ends on the least admissible label, where
@@ -168,9 +169,11 @@ def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp
     admissible answer of lower E* is kept. Returns the unknowns and the
     Newton iterations of both searches. With a `history` that moves with the
     material (`_contact`) the first search's answer is kept: E* of two labels
-    would need the history carried to each."""
+    would need the history carried to each; `second` False keeps it too
+    (the caller's policy: `solver.time_domain` asks only where the plate
+    presses deeper than before)."""
     u, iterations, held = _search(lag, u, zp, retreat=retreat, history=history)
-    if not held or history[0].size:
+    if not (held and second) or history[0].size:
         return u, iterations                    # G = 0, or the least label
     v = u.copy()
     v[-2] = max(_predicted_label(lag, shell, 2.0 * zp), u[-2] + SECOND_START)
