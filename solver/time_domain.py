@@ -136,10 +136,13 @@ class _Channel:
         self.strain = strain.copy()
 
     def remap(self, old: npt.NDArray[np.float64], new: npt.NDArray[np.float64], start: int) -> None:
-        """Carry the elements from `start` on from mid-labels `old` to `new` (linear in ψ0)."""
-        self.strain[start:] = np.interp(new, old, self.strain[start:])
-        for row in self.viscous:
-            row[start:] = np.interp(new, old, row[start:])
+        """Carry the elements from `start` on from mid-labels `old` to `new` (linear in ψ0, held
+        at the ends as `np.interp`; the strain and every Maxwell element at once)."""
+        j = np.clip(np.searchsorted(old, new, side="right"), 1, old.size - 1)
+        x0, x1 = old[j - 1], old[j]
+        w = np.clip(np.divide(new - x0, x1 - x0, out=np.zeros_like(new), where=x1 > x0), 0.0, 1.0)
+        for values in (self.strain[None, start:], self.viscous[:, start:]):
+            values[...] = values[:, j - 1] * (1.0 - w) + values[:, j] * w
 
 
 @dataclass
