@@ -3,7 +3,8 @@
 The correction of a cell's segments (`analysis.afm.replayed`) needs the cell's power laws and
 γ_a, which the reading of the corrected segments gives: a fixed point, found in rounds
 
-    θ_0 = the viscoelastic point fit of the raw segments (tension filter lifted),
+    θ_0 = the viscoelastic point fit of the raw segments (tension filter lifted), γ_a from the
+          shallowest height (`started`),
     S_i = the raw segments corrected with the power laws of θ_{i-1},   θ_i = the point fit of S_i,
 
 each round the selected variant's inversion of S_i and its complex point fit
@@ -14,7 +15,7 @@ filter on the corrected mean tensions, the population, the viscoelastic reading 
 intervals) reads the last S_i. The cells' replays run in `jobs` processes.
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
-`protocol_reason` and `protocol_settled`. A cell is not corrected (False, the reason beside it)
+`protocol_reason`, `protocol_settled` and `protocol_replays` (how often the cell was replayed). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
 a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`refused`: the correction is refused,
 never used); its segments stay as recorded (and the tension filter, on their kept stress, mostly
@@ -45,6 +46,7 @@ if TYPE_CHECKING:
     from analysis.invert.method import Inversion
 
 MAX_ROUNDS = 8
+SHALLOWEST_UM = 0.1     # µm: segments this close to a cell's largest mean height are its shallowest
 SETTLED = {"bulk_beta": 0.01, "shear_beta": 0.01, "bulk_1s": 0.02, "shear_1s": 0.02, "tension": 0.02}
 
 
@@ -62,10 +64,13 @@ def _cells(segments: pd.DataFrame) -> pd.DataFrame:
 
 def summary(segments: pd.DataFrame, wait_s: float | None) -> dict[str, object]:
     """summary.json's `protocol`: the wait (s, or "recorded"), which cells were corrected, why
-    the others were not, and which did not settle in MAX_ROUNDS."""
+    the others were not, which did not settle in MAX_ROUNDS, and how often a cell was replayed
+    on average (`replays_per_cell`)."""
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
-    return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
+    replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
+    return {"replays_per_cell": None if replays is None or replays.empty else float(replays.mean()),
+            "reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
             "wait_s": "recorded" if wait_s is None else wait_s, "cells_corrected": int(cells["corrected"].sum()),
             "cells_not_corrected": [str(c) for c in left.index],
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
@@ -107,6 +112,18 @@ def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[st
     return moved
 
 
+def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
+    """θ_0 (`cortex_laws` of the raw segments) with γ_a the median mean tension of each cell's
+    segments at its shallowest height (within SHALLOWEST_UM of its largest mean height): the
+    height that keeps least stress from the steps before it, so the rounds start near their end."""
+    top = segments.groupby("cell_id")["mean_height_um"].transform("max")
+    shallow = segments[segments["mean_height_um"] >= top - SHALLOWEST_UM]
+    tension = shallow.groupby("cell_id")["tension_mN_per_m"].median()
+    out = found.copy()
+    out["tension"] = out["cell_id"].map(tension).fillna(out["tension"])
+    return out
+
+
 def _one(job: tuple[Cell, dict[str, float], str, float | None]) -> np.ndarray | str:
     """The cell's factors, or why it is not corrected (`cell_correction`)."""
     cell, law, bending, wait_s = job
@@ -138,8 +155,11 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     now = _measured(raw, factors, volumes, measured, why, [])
     table, tension = inverted(measured, inversion, bending, errors, math.inf), raw["tension_mN_per_m"].to_numpy(float)
     laws: dict[str, dict[str, float]] = {}
+    replays = {c.cell_id: 0 for c in cells}
     for i in range(MAX_ROUNDS):
         found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
+        if i == 0:
+            found = started(found, raw)
         todo = unsettled(laws, found)
         if not todo:
             break
@@ -147,22 +167,23 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         replay_cells = [c for c in cells if c.cell_id in todo]
         for c, f in zip(replay_cells, _factors(replay_cells, laws, bending, wait_s, jobs,
                                                f"protocol round {i + 1} (at most {MAX_ROUNDS})")):
-            at = rows[c.cell_id]
+            at, replays[c.cell_id] = rows[c.cell_id], replays[c.cell_id] + 1
             why[c.cell_id] = f if isinstance(f, str) else (refused(tension[at], f) or "")
             factors[at] = np.nan if why[c.cell_id] else f
-        now = _measured(raw, factors, volumes, measured, why, [])
+        now = _measured(raw, factors, volumes, measured, why, [], replays)
         table = inverted(now, inversion, bending, errors, math.inf)
     else:
-        now = _measured(raw, factors, volumes, measured, why, todo)
+        now = _measured(raw, factors, volumes, measured, why, todo, replays)
     return now
 
 
 def _measured(raw: pd.DataFrame, factors: np.ndarray, volumes: pd.Series, measured: Measured,
-              why: dict[str, str], moving: list[str]) -> Measured:
+              why: dict[str, str], moving: list[str], replays: dict[str, int] | None = None) -> Measured:
     """The `Measured` of the raw segments corrected by `factors` (NaN rows: not corrected, for
-    the reason `why` gives); `moving` the cells not settled."""
+    the reason `why` gives); `moving` the cells not settled, `replays` how often each was replayed."""
     segments = apply(raw, factors)
     segments["protocol_corrected"] = ~np.isnan(factors[:, 0])
     segments["protocol_reason"] = segments["cell_id"].map(why).fillna("").where(~segments["protocol_corrected"], "")
     segments["protocol_settled"] = ~segments["cell_id"].isin(moving)
+    segments["protocol_replays"] = segments["cell_id"].map(replays or {}).fillna(0).astype(int)
     return measured_of(segments.assign(volume_um3=segments["cell_id"].map(volumes)), measured.order)
