@@ -10,12 +10,17 @@ The correction of a cell's segments (`analysis.afm.replayed`) needs the cell's p
 each round the selected variant's inversion of S_i and its complex point fit
 (`analysis.viscoelastic_fit.fit`, no bootstrap). Only the cells whose power laws moved by more
 than SETTLED since their last replay are replayed again (`unsettled`, the policy; a cell the
-round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. What follows (every variant with the tension
-filter on the corrected mean tensions, the population, the viscoelastic reading and its
-intervals) reads the last S_i. The cells' replays run in `jobs` processes.
+round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. The
+rounds replay linearised (`cell_correction`'s default, fast); with `full_last` (FULL_LAST, the
+default) every replayed cell's last correction is then its full replay with its last power laws
+(the linearised replay's |c| is off the full one's by up to ~6 %, bench/linearised_replay.py).
+What follows (every variant with the tension filter on the corrected mean tensions, the
+population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
+in `jobs` processes.
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
-`protocol_reason`, `protocol_settled` and `protocol_replays` (how often the cell was replayed). A cell is not corrected (False, the reason beside it)
+`protocol_reason`, `protocol_settled` and `protocol_replays` (how often the cell was replayed
+linearised). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
 a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`refused`: the correction is refused,
 never used); its segments stay as recorded (and the tension filter, on their kept stress, mostly
@@ -46,6 +51,7 @@ if TYPE_CHECKING:
     from analysis.invert.method import Inversion
 
 MAX_ROUNDS = 8
+FULL_LAST = True        # the last correction by the full replay (the linearised one's bias: bench/linearised_replay.py)
 SHALLOWEST_UM = 0.1     # µm: segments this close to a cell's largest mean height are its shallowest
 SETTLED = {"bulk_beta": 0.01, "shear_beta": 0.01, "bulk_1s": 0.02, "shear_1s": 0.02, "tension": 0.02}
 
@@ -124,19 +130,19 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None]) -> np.ndarray | str:
+def _one(job: tuple[Cell, dict[str, float], str, float | None, bool]) -> np.ndarray | str:
     """The cell's factors, or why it is not corrected (`cell_correction`)."""
-    cell, law, bending, wait_s = job
-    return cell_correction(cell, law, bending, wait_s)
+    cell, law, bending, wait_s, linearised = job
+    return cell_correction(cell, law, bending, wait_s, linearised)
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
-             jobs: int, label: str) -> list[np.ndarray | str]:
+             jobs: int, label: str, linearised: bool = True) -> list[np.ndarray | str]:
     """Per cell of `cells` its (segments, 3) correction factors or why not, `jobs` processes."""
     bar = tqdm(total=len(cells), unit="cell", desc=label)
     with pool(jobs) as workers:
         out = []
-        for f in workers.map(_one, [(c, laws[c.cell_id], bending, wait_s) for c in cells]):
+        for f in workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised) for c in cells]):
             out.append(f)
             bar.update()
     bar.close()
@@ -145,7 +151,7 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
 
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
-              jobs: int = 1) -> Measured:
+              jobs: int = 1, full_last: bool = FULL_LAST) -> Measured:
     """`measured` with its segments corrected for the carried stress (module docstring)."""
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
@@ -155,7 +161,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     now = _measured(raw, factors, volumes, measured, why, [])
     table, tension = inverted(measured, inversion, bending, errors, math.inf), raw["tension_mN_per_m"].to_numpy(float)
     laws: dict[str, dict[str, float]] = {}
-    replays = {c.cell_id: 0 for c in cells}
+    replays, moving = {c.cell_id: 0 for c in cells}, []
     for i in range(MAX_ROUNDS):
         found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
         if i == 0:
@@ -173,8 +179,14 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         now = _measured(raw, factors, volumes, measured, why, [], replays)
         table = inverted(now, inversion, bending, errors, math.inf)
     else:
-        now = _measured(raw, factors, volumes, measured, why, todo, replays)
-    return now
+        moving = todo
+    if full_last:
+        last = [c for c in cells if c.cell_id in laws]
+        for c, f in zip(last, _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", False)):
+            at = rows[c.cell_id]
+            why[c.cell_id] = f if isinstance(f, str) else (refused(tension[at], f) or "")
+            factors[at] = np.nan if why[c.cell_id] else f
+    return _measured(raw, factors, volumes, measured, why, moving, replays)
 
 
 def _measured(raw: pd.DataFrame, factors: np.ndarray, volumes: pd.Series, measured: Measured,
