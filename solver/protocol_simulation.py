@@ -59,7 +59,6 @@ from common.errors import InputError, SolverError
 from common.names import CORTEX_HISTORIES
 from solver.model import Shell
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
-from solver.state_response import linear_modulus, state_parts
 from solver.time_domain import Cortex, TimeShell
 
 Array = npt.NDArray[np.float64]
@@ -390,6 +389,7 @@ class _Run:
     def _answer(self, osc: Oscillate) -> None:
         """LINEARISED: the plate held at h_m through the oscillation, the state halfway answering
         at f (`solver.state_response.linear_modulus`); no samples."""
+        from solver.state_response import linear_modulus, state_parts   # the frequency domain's imports: only here
         half = 0.5 * osc.duration_s
         force = self._step(self.level, half)
         K = linear_modulus(state_parts(self.state), osc.frequency_hz)

@@ -16,11 +16,19 @@ from solver.model import Shell
 from solver.protocol import Oscillate, Protocol
 from solver.protocol_simulation import LINEARISED, simulate
 from solver.relaxed_state import relaxed_state
-from solver.state_response import linear_modulus, relaxed_parts
-from solver.time_domain import power_law_cortex
+from solver.state_response import linear_modulus, state_parts
+from solver.time_domain import TimeShell, power_law_cortex
+from solver.viscoelastic import RELAX_UM
 
 SHELL = Shell(volume_um3=4300.0, h0_um=14.0, bulk_mN_per_m=25.0, shear_mN_per_m=20.0, tension_mN_per_m=1.0,
               bending="none")
+
+
+def relaxed_parts(shell, cortex, h_um):
+    """The state answering about the droplet relaxed at gap h: its reference RELAX_UM above, one step down."""
+    state = TimeShell(replace(shell, h0_um=h_um + RELAX_UM), cortex)
+    state.advance(h_um, 1.0)
+    return state_parts(state)
 
 
 def test_about_the_relaxed_droplet_the_loss_angle_is_the_relaxed_state_models():
