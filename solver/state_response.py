@@ -33,6 +33,8 @@ oscillation's own effect on the history is second order; the label's carry of th
 the strip (`solver.time_domain`) is not in H*: where the carried history holds the label, the
 stepped oscillation's |K*| is 2-6 % above this one's at any amplitude down to 0.03 µm, arg K*
 within 0.017 rad (bench/linearised_replay.py); without a bending layer they agree to ~0.7 %.
+Neither other closure of the label does better there: left free (as if dE*/dl = 0) 7-13 % below,
+held to the touching condition (gap 0 linearised) 6-12 % above.
 """
 
 import copy
