@@ -75,12 +75,12 @@ def summary(segments: pd.DataFrame, wait_s: float | None) -> dict[str, object]:
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
-    return {"replays_per_cell": None if replays is None or replays.empty else float(replays.mean()),
-            "reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
+    return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
             "wait_s": "recorded" if wait_s is None else wait_s, "cells_corrected": int(cells["corrected"].sum()),
             "cells_not_corrected": [str(c) for c in left.index],
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
-            "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]]}
+            "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]],
+            "replays_per_cell": None if replays is None or replays.empty else float(replays.mean())}
 
 
 def markdown(segments: pd.DataFrame) -> list[str]:

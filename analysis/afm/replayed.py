@@ -9,8 +9,9 @@ laws (K_B(t) = K_B,1s t^-β_B, K_S(t) = K_S,1s t^-β_S, `analysis.afm.rheology.c
 γ_td,j. By default (`linearised`) at the LINEARISED resolution: every hold one exact Prony step,
 every oscillation answered about the replayed state halfway through it (K*_td,j = K*_lin of
 `solver.state_response`, γ_td,j = F_0 / (2 H A_c) at h_m); else (`linearised=False`, the full
-replay, bench/linearised_replay.py's held-out check) at the REPLAY resolution, read as the
-recording is read (`analysis.afm.timeseries.segment_moduli`). The relaxed-state model gives
+replay: the reading's last correction, `analysis.afm.protocol_reading`, and the held-out check
+of bench/linearised_replay.py) at the REPLAY resolution, read as the recording is read
+(`analysis.afm.timeseries.segment_moduli`). The relaxed-state model gives
 K*_r,j (`solver.relaxed_state`) and γ_a. Then
 
     c_j = K*_td,j / K*_r,j,   Δγ_j = γ_td,j - γ_a,
