@@ -32,7 +32,7 @@ if TYPE_CHECKING:     # what editors and the type checker see; at run time each 
     from solver.model import BENDING_VARIANTS, Shell
     from solver.modulus import effective_modulus
     from solver.protocol import Hold, Oscillate, Protocol, Ramp
-    from solver.protocol_simulation import FINE, REPLAY, Recording, Resolution, Sampling, simulate
+    from solver.protocol_simulation import FINE, LINEARISED, REPLAY, Recording, Resolution, Sampling, simulate
     from solver.ramp import ramp_forces_nN
     from solver.time_domain import Cortex, power_law_cortex
 
@@ -44,7 +44,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "effective_modulus": "solver.modulus", "ramp_forces_nN": "solver.ramp",
     **{name: "solver.protocol" for name in ("Protocol", "Ramp", "Hold", "Oscillate")},
     **{name: "solver.protocol_simulation" for name in ("simulate", "Recording", "Resolution", "Sampling",
-                                                        "FINE", "REPLAY")},
+                                                        "FINE", "REPLAY", "LINEARISED")},
     "Cortex": "solver.time_domain", "power_law_cortex": "solver.time_domain",
     "InputError": "common.errors", "SolverError": "common.errors", "WriteError": "common.errors",
 })

@@ -6,8 +6,9 @@ h0 is set to it) and returns the instrument's samples: every equilibrium one ste
 solver, every step through `_advance` (`TimeShell.advance`: sub-steps of its own choice, each one
 equilibrium, a failed one undone and halved).
 
-How each step is stepped (`Resolution`; FINE for the synthetic experiments, REPLAY for the
-protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
+How each step is stepped (`Resolution`; FINE for the synthetic experiments, LINEARISED for the
+protocol-aware reading's replay of a recording, `analysis.afm.replayed`, REPLAY for its full
+replay, the held-out check):
 
 - a ramp moves the plate at most `ramp_step_um` a step, linear in time at its speed; a ramp to a
   force stops at the step where the force crosses it, that step's gap found by regula falsi;
@@ -21,6 +22,13 @@ protocol-aware reading's replay of a recording, `analysis.afm.replayed`):
   `max_periods` periods, the steps themselves the samples, then the plate held at h_m for the
   rest; where a step fails even halved, the whole protocol again with `retry_finer` times finer
   ramps and oscillations.
+
+LINEARISED (`linearised`): a hold is one step (the Prony series' exponential integrator is
+exact for a strain constant in time, and a hold's strain barely moves; `hold_first_s` inf), and
+an oscillation is not stepped: the plate is held at h_m through it, and halfway through, the
+state answers at f in the frequency domain (`solver.state_response`: K*_lin about the state with
+the cortex's complex moduli; an `Answer` in `Recording.answers`, no samples). Ramps are stepped
+as REPLAY steps them. Against REPLAY and FINE: bench/linearised_replay.py.
 
 REPLAY against FINE, read with the true cortex by the segment fit, on two cells of 33 and 18
 segments: |K*| within 1.6 % (0.8 % on average), loss angle within 0.014 rad
@@ -72,6 +80,7 @@ class Resolution:
     max_periods: int | None = None    # None: every period
     spline: bool = True               # False: the oscillation's steps are its samples
     retry_finer: int = 1              # > 1: a failed run again, this many times finer
+    linearised: bool = False          # True: oscillations answered about the state, not stepped
 
     def finer(self, factor: int) -> "Resolution":
         return replace(self, ramp_step_um=self.ramp_step_um / factor,
@@ -81,6 +90,19 @@ class Resolution:
 FINE = Resolution(ramp_step_um=0.02, hold_first_s=None, hold_growth=1.2, hold_largest_s=2.0, steps_per_period=64)
 REPLAY = Resolution(ramp_step_um=0.05, hold_first_s=0.01, hold_growth=2.0, hold_largest_s=30.0,
                     steps_per_period=16, max_periods=2, spline=False, retry_finer=4)
+LINEARISED = Resolution(ramp_step_um=0.05, hold_first_s=math.inf, hold_growth=1.0, hold_largest_s=math.inf,
+                        steps_per_period=16, spline=False, retry_finer=4, linearised=True)
+
+
+@dataclass(frozen=True)
+class Answer:
+    """An oscillation answered about the state (LINEARISED): at f and mean gap h_m, the plate
+    force F_0 (nN) of the state halfway through it and K*_lin (mN/m, `solver.state_response`)."""
+
+    frequency_hz: float
+    h_mean_um: float
+    force_nN: float
+    modulus_mN_per_m: complex
 
 
 @dataclass(frozen=True)
@@ -124,6 +146,7 @@ class Recording:
     stretches: list[Stretch] = field(default_factory=list)
     steps: int = 0
     contact_label: float = math.nan      # l = ln ψ_c of the shell at the end (`solver.time_domain`)
+    answers: list[Answer] = field(default_factory=list)   # LINEARISED: one per oscillation
 
     def oscillations(self) -> list[Stretch]:
         return [s for s in self.stretches if s.kind == "oscillation"]
@@ -188,6 +211,7 @@ class _Run:
         f0 = self.state.force_nN()
         self.samples: list[tuple[Array, Array, Array]] = [(np.array([self.t]), np.array([self.level]), np.array([f0]))]
         self.stretches: list[Stretch] = []
+        self.answers: list[Answer] = []
         self.n = 1
         self._open()
 
@@ -218,12 +242,14 @@ class _Run:
                 ramps += 1
             elif isinstance(s, Hold):
                 self._force_hold(s.duration_s)
+            elif self.res.linearised:
+                self._answer(s)
             else:
                 self._oscillate(s)
         self._flush()
         self._close()
         t, h, f = (np.concatenate([p[k] for p in self.samples]) for k in range(3))
-        return Recording(t, f, h, self.stretches, self.steps, float(self.state.u[-2]))
+        return Recording(t, f, h, self.stretches, self.steps, float(self.state.u[-2]), self.answers)
 
     def _relax(self, to_um: float) -> None:
         """A fresh cortex, relaxed the first ramp's depth above `to_um` (module docstring)."""
@@ -366,6 +392,17 @@ class _Run:
             self.stretches[-1] = replace(last, stop=self.n + stop)
         else:
             self.stretches.append(Stretch(kind, self.n + start, self.n + stop, frequency_hz))
+
+    def _answer(self, osc: Oscillate) -> None:
+        """LINEARISED: the plate held at h_m through the oscillation, the state halfway answering
+        at f (`solver.state_response.linear_modulus`); no samples."""
+        from solver.state_response import linear_modulus, state_parts   # the frequency domain's imports: only here
+        half = 0.5 * osc.duration_s
+        force = self._step(self.level, half)
+        K = linear_modulus(state_parts(self.state), osc.frequency_hz)
+        self.answers.append(Answer(float(osc.frequency_hz), self.level, force, K))
+        self.kinds.append(("hold", self.t))
+        self.pending += half
 
     def _oscillate(self, osc: Oscillate) -> None:
         self._close()

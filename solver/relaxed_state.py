@@ -23,13 +23,15 @@ from solver.time_domain import Cortex
 from solver.viscoelastic import viscoelastic_keys
 
 
-def relaxed_state(shell: Shell, cortex: Cortex, frequency_hz: float) -> dict[str, float]:
+def relaxed_state(shell: Shell, cortex: Cortex, frequency_hz: float, sparse: bool = False) -> dict[str, float]:
     """|K*| (`modulus_mN_per_m`) and loss angle (`loss_angle_rad`) of the relaxed-state model of
     `shell` (its moduli replaced by the cortex's) at `frequency_hz`, with the moduli's own loss
-    angles (`bulk_loss_angle_rad`, `shear_loss_angle_rad`)."""
+    angles (`bulk_loss_angle_rad`, `shear_loss_angle_rad`); `sparse`: the linear solves by sparse LU
+    (`solver.viscous.respond`)."""
     Kb, Ks = cortex.bulk.complex_modulus(frequency_hz), cortex.shear.complex_modulus(frequency_hz)
     model = replace(shell, bulk_mN_per_m=abs(Kb), shear_mN_per_m=abs(Ks))
     delta_b, delta_s = float(np.angle(Kb)), float(np.angle(Ks))
-    keys = viscoelastic_keys(model, compress(model).derived["modulus_mN_per_m"], frequency_hz, delta_b, delta_s)
+    keys = viscoelastic_keys(model, compress(model).derived["modulus_mN_per_m"], frequency_hz, delta_b, delta_s,
+                             sparse=sparse)
     return {"modulus_mN_per_m": float(keys["modulus_mN_per_m"]), "loss_angle_rad": float(keys["loss_angle_rad"]),
             "bulk_loss_angle_rad": delta_b, "shear_loss_angle_rad": delta_s}

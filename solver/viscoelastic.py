@@ -135,14 +135,14 @@ def check_loss_angles(*angles: float) -> None:
 
 
 def complex_response(parts: Parts, bulk_loss_angle_rad: float, shear_loss_angle_rad: float,
-                     frequency_hz: float, viscosity_Pa_s: float = 0.0) -> complex:
+                     frequency_hz: float, viscosity_Pa_s: float = 0.0, sparse: bool = False) -> complex:
     """K*(ω) (mN/m) of the linearised shell with complex moduli (and the interior's viscosity,
-    which needs `parts.lin` from `solver.viscous.prepare`)."""
+    which needs `parts.lin` from `solver.viscous.prepare`; `sparse`: `solver.viscous.respond`'s)."""
     check_loss_angles(bulk_loss_angle_rad, shear_loss_angle_rad)
     if viscosity_Pa_s and parts.lin.D is None:
         raise InputError("a viscous interior needs the fluid's condensation (solver.viscous.prepare)")
     extra = extra_hessian(parts, bulk_loss_angle_rad, shear_loss_angle_rad)
-    return respond(parts.lin, viscosity_Pa_s, frequency_hz, extra).complex_modulus
+    return respond(parts.lin, viscosity_Pa_s, frequency_hz, extra, sparse).complex_modulus
 
 
 @lru_cache(maxsize=4)
@@ -162,19 +162,20 @@ def correction(parts: Parts, bulk_loss_angle_rad: float, shear_loss_angle_rad: f
 
 
 def viscoelastic_keys(shell: Shell, elastic_modulus: float, frequency_hz: float, bulk_loss_angle_rad: float,
-                      shear_loss_angle_rad: float, viscosity_Pa_s: float = 0.0) -> dict:
+                      shear_loss_angle_rad: float, viscosity_Pa_s: float = 0.0, sparse: bool = False) -> dict:
     """K* = K C of `shell` (no viscosity or frequency of its own) whose elastic
     compression gave `elastic_modulus` K (mN/m), oscillated at `frequency_hz` around
     h_m = h0 - Δh/2 with the loss angles (and a viscous interior, η > 0):
     `modulus_mN_per_m` = |K*|, `storage_modulus_mN_per_m`, `loss_modulus_mN_per_m`,
     `loss_angle_rad`, `linear_modulus_mN_per_m` (|K*| of the linear response alone),
-    `linear_elastic_modulus_mN_per_m` (its value without loss angles or viscosity) and the wall time."""
+    `linear_elastic_modulus_mN_per_m` (its value without loss angles or viscosity) and the wall time
+    (`sparse`: the shell's solves by sparse LU, `solver.viscous.respond`)."""
     start = time.perf_counter()
     check_loss_angles(bulk_loss_angle_rad, shear_loss_angle_rad)
     eta = float(viscosity_Pa_s or 0.0)
     parts = _prepared(replace(shell, viscosity_Pa_s=None, frequency_hz=None), eta > 0)
-    lin = complex_response(parts, bulk_loss_angle_rad, shear_loss_angle_rad, frequency_hz, eta)
-    base = respond(parts.lin, 0.0, frequency_hz).complex_modulus.real
+    lin = complex_response(parts, bulk_loss_angle_rad, shear_loss_angle_rad, frequency_hz, eta, sparse)
+    base = respond(parts.lin, 0.0, frequency_hz, sparse=sparse).complex_modulus.real
     K = elastic_modulus * lin / base
     return {"viscosity_Pa_s": eta, "frequency_hz": float(frequency_hz),
             "bulk_loss_angle_rad": float(bulk_loss_angle_rad), "shear_loss_angle_rad": float(shear_loss_angle_rad),

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from scipy.sparse import coo_matrix, csc_matrix
+from scipy.sparse.linalg import spsolve
 
 from common.errors import SolverError
 from solver.fast import contact_at_least, equilibrium
@@ -210,10 +211,12 @@ def _droplet_slopes(shell, h):
 
 
 def shell_response(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
-                   extra: npt.NDArray[np.complex128] | None = None) -> tuple[npt.NDArray[np.complex128], complex]:
+                   extra: npt.NDArray[np.complex128] | None = None,
+                   sparse: bool = False) -> tuple[npt.NDArray[np.complex128], complex]:
     """δq and δF (nN) for δh = -1 µm at (η, f): the dense solve of `respond`
     (`extra`: a matrix added to the shell's Hessian, e.g. `solver.viscoelastic`'s
-    complex moduli; the fluid term is skipped where η = 0)."""
+    complex moduli; the fluid term is skipped where η = 0). `sparse`: the same system by a
+    sparse LU (the shell's Hessian is banded and bordered: no threaded dense solve)."""
     n = lin.lag.size
     c = 2.0 * NN_PER_PA_UM2 * 2j * np.pi * frequency_hz * viscosity_Pa_s
     S = lin.H + c * lin.D if viscosity_Pa_s else lin.H.astype(complex)
@@ -221,12 +224,13 @@ def shell_response(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
         S = S + extra
     dq = np.empty(n + 1, complex)
     dq[n] = -0.5                                          # δz_p for δh = -1
-    dq[:n] = np.linalg.solve(S[:n, :n], -S[:n, n] * dq[n])
+    rhs = -S[:n, n] * dq[n]
+    dq[:n] = spsolve(csc_matrix(S[:n, :n]), rhs) if sparse else np.linalg.solve(S[:n, :n], rhs)
     return dq, -0.5 * (S[n] @ dq)
 
 
 def respond(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
-            extra: npt.NDArray[np.complex128] | None = None) -> Response:
+            extra: npt.NDArray[np.complex128] | None = None, sparse: bool = False) -> Response:
     """Solve the coupled linear system at (η, f) for δh = -1 µm: a Response.
     With the fluid condensed onto the shell (`prepare`: D = Gᵀ R_1 G, R_1 the
     fluid's reaction per unit η and displacement), the shell's equations
@@ -234,11 +238,11 @@ def respond(lin: Linearised, viscosity_Pa_s: float, frequency_hz: float,
         (H_uu + c D_uu) δu = -(H_u,zp + c D_u,zp) δz_p,   c = 2·1e-3 iωη,
 
     and δF = -(1/2) (H_zp,q + c D_zp,q) δq (`extra` added to H: `shell_response`;
-    `dissipation` is the fluid's alone, 0 where η = 0)."""
+    `dissipation` is the fluid's alone, 0 where η = 0; `sparse`: `shell_response`'s)."""
     check_viscous_inputs(viscosity_Pa_s, frequency_hz)
     start = time.perf_counter()
     omega = 2 * np.pi * frequency_hz
-    dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz, extra)
+    dq, dF = shell_response(lin, viscosity_Pa_s, frequency_hz, extra, sparse)
     dissipation = (omega**2 * viscosity_Pa_s * np.real(np.conj(dq) @ (lin.D @ dq)) * NN_PER_PA_UM2
                    if viscosity_Pa_s else 0.0)
     power = -0.5 * np.real(dF * np.conj(1j * omega * -1.0))

@@ -5,9 +5,14 @@ The relaxed-state reading takes every oscillation about the relaxed droplet at i
 A power-law cortex keeps part of the stress of every earlier height step. Given a cell's power
 laws (K_B(t) = K_B,1s t^-β_B, K_S(t) = K_S,1s t^-β_S, `analysis.afm.rheology.cortex_laws`) and
 γ_a, its recording's protocol (`analysis.afm.recorded_protocol.protocol_of`) is simulated
-(`solver.protocol_simulation.simulate` at its REPLAY resolution) and read as the recording is
-read (`analysis.afm.timeseries.segment_moduli`): per segment j K*_td,j and the mean tension
-γ_td,j. The relaxed-state model gives K*_r,j (`solver.relaxed_state`) and γ_a. Then
+(`solver.protocol_simulation.simulate`) and read per segment j as K*_td,j and the mean tension
+γ_td,j. By default (`linearised`) at the LINEARISED resolution: every hold one exact Prony step,
+every oscillation answered about the replayed state halfway through it (K*_td,j = K*_lin of
+`solver.state_response`, γ_td,j = F_0 / (2 H A_c) at h_m); else (`linearised=False`, the full
+replay: the reading's last correction, `analysis.afm.protocol_reading`, and the held-out check
+of bench/linearised_replay.py) at the REPLAY resolution, read as the recording is read
+(`analysis.afm.timeseries.segment_moduli`). The relaxed-state model gives
+K*_r,j (`solver.relaxed_state`) and γ_a. Then
 
     c_j = K*_td,j / K*_r,j,   Δγ_j = γ_td,j - γ_a,
 
@@ -32,7 +37,8 @@ from analysis.afm.timeseries import segment_moduli
 from common.errors import SolverError
 from solver.model import Shell
 from solver.protocol import Oscillate
-from solver.protocol_simulation import REPLAY, Recording, simulate
+from solver.geometry import droplet
+from solver.protocol_simulation import LINEARISED, REPLAY, Recording, simulate
 from solver.relaxed_state import relaxed_state
 from solver.time_domain import Cortex, power_law_cortex
 
@@ -44,11 +50,20 @@ def replayed_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
     return segment_moduli(recording_cell(rep, cell.volume_um3, cell.cell_id))
 
 
+def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
+    """The linearised replay's answers as `segment_moduli`'s |K*|, loss angle and mean tension
+    γ_td = F_0 / (2 H A_c) (the droplet of the cell's volume at h_m)."""
+    g = droplet(cell.volume_um3, np.array([a.h_mean_um for a in rep.answers])).force_per_tension_um
+    return [{"modulus_mN_per_m": abs(a.modulus_mN_per_m), "loss_angle_rad": float(np.angle(a.modulus_mN_per_m)),
+             "tension_mN_per_m": a.force_nN / float(gk)} for a, gk in zip(rep.answers, np.atleast_1d(g))]
+
+
 def cell_correction(cell: Cell, law: dict[str, float], bending: str,
-                    wait_s: float | None = None) -> np.ndarray | str:
+                    wait_s: float | None = None, linearised: bool = True) -> np.ndarray | str:
     """(segments, 3): |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws
-    `law` (a row of `cortex_laws`); where the protocol is not recorded or the replay finds no
-    equilibrium, why (the segments stay as recorded)."""
+    `law` (a row of `cortex_laws`), by the linearised replay or the full one (module docstring);
+    where the protocol is not recorded or the replay finds no equilibrium, why (the segments
+    stay as recorded)."""
     protocol = read_protocol(cell, wait_s)
     if isinstance(protocol, str):
         return f"protocol not recorded: {protocol}"
@@ -56,7 +71,8 @@ def cell_correction(cell: Cell, law: dict[str, float], bending: str,
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     try:
-        rows = replayed_segments(cell, simulate(shell, cortex, protocol, REPLAY))
+        rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY)
+        rows = answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)
     except SolverError as e:
         return f"the replay found no equilibrium ({e})"
     oscillations = [s for s in protocol.steps if isinstance(s, Oscillate)]
@@ -73,7 +89,7 @@ def _relaxed(shell: Shell, cortex: Cortex, mean_um: float, osc: Oscillate) -> co
     A = osc.amplitude_um
     r = relaxed_state(Shell(volume_um3=shell.volume_um3, h0_um=mean_um + A, dh_um=2 * A, bulk_mN_per_m=1.0,
                             shear_mN_per_m=1.0, tension_mN_per_m=shell.tension_mN_per_m, bending=shell.bending),
-                      cortex, osc.frequency_hz)
+                      cortex, osc.frequency_hz, sparse=True)
     return complex(r["modulus_mN_per_m"] * np.exp(1j * r["loss_angle_rad"]))
 
 
