@@ -1,0 +1,71 @@
+"""The ramp-and-hold reading of the power-law shell (`analysis.afm.tension.powerlaw_fit`,
+its surrogate `powerlaw_shell` and its simulated model `powerlaw_simulated`) against
+closed forms and cells made by the time-domain shell (`studies.powerlaw_ramps`); the
+40-cell check is `bench/powerlaw_ramp_hold.py`."""
+
+import numpy as np
+import pytest
+
+from analysis.afm.tension import powerlaw_shell, shell_ramp
+from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
+from common.errors import InputError
+from studies.powerlaw_ramps import Cell, recording
+
+
+def test_memory_matrix_integrates_the_power_law_exactly():
+    """A strain ramped linearly from 0 to 1 over T and held: the stress Σ M ΔU is
+    ∫_0^T (t - t')^-β dt'/T = [t^(1-β) - (t - T)^(1-β)] / ((1 - β) T) after it, and U at β = 0."""
+    T, beta = 2.0, 0.25
+    t = np.r_[np.linspace(0.0, T, 41), np.geomspace(T + 0.01, 30.0, 20)]
+    u = np.clip(t / T, 0.0, 1.0)
+    stress = powerlaw_shell.memory_matrix(t, beta) @ np.diff(u, prepend=u[0])
+    after = t > T
+    exact = (t[after] ** (1 - beta) - (t[after] - T) ** (1 - beta)) / ((1 - beta) * T)
+    np.testing.assert_allclose(stress[after], exact, rtol=1e-12)
+    assert stress[-1] == pytest.approx(30.0 ** -beta, rel=0.02)        # long after: K(t)
+    np.testing.assert_allclose(powerlaw_shell.memory_matrix(t, 0.0) @ np.diff(u, prepend=u[0]), u, atol=1e-12)
+
+
+def test_surrogate_is_the_elastic_shell_at_beta_zero_and_scales_with_speed():
+    """β = 0: the elastic shell's force on any history; β > 0: a ramp at speed v depends on
+    K_B(1 s) and v only through K_B(1 s) v^β."""
+    R, gamma, bulk, shear = 6.8, 0.5, 25.0, 0.4
+    depth = np.linspace(0.0, 1.0, 60)
+    elastic = shell_ramp.force_nN(depth, R, gamma, bulk, shear)
+    for v in (0.3, 3.0):
+        got = powerlaw_shell.force_nN(depth / v, depth, R, gamma, bulk, 0.0, shear)
+        np.testing.assert_allclose(got, elastic, rtol=1e-4, atol=1e-6)   # w(d) on 400 depths
+    beta = 0.2
+    slow = powerlaw_shell.elastic_force_nN(depth / 0.5, depth, R, bulk, beta, gamma / bulk, shear)
+    fast = powerlaw_shell.elastic_force_nN(depth / 2.0, depth, R, bulk * 0.25 ** beta, beta, gamma / bulk, shear)
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
+
+
+# cells of the bench's ranges: one with a constant-height hold, one ramp alone
+CELLS = [Cell(6.5, 0.94, 7.9, 1.68, 0.17, 0.38, 0.14 * 6.5, hold_s=23.0, tilt_nN_per_um=0.05),
+         Cell(7.7, 1.72, 32.7, 0.10, 0.27, 0.32, 0.14 * 7.7, tilt_nN_per_um=0.12)]
+
+
+@pytest.mark.parametrize("cell", CELLS, ids=["hold", "ramp-alone"])
+def test_power_law_cells_read_their_tension(cell):
+    """Ramps (and holds) made by the time-domain shell give back γ_a within 10 % inside
+    its interval, and β within 0.05 with a hold; the elastic shell reads them far high."""
+    made = recording(cell, seed=1)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.tension_mN_per_m == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert lo <= cell.tension_mN_per_m <= hi
+    assert fit.noise_nN == pytest.approx(cell.noise_nN, rel=0.15)
+    assert fit.baseline_slope_nN_per_um == pytest.approx(cell.tilt_nN_per_um, abs=0.05)
+    if cell.hold_s:
+        assert fit.hold
+        assert fit.beta == pytest.approx(cell.beta, abs=0.05)
+        assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.25)
+
+
+def test_bad_input_is_one_clear_error():
+    t = np.linspace(0.0, 1.0, 50)
+    with pytest.raises(InputError):
+        fit_ramp_hold(t, t[:-1], t, 40, 6.0)
+    with pytest.raises(InputError):
+        fit_ramp_hold(t, t, t, 1, 6.0)
