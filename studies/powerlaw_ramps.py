@@ -13,6 +13,7 @@ F + s (x - 2R) + noise: a baseline tilt s (nN/µm) and white noise of SD `noise_
 """
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +24,9 @@ from solver.protocol import Hold, Protocol, Ramp
 from solver.protocol_simulation import FINE, Sampling, simulate
 from solver.time_domain import power_law_cortex
 from studies.tension_synth import droplet_force_nN
+
+if TYPE_CHECKING:
+    from analysis.afm.formats.recording import Recording
 
 Array = npt.NDArray[np.float64]
 
@@ -104,3 +108,19 @@ def cells(n: int, seed: int = 0, depth_over_radius: float = 0.14) -> list[Cell]:
             p["hold_s"] = 0.0
         out.append(Cell(depth_um=depth_over_radius * p["radius_um"], **p))
     return out
+
+
+def as_recording(made: Made, cell_id: str = "synthetic", spring_N_per_m: float = 0.1) -> "Recording":
+    """The made ramp and hold as an instrument `Recording` (dish at 0: the height channel
+    z = x - F/k): an approach, a pause (where there is a hold) and a retract mirroring the
+    approach at its baseline force."""
+    from analysis.afm.formats.recording import RecordedSegment, Recording
+    t, x, f, n = made.time_s, made.x_um, made.force_nN, made.ramp_samples
+    z = x - 1e-3 * f / spring_N_per_m
+    parts = [("approach", slice(0, n))] + ([("pause", slice(n, t.size))] if t.size > n else [])
+    segs = [RecordedSegment(kind, float(t[s][-1] - t[s][0]), t[s], f[s], z[s]) for kind, s in parts]
+    back = t[-1] + (t[1] - t[0]) + (t[n - 1] - t[:n][::-1])
+    segs.append(RecordedSegment("retract", float(back[-1] - back[0]), back, np.full(n, f[0]), x[:n][::-1] - 1e-3 * f[0]
+                                / spring_N_per_m))
+    return Recording(cell_id=cell_id, spring_constant_N_per_m=spring_N_per_m, segments=segs,
+                     source="synthetic power-law ramp and hold (studies.powerlaw_ramps)")

@@ -69,3 +69,30 @@ def test_bad_input_is_one_clear_error():
         fit_ramp_hold(t, t[:-1], t, 40, 6.0)
     with pytest.raises(InputError):
         fit_ramp_hold(t, t, t, 1, 6.0)
+
+
+def test_the_command_reads_a_ramp_and_its_pause(tmp_path, capsys):
+    """`cortex afm tension --power-law`: the power_law_* columns of the approach row give
+    back the cell's γ_a and β from the ramp and the constant-height pause after it, where
+    the elastic shell's γ_a is far high; tension.csv has the columns."""
+    import json
+
+    from analysis.afm.formats.csvcell import write_csv_cell
+    from analysis.afm.formats.instruments import to_cell
+    from cortex.cli import main
+    from studies.powerlaw_ramps import as_recording
+    cell = CELLS[0]
+    volume = 4.0 * np.pi / 3.0 * cell.radius_um ** 3
+    path = write_csv_cell(tmp_path / "c.csv", to_cell(as_recording(recording(cell, seed=2), "c"), volume, "synthetic"))
+    status = main(["afm", "tension", str(path), "--power-law", "--shear-ratio", str(cell.shear_tilde), "--json",
+                   "--out", str(tmp_path / "out")])
+    assert status == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    ramp = next(r for r in rows if r["part"] == "approach")
+    assert ramp["power_law_hold"] == "height" and ramp["power_law_shear_ratio_source"] == "given"
+    assert ramp["power_law_tension_mN_per_m"] == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert ramp["power_law_tension_lo95_mN_per_m"] <= cell.tension_mN_per_m <= ramp["power_law_tension_hi95_mN_per_m"]
+    assert ramp["power_law_exponent"] == pytest.approx(cell.beta, abs=0.05)
+    assert ramp["tension_mN_per_m"] > 1.3 * cell.tension_mN_per_m          # the elastic shell's reading
+    import pandas as pd
+    assert "power_law_exponent" in pd.read_csv(tmp_path / "out" / "tension.csv")
