@@ -21,7 +21,11 @@ cheap) by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from a few star
 then the simulator itself from there, by least squares in (x0, γ_a, K_B(1 s), β),
 (F_b, s) solved linearly at each (variable projection), to SIM_XTOL. SDs from the
 last Jacobian (of the projected residuals, whose normal matrix is the marginal one of
-the nonlinear parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd.
+the nonlinear parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a
+hold β is profiled too: the fit again at each β of PROFILE_BETAS (β fixed, K_B(1 s)
+started where K_B(1 s) T^-β at the ramp's contact time T is the best fit's), and γ_a's
+interval widened to hold every node's γ_a ± Z95 sd (β fixed) with Δχ² = ΔSSE/σ² ≤ CHI2_95
+(σ² from the lowest SSE); the best node, where it fits better, restarts the fit from it.
 
 What one ramp without a hold tells: for a pure power law at constant speed v the
 cortex's force depends on K_B(1 s) and v only through K_B(1 s) v^β, and on β through
@@ -54,6 +58,8 @@ START_BETA = (0.1, 0.25)
 SIM_XTOL = 1e-4
 SIM_STEP = 1e-3            # the simulator fit's relative finite-difference step
 SIM_EVALUATIONS = 60
+PROFILE_BETAS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)     # β of the profile of a ramp without a hold
+CHI2_95 = 3.84           # χ²_1 at 0.95: the 95 % set of a profile likelihood
 
 
 @dataclass(frozen=True)
@@ -86,8 +92,9 @@ class Samples:
 class PowerLawFit:
     """The fitted power-law shell: γ_a (mN/m), K_B(1 s) (mN/m), β with their SDs and γ_a's
     95 % interval; contact x0 (µm), baseline F_b (nN) and slope s (nN/µm), K̃_S used, the
-    noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, and the
-    surrogate's own γ_a, K_B(1 s), β (the simulator's start)."""
+    noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, the
+    surrogate's own γ_a, K_B(1 s), β (the simulator's start), and without a hold γ_a's
+    band over β's profile (`tension_band_mN_per_m`, module doc)."""
 
     tension_mN_per_m: float
     tension_sd_mN_per_m: float
@@ -103,12 +110,16 @@ class PowerLawFit:
     samples: Samples
     hold: bool
     surrogate: tuple[float, float, float]
+    tension_band_mN_per_m: tuple[float, float] | None = None
 
     @property
     def tension_interval_mN_per_m(self) -> tuple[float, float]:
-        """γ_a ± Z95 sd (the lower end at least 0)."""
+        """γ_a ± Z95 sd (the lower end at least 0), widened to the band over β where profiled."""
         half = Z95 * self.tension_sd_mN_per_m
-        return max(self.tension_mN_per_m - half, 0.0), self.tension_mN_per_m + half
+        lo, hi = max(self.tension_mN_per_m - half, 0.0), self.tension_mN_per_m + half
+        if self.tension_band_mN_per_m is not None:
+            lo, hi = min(lo, self.tension_band_mN_per_m[0]), max(hi, self.tension_band_mN_per_m[1])
+        return lo, hi
 
 
 def samples(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
@@ -156,16 +167,18 @@ def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_te
 
 
 class _Projected:
-    """The simulator's residuals at (x0, γ_a, K_B(1 s), β) with (F_b, s) solved linearly."""
+    """The simulator's residuals at (x0, γ_a, K_B(1 s), β) with (F_b, s) solved linearly;
+    `beta` fixes β (then q = (x0, γ_a, K_B(1 s)))."""
 
-    def __init__(self, s: Samples, radius: float, shear: float):
-        self.s, self.radius, self.shear, self.w = s, radius, shear, np.sqrt(s.count)
+    def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None):
+        self.s, self.radius, self.shear, self.w, self.beta = s, radius, shear, np.sqrt(s.count), beta
         self.linear = np.zeros(2)
 
     def __call__(self, q: Array) -> Array:
         s = self.s
+        beta = q[3] if self.beta is None else self.beta
         try:
-            model = s.averaged(powerlaw_simulated.force_nN(s.history, q[0], self.radius, q[1], q[2], q[3],
+            model = s.averaged(powerlaw_simulated.force_nN(s.history, q[0], self.radius, q[1], q[2], beta,
                                                            self.shear))
         except (SolverError, InputError):
             return np.full(s.time_s.size, 1e3)
@@ -173,6 +186,47 @@ class _Projected:
         coef, *_ = np.linalg.lstsq(a, self.w * (s.force_nN - model), rcond=None)
         self.linear = coef
         return self.w * (model + coef[0] + coef[1] * (s.x_um - q[0]) - s.force_nN)
+
+
+@dataclass(frozen=True)
+class _Solved:
+    """One simulator fit: its parameters (x0, γ_a, K_B(1 s)[, β]), SSE, Jacobian, (F_b, s)."""
+
+    q: Array
+    sse: float
+    jac: Array
+    linear: Array
+
+
+def _solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> _Solved:
+    """The simulator's least squares from q0 (module doc), β free or fixed at `beta`."""
+    resid = _Projected(s, radius, shear, beta)
+    q0 = np.asarray(q0, float)[:3 if beta is not None else 4]
+    lo, hi = [-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]
+    scale = [0.01, max(q0[1], 1e-3), max(q0[2], 1e-2), 0.05]
+    k = q0.size
+    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=scale[:k],
+                        diff_step=SIM_STEP, xtol=SIM_XTOL, ftol=1e-8, max_nfev=SIM_EVALUATIONS)
+    r = resid(res.x)
+    return _Solved(res.x, float(r @ r), res.jac, resid.linear.copy())
+
+
+def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
+    """K_B(1 s) at exponent `beta` with the same modulus K_B(1 s) T^-β at the ramp's contact
+    time T as q's: a start for the profile (module doc)."""
+    span = max(float(s.time_s[s.ramp_points - 1] - s.time_s[0]), 1e-3)
+    return float(q[2] * span ** (beta - q[3]))
+
+
+def _beta_profile(s: Samples, radius: float, shear: float, best: _Solved) -> list[tuple[float, _Solved]]:
+    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS (module doc)."""
+    return [(beta, _solve(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
+                          beta=beta)) for beta in PROFILE_BETAS]
+
+
+def _sds(fit: _Solved, sigma2: float) -> Array:
+    """The SDs of a fit's free parameters from its Jacobian."""
+    return np.sqrt(np.clip(np.diag(sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)), 0.0, None))
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
@@ -185,21 +239,27 @@ def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.Arra
     drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
     s = samples(t, x, f, ramp_samples, drop.window)
     p = fit_surrogate(s, radius_um, shear_tilde, drop.contact_um, drop.tension_mN_per_m)
-    resid = _Projected(s, radius_um, shear_tilde)
-    q0 = p[[0, 3, 4, 5]]
-    res = least_squares(resid, q0, bounds=([-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]),
-                        x_scale=[0.01, max(q0[1], 1e-3), max(q0[2], 1e-2), 0.05], diff_step=SIM_STEP,
-                        xtol=SIM_XTOL, ftol=1e-8, max_nfev=SIM_EVALUATIONS)
-    r = resid(res.x)
-    sse = float(r @ r)
-    dof = max(r.size - 6, 1)
-    sigma2 = sse / dof
-    cov = sigma2 * np.linalg.pinv(res.jac.T @ res.jac)
-    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    q = res.x
+    best = _solve(s, radius_um, shear_tilde, p[[0, 3, 4, 5]])
+    hold = t.size > ramp_samples
+    nodes = [] if hold else _beta_profile(s, radius_um, shear_tilde, best)
+    if nodes:
+        beta, node = min(nodes, key=lambda n: n[1].sse)
+        if node.sse < best.sse:
+            again = _solve(s, radius_um, shear_tilde, np.append(node.q, beta))
+            best = again if again.sse < best.sse else best
+    sse_min = min([best.sse] + [n.sse for _, n in nodes])
+    sigma2 = sse_min / max(s.time_s.size - 6, 1)
+    sd = _sds(best, sigma2)
+    q = best.q
+    band = None
+    if nodes:
+        held = [(n.q[1], _sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
+        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in held]), 0.0),
+                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in held]))
     return PowerLawFit(tension_mN_per_m=float(q[1]), tension_sd_mN_per_m=float(sd[1]),
                        bulk_1s_mN_per_m=float(q[2]), bulk_1s_sd_mN_per_m=float(sd[2]), beta=float(q[3]),
-                       beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(resid.linear[0]),
-                       baseline_slope_nN_per_um=float(resid.linear[1]), shear_tilde=shear_tilde,
-                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=t.size > ramp_samples,
-                       surrogate=(float(p[3]), float(p[4]), float(p[5])))
+                       beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(best.linear[0]),
+                       baseline_slope_nN_per_um=float(best.linear[1]), shear_tilde=shear_tilde,
+                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=hold,
+                       surrogate=(float(p[3]), float(p[4]), float(p[5])),
+                       tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])))
