@@ -6,14 +6,15 @@ The cell: radius R (µm), active tension γ_a (mN/m), K_B(t) = K_B(1 s) t^-β an
 K_S(t) = K̃_S K_B(t) (`power_law_cortex`, one β). The dish at 0, so the gap is the wedge
 height x. The plate starts `above_um` above the free sphere (x = 2R + above) and moves
 down at `speed_um_per_s` to the deformation `depth_um` (δ = 2R - x), then holds that
-height for `hold_s` (0: no hold). The cortex is stress-free as the droplet at
+height (`hold_kind` "height") or the force it reached ("force": the plate creeps) for
+`hold_s` (0: no hold). The cortex is stress-free as the droplet at
 x = 2R - START_UM (`analysis.afm.tension.powerlaw_simulated`); above it the force is the
 exact droplet's tension force (0 above 2R). Samples at `rate_hz`; the recorded force
 F + s (x - 2R) + noise: a baseline tilt s (nN/µm) and white noise of SD `noise_nN`.
 """
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +48,7 @@ class Cell:
     noise_nN: float = 0.02
     above_um: float = 1.5
     rate_hz: float = 200.0
+    hold_kind: str = "height"
 
 
 @dataclass(frozen=True)
@@ -76,11 +78,13 @@ def recording(cell: Cell, seed: int = 0) -> Made:
                   tension_mN_per_m=cell.tension_mN_per_m)
     steps: tuple[Ramp | Hold, ...] = (Ramp(to_um=top - cell.depth_um, speed_um_per_s=v),)
     if cell.hold_s > 0:
-        steps += (Hold(cell.hold_s, "height"),)
+        steps += (Hold(cell.hold_s, cell.hold_kind),)
     cortex = power_law_cortex(cell.bulk_1s_mN_per_m, cell.shear_tilde * cell.bulk_1s_mN_per_m, cell.beta, cell.beta)
     rec = simulate(shell, cortex, Protocol(top - START_UM, steps, start_s=t_c), FINE,
                    Sampling(approach_hz=max(SAMPLE_HZ, cell.rate_hz)))
     volume = 4.0 * np.pi / 3.0 * R ** 3
+    if cell.hold_kind == "force":                  # the plate creeps: the gap as simulated
+        x = np.where(t <= t_end, x, np.interp(t, rec.time_s, rec.height_um))
     force = np.where(t > t_c, np.interp(t, rec.time_s, rec.force_nN),
                      droplet_force_nN(volume, cell.tension_mN_per_m, np.maximum(x, top - START_UM)))
     rng = np.random.default_rng(seed)
@@ -100,7 +104,7 @@ def cells(n: int, seed: int = 0, depth_over_radius: float = 0.14) -> list[Cell]:
     rng = np.random.default_rng(seed)
     out = []
     for i in range(n):
-        p = {}
+        p: dict[str, Any] = {}
         for key, (lo, hi) in RANGES.items():
             u = rng.random()
             p[key] = float(np.exp(np.log(lo) + u * np.log(hi / lo)) if key in LOG else lo + u * (hi - lo))

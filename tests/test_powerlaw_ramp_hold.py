@@ -41,17 +41,20 @@ def test_surrogate_is_the_elastic_shell_at_beta_zero_and_scales_with_speed():
     np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
 
 
-# cells of the bench's ranges: one with a constant-height hold, one ramp alone
+# cells of the bench's ranges: a constant-height hold, a constant-force hold, a ramp alone
 CELLS = [Cell(6.5, 0.94, 7.9, 1.68, 0.17, 0.38, 0.14 * 6.5, hold_s=23.0, tilt_nN_per_um=0.05),
+         Cell(8.2, 0.37, 5.5, 0.11, 0.26, 2.45, 0.14 * 8.2, hold_s=22.0, tilt_nN_per_um=0.1, hold_kind="force"),
          Cell(7.7, 1.72, 32.7, 0.10, 0.27, 0.32, 0.14 * 7.7, tilt_nN_per_um=0.12)]
 
 
-@pytest.mark.parametrize("cell", CELLS, ids=["hold", "ramp-alone"])
+@pytest.mark.slow
+@pytest.mark.parametrize("cell", CELLS, ids=["height-hold", "force-hold", "ramp-alone"])
 def test_power_law_cells_read_their_tension(cell):
-    """Ramps (and holds) made by the time-domain shell give back γ_a within 10 % inside
-    its interval, and β within 0.05 with a hold; the elastic shell reads them far high."""
+    """Ramps (and holds, at constant height or force) made by the time-domain shell give back
+    γ_a within 10 % inside its interval, and β within 0.05 with a hold."""
     made = recording(cell, seed=1)
-    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde,
+                        cell.hold_kind)
     lo, hi = fit.tension_interval_mN_per_m
     assert fit.tension_mN_per_m == pytest.approx(cell.tension_mN_per_m, rel=0.10)
     assert lo <= cell.tension_mN_per_m <= hi
@@ -71,6 +74,7 @@ def test_bad_input_is_one_clear_error():
         fit_ramp_hold(t, t, t, 1, 6.0)
 
 
+@pytest.mark.slow
 def test_the_command_reads_a_ramp_and_its_pause(tmp_path, capsys):
     """`cortex afm tension --power-law`: the power_law_* columns of the approach row give
     back the cell's γ_a and β from the ramp and the constant-height pause after it, where

@@ -216,7 +216,7 @@ def _add_tension(s: Commands) -> None:
                         "ramp_speed_source say which speed each ramp has (the elastic shell's reading does not "
                         "use it)")
     t.add_argument("--power-law", action="store_true",
-                   help="also read each approach and the constant-height pause right after it as one curve of the "
+                   help="also read each approach and the pause right after it (at constant height or force) as one curve of the "
                         "shell whose cortex relaxes as a power law (the power_law_* columns: the active tension, "
                         "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else 1/3); seconds of CPU a ramp")
     add_error_options(t, "a pause's height")

@@ -1,4 +1,4 @@
-"""γ_a, K_B(1 s) and β of one approach ramp and the constant-height hold after it, read as
+"""γ_a, K_B(1 s) and β of one approach ramp and the hold after it, read as
 one deformation-relaxation curve of the shell whose cortex relaxes as a power law
 (SPEC 11-12; the elastic shell is its β = 0).
 
@@ -77,11 +77,12 @@ class Samples:
     raw_x_um: Array
     raw_ramp: int
     edges: npt.NDArray[np.int64]
+    hold: str = "height"
 
     @property
     def history(self) -> RampHold:
         """The raw samples' history (`powerlaw_simulated`)."""
-        return RampHold(self.raw_time_s, self.raw_x_um, self.raw_ramp)
+        return RampHold(self.raw_time_s, self.raw_x_um, self.raw_ramp, self.hold)
 
     def averaged(self, raw: Array) -> Array:
         """Means of a quantity at the raw samples over the runs."""
@@ -123,7 +124,7 @@ class PowerLawFit:
 
 
 def samples(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
-            window: npt.NDArray[np.bool_]) -> Samples:
+            window: npt.NDArray[np.bool_], hold: str = "height") -> Samples:
     """The fit's samples (module doc) from the ramp's window (a mask on its samples, which
     runs to the ramp's end) and the hold."""
     t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
@@ -138,7 +139,7 @@ def samples(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
         edges = np.unique(np.r_[edges, n + np.searchsorted(since, bounds[1:-1]), t.size])
     count = np.diff(edges).astype(float)
     mean = [np.add.reduceat(a, edges[:-1]) / count for a in (t, x, f)]
-    return Samples(mean[0], mean[1], mean[2], count, ramp_points, t, x, n, edges)
+    return Samples(mean[0], mean[1], mean[2], count, ramp_points, t, x, n, edges, hold)
 
 
 def _surrogate(s: Samples, radius: float, shear: float, p: Array) -> Array:
@@ -230,18 +231,19 @@ def _sds(fit: _Solved, sigma2: float) -> Array:
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
-                  radius_um: float, shear_tilde: float = SHEAR_TILDE) -> PowerLawFit:
+                  radius_um: float, shear_tilde: float = SHEAR_TILDE, hold: str = "height") -> PowerLawFit:
     """The power-law shell fitted to a ramp (the first `ramp_samples` samples, ending at its
-    deepest) and the constant-height hold after it (the rest; none: the ramp alone)."""
+    deepest) and the hold after it (the rest; none: the ramp alone) at constant `hold`
+    ("height" or "force")."""
     t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
     if not (t.shape == x.shape == f.shape) or not 2 <= ramp_samples <= t.size:
         raise InputError("a ramp and hold needs times, heights and forces of one length and a ramp")
     drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
-    s = samples(t, x, f, ramp_samples, drop.window)
+    s = samples(t, x, f, ramp_samples, drop.window, hold)
     p = fit_surrogate(s, radius_um, shear_tilde, drop.contact_um, drop.tension_mN_per_m)
     best = _solve(s, radius_um, shear_tilde, p[[0, 3, 4, 5]])
-    hold = t.size > ramp_samples
-    nodes = [] if hold else _beta_profile(s, radius_um, shear_tilde, best)
+    held = t.size > ramp_samples
+    nodes = [] if held else _beta_profile(s, radius_um, shear_tilde, best)
     if nodes:
         beta, node = min(nodes, key=lambda n: n[1].sse)
         if node.sse < best.sse:
@@ -253,13 +255,13 @@ def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.Arra
     q = best.q
     band = None
     if nodes:
-        held = [(n.q[1], _sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
-        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in held]), 0.0),
-                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in held]))
+        inside = [(n.q[1], _sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
+        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in inside]), 0.0),
+                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in inside]))
     return PowerLawFit(tension_mN_per_m=float(q[1]), tension_sd_mN_per_m=float(sd[1]),
                        bulk_1s_mN_per_m=float(q[2]), bulk_1s_sd_mN_per_m=float(sd[2]), beta=float(q[3]),
                        beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(best.linear[0]),
                        baseline_slope_nN_per_um=float(best.linear[1]), shear_tilde=shear_tilde,
-                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=hold,
+                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
                        surrogate=(float(p[3]), float(p[4]), float(p[5])),
                        tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])))

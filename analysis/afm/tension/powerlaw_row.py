@@ -3,8 +3,8 @@
 
 The pause is taken as a constant-height hold unless it looks like a constant-force one
 (its height x drifts by more than FORCE_HOLD_DRIFT_UM between its first and last tenth
-while its force stays within FORCE_HOLD_SDS noise SDs): a constant-force hold is not
-modelled, and the ramp is read alone (`power_law_hold` says which). K̃_S is the given
+while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says which
+(none: no pause after the ramp). K̃_S is the given
 `--shear-ratio`, else SHEAR_TILDE (`power_law_shear_ratio_source`). A ramp without
 sample times, or one the fit cannot read, gets the reason in `power_law_note` and no
 values.
@@ -48,16 +48,13 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
     t, x, f = t[:end], x[:end], f[:end]
     if pause is not None:
         kind = hold_kind(pause[1], pause[2], baseline_noise(f)[1])
-        if kind == "height":
-            t, x, f = (np.r_[a, b] for a, b in zip((t, x, f), pause))
-            out["power_law_hold"] = "height"
-        else:
-            out["power_law_note"] = "constant-force hold not modelled: the ramp alone"
+        t, x, f = (np.r_[a, b] for a, b in zip((t, x, f), pause))
+        out["power_law_hold"] = kind
     if not np.all(np.isfinite(t)):
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
     try:
-        fit = fit_ramp_hold(t, x, f, end, radius_um, shear)
+        fit = fit_ramp_hold(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height")
     except (InputError, SolverError) as err:
         out.update(power_law_note=f"not read: {err}")
         return out
