@@ -1,7 +1,8 @@
 """Known-truth ramps and holds of power-law cells read by the power-law shell (issue 45).
 
 Cells of `studies.powerlaw_ramps.cells` (R 5-10 µm, γ_a 0.2-2 mN/m, K_B(1 s) 5-50 mN/m,
-K̃_S 0.1-2, β 0.1-0.3, 0.3-3 µm/s, every other one with a constant-height hold of 10-30 s,
+K̃_S 0.1-2, β 0.1-0.3, 0.3-3 µm/s, every other one with a hold of 10-30 s (--hold: at
+constant height, the default, or constant force),
 tilts 0-0.15 nN/µm, noise 0.02 nN, pressed to 0.14 R; seed --seed), made by the time-domain
 shell, each fitted by `analysis.afm.tension.powerlaw_fit.fit_ramp_hold` with its K̃_S given;
 with --elastic also by today's elastic shell (K̃_S given, `shell_fit.fit_shell`) on the ramp.
@@ -10,7 +11,7 @@ Prints one JSON object: per cell the truth, the fit (γ_a, its 95 % interval, K_
 summary: median and worst |error|, median error, coverage, for all cells, those with a hold
 and those without, and the CPU per recording (and for 100).
 
-    .venv/bin/python bench/powerlaw_ramp_hold.py [--cells 40] [--seed 0] [--elastic]
+    .venv/bin/python bench/powerlaw_ramp_hold.py [--cells 40] [--seed 0] [--elastic] [--hold force]
 """
 
 import argparse
@@ -35,7 +36,7 @@ def run(cell: Cell, seed: int, elastic: bool) -> dict[str, Any]:
     start = time.process_time()
     try:
         fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um,
-                            cell.shear_tilde)
+                            cell.shear_tilde, cell.hold_kind)
     except (InputError, SolverError) as err:
         return {**out, "error": str(err), "cpu_s": time.process_time() - start}
     lo, hi = fit.tension_interval_mN_per_m
@@ -62,7 +63,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     if not ok:
         return {"cells": len(rows), "fitted": 0}
     err = np.array([r["relative_error"] for r in ok])
-    out = {"cells": len(rows), "fitted": len(ok), "median_abs_error": float(np.median(np.abs(err))),
+    out: dict[str, Any] = {"cells": len(rows), "fitted": len(ok), "median_abs_error": float(np.median(np.abs(err))),
            "worst_abs_error": float(np.max(np.abs(err))), "median_error": float(np.median(err)),
            "coverage": float(np.mean([r["covered"] for r in ok])),
            "within_10_percent": float(np.mean(np.abs(err) <= 0.1))}
@@ -78,9 +79,11 @@ def main() -> None:
     parser.add_argument("--cells", type=int, default=40)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--elastic", action="store_true", help="also today's elastic shell on each ramp")
+    parser.add_argument("--hold", choices=("height", "force"), default="height", help="how the holds are held")
     args = parser.parse_args()
     rows = []
     for i, cell in enumerate(cells(args.cells, seed=args.seed)):
+        cell = dataclasses.replace(cell, hold_kind=args.hold)
         rows.append(run(cell, args.seed * 10_000 + i, args.elastic))
         print(f"{i + 1}/{args.cells} {rows[-1].get('relative_error', rows[-1].get('error'))}", file=sys.stderr,
               flush=True)
