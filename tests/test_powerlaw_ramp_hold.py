@@ -66,6 +66,19 @@ def test_power_law_cells_read_their_tension(cell):
         assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.25)
 
 
+@pytest.mark.slow
+def test_an_elastic_cell_reads_as_beta_zero():
+    """The elastic shell is the power law's β = 0: a ramp and hold of an elastic cortex (the
+    time-domain shell at β = 0) reads β ≈ 0, K_B within 15 % and γ_a inside its interval."""
+    cell = Cell(6.5, 0.94, 12.0, 0.5, 0.0, 1.0, 0.14 * 6.5, hold_s=15.0, tilt_nN_per_um=0.05)
+    made = recording(cell, seed=3)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.beta < 0.01
+    assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.15)
+    assert lo <= cell.tension_mN_per_m <= hi and hi - lo < 0.3 * cell.tension_mN_per_m
+
+
 def test_bad_input_is_one_clear_error():
     t = np.linspace(0.0, 1.0, 50)
     with pytest.raises(InputError):
