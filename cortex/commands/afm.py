@@ -219,6 +219,10 @@ def _add_tension(s: Commands) -> None:
                         "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
                         "ramp_speed_source say which speed each ramp has (the elastic shell uses it only for the "
                         "time scale of its priors from the recording's oscillations)")
+    t.add_argument("--power-law", action="store_true",
+                   help="also read each approach and the pause right after it (at constant height or force) as one curve of the "
+                        "shell whose cortex relaxes as a power law (the power_law_* columns: the active tension, "
+                        "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else 1/3); seconds of CPU a ramp")
     add_error_options(t, "a pause's height")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
@@ -472,6 +476,7 @@ def tension(args: argparse.Namespace) -> int:
     options = Options(model=args.model, oscillation_priors=not args.no_oscillation_priors,
                       shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
                       max_depth_um=args.max_depth_um, ramp_speed_um_per_s=args.ramp_speed_um_per_s,
+                      power_law=args.power_law,
                       import_options=import_options(args, contact_heights=True, untimed_ramps=True),
                       errors=measurement_errors(args, DRAWS))
     result = run(args.files, options, args.out)

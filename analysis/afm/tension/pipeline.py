@@ -23,7 +23,9 @@ analyse  per recording, in order until its first retract: every approach ramp
          `pause.ramp_interval`), with the ramp's speed and where it comes from
          (`_ramp_speed`: recorded times, `--ramp-speed-um-per-s` for a recording
          without them, or unknown) and a warning where `--max-depth-um` is deeper
-         than the data (`_depth_warning`); every pause's tension and pressure
+         than the data (`_depth_warning`); with `--power-law` also the
+         power-law shell's reading of the ramp and the pause after it
+         (`powerlaw_row`); every pause's tension and pressure
          (`pause.pause_tension`) from its relaxed force (`relaxation`; the
          last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
@@ -57,6 +59,7 @@ from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.depths import depth_rows, depth_test
 from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
 from analysis.afm.tension.priors import columns as prior_columns
+from analysis.afm.tension.powerlaw_row import power_law_columns
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
@@ -84,6 +87,7 @@ class Options:
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
     ramp_speed_um_per_s: float | None = None   # of ramps whose files hold no sample times
+    power_law: bool = False                   # also the power-law shell's ramp-and-hold reading (`powerlaw_row`)
     import_options: ImportOptions = ImportOptions(contact_heights=True, untimed_ramps=True)
     errors: MeasurementErrors = TENSION_ERRORS
 
@@ -342,7 +346,7 @@ def analyse(trace: Trace, options: Options) -> Analysed:
     radius = float(cell_radius(trace.volume_um3))
     done, ramp = Analysed(rows=[], radius_um=radius), None
     laws: Laws | str | None = None
-    for index, kind, t, f, x in trace.parts:
+    for k, (index, kind, t, f, x) in enumerate(trace.parts):
         if kind == "retract":
             break
         where = f"{kind} segment {index}"
@@ -354,6 +358,10 @@ def analyse(trace: Trace, options: Options) -> Analysed:
                 row, plot = _ramp_row(trace, index, x, f, options, radius, pr)
                 row.update(_ramp_speed(t, x, plot[4].contact_um, options.ramp_speed_um_per_s))
                 ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
+                if options.power_law:
+                    after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
+                    pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
+                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde))
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)
             else:

@@ -21,6 +21,7 @@ import pandas as pd
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.depths import HOLDS, MOVES, NOT_TESTABLE
 from analysis.afm.tension.priors import COLUMNS as PRIOR_COLUMNS
+from analysis.afm.tension.powerlaw_row import COLUMNS as POWER_LAW_ROW_COLUMNS
 from analysis.afm.tension.relaxation import COLUMNS as RELAXATION_COLUMNS
 from analysis.afm.tension.relaxation import NONE
 
@@ -41,6 +42,8 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
+# the power-law shell's reading of a ramp and its hold (`--power-law`, `powerlaw_row`); last in tension.csv
+POWER_LAW_COLUMNS = POWER_LAW_ROW_COLUMNS
 
 
 @dataclass
@@ -262,7 +265,8 @@ def write(folder: "OutputDir", rows: list[dict[str, Any]], done: dict[str, Analy
           model: str, errors: MeasurementErrors) -> tuple[Path, Path]:
     """tension.csv, the figures and report.md into the `OutputDir` folder; (table, report) paths."""
     with folder.writing(TABLE) as table:
-        pd.DataFrame(rows, columns=list(COLUMNS + PAUSE_COLUMNS)).to_csv(table, index=False)
+        power_law = POWER_LAW_COLUMNS if any("power_law_hold" in r for r in rows) else ()
+        pd.DataFrame(rows, columns=list(COLUMNS + PAUSE_COLUMNS + power_law)).to_csv(table, index=False)
     figures, names = [], file_names(done)
     for cell_id, analysed in done.items():
         with folder.writing(names[cell_id]) as path:

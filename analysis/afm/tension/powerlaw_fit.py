@@ -1,0 +1,267 @@
+"""γ_a, K_B(1 s) and β of one approach ramp and the hold after it, read as
+one deformation-relaxation curve of the shell whose cortex relaxes as a power law
+(SPEC 11-12; the elastic shell is its β = 0).
+
+The model of the samples (t_i, x_i, F_i), δ_i = max(x0 - x_i, 0):
+
+    F_i = F_b + s (x_i - x0) + F_pl(t_i, δ; R, γ_a, K_B(1 s), β, K̃_S),
+
+F_pl the plate force of the time-domain shell along the recorded protocol
+(`powerlaw_simulated`), K̃_S given (`shear_tilde`, default 1/3 as `shell_fit`).
+
+Samples. The ramp's window is the droplet fit's (`ramp.fit_ramp`, depth capped at
+0.3 R, the shell table's); its samples are averaged in runs of consecutive ones to at
+most RAMP_POINTS, the hold's in HOLD_BINS bins log-spaced in the time since the hold
+began; each mean is weighted by its count (residual sqrt(n_b) (model - mean)), so a
+white noise of SD σ gives every weighted residual SD σ.
+
+Fit. First the surrogate (`powerlaw_shell`: the elastic shell's energy carried as
+one strain with Boltzmann superposition; within a few per cent of the simulator,
+cheap) by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from a few starts;
+then the simulator itself from there, by least squares in (x0, γ_a, K_B(1 s), β),
+(F_b, s) solved linearly at each (variable projection), to SIM_XTOL. SDs from the
+last Jacobian (of the projected residuals, whose normal matrix is the marginal one of
+the nonlinear parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a
+hold β is profiled too: the fit again at each β of PROFILE_BETAS (β fixed, K_B(1 s)
+started where K_B(1 s) T^-β at the ramp's contact time T is the best fit's), and γ_a's
+interval widened to hold every node's γ_a ± Z95 sd (β fixed) with Δχ² = ΔSSE/σ² ≤ CHI2_95
+(σ² from the lowest SSE); the best node, where it fits better, restarts the fit from it.
+
+What one ramp without a hold tells: for a pure power law at constant speed v the
+cortex's force depends on K_B(1 s) and v only through K_B(1 s) v^β, and on β through
+the curve's shape with depth alone; β and K_B(1 s) are then strongly correlated and
+told apart only by that shape, while γ_a is pinned by the force's shallow part (its
+interval the widest without a hold). The hold measures the relaxation itself, so β
+and K_B(1 s) come apart.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import least_squares
+
+from analysis.afm.tension import powerlaw_shell, powerlaw_simulated
+from analysis.afm.tension.pause import Z95
+from analysis.afm.tension.powerlaw_simulated import RampHold
+from analysis.afm.tension.ramp import fit_ramp
+from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from common.errors import InputError, SolverError
+
+Array = npt.NDArray[np.float64]
+RAMP_POINTS = 120
+HOLD_BINS = 30
+MAX_DEPTH = 0.3            # δ/R: the shell table's deepest
+BETA_MAX = 0.6
+START_BULK = (0.5, 5.0, 30.0)      # K_B(1 s) / T of the surrogate's starts (T the droplet's)
+START_BETA = (0.1, 0.25)
+SIM_XTOL = 1e-4
+SIM_STEP = 1e-3            # the simulator fit's relative finite-difference step
+SIM_EVALUATIONS = 60
+PROFILE_BETAS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)     # β of the profile of a ramp without a hold
+CHI2_95 = 3.84           # χ²_1 at 0.95: the 95 % set of a profile likelihood
+
+
+@dataclass(frozen=True)
+class Samples:
+    """The fit's samples: means of runs of the recording's (times s, heights µm, forces nN),
+    their counts, and how many are the ramp's; the raw samples they average (`raw_time_s`,
+    `raw_x_um`, the ramp's first `raw_ramp` of them) and the runs' bounds in them (`edges`)."""
+
+    time_s: Array
+    x_um: Array
+    force_nN: Array
+    count: Array
+    ramp_points: int
+    raw_time_s: Array
+    raw_x_um: Array
+    raw_ramp: int
+    edges: npt.NDArray[np.int64]
+    hold: str = "height"
+
+    @property
+    def history(self) -> RampHold:
+        """The raw samples' history (`powerlaw_simulated`)."""
+        return RampHold(self.raw_time_s, self.raw_x_um, self.raw_ramp, self.hold)
+
+    def averaged(self, raw: Array) -> Array:
+        """Means of a quantity at the raw samples over the runs."""
+        return np.add.reduceat(raw, self.edges[:-1]) / self.count
+
+
+@dataclass(frozen=True)
+class PowerLawFit:
+    """The fitted power-law shell: γ_a (mN/m), K_B(1 s) (mN/m), β with their SDs and γ_a's
+    95 % interval; contact x0 (µm), baseline F_b (nN) and slope s (nN/µm), K̃_S used, the
+    noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, the
+    surrogate's own γ_a, K_B(1 s), β (the simulator's start), and without a hold γ_a's
+    band over β's profile (`tension_band_mN_per_m`, module doc)."""
+
+    tension_mN_per_m: float
+    tension_sd_mN_per_m: float
+    bulk_1s_mN_per_m: float
+    bulk_1s_sd_mN_per_m: float
+    beta: float
+    beta_sd: float
+    contact_um: float
+    baseline_nN: float
+    baseline_slope_nN_per_um: float
+    shear_tilde: float
+    noise_nN: float
+    samples: Samples
+    hold: bool
+    surrogate: tuple[float, float, float]
+    tension_band_mN_per_m: tuple[float, float] | None = None
+
+    @property
+    def tension_interval_mN_per_m(self) -> tuple[float, float]:
+        """γ_a ± Z95 sd (the lower end at least 0), widened to the band over β where profiled."""
+        half = Z95 * self.tension_sd_mN_per_m
+        lo, hi = max(self.tension_mN_per_m - half, 0.0), self.tension_mN_per_m + half
+        if self.tension_band_mN_per_m is not None:
+            lo, hi = min(lo, self.tension_band_mN_per_m[0]), max(hi, self.tension_band_mN_per_m[1])
+        return lo, hi
+
+
+def samples(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
+            window: npt.NDArray[np.bool_], hold: str = "height") -> Samples:
+    """The fit's samples (module doc) from the ramp's window (a mask on its samples, which
+    runs to the ramp's end) and the hold."""
+    t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
+    first = int(np.nonzero(window)[0][0])
+    t, x, f = t[first:], x[first:], f[first:]
+    n = ramp_samples - first
+    edges = np.unique(np.linspace(0, n, min(n, RAMP_POINTS) + 1).round().astype(int))
+    ramp_points = edges.size - 1
+    if t.size > n:
+        since = t[n:] - t[n - 1]
+        bounds = np.geomspace(max(since[0], 1e-6), since[-1] * (1 + 1e-9), HOLD_BINS + 1)
+        edges = np.unique(np.r_[edges, n + np.searchsorted(since, bounds[1:-1]), t.size])
+    count = np.diff(edges).astype(float)
+    mean = [np.add.reduceat(a, edges[:-1]) / count for a in (t, x, f)]
+    return Samples(mean[0], mean[1], mean[2], count, ramp_points, t, x, n, edges, hold)
+
+
+def _surrogate(s: Samples, radius: float, shear: float, p: Array) -> Array:
+    """Weighted residuals of the surrogate at θ = (x0, F_b, s, γ_a, K_B(1 s), β)."""
+    model = p[1] + p[2] * (s.x_um - p[0]) + powerlaw_shell.force_nN(s.time_s, p[0] - s.x_um, radius, p[3], p[4],
+                                                                    p[5], shear)
+    return np.sqrt(s.count) * (model - s.force_nN)
+
+
+def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float) -> Array:
+    """θ of the surrogate's best fit from the starts (module doc)."""
+    lo = [-np.inf, -np.inf, -np.inf, 1e-4, 1e-3, 0.0]
+    hi = [np.inf, np.inf, np.inf, np.inf, np.inf, BETA_MAX]
+    best, best_cost = None, np.inf
+    for kb in START_BULK:
+        for beta in START_BETA:
+            p0 = np.array([x0, 0.0, 0.0, 0.5 * droplet_tension, kb * droplet_tension, beta])
+            scale = [0.01, 0.01, 0.01, max(droplet_tension, 1e-3), max(kb * droplet_tension, 1e-2), 0.05]
+            res = least_squares(lambda p: _surrogate(s, radius, shear, p), p0, bounds=(lo, hi), x_scale=scale,
+                                xtol=1e-10, ftol=1e-10)
+            if res.cost < best_cost:
+                best, best_cost = res.x, res.cost
+    if best is None:
+        raise InputError("approach ramp: no rise the power-law shell can fit")
+    return best
+
+
+class _Projected:
+    """The simulator's residuals at (x0, γ_a, K_B(1 s), β) with (F_b, s) solved linearly;
+    `beta` fixes β (then q = (x0, γ_a, K_B(1 s)))."""
+
+    def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None):
+        self.s, self.radius, self.shear, self.w, self.beta = s, radius, shear, np.sqrt(s.count), beta
+        self.linear = np.zeros(2)
+
+    def __call__(self, q: Array) -> Array:
+        s = self.s
+        beta = q[3] if self.beta is None else self.beta
+        try:
+            model = s.averaged(powerlaw_simulated.force_nN(s.history, q[0], self.radius, q[1], q[2], beta,
+                                                           self.shear))
+        except (SolverError, InputError):
+            return np.full(s.time_s.size, 1e3)
+        a = self.w[:, None] * np.stack([np.ones_like(model), s.x_um - q[0]], axis=1)
+        coef, *_ = np.linalg.lstsq(a, self.w * (s.force_nN - model), rcond=None)
+        self.linear = coef
+        return self.w * (model + coef[0] + coef[1] * (s.x_um - q[0]) - s.force_nN)
+
+
+@dataclass(frozen=True)
+class _Solved:
+    """One simulator fit: its parameters (x0, γ_a, K_B(1 s)[, β]), SSE, Jacobian, (F_b, s)."""
+
+    q: Array
+    sse: float
+    jac: Array
+    linear: Array
+
+
+def _solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> _Solved:
+    """The simulator's least squares from q0 (module doc), β free or fixed at `beta`."""
+    resid = _Projected(s, radius, shear, beta)
+    q0 = np.asarray(q0, float)[:3 if beta is not None else 4]
+    lo, hi = [-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]
+    scale = [0.01, max(q0[1], 1e-3), max(q0[2], 1e-2), 0.05]
+    k = q0.size
+    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=scale[:k],
+                        diff_step=SIM_STEP, xtol=SIM_XTOL, ftol=1e-8, max_nfev=SIM_EVALUATIONS)
+    r = resid(res.x)
+    return _Solved(res.x, float(r @ r), res.jac, resid.linear.copy())
+
+
+def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
+    """K_B(1 s) at exponent `beta` with the same modulus K_B(1 s) T^-β at the ramp's contact
+    time T as q's: a start for the profile (module doc)."""
+    span = max(float(s.time_s[s.ramp_points - 1] - s.time_s[0]), 1e-3)
+    return float(q[2] * span ** (beta - q[3]))
+
+
+def _beta_profile(s: Samples, radius: float, shear: float, best: _Solved) -> list[tuple[float, _Solved]]:
+    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS (module doc)."""
+    return [(beta, _solve(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
+                          beta=beta)) for beta in PROFILE_BETAS]
+
+
+def _sds(fit: _Solved, sigma2: float) -> Array:
+    """The SDs of a fit's free parameters from its Jacobian."""
+    return np.sqrt(np.clip(np.diag(sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)), 0.0, None))
+
+
+def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
+                  radius_um: float, shear_tilde: float = SHEAR_TILDE, hold: str = "height") -> PowerLawFit:
+    """The power-law shell fitted to a ramp (the first `ramp_samples` samples, ending at its
+    deepest) and the hold after it (the rest; none: the ramp alone) at constant `hold`
+    ("height" or "force")."""
+    t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
+    if not (t.shape == x.shape == f.shape) or not 2 <= ramp_samples <= t.size:
+        raise InputError("a ramp and hold needs times, heights and forces of one length and a ramp")
+    drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
+    s = samples(t, x, f, ramp_samples, drop.window, hold)
+    p = fit_surrogate(s, radius_um, shear_tilde, drop.contact_um, drop.tension_mN_per_m)
+    best = _solve(s, radius_um, shear_tilde, p[[0, 3, 4, 5]])
+    held = t.size > ramp_samples
+    nodes = [] if held else _beta_profile(s, radius_um, shear_tilde, best)
+    if nodes:
+        beta, node = min(nodes, key=lambda n: n[1].sse)
+        if node.sse < best.sse:
+            again = _solve(s, radius_um, shear_tilde, np.append(node.q, beta))
+            best = again if again.sse < best.sse else best
+    sse_min = min([best.sse] + [n.sse for _, n in nodes])
+    sigma2 = sse_min / max(s.time_s.size - 6, 1)
+    sd = _sds(best, sigma2)
+    q = best.q
+    band = None
+    if nodes:
+        inside = [(n.q[1], _sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
+        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in inside]), 0.0),
+                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in inside]))
+    return PowerLawFit(tension_mN_per_m=float(q[1]), tension_sd_mN_per_m=float(sd[1]),
+                       bulk_1s_mN_per_m=float(q[2]), bulk_1s_sd_mN_per_m=float(sd[2]), beta=float(q[3]),
+                       beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(best.linear[0]),
+                       baseline_slope_nN_per_um=float(best.linear[1]), shear_tilde=shear_tilde,
+                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
+                       surrogate=(float(p[3]), float(p[4]), float(p[5])),
+                       tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])))

@@ -1,0 +1,69 @@
+"""The power-law shell's columns of an approach row of `cortex afm tension --power-law`
+(`powerlaw_fit`: the ramp and the pause right after it read as one curve).
+
+The pause is taken as a constant-height hold unless it looks like a constant-force one
+(its height x drifts by more than FORCE_HOLD_DRIFT_UM between its first and last tenth
+while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says which
+(none: no pause after the ramp), and `power_law_note` warns of a constant-force one (its
+reading is not yet reliable, docs/tension.md). K̃_S is the given
+`--shear-ratio`, else SHEAR_TILDE (`power_law_shear_ratio_source`). A ramp without
+sample times, or one the fit cannot read, gets the reason in `power_law_note` and no
+values.
+"""
+
+from typing import Any
+
+import numpy as np
+
+from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
+from analysis.afm.tension.ramp import baseline_noise
+from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from common.errors import InputError, SolverError
+
+FORCE_HOLD_DRIFT_UM = 0.02
+FORCE_HOLD_SDS = 3.0
+COLUMNS = ("power_law_tension_mN_per_m", "power_law_tension_lo95_mN_per_m", "power_law_tension_hi95_mN_per_m",
+           "power_law_bulk_1s_mN_per_m", "power_law_bulk_1s_sd_mN_per_m", "power_law_exponent",
+           "power_law_exponent_sd", "power_law_shear_ratio", "power_law_shear_ratio_source", "power_law_hold",
+           "power_law_note")
+
+
+def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
+    """"height" or "force": how the pause was held (module doc)."""
+    tenth = max(len(x_um) // 10, 1)
+    drift = abs(float(np.mean(x_um[-tenth:]) - np.mean(x_um[:tenth])))
+    change = abs(float(np.mean(force_nN[-tenth:]) - np.mean(force_nN[:tenth])))
+    return "force" if drift > FORCE_HOLD_DRIFT_UM and change < FORCE_HOLD_SDS * noise_nN else "height"
+
+
+def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
+                      pause: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                      radius_um: float, shear_tilde: float | None) -> dict[str, Any]:
+    """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None)."""
+    t, x, f = ramp
+    shear = SHEAR_TILDE if shear_tilde is None else shear_tilde
+    out: dict[str, Any] = {k: float("nan") for k in COLUMNS}
+    out.update(power_law_shear_ratio=shear, power_law_shear_ratio_source="assumed" if shear_tilde is None
+               else "given", power_law_hold="none", power_law_note="")
+    end = int(np.argmin(x)) + 1                          # the ramp up to its deepest sample
+    t, x, f = t[:end], x[:end], f[:end]
+    if pause is not None:
+        kind = hold_kind(pause[1], pause[2], baseline_noise(f)[1])
+        t, x, f = (np.r_[a, b] for a, b in zip((t, x, f), pause))
+        out["power_law_hold"] = kind
+        if kind == "force":
+            out["power_law_note"] = "constant-force hold: read through its creep, biased up to +30 % on known cells"
+    if not np.all(np.isfinite(t)):
+        out.update(power_law_hold="none", power_law_note="no sample times")
+        return out
+    try:
+        fit = fit_ramp_hold(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height")
+    except (InputError, SolverError) as err:
+        out.update(power_law_note=f"not read: {err}")
+        return out
+    lo, hi = fit.tension_interval_mN_per_m
+    out.update(power_law_tension_mN_per_m=fit.tension_mN_per_m, power_law_tension_lo95_mN_per_m=lo,
+               power_law_tension_hi95_mN_per_m=hi, power_law_bulk_1s_mN_per_m=fit.bulk_1s_mN_per_m,
+               power_law_bulk_1s_sd_mN_per_m=fit.bulk_1s_sd_mN_per_m, power_law_exponent=fit.beta,
+               power_law_exponent_sd=fit.beta_sd)
+    return out

@@ -1,0 +1,125 @@
+"""The force of the time-domain shell (`solver.time_domain`, a power-law cortex) on an
+approach ramp from its free sphere and the hold after it, as a recording of them gives
+the protocol (SPEC 11-12).
+
+A cell of radius R, active tension γ_a, K_B(t) = K_B(1 s) t^-β, K_S(t) = K̃_S K_B(t)
+(`solver.time_domain.power_law_cortex`, one β), standard bending at K(1 s). The
+recording's samples (t_i, δ_i), δ = x0 - x, give the protocol: the cell is its
+stress-free droplet at the gap 2R - START_UM at the time t_c where δ passes START_UM
+(by the ramp's line), the plate ramps at the recorded speed v (the line of δ against t
+over the ramp's contact) to the deepest deformation, then follows the recorded height
+through the hold (`_hold_steps`: a constant-height hold is one Hold "height", a
+constant-force one the creep it recorded, as ramps between binned knots, whose force
+the model gives and the recording's constant force checks). It is simulated by
+`solver.protocol_simulation.simulate` at RESOLUTION (FINE, the synthetic experiments'
+own) and read at the sample times (linear between the simulation's samples); before
+t_c the force is the tension's alone, γ_a R ĝ(δ/R) (`shell_ramp`).
+
+The simulated force itself depends on the simulator's steps (the carry of the cortex's
+history along the contact strip, `solver.time_domain`): at β = 0.3 a ramp replayed in
+0.05 µm steps and in 0.01 µm steps differ by about 4 % of the force. RESOLUTION is
+the one that makes the synthetic recordings (`studies.powerlaw_ramps`).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from common.errors import InputError, SolverError
+from common.names import HOLD_KINDS
+from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
+from solver.model import Shell
+from solver.protocol import Hold, Protocol, Ramp
+from solver.protocol_simulation import FINE, Sampling, simulate
+from solver.time_domain import power_law_cortex
+
+START_UM = 0.01          # the stress-free droplet's gap below 2R (µm)
+RESOLUTION = FINE
+SAMPLE_HZ = 100.0        # the simulation's samples on ramp and hold, read linearly between
+HOLD_KNOTS = 60          # a constant-force hold's path: knots log-spaced in time (`_hold_steps`)
+HOLD_TOL_UM = 0.0005     # a knot closer than this to the last level holds the height
+
+
+@dataclass(frozen=True)
+class RampHold:
+    """A recorded ramp and the hold after it: sample times (s), wedge heights x (µm),
+    how many of the samples are the ramp's (the rest the hold's), and how it was held
+    ("height" or "force")."""
+
+    time_s: npt.NDArray[np.float64]
+    x_um: npt.NDArray[np.float64]
+    ramp_samples: int
+    hold: str = "height"
+
+    def __post_init__(self) -> None:
+        if self.hold not in HOLD_KINDS:
+            raise InputError(f"a hold is at constant {' or '.join(HOLD_KINDS)} (got {self.hold!r})")
+        if self.time_s.shape != self.x_um.shape or not 2 <= self.ramp_samples <= self.time_s.size:
+            raise InputError("a ramp and hold needs matching times and heights and at least two ramp samples")
+        if np.any(np.diff(self.time_s) < 0):
+            raise InputError("a ramp and hold's sample times must not decrease")
+
+    def speed_um_per_s(self, x0_um: float) -> tuple[float, float]:
+        """(v, t_c): the ramp's speed (µm/s) from the line of x against t over its contact
+        (x < x0), and the time where δ = x0 - x passes START_UM on that line."""
+        t, x = self.time_s[:self.ramp_samples], self.x_um[:self.ramp_samples]
+        on = x < x0_um
+        if on.sum() < 2:
+            raise InputError("the ramp has fewer than two samples in contact")
+        slope, icpt = np.polyfit(t[on], x[on], 1)
+        if slope >= 0:
+            raise InputError("the ramp does not press the cell (its height does not fall)")
+        return float(-slope), float((x0_um - START_UM - icpt) / slope)
+
+
+def _hold_steps(history: RampHold, t_end: float, start_um: float, offset_um: float) -> tuple[Ramp | Hold, ...]:
+    """The hold: at constant height one Hold; at constant force the plate's recorded creep,
+    the gap h = offset + x at HOLD_KNOTS knots (the means of (t, x) over bins log-spaced in
+    the time since the ramp's end), linear between them from the ramp's end gap `start_um`
+    (a knot within HOLD_TOL_UM of the last level: a hold at that height)."""
+    t, x = history.time_s[history.ramp_samples:], history.x_um[history.ramp_samples:]
+    if t.size == 0:
+        return ()
+    if history.hold == "height":
+        return (Hold(float(t[-1] - t_end), "height"),)
+    since = t - t_end
+    bounds = np.geomspace(max(float(since[0]), 1e-6), float(since[-1]) * (1 + 1e-9), HOLD_KNOTS + 1)
+    edges = np.unique(np.r_[0, np.searchsorted(since, bounds[1:-1]), t.size])
+    count = np.diff(edges)
+    knots_t = np.r_[np.add.reduceat(t, edges[:-1]) / count, t[-1]]
+    knots_h = offset_um + np.r_[np.add.reduceat(x, edges[:-1]) / count, np.mean(x[edges[-2]:])]
+    steps: list[Ramp | Hold] = []
+    level, at = start_um, t_end
+    for tk, hk in zip(knots_t, knots_h):
+        if tk <= at:
+            continue
+        if abs(hk - level) > HOLD_TOL_UM:
+            steps.append(Ramp(to_um=float(hk), speed_um_per_s=float(abs(hk - level) / (tk - at))))
+            level = float(hk)
+        else:
+            steps.append(Hold(float(tk - at), "height"))
+        at = float(tk)
+    return tuple(steps)
+
+
+def force_nN(history: RampHold, x0_um: float, radius_um: float, tension_mN_per_m: float,
+             bulk_1s_mN_per_m: float, beta: float, shear_tilde: float) -> npt.NDArray[np.float64]:
+    """The simulated plate force (nN) at the history's samples (module doc); SolverError
+    where the simulator finds no equilibrium."""
+    v, t_c = history.speed_um_per_s(x0_um)
+    t = history.time_s
+    t_end = float(t[history.ramp_samples - 1])
+    depth = START_UM + v * (t_end - t_c)
+    if depth <= 2 * START_UM:
+        raise SolverError("the ramp reaches no depth in contact")
+    top = 2.0 * radius_um
+    shell = Shell(volume_um3=4.0 * np.pi / 3.0 * radius_um ** 3, h0_um=top - START_UM,
+                  bulk_mN_per_m=bulk_1s_mN_per_m, shear_mN_per_m=shear_tilde * bulk_1s_mN_per_m,
+                  tension_mN_per_m=tension_mN_per_m)
+    steps = (Ramp(to_um=top - depth, speed_um_per_s=v),) + _hold_steps(history, t_end, top - depth, top - x0_um)
+    rec = simulate(shell, power_law_cortex(bulk_1s_mN_per_m, shear_tilde * bulk_1s_mN_per_m, beta, beta),
+                   Protocol(top - START_UM, steps, start_s=t_c), RESOLUTION, Sampling(approach_hz=SAMPLE_HZ))
+    d = np.clip(x0_um - history.x_um, 0.0, None) / radius_um
+    before = tension_mN_per_m * radius_um * unit_force_per_tension(np.minimum(d, DEPTH_MAX))
+    return np.where(t > t_c, np.interp(t, rec.time_s, rec.force_nN), before)

@@ -1,0 +1,115 @@
+"""The ramp-and-hold reading of the power-law shell (`analysis.afm.tension.powerlaw_fit`,
+its surrogate `powerlaw_shell` and its simulated model `powerlaw_simulated`) against
+closed forms and cells made by the time-domain shell (`studies.powerlaw_ramps`); the
+40-cell check is `bench/powerlaw_ramp_hold.py`."""
+
+import numpy as np
+import pytest
+
+from analysis.afm.tension import powerlaw_shell, shell_ramp
+from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
+from common.errors import InputError
+from studies.powerlaw_ramps import Cell, recording
+
+
+def test_memory_matrix_integrates_the_power_law_exactly():
+    """A strain ramped linearly from 0 to 1 over T and held: the stress Σ M ΔU is
+    ∫_0^T (t - t')^-β dt'/T = [t^(1-β) - (t - T)^(1-β)] / ((1 - β) T) after it, and U at β = 0."""
+    T, beta = 2.0, 0.25
+    t = np.r_[np.linspace(0.0, T, 41), np.geomspace(T + 0.01, 30.0, 20)]
+    u = np.clip(t / T, 0.0, 1.0)
+    stress = powerlaw_shell.memory_matrix(t, beta) @ np.diff(u, prepend=u[0])
+    after = t > T
+    exact = (t[after] ** (1 - beta) - (t[after] - T) ** (1 - beta)) / ((1 - beta) * T)
+    np.testing.assert_allclose(stress[after], exact, rtol=1e-12)
+    assert stress[-1] == pytest.approx(30.0 ** -beta, rel=0.02)        # long after: K(t)
+    np.testing.assert_allclose(powerlaw_shell.memory_matrix(t, 0.0) @ np.diff(u, prepend=u[0]), u, atol=1e-12)
+
+
+def test_surrogate_is_the_elastic_shell_at_beta_zero_and_scales_with_speed():
+    """β = 0: the elastic shell's force on any history; β > 0: a ramp at speed v depends on
+    K_B(1 s) and v only through K_B(1 s) v^β."""
+    R, gamma, bulk, shear = 6.8, 0.5, 25.0, 0.4
+    depth = np.linspace(0.0, 1.0, 60)
+    elastic = shell_ramp.force_nN(depth, R, gamma, bulk, shear)
+    for v in (0.3, 3.0):
+        got = powerlaw_shell.force_nN(depth / v, depth, R, gamma, bulk, 0.0, shear)
+        np.testing.assert_allclose(got, elastic, rtol=1e-4, atol=1e-6)   # w(d) on 400 depths
+    beta = 0.2
+    slow = powerlaw_shell.elastic_force_nN(depth / 0.5, depth, R, bulk, beta, gamma / bulk, shear)
+    fast = powerlaw_shell.elastic_force_nN(depth / 2.0, depth, R, bulk * 0.25 ** beta, beta, gamma / bulk, shear)
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
+
+
+# cells of the bench's ranges: a constant-height hold, a constant-force hold, a ramp alone
+CELLS = [Cell(6.5, 0.94, 7.9, 1.68, 0.17, 0.38, 0.14 * 6.5, hold_s=23.0, tilt_nN_per_um=0.05),
+         Cell(8.2, 0.37, 5.5, 0.11, 0.26, 2.45, 0.14 * 8.2, hold_s=22.0, tilt_nN_per_um=0.1, hold_kind="force"),
+         Cell(7.7, 1.72, 32.7, 0.10, 0.27, 0.32, 0.14 * 7.7, tilt_nN_per_um=0.12)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cell", CELLS, ids=["height-hold", "force-hold", "ramp-alone"])
+def test_power_law_cells_read_their_tension(cell):
+    """Ramps (and holds, at constant height or force) made by the time-domain shell give back
+    γ_a within 10 % inside its interval, and β within 0.05 with a hold."""
+    made = recording(cell, seed=1)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde,
+                        cell.hold_kind)
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.tension_mN_per_m == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert lo <= cell.tension_mN_per_m <= hi
+    assert fit.noise_nN == pytest.approx(cell.noise_nN, rel=0.15)
+    assert fit.baseline_slope_nN_per_um == pytest.approx(cell.tilt_nN_per_um, abs=0.05)
+    if cell.hold_s:
+        assert fit.hold
+        assert fit.beta == pytest.approx(cell.beta, abs=0.05)
+        assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.25)
+
+
+@pytest.mark.slow
+def test_an_elastic_cell_reads_as_beta_zero():
+    """The elastic shell is the power law's β = 0: a ramp and hold of an elastic cortex (the
+    time-domain shell at β = 0) reads β ≈ 0, K_B within 15 % and γ_a inside its interval."""
+    cell = Cell(6.5, 0.94, 12.0, 0.5, 0.0, 1.0, 0.14 * 6.5, hold_s=15.0, tilt_nN_per_um=0.05)
+    made = recording(cell, seed=3)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.beta < 0.01
+    assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.15)
+    assert lo <= cell.tension_mN_per_m <= hi and hi - lo < 0.3 * cell.tension_mN_per_m
+
+
+def test_bad_input_is_one_clear_error():
+    t = np.linspace(0.0, 1.0, 50)
+    with pytest.raises(InputError):
+        fit_ramp_hold(t, t[:-1], t, 40, 6.0)
+    with pytest.raises(InputError):
+        fit_ramp_hold(t, t, t, 1, 6.0)
+
+
+@pytest.mark.slow
+def test_the_command_reads_a_ramp_and_its_pause(tmp_path, capsys):
+    """`cortex afm tension --power-law`: the power_law_* columns of the approach row give
+    back the cell's γ_a and β from the ramp and the constant-height pause after it, where
+    the elastic shell's γ_a is far high; tension.csv has the columns."""
+    import json
+
+    from analysis.afm.formats.csvcell import write_csv_cell
+    from analysis.afm.formats.instruments import to_cell
+    from cortex.cli import main
+    from studies.powerlaw_ramps import as_recording
+    cell = CELLS[0]
+    volume = 4.0 * np.pi / 3.0 * cell.radius_um ** 3
+    path = write_csv_cell(tmp_path / "c.csv", to_cell(as_recording(recording(cell, seed=2), "c"), volume, "synthetic"))
+    status = main(["afm", "tension", str(path), "--power-law", "--shear-ratio", str(cell.shear_tilde), "--json",
+                   "--out", str(tmp_path / "out")])
+    assert status == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    ramp = next(r for r in rows if r["part"] == "approach")
+    assert ramp["power_law_hold"] == "height" and ramp["power_law_shear_ratio_source"] == "given"
+    assert ramp["power_law_tension_mN_per_m"] == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert ramp["power_law_tension_lo95_mN_per_m"] <= cell.tension_mN_per_m <= ramp["power_law_tension_hi95_mN_per_m"]
+    assert ramp["power_law_exponent"] == pytest.approx(cell.beta, abs=0.05)
+    assert ramp["tension_mN_per_m"] > 1.3 * cell.tension_mN_per_m          # the elastic shell's reading
+    import pandas as pd
+    assert "power_law_exponent" in pd.read_csv(tmp_path / "out" / "tension.csv")
