@@ -117,9 +117,10 @@ def test_active_tension_with_the_shear_ratio_unknown(unknown):
 
 def test_the_default_covers_a_shear_ratio_far_from_a_third(ramps):
     """A cell with K̃_S = 1.65 (γ_a 0.44, K_B 14 mN/m): read with K̃_S fixed at 1/3 its γ_a
-    is 17 % high and the interval misses it; with K̃_S unknown γ_a is within 3 %, its
-    interval covers it, and K̃_S's interval holds 1.65 but not 1/3 (bounded: the ramp
-    tells K̃_S from below only)."""
+    is 17 % high and the interval misses it; with K̃_S unknown γ_a is within 5 % (its
+    statistical SD is about 3.4 %: a change of the ramp by 0.1 noise SD moves it from +1 %
+    to -3 %), its interval covers it, and K̃_S's interval holds 1.65 but not 1/3 (bounded:
+    the ramp tells K̃_S from below only)."""
     (gamma, bulk, shear, radius, _), x, f = ramps[0]
     assert shear > 1.5
     volume, exact = 4.0 * np.pi * radius ** 3 / 3.0, MeasurementErrors(volume_rel_sd=0.0)
@@ -128,7 +129,7 @@ def test_the_default_covers_a_shear_ratio_far_from_a_third(ramps):
     assert third.tension_mN_per_m / gamma - 1.0 > 0.1 and not lo <= gamma <= hi
     fit = fit_unknown_shear(x, f, radius)
     lo, hi, k_lo, k_hi = shell_interval(fit, x, f, volume, Fixed(fit.shear_tilde), exact)
-    assert abs(fit.tension_mN_per_m / gamma - 1.0) < 0.03 and lo <= gamma <= hi and k_lo <= bulk <= k_hi
+    assert abs(fit.tension_mN_per_m / gamma - 1.0) < 0.05 and lo <= gamma <= hi and k_lo <= bulk <= k_hi
     s_lo, s_hi = fit.shear_band
     assert 1.0 / 3.0 < s_lo < shear < s_hi and identification(fit) == BOUNDED and s_hi == shear_range()[1]
 
