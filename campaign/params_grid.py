@@ -12,14 +12,12 @@ shell's fields and the parameters'.
 
 import itertools
 import math
-import operator
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable
-
-import numpy as np
+from typing import Any
 
 from campaign.grid import Grid
+from campaign.shell_product import ShellProduct
 from common.errors import InputError
 from solver.model import Shell
 
@@ -58,43 +56,13 @@ def params_axes(path: Any, section: Any, names: Sequence[str]) -> dict[str, list
     return axes
 
 
-class ParamGrid(Sequence[ParamPoint]):
+class ParamGrid(ShellProduct):
     """The points of `shells` × the product of the `[params]` `axes` (`params_axes`)."""
 
+    noun = "parameter point"
+
     def __init__(self, shells: Grid, axes: Mapping[str, list[float]]):
-        self.shells, self.names = shells, tuple(axes)
-        self.points = list(itertools.product(*axes.values()))
-        self.m = len(self.points)
+        super().__init__(shells, list(itertools.product(*axes.values())), tuple(axes))
 
-    def __len__(self) -> int:
-        return len(self.shells) * self.m
-
-    def __getitem__(self, i: Any) -> Any:
-        if isinstance(i, slice):
-            return [self[j] for j in range(*i.indices(len(self)))]
-        i = operator.index(i)
-        if not -len(self) <= i < len(self):
-            raise IndexError(f"point {i} out of range ({len(self)} points)")
-        s, p = divmod(i % len(self), self.m)
-        return ParamPoint(self.shells[s], dict(zip(self.names, self.points[p])))
-
-    def columns(self) -> dict[str, np.ndarray]:
-        """The shells' columns (`Grid.columns`), each repeated per parameter point, and the parameters'."""
-        cols = {k: np.repeat(v, self.m) for k, v in self.shells.columns().items()}
-        points = np.array(self.points, float).reshape(self.m, len(self.names))
-        for j, key in enumerate(self.names):
-            cols[key] = np.tile(points[:, j], len(self.shells))
-        return cols
-
-    def texts(self, template: str, keys: Sequence[str], encode: Callable[[Any], str]) -> Iterator[str]:
-        """`template % tuple(encode(value of k) for k in keys)` at every point (keys among `to_dict`'s)."""
-        for point in self:
-            d = point.to_dict()
-            yield template % tuple(encode(d[k]) for k in keys)
-
-    def reprs(self) -> Iterator[str]:
-        """repr(point.to_dict()) of every point, in order: what the campaign's fingerprint is made of."""
-        return (repr(point.to_dict()) for point in self)
-
-    def __repr__(self) -> str:
-        return f"ParamGrid({len(self.shells)} shells x {self.m} parameter points)"
+    def point(self, shell: Shell, values: tuple[Any, ...]) -> ParamPoint:
+        return ParamPoint(shell, dict(zip(self.names, values)))

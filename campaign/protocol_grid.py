@@ -19,14 +19,11 @@ shell's fields and the protocol's.
 
 import itertools
 import math
-import operator
-from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable
-
-import numpy as np
+from typing import Any
 
 from campaign.grid import Grid
+from campaign.shell_product import ShellProduct
 from common.errors import InputError
 from solver.model import Shell
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
@@ -95,46 +92,16 @@ def protocol_axes(path: Any, section: dict[str, Any]) -> dict[str, list[Any]]:
     return axes
 
 
-class BiasGrid(Sequence):
+class BiasGrid(ShellProduct):
     """The nodes of `shells` × the product of the protocol `axes` (`protocol_axes`)."""
 
+    noun = "node"
+
     def __init__(self, shells: Grid, axes: dict[str, list[Any]]):
-        self.shells = shells
-        self.points = [(b, s, w, f) for (b, s), w, f in
-                       itertools.product(axes["exponents"], axes["wait_s"], axes["frequency_hz"])]
-        self.m = len(self.points)
+        points = [(b, s, w, f) for (b, s), w, f in
+                  itertools.product(axes["exponents"], axes["wait_s"], axes["frequency_hz"])]
+        super().__init__(shells, points, PROTOCOL_PARAMS)
 
-    def __len__(self) -> int:
-        return len(self.shells) * self.m
-
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self[j] for j in range(*i.indices(len(self)))]
-        i = operator.index(i)
-        if not -len(self) <= i < len(self):
-            raise IndexError(f"node {i} out of range ({len(self)} nodes)")
-        s, p = divmod(i % len(self), self.m)
-        b, sh, w, f = self.points[p]
-        shell = self.shells[s]
+    def point(self, shell: Shell, values: tuple[Any, ...]) -> BiasNode:
+        b, sh, w, f = values
         return BiasNode(shell, b, sh, bias_protocol(shell, w, f))
-
-    def columns(self) -> dict[str, np.ndarray]:
-        """The shells' columns (`Grid.columns`), each repeated per protocol point, and PROTOCOL_PARAMS."""
-        cols = {k: np.repeat(v, self.m) for k, v in self.shells.columns().items()}
-        points = np.array(self.points, float)
-        for j, key in enumerate(NODE_KEYS):
-            cols[COLUMN[key]] = np.tile(points[:, j], len(self.shells))
-        return cols
-
-    def texts(self, template: str, keys: Sequence[str], encode: Callable[[Any], str]) -> Iterator[str]:
-        """`template % tuple(encode(value of k) for k in keys)` at every node (keys among `to_dict`'s)."""
-        for node in self:
-            d = node.to_dict()
-            yield template % tuple(encode(d[k]) for k in keys)
-
-    def reprs(self) -> Iterator[str]:
-        """repr(node.to_dict()) of every node, in order: what the campaign's fingerprint is made of."""
-        return (repr(node.to_dict()) for node in self)
-
-    def __repr__(self) -> str:
-        return f"BiasGrid({len(self.shells)} shells x {self.m} protocol points)"
