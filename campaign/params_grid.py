@@ -11,13 +11,12 @@ shell's fields and the parameters'.
 """
 
 import itertools
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from campaign.grid import Grid
-from campaign.shell_product import ShellProduct
+from campaign.shell_product import ShellProduct, numbers
 from common.errors import InputError
 from solver.model import Shell
 
@@ -47,12 +46,11 @@ def params_axes(path: Any, section: Any, names: Sequence[str]) -> dict[str, list
                          + (f" (unknown: {', '.join(unknown)})" if unknown else ""))
     axes = {}
     for key in names:
-        values = section[key] if isinstance(section[key], list) else [section[key]]
-        if not values or not all(not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-                                 for v in values):
+        values = numbers(section[key])
+        if values is None:
             raise InputError(f"{path}: [params] {key} must be a finite number or a non-empty list of them "
                              f"(got {section[key]!r})")
-        axes[key] = [float(v) for v in values]
+        axes[key] = values
     return axes
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from campaign.grid import Grid
-from campaign.shell_product import ShellProduct
+from campaign.shell_product import ShellProduct, numbers
 from common.errors import InputError
 from solver.model import Shell
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
@@ -84,11 +84,11 @@ def protocol_axes(path: Any, section: dict[str, Any]) -> dict[str, list[Any]]:
                          f"(got {pairs!r})")
     axes: dict[str, list[Any]] = {"exponents": [(float(b), float(s)) for b, s in pairs]}
     for key, least, strict in (("wait_s", 0.0, False), ("frequency_hz", 0.0, True)):
-        values = section[key] if isinstance(section[key], list) else [section[key]]
-        if not values or not all(_is_number(v) and (v > least if strict else v >= least) for v in values):
+        values = numbers(section[key])
+        if values is None or not all(v > least if strict else v >= least for v in values):
             raise InputError(f"{path}: [protocol] {key} must be a number {'>' if strict else '>='} 0 or a "
                              f"non-empty list of them (got {section[key]!r})")
-        axes[key] = [float(v) for v in values]
+        axes[key] = values
     return axes
 
 

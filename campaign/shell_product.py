@@ -7,6 +7,7 @@ axis fastest). Its store columns are the shell's, each repeated m times, and one
 n times; its id and the campaign's fingerprint come from its `to_dict`.
 """
 
+import math
 import operator
 from collections.abc import Iterator, Sequence
 from typing import Any, Callable
@@ -15,6 +16,15 @@ import numpy as np
 
 from campaign.grid import Grid
 from solver.model import Shell
+
+
+def numbers(value: Any) -> list[float] | None:
+    """A campaign file's axis (a number or a list of them) as a non-empty list of finite floats;
+    None if it is not one."""
+    values = value if isinstance(value, list) else [value]
+    if values and all(not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+        return [float(v) for v in values]
+    return None
 
 
 class ShellProduct(Sequence[Any]):
