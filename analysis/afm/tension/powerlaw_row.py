@@ -18,6 +18,7 @@ import numpy as np
 from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
 from analysis.afm.tension.ramp import baseline_noise
 from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
 FORCE_HOLD_DRIFT_UM = 0.02
@@ -38,8 +39,10 @@ def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
 
 def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
                       pause: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                      radius_um: float, shear_tilde: float | None) -> dict[str, Any]:
-    """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None)."""
+                      radius_um: float, shear_tilde: float | None, table: ShellTable | None = None
+                      ) -> dict[str, Any]:
+    """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None);
+    `table` the shell ramp table of the surrogate (None: the shipped one)."""
     t, x, f = ramp
     shear = SHEAR_TILDE if shear_tilde is None else shear_tilde
     out: dict[str, Any] = {k: float("nan") for k in COLUMNS}
@@ -57,7 +60,8 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
     try:
-        fit = fit_ramp_hold(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height")
+        fit = fit_ramp_hold(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height",
+                            table)
     except (InputError, SolverError) as err:
         out.update(power_law_note=f"not read: {err}")
         return out

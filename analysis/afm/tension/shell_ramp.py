@@ -12,11 +12,19 @@ exact) and e = f - γ̃_a ĝ the elastic stress's share of the table's
 f = F/(K_B R) (`ramp_table.ShellTable.elastic`: how it is interpolated, and
 held at the table's edges). A cell with K_B = 0 is the droplet, exactly.
 
-The table is the calibration file's (`CalibrationFile.shell_ramp`, the one loader
-`analysis.calibration.file.load_calibration`); `shipped()` is that of the shipped file.
+The table is the calibration bundle's (`CalibrationFile.shell_ramp`, the one loader
+`analysis.calibration.file.load_calibration`), passed down the reading as an argument
+(`shell_fit.Fixed.table`, `ShellFit.table`); None stands for the shipped bundle's, resolved
+here alone (`resolve`). `in_use` is the table `cortex afm tension --calibration` reads: the
+bundle's `ramp_table` part where its manifest names one, else the shipped bundle's, with
+where it came from and the SHA-256 of its file (the rows' `shell_table` columns).
 """
 
+import hashlib
+from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -24,12 +32,15 @@ import numpy.typing as npt
 from analysis.calibration.ramp_table import ShellTable
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 
+if TYPE_CHECKING:
+    from analysis.calibration.file import CalibrationFile
+
 
 def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float, bulk_mN_per_m: float,
              shear_tilde: float, table: ShellTable | None = None) -> np.ndarray:
     """F (nN) of the shell (module doc) at deformations δ (µm; ≤ 0: no contact);
-    `table` the shell ramp table (None: `shipped()`)."""
-    t = shipped() if table is None else table
+    `table` the shell ramp table (None: the shipped one, `resolve`)."""
+    t = resolve(table)
     d = np.clip(np.asarray(depth_um, float), 0.0, None) / radius_um
     out = tension_mN_per_m * radius_um * unit_force_per_tension(np.minimum(d, DEPTH_MAX))   # as `ramp`
     if bulk_mN_per_m > 0:
@@ -38,8 +49,35 @@ def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float,
     return out
 
 
+def resolve(table: ShellTable | None) -> ShellTable:
+    """`table`, or where None the shipped bundle's: the one place the default is read."""
+    return shipped() if table is None else table
+
+
 @lru_cache(maxsize=1)
 def shipped() -> ShellTable:
     """The shell ramp table of the shipped calibration file (read once, by its one loader)."""
     from analysis.calibration.file import load_calibration
     return load_calibration(None).shell_ramp
+
+
+@dataclass(frozen=True)
+class TableInUse:
+    """The shell ramp table a reading uses, where it came from ("shipped", or the path of the
+    file a `--calibration` bundle names) and the SHA-256 of that file (first 16 hex digits)."""
+
+    table: ShellTable
+    source: str
+    sha256: str
+
+
+def in_use(bundle: "CalibrationFile | None") -> TableInUse:
+    """The table of `bundle` (None: the shipped bundle): its `ramp_table` part where its manifest
+    names one (its own file, or "shipped"), else the shipped bundle's (module doc); InputError
+    (one line) where the part it names is missing or malformed."""
+    from analysis.calibration.file import load_calibration
+    if bundle is None or "ramp_table" not in bundle.sources:
+        bundle = load_calibration(None)
+    table = bundle.shell_ramp
+    digest = hashlib.sha256(Path(bundle.files["ramp_table"]).read_bytes()).hexdigest()[:16]
+    return TableInUse(table, bundle.sources["ramp_table"], digest)
