@@ -1,7 +1,8 @@
-"""`cortex afm tension --calibration`: the bundle's shell ramp table replaces the shipped one and
-the rows say which table they read (`shell_table_source`, `shell_table_sha256`); a bundle that
-names no ramp table (a law-only file) leaves the shipped one in use and says so; a bad bundle is
-one line and exit status 2, nothing written."""
+"""`cortex afm tension --calibration`: the bundle's shell ramp table replaces the shipped one, its
+emulator and viscoelastic table read the oscillations, and the rows say which they read
+(`shell_table_source`, `shell_table_sha256`, `prior_calibration_source`); a bundle that names
+none of them (a law-only file) leaves the shipped ones in use and says so; a bad bundle is one
+line and exit status 2, nothing written."""
 
 import json
 import shutil
@@ -63,11 +64,11 @@ def test_the_bundles_ramp_table_replaces_the_shipped_one(tmp_path, capsys, elast
     theirs at the same γ̃_a (F = γ_a R ĝ + K_B R (f - γ̃_a ĝ) = K_B R f), which the reading
     returns; the row names that table's file and hash."""
     shipped = _ramp(capsys, elastic_csv)
-    assert shipped["shell_table_source"] == "shipped"
+    assert (shipped["shell_table_source"], shipped["prior_calibration_source"]) == ("shipped", "shipped")
     assert (shipped["tension_mN_per_m"], shipped["bulk_modulus_mN_per_m"]) == pytest.approx((TENSION, BULK), rel=0.05)
     mine = _bundle(tmp_path, scale=1.5)
     row = _ramp(capsys, elastic_csv, "--calibration", mine)
-    assert row["shell_table_source"] == str(tmp_path / RAMP_TABLE_NAME)
+    assert (row["shell_table_source"], row["prior_calibration_source"]) == (str(tmp_path / RAMP_TABLE_NAME), str(mine))
     assert row["shell_table_sha256"] != shipped["shell_table_sha256"] and len(row["shell_table_sha256"]) == 16
     for key in ("tension_mN_per_m", "bulk_modulus_mN_per_m"):
         assert row[key] == pytest.approx(shipped[key] / 1.5, rel=0.01)
@@ -83,6 +84,7 @@ def test_a_law_only_bundle_leaves_the_shipped_table_and_says_so(tmp_path, capsys
     out = tmp_path / "out"
     row = _ramp(capsys, elastic_csv, "--calibration", law, "--out", out)
     assert (row["shell_table_source"], row["shell_table_sha256"]) == ("shipped", shipped["shell_table_sha256"])
+    assert row["prior_calibration_source"] == "shipped"          # no emulator: the shipped one reads the oscillations
     assert row["tension_mN_per_m"] == pytest.approx(shipped["tension_mN_per_m"], rel=1e-9)
     assert "Shell ramp table: shipped (SHA-256" in (out / "report.md").read_text()
 

@@ -15,8 +15,9 @@ analyse  per recording, in order until its first retract: every approach ramp
          its heights from the first ramp's contact without a dish reference,
          `_ramp_prior` per ramp; off with Options.oscillation_priors False),
          window capped at the shell table's depth and
-         `--max-depth-um`; the table `Options.ramp_table`, the one every fit of
-         the shell reads (`--calibration`'s, else the shipped one: `shell_ramp.in_use`); intervals `shell_fit.shell_interval`; the apparent
+         `--max-depth-um`; the shell ramp table and the priors' calibration those
+         of `Options.calibration` (`calibration_parts`: `--calibration`'s, else the
+         shipped ones), the one table every fit of the shell reads; intervals `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
          or a tension-only one (`ramp`, with the other for comparison, each on
@@ -56,7 +57,8 @@ import numpy as np
 from analysis.afm.cell import Cell
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
-from analysis.afm.tension.shell_ramp import TableInUse, in_use, resolve
+from analysis.afm.tension.calibration_parts import TensionCalibration, shipped_parts
+from analysis.afm.tension.shell_ramp import resolve
 from analysis.afm.tension.depths import depth_rows, depth_test
 from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
 from analysis.afm.tension.priors import columns as prior_columns
@@ -81,8 +83,8 @@ MIN_FREE = 10            # samples above the contact to read a ramp's speed from
 class Options:
     """What to analyse with: the ramp model (and for the shell: whether the recording's
     oscillations give it priors, K̃_S, K_B if known, the deepest deformation), how to read the files (one of the volume sources, the dish reference; heights
-    refer to the approach's contact point without one), the errors, and the shell ramp table
-    with where it came from (`shell_ramp.in_use`; None: the shipped one, which `run` resolves)."""
+    refer to the approach's contact point without one), the errors, and the calibration parts
+    (`calibration_parts`: the shell ramp table, the priors' bundle; None: the shipped ones)."""
 
     model: str = "shell"
     oscillation_priors: bool = True           # the shell's priors from the recording's oscillations (`priors`)
@@ -93,12 +95,12 @@ class Options:
     power_law: bool = False                   # also the power-law shell's ramp-and-hold reading (`powerlaw_row`)
     import_options: ImportOptions = ImportOptions(contact_heights=True, untimed_ramps=True)
     errors: MeasurementErrors = TENSION_ERRORS
-    ramp_table: TableInUse | None = None
+    calibration: TensionCalibration | None = None
 
     @property
     def table(self) -> ShellTable | None:
         """The shell ramp table every fit reads (None: the shipped one, `shell_ramp.resolve`)."""
-        return None if self.ramp_table is None else self.ramp_table.table
+        return None if self.calibration is None else self.calibration.table
 
 
 @dataclass
@@ -178,7 +180,7 @@ def _laws(trace: Trace, options: Options, contact_um: float, radius: float) -> L
     assert cell is not None, "_no_laws first"
     if not trace.dish_known:
         cell = replace(cell, height_um=cell.height_um + (2.0 * radius - contact_um))
-    return read_laws(cell, options.errors)
+    return read_laws(cell, options.errors, None if options.calibration is None else options.calibration.oscillations)
 
 
 def _ramp_prior(trace: Trace, laws: Laws | str | None, t: np.ndarray, x: np.ndarray, f: np.ndarray,
@@ -243,10 +245,8 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
 
 
 def table_columns(options: Options) -> dict[str, str]:
-    """The row's columns of the shell ramp table its fits read: `shell_table_source` (the file
-    `--calibration` names, or "shipped") and `shell_table_sha256` (`shell_ramp.TableInUse`)."""
-    used = options.ramp_table if options.ramp_table is not None else in_use(None)
-    return {"shell_table_source": used.source, "shell_table_sha256": used.sha256}
+    """The row's columns of the calibration parts it read (`TensionCalibration.columns`)."""
+    return (options.calibration if options.calibration is not None else shipped_parts()).columns()
 
 
 def _depth_warning(max_depth_um: float | None, fit: Any, x: np.ndarray, table_depth: float | None = None,
@@ -421,11 +421,11 @@ def _analyse_beside(traces: list[Trace], options: Options) -> tuple[dict[str, An
 def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
-    (exit 2, nothing written) when nothing could be analysed. The shell's ramp table is read
-    first (`Options.ramp_table`, else the shipped one)."""
+    (exit 2, nothing written) when nothing could be analysed. The calibration parts are read
+    first (`Options.calibration`, else the shipped ones)."""
     from outputs.ownership import OutputDir
-    if options.ramp_table is None and (options.model == "shell" or options.power_law):
-        options = replace(options, ramp_table=in_use(None))
+    if options.calibration is None and (options.model == "shell" or options.power_law):
+        options = replace(options, calibration=shipped_parts())
     traces, skipped = read(paths, options)
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:

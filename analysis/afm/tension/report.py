@@ -38,7 +38,7 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
-           "warning", "shell_table_source", "shell_table_sha256"
+           "warning", "shell_table_source", "shell_table_sha256", "prior_calibration_source"
            ) + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv

@@ -14,26 +14,17 @@ held at the table's edges). A cell with K_B = 0 is the droplet, exactly.
 
 The table is the calibration bundle's (`CalibrationFile.shell_ramp`, the one loader
 `analysis.calibration.file.load_calibration`), passed down the reading as an argument
-(`shell_fit.Fixed.table`, `ShellFit.table`); None stands for the shipped bundle's, resolved
-here alone (`resolve`). `in_use` is the table `cortex afm tension --calibration` reads: the
-bundle's `ramp_table` part where its manifest names one, else the shipped bundle's, with
-where it came from and the SHA-256 of its file (the rows' `shell_table` columns).
+(`shell_fit.Fixed.table`, `ShellFit.table`; `cortex afm tension --calibration`'s is chosen by
+`tension.calibration_parts`); None stands for the shipped bundle's, resolved here alone (`resolve`).
 """
 
-import hashlib
-from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from analysis.calibration.ramp_table import ShellTable
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
-
-if TYPE_CHECKING:
-    from analysis.calibration.file import CalibrationFile
 
 
 def force_nN(depth_um: npt.ArrayLike, radius_um: float, tension_mN_per_m: float, bulk_mN_per_m: float,
@@ -59,25 +50,3 @@ def shipped() -> ShellTable:
     """The shell ramp table of the shipped calibration file (read once, by its one loader)."""
     from analysis.calibration.file import load_calibration
     return load_calibration(None).shell_ramp
-
-
-@dataclass(frozen=True)
-class TableInUse:
-    """The shell ramp table a reading uses, where it came from ("shipped", or the path of the
-    file a `--calibration` bundle names) and the SHA-256 of that file (first 16 hex digits)."""
-
-    table: ShellTable
-    source: str
-    sha256: str
-
-
-def in_use(bundle: "CalibrationFile | None") -> TableInUse:
-    """The table of `bundle` (None: the shipped bundle): its `ramp_table` part where its manifest
-    names one (its own file, or "shipped"), else the shipped bundle's (module doc); InputError
-    (one line) where the part it names is missing or malformed."""
-    from analysis.calibration.file import load_calibration
-    if bundle is None or "ramp_table" not in bundle.sources:
-        bundle = load_calibration(None)
-    table = bundle.shell_ramp
-    digest = hashlib.sha256(Path(bundle.files["ramp_table"]).read_bytes()).hexdigest()[:16]
-    return TableInUse(table, bundle.sources["ramp_table"], digest)
