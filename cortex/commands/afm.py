@@ -487,7 +487,8 @@ def tension(args: argparse.Namespace) -> int:
                       max_depth_um=args.max_depth_um, ramp_speed_um_per_s=args.ramp_speed_um_per_s,
                       power_law=args.power_law,
                       import_options=import_options(args, contact_heights=True, untimed_ramps=True),
-                      errors=measurement_errors(args, DRAWS), calibration=tension_calibration(bundle) if bundle else None)
+                      errors=measurement_errors(args, DRAWS),
+                      calibration=tension_calibration(bundle) if bundle else None)
     result = run(args.files, options, args.out)
     if args.json:
         finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731

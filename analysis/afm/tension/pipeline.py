@@ -17,7 +17,8 @@ analyse  per recording, in order until its first retract: every approach ramp
          window capped at the shell table's depth and
          `--max-depth-um`; the shell ramp table and the priors' calibration those
          of `Options.calibration` (`calibration_parts`: `--calibration`'s, else the
-         shipped ones), the one table every fit of the shell reads; intervals `shell_fit.shell_interval`; the apparent
+         shipped ones), the one table every fit of the shell reads; intervals
+         `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
          or a tension-only one (`ramp`, with the other for comparison, each on
@@ -68,8 +69,8 @@ from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
-from analysis.calibration.ramp_table import ShellTable
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
+from analysis.calibration.ramp_table import ShellTable
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.beside import beside
 from common.errors import InputError
@@ -214,7 +215,8 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
     else:
         fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um, prior=pr,
                                 table=options.table)
-    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m, pr, options.table)   # the volume refits and nested windows: at the fit's
+    # the volume refits and nested windows: at the fit's K̃_S, on the same table
+    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m, pr, options.table)
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
     verdict, why = depth_test(rows)

@@ -3,8 +3,8 @@
 A recording that also holds oscillation segments has already told its cortex's moduli: the
 viscoelastic reading of `cortex afm analyze` (`analysis.afm.analyze.measure` and `inverted`,
 then `analysis.afm.rheology.per_frequency`, relaxed state, standard bending, the shipped
-calibration or the bundle `--calibration` names, `calibration_parts`) gives per frequency θ = (ln |K_B*|, ln K̃_S*, δ_B, δ_S) and its bootstrap draws. Per
-draw and for the point, the relaxation laws K_B(t) = K_B(1 s) t^-β_B and K_S(t) = K_S(1 s)
+calibration or the bundle `--calibration` names, `calibration_parts`) gives per frequency
+θ = (ln |K_B*|, ln K̃_S*, δ_B, δ_S) and its bootstrap draws. Per draw and for the point, the relaxation laws K_B(t) = K_B(1 s) t^-β_B and K_S(t) = K_S(1 s)
 t^-β_S (`rheology.power_law`: the slope of ln |K*| in ln f, one frequency β = 2δ/π;
 `rheology.modulus_1s`: K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β)).
 

@@ -200,7 +200,8 @@ def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Se
 
     def model(p: np.ndarray) -> np.ndarray:
         k = p[3] if free_k else kb
-        return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde, fixed.table)
+        return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde,
+                                                               fixed.table)
 
     def residuals(p: np.ndarray) -> np.ndarray:
         r = model(p) - f
