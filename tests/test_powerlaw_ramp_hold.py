@@ -6,7 +6,7 @@ closed forms and cells made by the time-domain shell (`studies.powerlaw_ramps`);
 import numpy as np
 import pytest
 
-from analysis.afm.tension import powerlaw_shell, shell_ramp
+from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, shell_ramp
 from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
 from common.errors import InputError
 from studies.powerlaw_ramps import Cell, recording
@@ -39,6 +39,27 @@ def test_surrogate_is_the_elastic_shell_at_beta_zero_and_scales_with_speed():
     slow = powerlaw_shell.elastic_force_nN(depth / 0.5, depth, R, bulk, beta, gamma / bulk, shear)
     fast = powerlaw_shell.elastic_force_nN(depth / 2.0, depth, R, bulk * 0.25 ** beta, beta, gamma / bulk, shear)
     np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
+
+
+def test_the_model_of_a_constant_force_hold_is_the_recording_at_the_truth():
+    """A constant-force pause is modelled as held (the force the model's ramp reached kept, its
+    plate creeping): at the cell's truth the model's force at the recorded gaps is the noise-free
+    recording's on its pause, while a cortex that relaxes less (β 0.15), which creeps less, reads
+    ever more above the recorded force the longer it holds (its gap short of the recorded creep)."""
+    cell = Cell(6.0, 0.8, 10.0, 0.5, 0.25, 1.5, 0.14 * 6.0, hold_s=4.0, noise_nN=0.0, hold_kind="force")
+    made = recording(cell)
+    history = powerlaw_simulated.RampHold(made.time_s, made.x_um, made.ramp_samples, "force")
+    at_truth = powerlaw_simulated.force_nN(history, 2 * cell.radius_um, cell.radius_um, cell.tension_mN_per_m,
+                                           cell.bulk_1s_mN_per_m, cell.beta, cell.shear_tilde)
+    pause = slice(made.ramp_samples, None)
+    creep = made.x_um[made.ramp_samples - 1] - made.x_um[-1]
+    assert creep > 0.05                                              # the plate crept
+    assert np.ptp(made.force_nN[pause]) < 1e-6                      # at constant force
+    np.testing.assert_allclose(at_truth[pause], made.force_nN[pause], atol=1e-3 * made.force_nN[-1])
+    firmer = powerlaw_simulated.force_nN(history, 2 * cell.radius_um, cell.radius_um, cell.tension_mN_per_m,
+                                         cell.bulk_1s_mN_per_m, 0.15, cell.shear_tilde)
+    excess = firmer - made.force_nN
+    assert excess[-1] > excess[made.ramp_samples] + 0.05 * made.force_nN[-1]
 
 
 # cells of the bench's ranges: a constant-height hold, a constant-force hold, a ramp alone
