@@ -88,6 +88,21 @@ def test_power_law_cells_read_their_tension(cell):
 
 
 @pytest.mark.slow
+def test_a_constant_force_hold_of_a_fast_relaxing_cell_reads_its_tension():
+    """A constant-force hold of a cell with β 0.26 and a low tension (γ_a/K_B(1 s) 0.02),
+    whose creep through binned knots read γ_a 2.4×: γ_a within 10 % inside its interval, β
+    within 0.05."""
+    cell = Cell(5.6, 0.39, 19.3, 0.53, 0.26, 1.09, 0.14 * 5.6, hold_s=10.0, tilt_nN_per_um=0.06, hold_kind="force")
+    made = recording(cell, seed=1)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde,
+                        "force")
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.tension_mN_per_m == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert lo <= cell.tension_mN_per_m <= hi
+    assert fit.beta == pytest.approx(cell.beta, abs=0.05)
+
+
+@pytest.mark.slow
 def test_an_elastic_cell_reads_as_beta_zero():
     """The elastic shell is the power law's β = 0: a ramp and hold of an elastic cortex (the
     time-domain shell at β = 0) reads β ≈ 0, K_B within 15 % and γ_a inside its interval."""

@@ -4,11 +4,9 @@
 The pause is taken as a constant-height hold unless it looks like a constant-force one
 (its height x drifts by more than FORCE_HOLD_DRIFT_UM between its first and last tenth
 while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says which
-(none: no pause after the ramp), and `power_law_note` warns of a constant-force one (its
-reading is not yet reliable, docs/tension.md). K̃_S is the given
-`--shear-ratio`, else SHEAR_TILDE (`power_law_shear_ratio_source`). A ramp without
-sample times, or one the fit cannot read, gets the reason in `power_law_note` and no
-values.
+(none: no pause after the ramp). K̃_S is the given `--shear-ratio`, else SHEAR_TILDE
+(`power_law_shear_ratio_source`). A ramp without sample times, or one the fit cannot
+read, gets the reason in `power_law_note` and no values.
 """
 
 from typing import Any
@@ -54,8 +52,6 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
         kind = hold_kind(pause[1], pause[2], baseline_noise(f)[1])
         t, x, f = (np.r_[a, b] for a, b in zip((t, x, f), pause))
         out["power_law_hold"] = kind
-        if kind == "force":
-            out["power_law_note"] = "constant-force hold: read through its creep, biased up to +30 % on known cells"
     if not np.all(np.isfinite(t)):
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
