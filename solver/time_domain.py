@@ -20,7 +20,8 @@ the history's prestress, linear in the strain,
     Σ_e 4π r̄0_e dS_e [σ_hist,a,e (e1+e2) + σ_hist,s,e (e1-e2)],   σ_hist = Σ_j (d_j h_j - K_j g_j a_old)
 
 (`solver.fast.kernel`'s per-element `pa`, `ps`). One equilibrium per step (`step`): the fast
-solver's contact search with its retreat and Newton iteration (exact Hessian), ended on the
+solver's contact search with its retreat, its tangent's touching label (`predict`: a step's
+start sits next to its answer) and Newton iteration (exact Hessian), ended on the
 admissible contact label of lowest energy (`solver.fast.lowest_contact`) where the plate presses
 deeper than it has before (a ramp into new depth: where a continued search and a compression from
 the reference can end on two labels), else on the continued search's (holds, oscillations and
