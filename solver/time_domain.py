@@ -234,7 +234,8 @@ class TimeShell:
         lag.terms = lag.terms._replace(pa=pa, ps=ps)
         history = (self.labels(self._label), pa[lag.nd:].copy(), ps[lag.nd:].copy()) \
             if self.contact_history else NO_HISTORY
-        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history, second=h_um < self._deepest_um)
+        u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history, second=h_um < self._deepest_um,
+                              predict=True)
         if self.contact_history:      # the prestress of the label found (the search's last may differ)
             carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):

@@ -6,7 +6,7 @@ closed forms and cells made by the time-domain shell (`studies.powerlaw_ramps`);
 import numpy as np
 import pytest
 
-from analysis.afm.tension import powerlaw_shell, shell_ramp
+from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, shell_ramp
 from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
 from common.errors import InputError
 from studies.powerlaw_ramps import Cell, recording
@@ -41,6 +41,27 @@ def test_surrogate_is_the_elastic_shell_at_beta_zero_and_scales_with_speed():
     np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
 
 
+def test_the_model_of_a_constant_force_hold_is_the_recording_at_the_truth():
+    """A constant-force pause is modelled as held (the force the model's ramp reached kept, its
+    plate creeping): at the cell's truth the model's force at the recorded gaps is the noise-free
+    recording's on its pause, while a cortex that relaxes less (β 0.15), which creeps less, reads
+    ever more above the recorded force the longer it holds (its gap short of the recorded creep)."""
+    cell = Cell(6.0, 0.8, 10.0, 0.5, 0.25, 1.5, 0.14 * 6.0, hold_s=4.0, noise_nN=0.0, hold_kind="force")
+    made = recording(cell)
+    history = powerlaw_simulated.RampHold(made.time_s, made.x_um, made.ramp_samples, "force")
+    at_truth = powerlaw_simulated.force_nN(history, 2 * cell.radius_um, cell.radius_um, cell.tension_mN_per_m,
+                                           cell.bulk_1s_mN_per_m, cell.beta, cell.shear_tilde)
+    pause = slice(made.ramp_samples, None)
+    creep = made.x_um[made.ramp_samples - 1] - made.x_um[-1]
+    assert creep > 0.05                                              # the plate crept
+    assert np.ptp(made.force_nN[pause]) < 1e-6                      # at constant force
+    np.testing.assert_allclose(at_truth[pause], made.force_nN[pause], atol=1e-3 * made.force_nN[-1])
+    firmer = powerlaw_simulated.force_nN(history, 2 * cell.radius_um, cell.radius_um, cell.tension_mN_per_m,
+                                         cell.bulk_1s_mN_per_m, 0.15, cell.shear_tilde)
+    excess = firmer - made.force_nN
+    assert excess[-1] > excess[made.ramp_samples] + 0.05 * made.force_nN[-1]
+
+
 # cells of the bench's ranges: a constant-height hold, a constant-force hold, a ramp alone
 CELLS = [Cell(6.5, 0.94, 7.9, 1.68, 0.17, 0.38, 0.14 * 6.5, hold_s=23.0, tilt_nN_per_um=0.05),
          Cell(8.2, 0.37, 5.5, 0.11, 0.26, 2.45, 0.14 * 8.2, hold_s=22.0, tilt_nN_per_um=0.1, hold_kind="force"),
@@ -64,6 +85,21 @@ def test_power_law_cells_read_their_tension(cell):
         assert fit.hold
         assert fit.beta == pytest.approx(cell.beta, abs=0.05)
         assert fit.bulk_1s_mN_per_m == pytest.approx(cell.bulk_1s_mN_per_m, rel=0.25)
+
+
+@pytest.mark.slow
+def test_a_constant_force_hold_of_a_fast_relaxing_cell_reads_its_tension():
+    """A constant-force hold of a cell with β 0.26 and a low tension (γ_a/K_B(1 s) 0.02),
+    whose creep through binned knots read γ_a 2.4×: γ_a within 10 % inside its interval, β
+    within 0.05."""
+    cell = Cell(5.6, 0.39, 19.3, 0.53, 0.26, 1.09, 0.14 * 5.6, hold_s=10.0, tilt_nN_per_um=0.06, hold_kind="force")
+    made = recording(cell, seed=1)
+    fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde,
+                        "force")
+    lo, hi = fit.tension_interval_mN_per_m
+    assert fit.tension_mN_per_m == pytest.approx(cell.tension_mN_per_m, rel=0.10)
+    assert lo <= cell.tension_mN_per_m <= hi
+    assert fit.beta == pytest.approx(cell.beta, abs=0.05)
 
 
 @pytest.mark.slow
@@ -161,3 +197,26 @@ def test_an_oscillation_prior_gives_the_shear_ratio(stiff_shear_cell):
     assert row["power_law_shear_ratio_source"] == "oscillation prior"
     assert row["power_law_shear_ratio"] == row["power_law_shear_ratio_lo95"] == 1.5
     assert row["power_law_tension_mN_per_m"] == pytest.approx(cell.tension_mN_per_m, rel=0.03)
+
+
+def test_the_calibrations_table_reaches_the_surrogate_given_or_profiled(monkeypatch):
+    """`--calibration`'s shell ramp table is the one the surrogate reads, K̃_S given or profiled
+    (the fit stopped at the surrogate: only the table's path is checked here)."""
+    from analysis.afm.tension import powerlaw_fit
+    from analysis.afm.tension.powerlaw_row import power_law_columns
+    from common.errors import SolverError
+    radius, contact = 6.5, 13.0
+    x = np.linspace(contact + 0.5, contact - 0.9, 300)                       # a 1 µm/s approach, 0.9 µm deep
+    f = shell_ramp.force_nN(np.clip(contact - x, 0.0, None), radius, 0.9, 8.0, 1.0 / 3.0)
+    ramp = (np.linspace(0.0, 1.4, x.size), x, f + np.random.default_rng(3).normal(0.0, 0.02, x.size))
+    mine, seen = shell_ramp.shipped(), []
+
+    def stop(*args, **kwargs):
+        seen.append(args[5] if len(args) > 5 else kwargs.get("table"))
+        raise SolverError("stopped at the surrogate")
+
+    monkeypatch.setattr(powerlaw_fit, "fit_surrogate", stop)
+    for shear in (1.0 / 3.0, None):
+        row = power_law_columns(ramp, None, radius, shear, None, mine)
+        assert row["power_law_note"] == "not read: stopped at the surrogate"
+    assert len(seen) == 2 and all(t is mine for t in seen)

@@ -103,3 +103,29 @@ def test_a_jpk_archive_with_modulations_and_the_option_that_switches_them_off(re
     assert off["prior_note"] == "--no-oscillation-priors" and off["prior_bulk_modulus_mN_per_m"] is None
     for key in ("prior_bulk_modulus_mN_per_m", "prior_shear_ratio", "tension_mN_per_m"):
         assert on[key] == pytest.approx(direct[key], rel=0.02), key
+
+
+def test_a_bundles_viscoelastic_table_reads_the_oscillations(recording, tmp_path):
+    """A bundle naming a modified complex-modulus table (ln C + 0.5 δ_B) gives other priors than the
+    shipped one, and the row names the bundle (`prior_calibration_source`); the shell ramp table,
+    which it names unchanged, gives the same hash."""
+    import shutil
+
+    from analysis.afm.tension.calibration_parts import tension_calibration
+    from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
+    both, _, _ = recording
+    shutil.copy(shipped_path(), tmp_path / "calibration.json")
+    shutil.copy(shipped_path(RAMP_TABLE_NAME), tmp_path / RAMP_TABLE_NAME)
+    doc = json.loads(shipped_path(TABLE_NAME).read_text())
+    ln_c = np.asarray(doc["ln_c_real"], float)
+    ln_c[..., [tuple(t) for t in doc["terms"]].index((1, 0))] += 0.5
+    doc["ln_c_real"] = ln_c.tolist()
+    (tmp_path / TABLE_NAME).write_text(json.dumps(doc))
+    mine = _row(both, calibration=tension_calibration(load_calibration(tmp_path / "calibration.json")))
+    shipped = _row(both)
+    assert (mine["prior_calibration_source"], shipped["prior_calibration_source"]) == (
+        str(tmp_path / "calibration.json"), "shipped")
+    assert mine["prior_source"] == "oscillations"
+    assert abs(mine["prior_bulk_modulus_mN_per_m"] / shipped["prior_bulk_modulus_mN_per_m"] - 1.0) > 0.01
+    assert mine["shell_table_sha256"] == shipped["shell_table_sha256"]
+    assert mine["shell_table_source"] == str(tmp_path / RAMP_TABLE_NAME)

@@ -92,13 +92,23 @@ class ShellTable:
 
 
 def from_document(doc: dict[str, Any], where: str = "shell ramp table") -> ShellTable:
-    """A `ShellTable` from the table's JSON dict (`shell_table.from_store`); InputError if it has holes."""
-    depths, gammas, shears, radii = (np.asarray(doc[k], float)
-                                     for k in ("depth_over_radius", "gamma_tilde", "shear_tilde", "radius_um"))
-    f = np.asarray(doc["force_over_kb_r"], float)
+    """A `ShellTable` from the table's JSON dict (`shell_table.from_store`); InputError (one line) if
+    a key is missing, an axis is not increasing and positive, or the forces have holes."""
+    keys = ("depth_over_radius", "gamma_tilde", "shear_tilde", "radius_um", "force_over_kb_r", "d0")
+    missing = [k for k in keys if k not in doc]
+    if missing:
+        raise InputError(f"{where}: not a shell ramp table (no {', '.join(missing)}; rebuild: make ramp-table)")
+    try:
+        depths, gammas, shears, radii, f = (np.asarray(doc[k], float) for k in keys[:5])
+        d0 = float(doc["d0"])
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: the shell ramp table's axes and forces must be numbers") from None
+    axes = (depths, gammas, shears, radii)
+    if any(a.ndim != 1 or a.size < 4 or not np.all(np.diff(a) > 0) for a in axes) or min(a[0] for a in axes[1:]) <= 0:
+        raise InputError(f"{where}: the shell ramp table's axes must be increasing (at least 4 points each), "
+                         "gamma_tilde, shear_tilde and radius_um positive")
     if not np.all(np.isfinite(f)) or f.shape != (depths.size, gammas.size, shears.size, radii.size):
         raise InputError(f"{where}: the forces do not fill the table's axes")
-    d0 = float(doc["d0"])
     e = f - gammas[None, :, None, None] * unit_force_per_tension(depths)[:, None, None, None]
     q = e / elastic_scale(depths, d0)[:, None, None, None]
     spline = RegularGridInterpolator((depths, np.log(gammas), np.log(shears), np.log(radii)), q, method="cubic")

@@ -225,6 +225,12 @@ def _add_tension(s: Commands) -> None:
                         "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else the oscillations' prior, else "
                         "profiled over 0.1-2 with its interval); seconds to a minute of CPU a ramp")
     add_error_options(t, "a pause's height")
+    t.add_argument("--calibration", metavar="CAL.json",
+                   help="calibration bundle (the format `afm analyze` takes, docs/calibration.md): the shell ramp "
+                        "table its manifest names (ramp_table) replaces the shipped one, and where it names an "
+                        "emulator and a viscoelastic table they read the oscillations for the priors; a part it "
+                        "does not name is the shipped one. The rows' shell_table_source, shell_table_sha256 and "
+                        "prior_calibration_source say which")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
     t.add_argument("--json", action="store_true", help="one JSON object: rows (the columns of tension.csv), "
@@ -473,13 +479,17 @@ def tension(args: argparse.Namespace) -> int:
 
     from analysis.afm.tension.pause import DRAWS
     from analysis.afm.tension.pipeline import Options, run
+    from analysis.afm.tension.calibration_parts import tension_calibration
+    from analysis.calibration.file import load_calibration
     from common.errors import EXIT_DONE, EXIT_SOME_FAILED
+    bundle = load_calibration(args.calibration) if args.calibration else None
     options = Options(model=args.model, oscillation_priors=not args.no_oscillation_priors,
                       shear_tilde=args.shear_ratio, bulk_mN_per_m=args.bulk_mN_per_m,
                       max_depth_um=args.max_depth_um, ramp_speed_um_per_s=args.ramp_speed_um_per_s,
                       power_law=args.power_law,
                       import_options=import_options(args, contact_heights=True, untimed_ramps=True),
-                      errors=measurement_errors(args, DRAWS))
+                      errors=measurement_errors(args, DRAWS),
+                      calibration=tension_calibration(bundle) if bundle else None)
     result = run(args.files, options, args.out)
     if args.json:
         finite = lambda v: v if not isinstance(v, float) or v == v and abs(v) != float("inf") else None  # noqa: E731

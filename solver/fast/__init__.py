@@ -127,24 +127,24 @@ def contact_at_least(u: npt.NDArray[np.float64]) -> bool:
 NO_HISTORY = (np.empty(0), np.empty(0), np.empty(0))
 
 
-def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
+def _contact(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY, predict=False):
     """The contact label: the admissible local minimum of E*(l), the
     equilibrium energy at fixed l (compiled, one call:
     `solver.fast.contact.contact`, whose docstring has the search and
-    `retreat`, and `history`: the stored history that moves with the material). Returns
+    `retreat`, `predict`, and `history`: the stored history that moves with the material). Returns
     the solution and the Newton iterations; SolverError (or LinAlgError for a
     singular tangent system) as the Python loop raised them."""
-    return _search(lag, u, zp, tol, maxit, retreat, history)[:2]
+    return _search(lag, u, zp, tol, maxit, retreat, history, predict)[:2]
 
 
-def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
+def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY, predict=False):
     """`_contact`, and whether its answer is the touching label (held by the
     plate, G > 0 there)."""
     labels, shape = lag.ref.arrays()
     status, u, g, iterations, last, lo, hi = contact.contact(
         np.asarray(u, dtype=float), float(zp), labels, shape, lag.terms, lag.band_order, lag.keep,
         lag.N, float(lag.V0), float(lag.force_scale), float(tol), int(maxit), NEWTON_MAXIT, bool(retreat),
-        history)
+        bool(predict), history)
     if status == contact.FOUND:
         return u, iterations, last == contact.HELD
     if status == contact.TANGENT_SINGULAR:
@@ -157,7 +157,7 @@ def _search(lag, u, zp, tol=1e-6, maxit=40, retreat=False, history=NO_HISTORY):
 
 def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp: float,
                    retreat: bool = True, history: tuple = NO_HISTORY,
-                   second: bool = True) -> tuple[npt.NDArray[np.float64], int]:
+                   second: bool = True, predict: bool = False) -> tuple[npt.NDArray[np.float64], int]:
     """The contact search from u at z_p (`_contact`), ended on the admissible
     local minimum of E*(l) of lowest energy. The search from a label below
     the answer (a continued step's) ends on the least admissible label, where
@@ -171,14 +171,15 @@ def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp
     material (`_contact`) the first search's answer is kept: E* of two labels
     would need the history carried to each; `second` False keeps it too
     (the caller's policy: `solver.time_domain` asks only where the plate
-    presses deeper than before)."""
-    u, iterations, held = _search(lag, u, zp, retreat=retreat, history=history)
+    presses deeper than before). `predict`: both searches take the tangent's
+    touching label (`solver.fast.contact`)."""
+    u, iterations, held = _search(lag, u, zp, retreat=retreat, history=history, predict=predict)
     if not (held and second) or history[0].size:
         return u, iterations                    # G = 0, or the least label
     v = u.copy()
     v[-2] = max(_predicted_label(lag, shell, 2.0 * zp), u[-2] + SECOND_START)
     try:
-        v, more = _contact(lag, v, zp, retreat=retreat)
+        v, more = _contact(lag, v, zp, retreat=retreat, predict=predict)
     except (SolverError, np.linalg.LinAlgError):
         return u, iterations
     iterations += more

@@ -15,7 +15,10 @@ analyse  per recording, in order until its first retract: every approach ramp
          its heights from the first ramp's contact without a dish reference,
          `_ramp_prior` per ramp; off with Options.oscillation_priors False),
          window capped at the shell table's depth and
-         `--max-depth-um`; intervals `shell_fit.shell_interval`; the apparent
+         `--max-depth-um`; the shell ramp table and the priors' calibration those
+         of `Options.calibration` (`calibration_parts`: `--calibration`'s, else the
+         shipped ones), the one table every fit of the shell reads; intervals
+         `shell_fit.shell_interval`; the apparent
          tensions of the droplet and small-deformation readings on the same
          window beside it; each model against the window's depth, `depths`),
          or a tension-only one (`ramp`, with the other for comparison, each on
@@ -55,7 +58,8 @@ import numpy as np
 from analysis.afm.cell import Cell
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
-from analysis.afm.tension import shell_ramp
+from analysis.afm.tension.calibration_parts import TensionCalibration, shipped_parts
+from analysis.afm.tension.shell_ramp import resolve
 from analysis.afm.tension.depths import depth_rows, depth_test
 from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
 from analysis.afm.tension.priors import columns as prior_columns
@@ -66,6 +70,7 @@ from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
+from analysis.calibration.ramp_table import ShellTable
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.beside import beside
 from common.errors import InputError
@@ -79,7 +84,8 @@ MIN_FREE = 10            # samples above the contact to read a ramp's speed from
 class Options:
     """What to analyse with: the ramp model (and for the shell: whether the recording's
     oscillations give it priors, K̃_S, K_B if known, the deepest deformation), how to read the files (one of the volume sources, the dish reference; heights
-    refer to the approach's contact point without one), the errors."""
+    refer to the approach's contact point without one), the errors, and the calibration parts
+    (`calibration_parts`: the shell ramp table, the priors' bundle; None: the shipped ones)."""
 
     model: str = "shell"
     oscillation_priors: bool = True           # the shell's priors from the recording's oscillations (`priors`)
@@ -90,6 +96,12 @@ class Options:
     power_law: bool = False                   # also the power-law shell's ramp-and-hold reading (`powerlaw_row`)
     import_options: ImportOptions = ImportOptions(contact_heights=True, untimed_ramps=True)
     errors: MeasurementErrors = TENSION_ERRORS
+    calibration: TensionCalibration | None = None
+
+    @property
+    def table(self) -> ShellTable | None:
+        """The shell ramp table every fit reads (None: the shipped one, `shell_ramp.resolve`)."""
+        return None if self.calibration is None else self.calibration.table
 
 
 @dataclass
@@ -169,7 +181,7 @@ def _laws(trace: Trace, options: Options, contact_um: float, radius: float) -> L
     assert cell is not None, "_no_laws first"
     if not trace.dish_known:
         cell = replace(cell, height_um=cell.height_um + (2.0 * radius - contact_um))
-    return read_laws(cell, options.errors)
+    return read_laws(cell, options.errors, None if options.calibration is None else options.calibration.oscillations)
 
 
 def _ramp_prior(trace: Trace, laws: Laws | str | None, t: np.ndarray, x: np.ndarray, f: np.ndarray,
@@ -180,7 +192,7 @@ def _ramp_prior(trace: Trace, laws: Laws | str | None, t: np.ndarray, x: np.ndar
     laws = laws if laws is not None else (_no_laws(trace, options) or None)
     if isinstance(laws, str):
         return (None, laws), laws
-    cap = shell_ramp.shipped().max_depth * radius
+    cap = resolve(options.table).max_depth * radius
     cap = cap if options.max_depth_um is None else min(cap, options.max_depth_um)
     drop = fit_ramp(x, f, radius, "droplet", cap_um=cap)
     laws = _laws(trace, options, drop.contact_um, radius) if laws is None else laws
@@ -198,11 +210,13 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
     window), with the priors `ramp_prior` (`_ramp_prior`: the prior or None and why)."""
     pr = ramp_prior[0]
     if options.shear_tilde is not None:
-        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m, pr),
+        fit = fit_shell(x, f, radius, Fixed(options.shear_tilde, options.bulk_mN_per_m, pr, options.table),
                         cap_um=options.max_depth_um)
     else:
-        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um, prior=pr)
-    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m, pr)   # the volume refits and nested windows: at the fit's
+        fit = fit_unknown_shear(x, f, radius, options.bulk_mN_per_m, cap_um=options.max_depth_um, prior=pr,
+                                table=options.table)
+    # the volume refits and nested windows: at the fit's K̃_S, on the same table
+    fixed = Fixed(fit.shear_tilde, options.bulk_mN_per_m, pr, options.table)
     t_lo, t_hi, k_lo, k_hi = shell_interval(fit, x, f, trace.volume_um3, fixed, options.errors)
     rows = depth_rows(x, f, radius, fit, fixed)
     verdict, why = depth_test(rows)
@@ -227,21 +241,27 @@ def _shell_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: 
            **_window(fit, radius), "compare_model": "droplet",
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan"),
-           **prior_columns(*ramp_prior)}
-    row["warning"] = _depth_warning(options.max_depth_um, fit, x, shell_ramp.shipped().max_depth * radius)
+           **prior_columns(*ramp_prior), **table_columns(options)}
+    row["warning"] = _depth_warning(options.max_depth_um, fit, x, resolve(options.table).max_depth, radius)
     return row, ("approach", index, x, f, fit, cmp, rows)
 
 
-def _depth_warning(max_depth_um: float | None, fit: Any, x: np.ndarray, table_um: float | None) -> str:
+def table_columns(options: Options) -> dict[str, str]:
+    """The row's columns of the calibration parts it read (`TensionCalibration.columns`)."""
+    return (options.calibration if options.calibration is not None else shipped_parts()).columns()
+
+
+def _depth_warning(max_depth_um: float | None, fit: Any, x: np.ndarray, table_depth: float | None = None,
+                   radius: float = float("nan")) -> str:
     """The warning when `--max-depth-um` exceeds the depth the ramp reaches below its contact (or
-    the shell table's depth `table_um`), '' otherwise: the window ends there, not at the option."""
+    the shell table's deepest δ/R `table_depth` times R), '' otherwise: the window ends there, not at the option."""
     if max_depth_um is None:
         return ""
     reached = float(fit.contact_um - np.min(x))
     if reached < max_depth_um:
         why = f"the ramp reaches {reached:.3g} um below its contact"
-    elif table_um is not None and table_um < max_depth_um:
-        why = f"the shell table ends at {table_um:.3g} um (δ/R = {shell_ramp.shipped().max_depth:.2g})"
+    elif table_depth is not None and table_depth * radius < max_depth_um:
+        why = f"the shell table ends at {table_depth * radius:.3g} um (δ/R = {table_depth:.2g})"
     else:
         return ""
     return f"--max-depth-um {max_depth_um:g} exceeds the depth of the data: {why}; the window is {fit.depth_um:.3g} um deep"
@@ -289,7 +309,7 @@ def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: O
            **_window(fit, radius), "compare_model": other,
            "compare_tension_mN_per_m": cmp.tension_mN_per_m if cmp else float("nan"),
            "compare_contact_um": cmp.contact_um if cmp else float("nan"), "compare_r2": cmp.r2 if cmp else float("nan"),
-           "warning": _depth_warning(options.max_depth_um, fit, x, None)}
+           "warning": _depth_warning(options.max_depth_um, fit, x)}
     return row, ("approach", index, x, f, fit, cmp, None)
 
 
@@ -361,7 +381,9 @@ def analyse(trace: Trace, options: Options) -> Analysed:
                 if options.power_law:
                     after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
                     pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
-                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde, pr[0]))
+                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde, pr[0],
+                                                 options.table))
+                    row.update(table_columns(options))
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)
             else:
@@ -402,8 +424,11 @@ def _analyse_beside(traces: list[Trace], options: Options) -> tuple[dict[str, An
 def run(paths: Sequence[str | Path], options: Options = Options(), out: str | Path | None = None) -> dict[str, Any]:
     """Analyse FILES; with `out` write the table, figures and report there. Returns
     {"rows", "skipped", "table", "report"} (paths None without `out`); InputError
-    (exit 2, nothing written) when nothing could be analysed."""
+    (exit 2, nothing written) when nothing could be analysed. The calibration parts are read
+    first (`Options.calibration`, else the shipped ones)."""
     from outputs.ownership import OutputDir
+    if options.calibration is None and (options.model == "shell" or options.power_law):
+        options = replace(options, calibration=shipped_parts())
     traces, skipped = read(paths, options)
     folder = OutputDir(out) if out is not None else None        # refused now if not ours
     if folder is not None:

@@ -47,6 +47,7 @@ from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.powerlaw_simulated import RampHold
 from analysis.afm.tension.ramp import RampFit, fit_ramp
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
+from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
 Array = npt.NDArray[np.float64]
@@ -145,15 +146,17 @@ def samples(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
     return Samples(mean[0], mean[1], mean[2], count, ramp_points, t, x, n, edges, hold)
 
 
-def _surrogate(s: Samples, radius: float, shear: float, p: Array) -> Array:
-    """Weighted residuals of the surrogate at θ = (x0, F_b, s, γ_a, K_B(1 s), β)."""
+def _surrogate(s: Samples, radius: float, shear: float, p: Array, table: ShellTable | None = None) -> Array:
+    """Weighted residuals of the surrogate at θ = (x0, F_b, s, γ_a, K_B(1 s), β) on the shell ramp
+    table `table` (None: the shipped one)."""
     model = p[1] + p[2] * (s.x_um - p[0]) + powerlaw_shell.force_nN(s.time_s, p[0] - s.x_um, radius, p[3], p[4],
-                                                                    p[5], shear)
+                                                                    p[5], shear, table)
     return np.sqrt(s.count) * (model - s.force_nN)
 
 
-def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float) -> Array:
-    """θ of the surrogate's best fit from the starts (module doc)."""
+def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float,
+                  table: ShellTable | None = None) -> Array:
+    """θ of the surrogate's best fit from the starts (module doc), on the shell ramp table `table`."""
     lo = [-np.inf, -np.inf, -np.inf, 1e-4, 1e-3, 0.0]
     hi = [np.inf, np.inf, np.inf, np.inf, np.inf, BETA_MAX]
     best, best_cost = None, np.inf
@@ -161,7 +164,7 @@ def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_te
         for beta in START_BETA:
             p0 = np.array([x0, 0.0, 0.0, 0.5 * droplet_tension, kb * droplet_tension, beta])
             scale = [0.01, 0.01, 0.01, max(droplet_tension, 1e-3), max(kb * droplet_tension, 1e-2), 0.05]
-            res = least_squares(lambda p: _surrogate(s, radius, shear, p), p0, bounds=(lo, hi), x_scale=scale,
+            res = least_squares(lambda p: _surrogate(s, radius, shear, p, table), p0, bounds=(lo, hi), x_scale=scale,
                                 xtol=1e-10, ftol=1e-10)
             if res.cost < best_cost:
                 best, best_cost = res.x, res.cost
@@ -243,9 +246,11 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
     return samples(t, x, f, ramp_samples, drop.window, hold), drop
 
 
-def start(s: Samples, radius_um: float, shear: float, drop: RampFit) -> tuple[Solved, Array]:
-    """The simulator's fit at K̃_S `shear` from the surrogate's, and the surrogate's θ."""
-    p = fit_surrogate(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m)
+def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
+          table: ShellTable | None = None) -> tuple[Solved, Array]:
+    """The simulator's fit at K̃_S `shear` from the surrogate's (on the shell ramp table `table`,
+    None: the shipped one), and the surrogate's θ."""
+    p = fit_surrogate(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table)
     return solve(s, radius_um, shear, p[[0, 3, 4, 5]]), p
 
 
@@ -281,10 +286,12 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
-                  radius_um: float, shear_tilde: float = SHEAR_TILDE, hold: str = "height") -> PowerLawFit:
+                  radius_um: float, shear_tilde: float = SHEAR_TILDE, hold: str = "height",
+                  table: ShellTable | None = None) -> PowerLawFit:
     """The power-law shell fitted to a ramp (the first `ramp_samples` samples, ending at its
     deepest) and the hold after it (the rest; none: the ramp alone) at constant `hold`
-    ("height" or "force"), K̃_S `shear_tilde` given (`powerlaw_shear`: profiled)."""
+    ("height" or "force"), K̃_S `shear_tilde` given (`powerlaw_shear`: profiled); the surrogate
+    on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
-    best, p = start(s, radius_um, shear_tilde, drop)
+    best, p = start(s, radius_um, shear_tilde, drop, table)
     return conclude(s, radius_um, shear_tilde, best, p)

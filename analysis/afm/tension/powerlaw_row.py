@@ -4,14 +4,12 @@
 The pause is taken as a constant-height hold unless it looks like a constant-force one
 (its height x drifts by more than FORCE_HOLD_DRIFT_UM between its first and last tenth
 while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says which
-(none: no pause after the ramp), and `power_law_note` warns of a constant-force one (its
-reading is not yet reliable, docs/tension.md). K̃_S is the given `--shear-ratio` (GIVEN),
-else the oscillations' prior's K̃_S at the ramp's time scale taken as given (PRIOR,
+(none: no pause after the ramp). K̃_S is the given `--shear-ratio` (GIVEN), else the
+oscillations' prior's K̃_S at the ramp's time scale taken as given (PRIOR,
 `priors.Prior.shear_tilde`), else profiled (PROFILED, `powerlaw_shear`: its 95 % interval in
 `power_law_shear_ratio_lo95`/`_hi95`; given: both the value); `power_law_shear_ratio_source`
-says which. A ramp without
-sample times, or one the fit cannot read, gets the reason in `power_law_note` and no
-values.
+says which. A ramp without sample times, or one the fit cannot read, gets the reason in
+`power_law_note` and no values.
 """
 
 from typing import Any
@@ -22,6 +20,7 @@ from analysis.afm.tension.powerlaw_fit import PowerLawFit, fit_ramp_hold
 from analysis.afm.tension.powerlaw_shear import fit_ramp_hold_profiled
 from analysis.afm.tension.priors import Prior
 from analysis.afm.tension.ramp import baseline_noise
+from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
 FORCE_HOLD_DRIFT_UM = 0.02
@@ -42,18 +41,20 @@ def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
 
 
 def _fit(t: np.ndarray, x: np.ndarray, f: np.ndarray, end: int, radius_um: float, shear_tilde: float | None,
-         hold: str) -> PowerLawFit:
-    """The fit at the given K̃_S, or with it profiled (None)."""
+         hold: str, table: ShellTable | None) -> PowerLawFit:
+    """The fit at the given K̃_S, or with it profiled (None); `table` the shell ramp table."""
     if shear_tilde is None:
-        return fit_ramp_hold_profiled(t, x, f, end, radius_um, hold)
-    return fit_ramp_hold(t, x, f, end, radius_um, shear_tilde, hold)
+        return fit_ramp_hold_profiled(t, x, f, end, radius_um, hold, table)
+    return fit_ramp_hold(t, x, f, end, radius_um, shear_tilde, hold, table)
 
 
 def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
                       pause: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                      radius_um: float, shear_tilde: float | None, prior: Prior | None = None) -> dict[str, Any]:
+                      radius_um: float, shear_tilde: float | None, prior: Prior | None = None,
+                      table: ShellTable | None = None) -> dict[str, Any]:
     """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None),
-    K̃_S `shear_tilde` given, else the oscillations' `prior`'s, else profiled (module doc)."""
+    K̃_S `shear_tilde` given, else the oscillations' `prior`'s, else profiled (module doc);
+    `table` the shell ramp table of the surrogate (None: the shipped one)."""
     t, x, f = ramp
     source = GIVEN if shear_tilde is not None else PRIOR if prior is not None else PROFILED
     shear = shear_tilde if shear_tilde is not None else prior.shear_tilde if prior is not None else None
@@ -67,13 +68,11 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
         kind = hold_kind(pause[1], pause[2], baseline_noise(f)[1])
         t, x, f = (np.r_[a, b] for a, b in zip((t, x, f), pause))
         out["power_law_hold"] = kind
-        if kind == "force":
-            out["power_law_note"] = "constant-force hold: read through its creep, biased up to +30 % on known cells"
     if not np.all(np.isfinite(t)):
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
     try:
-        fit = _fit(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height")
+        fit = _fit(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height", table)
     except (InputError, SolverError) as err:
         out.update(power_law_note=f"not read: {err}")
         return out

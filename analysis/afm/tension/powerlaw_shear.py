@@ -27,6 +27,7 @@ from analysis.afm.tension.powerlaw_fit import PowerLawFit, Samples, Solved, conc
 from analysis.afm.tension.ramp import RampFit
 from analysis.afm.tension.shell_fit import SHEAR_TILDE
 from analysis.afm.tension.shell_shear import profile_bands
+from analysis.calibration.ramp_table import ShellTable
 
 SHEAR_RANGE = (0.1, 2.0)
 NODES = 5
@@ -40,13 +41,14 @@ def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float |
     return float(np.clip(-b / (2.0 * a), u[0], u[-1])) if a > 0 else None
 
 
-def _profile(s: Samples, radius_um: float, drop: RampFit) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
+def _profile(s: Samples, radius_um: float, drop: RampFit,
+             table: ShellTable | None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
     """{K̃_S: the simulator's fit there} over the nodes and the vertex (module doc), and the
-    surrogate's θ at the first node."""
+    surrogate's θ at the first node (on the shell ramp table `table`, None: the shipped one)."""
     nodes = [float(v) for v in np.geomspace(*SHEAR_RANGE, NODES)]
     first = int(np.argmin(np.abs(np.log(np.array(nodes) / SHEAR_TILDE))))
     done: dict[float, Solved] = {}
-    done[nodes[first]], p = start(s, radius_um, nodes[first], drop)
+    done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table)
     for k in range(first + 1, NODES):
         done[nodes[k]] = solve(s, radius_um, nodes[k], done[nodes[k - 1]].q)
     for k in range(first - 1, -1, -1):
@@ -61,11 +63,13 @@ def _profile(s: Samples, radius_um: float, drop: RampFit) -> tuple[dict[float, S
 
 
 def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
-                           ramp_samples: int, radius_um: float, hold: str = "height") -> PowerLawFit:
+                           ramp_samples: int, radius_um: float, hold: str = "height",
+                           table: ShellTable | None = None) -> PowerLawFit:
     """`powerlaw_fit.fit_ramp_hold` with K̃_S unknown: the fit at the best K̃_S of the profile,
-    with K̃_S's 95 % interval (`shear_band`) and γ_a's widened over it (module doc)."""
+    with K̃_S's 95 % interval (`shear_band`) and γ_a's widened over it (module doc); the
+    surrogate on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
-    done, p = _profile(s, radius_um, drop)
+    done, p = _profile(s, radius_um, drop, table)
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
     b = int(np.argmin(sse))

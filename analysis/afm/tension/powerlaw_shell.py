@@ -74,7 +74,7 @@ def strain(depth_over_radius: npt.ArrayLike, gamma_tilde: float, shear_tilde: fl
            table: ShellTable | None = None) -> tuple[Array, Array]:
     """(U, U') at deformations δ/R (module doc), held at the table's deepest δ/R beyond it;
     w(d) integrated on STRAIN_NODES depths (kept per cell)."""
-    t = shell_ramp.shipped() if table is None else table
+    t = shell_ramp.resolve(table)
     key = (id(t), float(gamma_tilde), float(shear_tilde), float(radius_um))
     if key not in _STRAINS:
         if len(_STRAINS) > 256:

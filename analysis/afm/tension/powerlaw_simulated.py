@@ -7,10 +7,14 @@ A cell of radius R, active tension γ_a, K_B(t) = K_B(1 s) t^-β, K_S(t) = K̃_S
 recording's samples (t_i, δ_i), δ = x0 - x, give the protocol: the cell is its
 stress-free droplet at the gap 2R - START_UM at the time t_c where δ passes START_UM
 (by the ramp's line), the plate ramps at the recorded speed v (the line of δ against t
-over the ramp's contact) to the deepest deformation, then follows the recorded height
-through the hold (`_hold_steps`: a constant-height hold is one Hold "height", a
-constant-force one the creep it recorded, as ramps between binned knots, whose force
-the model gives and the recording's constant force checks). It is simulated by
+over the ramp's contact) to the deepest deformation, then holds as the recording held
+(`_hold`): at constant height one Hold "height"; at constant force one Hold "force",
+which keeps the force the model's ramp reached and lets its plate creep, so that the
+input is the held force, not the recorded (noisy) creep. The recording's pause then
+checks the model's creep: the model's force at each recorded gap, to first order,
+F_hold + k (x_model(t) - x(t)), k the model's stiffness dF/dδ over the last
+STIFFNESS_SHARE of its ramp's depth (a gap off by Δx is a force off by about k Δx at
+the ramp's time scale; at the truth x_model = x and the term vanishes). It is simulated by
 `solver.protocol_simulation.simulate` at RESOLUTION (FINE, the synthetic experiments'
 own) and read at the sample times (linear between the simulation's samples); before
 t_c the force is the tension's alone, γ_a R ĝ(δ/R) (`shell_ramp`).
@@ -31,14 +35,13 @@ from common.names import HOLD_KINDS
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 from solver.model import Shell
 from solver.protocol import Hold, Protocol, Ramp
-from solver.protocol_simulation import FINE, Sampling, simulate
+from solver.protocol_simulation import FINE, Recording, Sampling, simulate
 from solver.time_domain import power_law_cortex
 
 START_UM = 0.01          # the stress-free droplet's gap below 2R (µm)
 RESOLUTION = FINE
 SAMPLE_HZ = 100.0        # the simulation's samples on ramp and hold, read linearly between
-HOLD_KNOTS = 60          # a constant-force hold's path: knots log-spaced in time (`_hold_steps`)
-HOLD_TOL_UM = 0.0005     # a knot closer than this to the last level holds the height
+STIFFNESS_SHARE = 0.1    # the ramp's stiffness at its end: over this share of its depth (`_stiffness_nN_per_um`)
 
 
 @dataclass(frozen=True)
@@ -73,34 +76,19 @@ class RampHold:
         return float(-slope), float((x0_um - START_UM - icpt) / slope)
 
 
-def _hold_steps(history: RampHold, t_end: float, start_um: float, offset_um: float) -> tuple[Ramp | Hold, ...]:
-    """The hold: at constant height one Hold; at constant force the plate's recorded creep,
-    the gap h = offset + x at HOLD_KNOTS knots (the means of (t, x) over bins log-spaced in
-    the time since the ramp's end), linear between them from the ramp's end gap `start_um`
-    (a knot within HOLD_TOL_UM of the last level: a hold at that height)."""
-    t, x = history.time_s[history.ramp_samples:], history.x_um[history.ramp_samples:]
-    if t.size == 0:
-        return ()
-    if history.hold == "height":
-        return (Hold(float(t[-1] - t_end), "height"),)
-    since = t - t_end
-    bounds = np.geomspace(max(float(since[0]), 1e-6), float(since[-1]) * (1 + 1e-9), HOLD_KNOTS + 1)
-    edges = np.unique(np.r_[0, np.searchsorted(since, bounds[1:-1]), t.size])
-    count = np.diff(edges)
-    knots_t = np.r_[np.add.reduceat(t, edges[:-1]) / count, t[-1]]
-    knots_h = offset_um + np.r_[np.add.reduceat(x, edges[:-1]) / count, np.mean(x[edges[-2]:])]
-    steps: list[Ramp | Hold] = []
-    level, at = start_um, t_end
-    for tk, hk in zip(knots_t, knots_h):
-        if tk <= at:
-            continue
-        if abs(hk - level) > HOLD_TOL_UM:
-            steps.append(Ramp(to_um=float(hk), speed_um_per_s=float(abs(hk - level) / (tk - at))))
-            level = float(hk)
-        else:
-            steps.append(Hold(float(tk - at), "height"))
-        at = float(tk)
-    return tuple(steps)
+def _hold(history: RampHold, t_end: float) -> tuple[Hold, ...]:
+    """The hold after the ramp, as recorded (module doc): none, or one Hold of its kind."""
+    duration = float(history.time_s[-1] - t_end)
+    return (Hold(duration, history.hold),) if history.time_s.size > history.ramp_samples and duration > 0 else ()
+
+
+def _stiffness_nN_per_um(rec: Recording, t_end: float, top_um: float, depth_um: float) -> float:
+    """dF/dδ (nN/µm) of the simulated ramp over its last STIFFNESS_SHARE of depth, at least
+    its last three samples (a line)."""
+    ramp = np.nonzero(rec.time_s <= t_end + 1e-9)[0]
+    delta = top_um - rec.height_um[ramp]
+    last = ramp[max(min(int(np.searchsorted(delta, (1.0 - STIFFNESS_SHARE) * depth_um)), ramp.size - 3), 0):]
+    return float(np.polyfit(top_um - rec.height_um[last], rec.force_nN[last], 1)[0])
 
 
 def force_nN(history: RampHold, x0_um: float, radius_um: float, tension_mN_per_m: float,
@@ -117,9 +105,14 @@ def force_nN(history: RampHold, x0_um: float, radius_um: float, tension_mN_per_m
     shell = Shell(volume_um3=4.0 * np.pi / 3.0 * radius_um ** 3, h0_um=top - START_UM,
                   bulk_mN_per_m=bulk_1s_mN_per_m, shear_mN_per_m=shear_tilde * bulk_1s_mN_per_m,
                   tension_mN_per_m=tension_mN_per_m)
-    steps = (Ramp(to_um=top - depth, speed_um_per_s=v),) + _hold_steps(history, t_end, top - depth, top - x0_um)
+    steps = (Ramp(to_um=top - depth, speed_um_per_s=v),) + _hold(history, t_end)
     rec = simulate(shell, power_law_cortex(bulk_1s_mN_per_m, shear_tilde * bulk_1s_mN_per_m, beta, beta),
                    Protocol(top - START_UM, steps, start_s=t_c), RESOLUTION, Sampling(approach_hz=SAMPLE_HZ))
     d = np.clip(x0_um - history.x_um, 0.0, None) / radius_um
     before = tension_mN_per_m * radius_um * unit_force_per_tension(np.minimum(d, DEPTH_MAX))
-    return np.where(t > t_c, np.interp(t, rec.time_s, rec.force_nN), before)
+    force = np.where(t > t_c, np.interp(t, rec.time_s, rec.force_nN), before)
+    if history.hold == "force" and t.size > history.ramp_samples:
+        pause = slice(history.ramp_samples, None)
+        x_model = x0_um - top + np.interp(t[pause], rec.time_s, rec.height_um)
+        force[pause] += _stiffness_nN_per_um(rec, t_end, top, depth) * (x_model - history.x_um[pause])
+    return force

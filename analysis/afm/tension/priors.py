@@ -3,8 +3,8 @@
 A recording that also holds oscillation segments has already told its cortex's moduli: the
 viscoelastic reading of `cortex afm analyze` (`analysis.afm.analyze.measure` and `inverted`,
 then `analysis.afm.rheology.per_frequency`, relaxed state, standard bending, the shipped
-calibration) gives per frequency θ = (ln |K_B*|, ln K̃_S*, δ_B, δ_S) and its bootstrap draws. Per
-draw and for the point, the relaxation laws K_B(t) = K_B(1 s) t^-β_B and K_S(t) = K_S(1 s)
+calibration or the bundle `--calibration` names, `calibration_parts`) gives per frequency
+θ = (ln |K_B*|, ln K̃_S*, δ_B, δ_S) and its bootstrap draws. Per draw and for the point, the relaxation laws K_B(t) = K_B(1 s) t^-β_B and K_S(t) = K_S(1 s)
 t^-β_S (`rheology.power_law`: the slope of ln |K*| in ln f, one frequency β = 2δ/π;
 `rheology.modulus_1s`: K(1 s) = |K*(1 Hz)| / (Γ(1-β) (2π)^β)).
 
@@ -89,14 +89,16 @@ def ramp_modulus(k_1s: Any, beta: Any, time_s: float) -> Any:
 
 @lru_cache(maxsize=1)
 def _calibration() -> "CalibrationFile":
-    """The shipped calibration file (read once), as the shell ramp table's (`shell_ramp.shipped`)."""
+    """The shipped calibration file (read once): the default of `read_laws`."""
     from analysis.calibration.file import load_calibration
     return load_calibration(None)
 
 
-def read_laws(cell: "Cell", errors: "MeasurementErrors | None" = None) -> "Laws | str":
+def read_laws(cell: "Cell", errors: "MeasurementErrors | None" = None,
+              calibration: "CalibrationFile | None" = None) -> "Laws | str":
     """The `Laws` of `cell`'s oscillations (module doc), or why there are none; `errors` the volume's
-    and height's (the oscillation reading's own count of draws)."""
+    and height's (the oscillation reading's own count of draws); `calibration` the bundle whose
+    emulator and complex-modulus table read them (None: the shipped one)."""
     from analysis.afm.analyze import inverted, measure
     from analysis.afm.rheology import modulus_1s, per_frequency, power_law
     from analysis.invert.measurement_errors import MeasurementErrors
@@ -104,7 +106,7 @@ def read_laws(cell: "Cell", errors: "MeasurementErrors | None" = None) -> "Laws 
     from common.errors import InputError
     errors = MeasurementErrors() if errors is None else MeasurementErrors(errors.volume_rel_sd, errors.height_sd_um)
     try:
-        cal = _calibration()
+        cal = _calibration() if calibration is None else calibration
         cal.require(("emulator", "viscoelastic_table"), "the oscillation priors (--no-oscillation-priors: off)")
         measured = measure([cell])
         table = inverted(measured, choose(cal.default_method, cal.calibration, cal.emulator, cal.where), BENDING,

@@ -38,7 +38,8 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
-           "warning") + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
+           "warning", "shell_table_source", "shell_table_sha256", "prior_calibration_source"
+           ) + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
@@ -161,7 +162,7 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
              "interval inside the range), bounded (one end inside) or not identified; where fitted, the intervals "
              "of γ_a and K_B hold every K_S/K_B of its interval. Priors: the Gaussian priors on K_B and K_S/K_B "
              "at the ramp's time scale T from the recording's own oscillations, or why none (see "
-             "docs/tension.md).", "",
+             f"docs/tension.md). Shell ramp table: {_table_used(ramps)}.", "",
              "| cell | part | γ_a (mN/m) | 95 % | K_B (mN/m) | 95 % | K_S/K_B | 95 % | K_S/K_B is | elastic term (Λ) "
              "| priors |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in ramps:
@@ -173,6 +174,12 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
                      f"{r['shear_ratio_identified']} | {r['elastic_term']} ({_num(r, 'elastic_term_lr', '.3g')}) | "
                      f"{_prior_cell(r)} |")
     return lines
+
+
+def _table_used(ramps: list[dict[str, Any]]) -> str:
+    """Which shell ramp table the ramps read: its source (a file, or shipped) and SHA-256."""
+    used = sorted({(r.get("shell_table_source", ""), r.get("shell_table_sha256", "")) for r in ramps})
+    return "; ".join(f"{src} (SHA-256 {sha}...)" for src, sha in used)
 
 
 def _prior_cell(r: dict[str, Any]) -> str:

@@ -57,7 +57,7 @@ read it (σ² is taken from that SSE: the rows add about 2 to a χ² of n).
 """
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -68,6 +68,7 @@ from analysis.afm.tension.pause import TENSION_ERRORS, Z95
 from analysis.afm.tension.priors import Prior
 from analysis.invert.measurement_errors import MeasurementErrors
 from analysis.afm.tension.ramp import fit_ramp
+from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError
 from solver.geometry import cell_radius
 
@@ -90,13 +91,15 @@ SIGNIFICANT, NOT_SIGNIFICANT, GIVEN = "significant", "not significant", "K_B giv
 
 @dataclass(frozen=True)
 class Fixed:
-    """What the fit does not fit: K̃_S, and K_B (mN/m) when known (None: fitted); and what it
+    """What the fit does not fit: K̃_S, and K_B (mN/m) when known (None: fitted); what it
     knows beforehand: the Gaussian priors of the same cell's oscillations (`priors.Prior`, None:
-    none), rows of the residual vector in every fit that uses this `Fixed` (module doc)."""
+    none), rows of the residual vector in every fit that uses this `Fixed` (module doc); and the
+    shell ramp table of its model (None: the shipped one, `shell_ramp.resolve`)."""
 
     shear_tilde: float = SHEAR_TILDE
     bulk_mN_per_m: float | None = None
     prior: Prior | None = None
+    table: ShellTable | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,8 @@ class ShellFit:
     droplet was chosen (module doc: SIGNIFICANT, NOT_SIGNIFICANT or GIVEN) and Λ; `sse_nN2`
     the residual sum of squares (nN²). The bands are the statistical 95 % ends of γ_a,
     K_B and K̃_S where they are not value ± Z95 · sd (K̃_S profiled: `shell_shear`); None
-    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window.
+    otherwise (K̃_S fixed). `droplet_tension_mN_per_m`: the droplet's T on the window. `table`:
+    the shell ramp table of the fit (`Fixed.table`).
     `baseline_slope_nN_per_um` s and its SD: the baseline's slope against x (module doc).
     `bimodal`: the droplet's valley (K_B = 0) and the shell's (K_B > 0) both in the 95 % set."""
 
@@ -136,6 +140,7 @@ class ShellFit:
     baseline_slope_nN_per_um: float = 0.0
     baseline_slope_sd_nN_per_um: float = 0.0
     bimodal: bool = False
+    table: ShellTable | None = field(default=None, compare=False, repr=False)
 
     def baseline_at(self, x_um: npt.ArrayLike) -> np.ndarray:
         """The fitted baseline F_b + s (x - x0) at wedge heights x (µm)."""
@@ -145,7 +150,7 @@ class ShellFit:
         """The fitted force at wedge heights x (µm)."""
         return self.baseline_at(x_um) + shell_ramp.force_nN(self.contact_um - np.asarray(x_um, float), radius_um,
                                                             self.tension_mN_per_m, self.bulk_mN_per_m,
-                                                            self.shear_tilde)
+                                                            self.shear_tilde, self.table)
 
     def theta(self) -> tuple[float, float, float, float, float]:
         """θ = (x0, F_b, γ_a, K_B, s): a start for another fit of the same ramp."""
@@ -153,26 +158,28 @@ class ShellFit:
                 self.baseline_slope_nN_per_um)
 
 
-def _linear(x: np.ndarray, f: np.ndarray, x0: float, radius: float, shear: float, gt: float
+def _linear(x: np.ndarray, f: np.ndarray, x0: float, radius: float, fixed: Fixed, gt: float
             ) -> tuple[float, float, float, float, float]:
-    """(SSE, F_b, γ_a, K_B, s) of the fit linear in (F_b, s, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0)."""
-    b = shell_ramp.force_nN(np.clip(x0 - x, 0.0, None), radius, 1.0, 0.0 if np.isinf(gt) else 1.0 / gt, shear)
+    """(SSE, F_b, γ_a, K_B, s) of the fit linear in (F_b, s, K_B) at contact x0 and γ̃_a = gt (∞: K_B = 0),
+    K̃_S and the table `fixed`'s."""
+    b = shell_ramp.force_nN(np.clip(x0 - x, 0.0, None), radius, 1.0, 0.0 if np.isinf(gt) else 1.0 / gt,
+                            fixed.shear_tilde, fixed.table)
     a = np.stack([np.ones_like(b), x - x0, b], axis=1)
     coef, *_ = np.linalg.lstsq(a, f, rcond=None)
     sse = float(np.sum((f - a @ coef) ** 2)) if coef[2] > 0 else np.inf
     return sse, float(coef[0]), float(coef[2]), 0.0 if np.isinf(gt) else float(coef[2] / gt), float(coef[1])
 
 
-def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float, shear: float
+def _starts(x: np.ndarray, f: np.ndarray, x0: float, span: float, radius: float, fixed: Fixed
             ) -> list[tuple[float, ...]]:
     """[(x0, F_b, γ_a, K_B, s)]: for each γ̃_a of START_GAMMAS and K_B = 0 the best contact
     within `span` of x0 (Brent; the rest linear), the local minima of their SSE
     over γ̃_a, best first, at most STARTS."""
     found = []
     for gt in np.append(START_GAMMAS, np.inf):
-        res = minimize_scalar(lambda c: _linear(x, f, c, radius, shear, gt)[0], bounds=(x0 - span, x0 + span),
+        res = minimize_scalar(lambda c: _linear(x, f, c, radius, fixed, gt)[0], bounds=(x0 - span, x0 + span),
                               method="bounded", options={"xatol": 1e-3 * span})
-        found.append((float(res.x),) + _linear(x, f, float(res.x), radius, shear, gt))
+        found.append((float(res.x),) + _linear(x, f, float(res.x), radius, fixed, gt))
     sse = np.array([s[1] for s in found])
     if not np.any(np.isfinite(sse)):
         raise InputError("approach ramp: no rise the shell model can fit")
@@ -193,7 +200,8 @@ def _solve(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, theta0: Se
 
     def model(p: np.ndarray) -> np.ndarray:
         k = p[3] if free_k else kb
-        return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde)
+        return p[1] + p[-1] * (x - p[0]) + shell_ramp.force_nN(p[0] - x, radius, p[2], k, fixed.shear_tilde,
+                                                               fixed.table)
 
     def residuals(p: np.ndarray) -> np.ndarray:
         r = model(p) - f
@@ -228,22 +236,23 @@ def _bound_sds(x: np.ndarray, f: np.ndarray, radius: float, fixed: Fixed, p: np.
                sd_g: float, sd_k: float) -> tuple[float, float]:
     """SDs of γ_a and K_B for a fit at K_B = 0, where the Jacobian's do not hold: the
     accepted K_B of `bound_profile`, and their γ_a, span 95 % (each SD that span / Z95 if wider)."""
-    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma, fixed.prior)
+    lo_g, hi_g, hi_k, _ = bound_profile(x, f, radius, fixed.shear_tilde, p, sse, sigma, fixed.prior, fixed.table)
     return max(sd_g, (hi_g - lo_g) / Z95), max(sd_k, hi_k / Z95)
 
 
 def bound_profile(x: np.ndarray, f: np.ndarray, radius: float, shear: float, p: Sequence[float] | np.ndarray,
-                  sse: float, sigma: float, prior: Prior | None = None) -> tuple[float, float, float, bool]:
+                  sse: float, sigma: float, prior: Prior | None = None, table: ShellTable | None = None
+                  ) -> tuple[float, float, float, bool]:
     """(lowest γ_a, highest γ_a, highest K_B, split) of the 95 % set {K_B : SSE ≤ sse + CHI2_95 σ²}
     of the profile over K_B from a fit θ = `p` (SSE `sse`, noise σ) at K_B = 0 on the window (x, f),
     K̃_S = `shear`: refits at K_B = γ_a · PROFILE, each from its neighbour, each edge found by EDGE
     bisections between an accepted and a rejected K_B (from 0 arithmetic, else geometric). The grid
     is walked until Δχ² passes FAR and still rises: the SSE may have two valleys (`split`: the set
-    is not one interval from K_B = 0). `prior`: the fits' (`Fixed.prior`)."""
+    is not one interval from K_B = 0). `prior`, `table`: the fits' (`Fixed`)."""
     limit, far, last_s = sse + CHI2_95 * sigma ** 2, sse + FAR * sigma ** 2, sse
 
     def at(k: float, near: np.ndarray) -> tuple[np.ndarray, bool, float]:
-        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k), prior), near, BOUND_TOL)
+        theta, s, _ = _solve(x, f, radius, Fixed(shear, float(k), prior, table), near, BOUND_TOL)
         return theta, s <= limit, s
 
     lo_g, hi_g, hi_k, runs = p[2], p[2], 0.0, 1
@@ -312,12 +321,12 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
     to start from instead of the starts' grid (a nested window). InputError for a
     ramp without contact or a window too short."""
     x, f = np.asarray(x_um, float), np.asarray(force_nN, float)
-    cap = shell_ramp.shipped().max_depth * radius_um
+    cap = shell_ramp.resolve(fixed.table).max_depth * radius_um
     cap = cap if cap_um is None else min(cap, cap_um)
     drop = fit_ramp(x, f, radius_um, "droplet", cap_um=cap)
     xs, fs = x[drop.window], f[drop.window]
     span = SPAN * (drop.window_hi_um - drop.window_lo_um)
-    starts = [near.theta()] if near else _starts(xs, fs, drop.contact_um, span, radius_um, fixed.shear_tilde)
+    starts = [near.theta()] if near else _starts(xs, fs, drop.contact_um, span, radius_um, fixed)
     kb = fixed.bulk_mN_per_m
     tries = [_solve(xs, fs, radius_um, fixed, (t[0], t[1], t[2], t[3] if kb is None else kb, t[4])) for t in starts]
     p, sse, jac = min(tries, key=lambda t: t[1])
@@ -338,7 +347,7 @@ def fit_shell(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float, fi
                     depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde,
                     elastic_term=chosen.term, elastic_lr=chosen.lr, sse_nN2=sse,
                     droplet_tension_mN_per_m=drop.tension_mN_per_m, baseline_slope_nN_per_um=float(p[4]),
-                    baseline_slope_sd_nN_per_um=chosen.sd_s, bimodal=chosen.bimodal)
+                    baseline_slope_sd_nN_per_um=chosen.sd_s, bimodal=chosen.bimodal, table=fixed.table)
 
 
 def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
@@ -356,7 +365,7 @@ def refit_shell(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, rad
                    baseline_slope_nN_per_um=float(p[4]), baseline_slope_sd_nN_per_um=sd_s,
                    r2=1.0 - sse / sst if sst > 0 else float("nan"), noise_nN=float(sigma),
                    depth_um=float(max(p[0] - xs.min(), 0.0)), shear_tilde=fixed.shear_tilde, sse_nN2=sse,
-                   tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None)
+                   tension_band_mN_per_m=None, bulk_band_mN_per_m=None, shear_band=None, table=fixed.table)
 
 
 def shell_interval(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, volume_um3: float,

@@ -41,6 +41,7 @@ from scipy.optimize import minimize_scalar
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.priors import Prior
+from analysis.calibration.ramp_table import ShellTable
 from analysis.afm.tension.shell_fit import (CHI2_95, NOT_SIGNIFICANT, PROFILE_TOL, SHEAR_TILDE, Fixed, ShellFit,
                                             bound_profile, fit_shell, refit_shell)
 
@@ -60,21 +61,23 @@ class Profile:
     best: ShellFit
 
 
-def shear_range() -> tuple[float, float]:
-    """[K̃_lo, K̃_hi]: the shipped table's K_S/K_B axis."""
-    shears = shell_ramp.shipped().shears
+def shear_range(table: ShellTable | None = None) -> tuple[float, float]:
+    """[K̃_lo, K̃_hi]: the K_S/K_B axis of the shell ramp table (None: the shipped one)."""
+    shears = shell_ramp.resolve(table).shears
     return float(shears[0]), float(shears[-1])
 
 
 def profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
             bulk_mN_per_m: float | None = None, prior: Prior | None = None) -> Profile:
     """The profile of `fit` (a shell fit of the ramp, at any K̃_S) over K̃_S (module doc);
-    K_B fixed at `bulk_mN_per_m` when given; with `prior` (`shell_fit.Fixed.prior`) the posterior's."""
-    nodes = np.geomspace(*shear_range(), NODES)
+    K_B fixed at `bulk_mN_per_m` when given; with `prior` (`shell_fit.Fixed.prior`) the posterior's;
+    on the shell ramp table of `fit` (`ShellFit.table`)."""
+    nodes = np.geomspace(*shear_range(fit.table), NODES)
     done: dict[float, ShellFit] = {}
 
     def at(s: float, near: ShellFit) -> ShellFit:
-        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m, prior), PROFILE_TOL)
+        done[s] = refit_shell(near, x_um, force_nN, radius_um, Fixed(s, bulk_mN_per_m, prior, fit.table),
+                              PROFILE_TOL)
         return done[s]
 
     start = int(np.argmin(np.abs(np.log(nodes / fit.shear_tilde))))
@@ -127,13 +130,14 @@ def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tup
 
 def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,
                       bulk_mN_per_m: float | None = None, cap_um: float | None = None,
-                      prior: Prior | None = None) -> ShellFit:
+                      prior: Prior | None = None, table: ShellTable | None = None) -> ShellFit:
     """The shell fit of one ramp with K̃_S unknown (module doc): the best K̃_S's fit with
     the bands of K̃_S, γ_a and K_B; the droplet's (`fit_shell` at 1/3) where the elastic
     term is not significant, its K̃_S band the whole range. With `prior` (the oscillations',
-    `priors.Prior`) every fit reads the posterior and the reference K̃_S is the prior's."""
-    ref = SHEAR_TILDE if prior is None else float(np.clip(prior.shear_tilde, *shear_range()))
-    fit = fit_shell(x_um, force_nN, radius_um, Fixed(ref, bulk_mN_per_m, prior), cap_um=cap_um)
+    `priors.Prior`) every fit reads the posterior and the reference K̃_S is the prior's. `table`:
+    the shell ramp table (None: the shipped one)."""
+    ref = SHEAR_TILDE if prior is None else float(np.clip(prior.shear_tilde, *shear_range(table)))
+    fit = fit_shell(x_um, force_nN, radius_um, Fixed(ref, bulk_mN_per_m, prior, table), cap_um=cap_um)
     if fit.elastic_term == NOT_SIGNIFICANT:
         return _droplet_bands(fit, x_um, force_nN, radius_um, prior)
     prof = profile(fit, x_um, force_nN, radius_um, bulk_mN_per_m, prior)
@@ -157,10 +161,11 @@ def _droplet_bands(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, 
     xs, fs = np.asarray(x_um, float)[fit.window], np.asarray(force_nN, float)[fit.window]
     g, half = fit.tension_mN_per_m, Z95 * fit.tension_sd_mN_per_m
     lo_g, hi_g, hi_k, split = g - half, g + half, fit.bulk_mN_per_m + Z95 * fit.bulk_sd_mN_per_m, False
-    for shear in shear_range():
-        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN, prior)
+    for shear in shear_range(fit.table):
+        a, b, k, two = bound_profile(xs, fs, radius_um, shear, fit.theta(), fit.sse_nN2, fit.noise_nN, prior,
+                                     fit.table)
         lo_g, hi_g, hi_k, split = min(lo_g, a), max(hi_g, b), max(hi_k, k), split or two
-    return replace(fit, shear_band=shear_range(), tension_band_mN_per_m=(max(lo_g, 0.0), hi_g),
+    return replace(fit, shear_band=shear_range(fit.table), tension_band_mN_per_m=(max(lo_g, 0.0), hi_g),
                    bulk_band_mN_per_m=(0.0, hi_k), bimodal=fit.bimodal or split)
 
 
@@ -168,7 +173,7 @@ def identification(fit: ShellFit) -> str:
     """IDENTIFIED, BOUNDED or NOT_IDENTIFIED from the fit's K̃_S band (GIVEN without one)."""
     if fit.shear_band is None:
         return GIVEN
-    lo, hi = shear_range()
+    lo, hi = shear_range(fit.table)
     inside = [fit.shear_band[0] > lo * (1 + 1e-9), fit.shear_band[1] < hi * (1 - 1e-9)]
     if fit.elastic_term == NOT_SIGNIFICANT:
         return NOT_IDENTIFIED
