@@ -149,3 +149,74 @@ def test_the_command_reads_a_ramp_and_its_pause(tmp_path, capsys):
     assert ramp["tension_mN_per_m"] > 1.3 * cell.tension_mN_per_m          # the elastic shell's reading
     import pandas as pd
     assert "power_law_exponent" in pd.read_csv(tmp_path / "out" / "tension.csv")
+
+
+@pytest.fixture(scope="module")
+def stiff_shear_cell():
+    """A cell with a hold whose K̃_S = 1.5 is far from 1/3, and its recording."""
+    cell = Cell(6.5, 0.94, 7.9, 1.5, 0.17, 0.38, 0.14 * 6.5, hold_s=23.0, tilt_nN_per_um=0.05)
+    made = recording(cell, seed=1)
+    ramp = slice(0, made.ramp_samples)
+    pause = slice(made.ramp_samples, None)
+    return cell, tuple(a[ramp] for a in (made.time_s, made.x_um, made.force_nN)), \
+        tuple(a[pause] for a in (made.time_s, made.x_um, made.force_nN))
+
+
+@pytest.mark.slow
+def test_unknown_shear_ratio_is_profiled_and_reads_tension_better_than_a_third(stiff_shear_cell):
+    """Without --shear-ratio (and no prior) K̃_S is profiled over 0.1-2: its interval holds the
+    truth 1.5, and γ_a reads closer to the truth than with K̃_S forced to 1/3 (biased low by
+    ~13 %, outside its interval), inside its widened interval; --shear-ratio still fixes it."""
+    from analysis.afm.tension.powerlaw_row import power_law_columns
+    cell, ramp, pause = stiff_shear_cell
+    truth = cell.tension_mN_per_m
+    forced = power_law_columns(ramp, pause, cell.radius_um, 1.0 / 3.0)
+    free = power_law_columns(ramp, pause, cell.radius_um, None)
+    assert forced["power_law_shear_ratio_source"] == "given"
+    assert forced["power_law_shear_ratio_lo95"] == forced["power_law_shear_ratio_hi95"] == 1.0 / 3.0
+    assert free["power_law_shear_ratio_source"] == "profiled" and free["power_law_hold"] == "height"
+    assert free["power_law_shear_ratio_lo95"] <= cell.shear_tilde <= free["power_law_shear_ratio_hi95"]
+    assert free["power_law_shear_ratio_lo95"] > 1.0 / 3.0           # the hold tells K̃_S from 1/3
+    err_free = abs(free["power_law_tension_mN_per_m"] / truth - 1.0)
+    err_forced = abs(forced["power_law_tension_mN_per_m"] / truth - 1.0)
+    assert err_free < 0.05 and err_forced > 2.0 * err_free
+    assert free["power_law_tension_lo95_mN_per_m"] <= truth <= free["power_law_tension_hi95_mN_per_m"]
+    assert free["power_law_exponent"] == pytest.approx(cell.beta, abs=0.03)
+
+
+@pytest.mark.slow
+def test_an_oscillation_prior_gives_the_shear_ratio(stiff_shear_cell):
+    """With the oscillations' prior (and no --shear-ratio) K̃_S is the prior's, taken as given."""
+    from analysis.afm.tension.powerlaw_row import power_law_columns
+    from analysis.afm.tension.priors import Prior
+    cell, ramp, pause = stiff_shear_cell
+    prior = Prior(bulk_mN_per_m=10.0, bulk_sd_mN_per_m=2.0, shear_tilde=1.5, shear_log_sd=0.1, bulk_exponent=0.17,
+                  bulk_exponent_sd=0.02, shear_exponent=0.17, shear_exponent_sd=0.02, time_scale_s=3.0,
+                  noise_nN=0.02)
+    row = power_law_columns(ramp, pause, cell.radius_um, None, prior)
+    assert row["power_law_shear_ratio_source"] == "oscillation prior"
+    assert row["power_law_shear_ratio"] == row["power_law_shear_ratio_lo95"] == 1.5
+    assert row["power_law_tension_mN_per_m"] == pytest.approx(cell.tension_mN_per_m, rel=0.03)
+
+
+def test_the_calibrations_table_reaches_the_surrogate_given_or_profiled(monkeypatch):
+    """`--calibration`'s shell ramp table is the one the surrogate reads, K̃_S given or profiled
+    (the fit stopped at the surrogate: only the table's path is checked here)."""
+    from analysis.afm.tension import powerlaw_fit
+    from analysis.afm.tension.powerlaw_row import power_law_columns
+    from common.errors import SolverError
+    radius, contact = 6.5, 13.0
+    x = np.linspace(contact + 0.5, contact - 0.9, 300)                       # a 1 µm/s approach, 0.9 µm deep
+    f = shell_ramp.force_nN(np.clip(contact - x, 0.0, None), radius, 0.9, 8.0, 1.0 / 3.0)
+    ramp = (np.linspace(0.0, 1.4, x.size), x, f + np.random.default_rng(3).normal(0.0, 0.02, x.size))
+    mine, seen = shell_ramp.shipped(), []
+
+    def stop(*args, **kwargs):
+        seen.append(args[5] if len(args) > 5 else kwargs.get("table"))
+        raise SolverError("stopped at the surrogate")
+
+    monkeypatch.setattr(powerlaw_fit, "fit_surrogate", stop)
+    for shear in (1.0 / 3.0, None):
+        row = power_law_columns(ramp, None, radius, shear, None, mine)
+        assert row["power_law_note"] == "not read: stopped at the surrogate"
+    assert len(seen) == 2 and all(t is mine for t in seen)

@@ -222,7 +222,8 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--power-law", action="store_true",
                    help="also read each approach and the pause right after it (at constant height or force) as one curve of the "
                         "shell whose cortex relaxes as a power law (the power_law_* columns: the active tension, "
-                        "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else 1/3); seconds of CPU a ramp")
+                        "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else the oscillations' prior, else "
+                        "profiled over 0.1-2 with its interval); seconds to a minute of CPU a ramp")
     add_error_options(t, "a pause's height")
     t.add_argument("--calibration", metavar="CAL.json",
                    help="calibration bundle (the format `afm analyze` takes, docs/calibration.md): the shell ramp "

@@ -381,7 +381,8 @@ def analyse(trace: Trace, options: Options) -> Analysed:
                 if options.power_law:
                     after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
                     pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
-                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde, options.table))
+                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde, pr[0],
+                                                 options.table))
                     row.update(table_columns(options))
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)

@@ -7,7 +7,8 @@ The model of the samples (t_i, x_i, F_i), δ_i = max(x0 - x_i, 0):
     F_i = F_b + s (x_i - x0) + F_pl(t_i, δ; R, γ_a, K_B(1 s), β, K̃_S),
 
 F_pl the plate force of the time-domain shell along the recorded protocol
-(`powerlaw_simulated`), K̃_S given (`shear_tilde`, default 1/3 as `shell_fit`).
+(`powerlaw_simulated`), K̃_S given (`shear_tilde`, default 1/3 as `shell_fit`; unknown:
+profiled by `powerlaw_shear` with these fits).
 
 Samples. The ramp's window is the droplet fit's (`ramp.fit_ramp`, depth capped at
 0.3 R, the shell table's); its samples are averaged in runs of consecutive ones to at
@@ -44,8 +45,8 @@ from scipy.optimize import least_squares
 from analysis.afm.tension import powerlaw_shell, powerlaw_simulated
 from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.powerlaw_simulated import RampHold
-from analysis.afm.tension.ramp import fit_ramp
-from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from analysis.afm.tension.ramp import RampFit, fit_ramp
+from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
@@ -60,7 +61,6 @@ SIM_XTOL = 1e-4
 SIM_STEP = 1e-3            # the simulator fit's relative finite-difference step
 SIM_EVALUATIONS = 60
 PROFILE_BETAS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)     # β of the profile of a ramp without a hold
-CHI2_95 = 3.84           # χ²_1 at 0.95: the 95 % set of a profile likelihood
 
 
 @dataclass(frozen=True)
@@ -95,8 +95,9 @@ class PowerLawFit:
     """The fitted power-law shell: γ_a (mN/m), K_B(1 s) (mN/m), β with their SDs and γ_a's
     95 % interval; contact x0 (µm), baseline F_b (nN) and slope s (nN/µm), K̃_S used, the
     noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, the
-    surrogate's own γ_a, K_B(1 s), β (the simulator's start), and without a hold γ_a's
-    band over β's profile (`tension_band_mN_per_m`, module doc)."""
+    surrogate's own γ_a, K_B(1 s), β (the simulator's start), without a hold γ_a's band
+    over β's profile (`tension_band_mN_per_m`, module doc; with K̃_S profiled also over it,
+    `powerlaw_shear`), the fit's SSE (nN²) and K̃_S's 95 % interval where profiled."""
 
     tension_mN_per_m: float
     tension_sd_mN_per_m: float
@@ -113,6 +114,8 @@ class PowerLawFit:
     hold: bool
     surrogate: tuple[float, float, float]
     tension_band_mN_per_m: tuple[float, float] | None = None
+    sse_nN2: float = float("nan")
+    shear_band: tuple[float, float] | None = None
 
     @property
     def tension_interval_mN_per_m(self) -> tuple[float, float]:
@@ -193,7 +196,7 @@ class _Projected:
 
 
 @dataclass(frozen=True)
-class _Solved:
+class Solved:
     """One simulator fit: its parameters (x0, γ_a, K_B(1 s)[, β]), SSE, Jacobian, (F_b, s)."""
 
     q: Array
@@ -202,7 +205,7 @@ class _Solved:
     linear: Array
 
 
-def _solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> _Solved:
+def solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> Solved:
     """The simulator's least squares from q0 (module doc), β free or fixed at `beta`."""
     resid = _Projected(s, radius, shear, beta)
     q0 = np.asarray(q0, float)[:3 if beta is not None else 4]
@@ -212,7 +215,7 @@ def _solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | Non
     res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=scale[:k],
                         diff_step=SIM_STEP, xtol=SIM_XTOL, ftol=1e-8, max_nfev=SIM_EVALUATIONS)
     r = resid(res.x)
-    return _Solved(res.x, float(r @ r), res.jac, resid.linear.copy())
+    return Solved(res.x, float(r @ r), res.jac, resid.linear.copy())
 
 
 def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
@@ -222,15 +225,64 @@ def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
     return float(q[2] * span ** (beta - q[3]))
 
 
-def _beta_profile(s: Samples, radius: float, shear: float, best: _Solved) -> list[tuple[float, _Solved]]:
+def _beta_profile(s: Samples, radius: float, shear: float, best: Solved) -> list[tuple[float, Solved]]:
     """[(β, the fit at β fixed)] at each β of PROFILE_BETAS (module doc)."""
-    return [(beta, _solve(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
-                          beta=beta)) for beta in PROFILE_BETAS]
+    return [(beta, solve(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
+                         beta=beta)) for beta in PROFILE_BETAS]
 
 
-def _sds(fit: _Solved, sigma2: float) -> Array:
+def sds(fit: Solved, sigma2: float) -> Array:
     """The SDs of a fit's free parameters from its Jacobian."""
     return np.sqrt(np.clip(np.diag(sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)), 0.0, None))
+
+
+def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
+            radius_um: float, hold: str = "height") -> tuple[Samples, RampFit]:
+    """The fit's samples (`samples`) and the droplet's fit of the ramp (its window and the starts)."""
+    t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
+    if not (t.shape == x.shape == f.shape) or not 2 <= ramp_samples <= t.size:
+        raise InputError("a ramp and hold needs times, heights and forces of one length and a ramp")
+    drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
+    return samples(t, x, f, ramp_samples, drop.window, hold), drop
+
+
+def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
+          table: ShellTable | None = None) -> tuple[Solved, Array]:
+    """The simulator's fit at K̃_S `shear` from the surrogate's (on the shell ramp table `table`,
+    None: the shipped one), and the surrogate's θ."""
+    p = fit_surrogate(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table)
+    return solve(s, radius_um, shear, p[[0, 3, 4, 5]]), p
+
+
+def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate: Array,
+             other_sse: float = np.inf, profiled: int = 0) -> PowerLawFit:
+    """The fit from the simulator's `best` at K̃_S `shear`: without a hold β's profile (module
+    doc), σ² from the lowest SSE (also `other_sse`, of fits elsewhere) over n - 6 - `profiled`
+    (the parameters profiled besides), the SDs and γ_a's band over β's nodes."""
+    held = s.raw_time_s.size > s.raw_ramp
+    nodes = [] if held else _beta_profile(s, radius_um, shear, best)
+    if nodes:
+        beta, node = min(nodes, key=lambda n: n[1].sse)
+        if node.sse < best.sse:
+            again = solve(s, radius_um, shear, np.append(node.q, beta))
+            best = again if again.sse < best.sse else best
+    sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
+    sigma2 = sse_min / max(s.time_s.size - 6 - profiled, 1)
+    sd = sds(best, sigma2)
+    q = best.q
+    band = None
+    if nodes:
+        inside = [(n.q[1], sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
+        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in inside]), 0.0),
+                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in inside]))
+    return PowerLawFit(tension_mN_per_m=float(q[1]), tension_sd_mN_per_m=float(sd[1]),
+                       bulk_1s_mN_per_m=float(q[2]), bulk_1s_sd_mN_per_m=float(sd[2]), beta=float(q[3]),
+                       beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(best.linear[0]),
+                       baseline_slope_nN_per_um=float(best.linear[1]), shear_tilde=shear,
+                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
+                       surrogate=(float(surrogate[3]), float(surrogate[4]), float(surrogate[5])),
+                       tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])),
+                       sse_nN2=best.sse)
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
@@ -238,34 +290,8 @@ def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.Arra
                   table: ShellTable | None = None) -> PowerLawFit:
     """The power-law shell fitted to a ramp (the first `ramp_samples` samples, ending at its
     deepest) and the hold after it (the rest; none: the ramp alone) at constant `hold`
-    ("height" or "force"); the surrogate on the shell ramp table `table` (None: the shipped one)."""
-    t, x, f = (np.asarray(a, float) for a in (time_s, x_um, force_nN))
-    if not (t.shape == x.shape == f.shape) or not 2 <= ramp_samples <= t.size:
-        raise InputError("a ramp and hold needs times, heights and forces of one length and a ramp")
-    drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
-    s = samples(t, x, f, ramp_samples, drop.window, hold)
-    p = fit_surrogate(s, radius_um, shear_tilde, drop.contact_um, drop.tension_mN_per_m, table)
-    best = _solve(s, radius_um, shear_tilde, p[[0, 3, 4, 5]])
-    held = t.size > ramp_samples
-    nodes = [] if held else _beta_profile(s, radius_um, shear_tilde, best)
-    if nodes:
-        beta, node = min(nodes, key=lambda n: n[1].sse)
-        if node.sse < best.sse:
-            again = _solve(s, radius_um, shear_tilde, np.append(node.q, beta))
-            best = again if again.sse < best.sse else best
-    sse_min = min([best.sse] + [n.sse for _, n in nodes])
-    sigma2 = sse_min / max(s.time_s.size - 6, 1)
-    sd = _sds(best, sigma2)
-    q = best.q
-    band = None
-    if nodes:
-        inside = [(n.q[1], _sds(n, sigma2)[1]) for _, n in nodes if (n.sse - sse_min) / sigma2 <= CHI2_95]
-        band = (max(min([q[1] - Z95 * sd[1]] + [g - Z95 * e for g, e in inside]), 0.0),
-                max([q[1] + Z95 * sd[1]] + [g + Z95 * e for g, e in inside]))
-    return PowerLawFit(tension_mN_per_m=float(q[1]), tension_sd_mN_per_m=float(sd[1]),
-                       bulk_1s_mN_per_m=float(q[2]), bulk_1s_sd_mN_per_m=float(sd[2]), beta=float(q[3]),
-                       beta_sd=float(sd[3]), contact_um=float(q[0]), baseline_nN=float(best.linear[0]),
-                       baseline_slope_nN_per_um=float(best.linear[1]), shear_tilde=shear_tilde,
-                       noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
-                       surrogate=(float(p[3]), float(p[4]), float(p[5])),
-                       tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])))
+    ("height" or "force"), K̃_S `shear_tilde` given (`powerlaw_shear`: profiled); the surrogate
+    on the shell ramp table `table` (None: the shipped one)."""
+    s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
+    best, p = start(s, radius_um, shear_tilde, drop, table)
+    return conclude(s, radius_um, shear_tilde, best, p)

@@ -4,18 +4,22 @@
 The pause is taken as a constant-height hold unless it looks like a constant-force one
 (its height x drifts by more than FORCE_HOLD_DRIFT_UM between its first and last tenth
 while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says which
-(none: no pause after the ramp). K̃_S is the given `--shear-ratio`, else SHEAR_TILDE
-(`power_law_shear_ratio_source`). A ramp without sample times, or one the fit cannot
-read, gets the reason in `power_law_note` and no values.
+(none: no pause after the ramp). K̃_S is the given `--shear-ratio` (GIVEN), else the
+oscillations' prior's K̃_S at the ramp's time scale taken as given (PRIOR,
+`priors.Prior.shear_tilde`), else profiled (PROFILED, `powerlaw_shear`: its 95 % interval in
+`power_law_shear_ratio_lo95`/`_hi95`; given: both the value); `power_law_shear_ratio_source`
+says which. A ramp without sample times, or one the fit cannot read, gets the reason in
+`power_law_note` and no values.
 """
 
 from typing import Any
 
 import numpy as np
 
-from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
+from analysis.afm.tension.powerlaw_fit import PowerLawFit, fit_ramp_hold
+from analysis.afm.tension.powerlaw_shear import fit_ramp_hold_profiled
+from analysis.afm.tension.priors import Prior
 from analysis.afm.tension.ramp import baseline_noise
-from analysis.afm.tension.shell_fit import SHEAR_TILDE
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
@@ -23,8 +27,9 @@ FORCE_HOLD_DRIFT_UM = 0.02
 FORCE_HOLD_SDS = 3.0
 COLUMNS = ("power_law_tension_mN_per_m", "power_law_tension_lo95_mN_per_m", "power_law_tension_hi95_mN_per_m",
            "power_law_bulk_1s_mN_per_m", "power_law_bulk_1s_sd_mN_per_m", "power_law_exponent",
-           "power_law_exponent_sd", "power_law_shear_ratio", "power_law_shear_ratio_source", "power_law_hold",
-           "power_law_note")
+           "power_law_exponent_sd", "power_law_shear_ratio", "power_law_shear_ratio_lo95", "power_law_shear_ratio_hi95",
+           "power_law_shear_ratio_source", "power_law_hold", "power_law_note")
+GIVEN, PRIOR, PROFILED = "given", "oscillation prior", "profiled"
 
 
 def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
@@ -35,17 +40,28 @@ def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
     return "force" if drift > FORCE_HOLD_DRIFT_UM and change < FORCE_HOLD_SDS * noise_nN else "height"
 
 
+def _fit(t: np.ndarray, x: np.ndarray, f: np.ndarray, end: int, radius_um: float, shear_tilde: float | None,
+         hold: str, table: ShellTable | None) -> PowerLawFit:
+    """The fit at the given K̃_S, or with it profiled (None); `table` the shell ramp table."""
+    if shear_tilde is None:
+        return fit_ramp_hold_profiled(t, x, f, end, radius_um, hold, table)
+    return fit_ramp_hold(t, x, f, end, radius_um, shear_tilde, hold, table)
+
+
 def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
                       pause: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-                      radius_um: float, shear_tilde: float | None, table: ShellTable | None = None
-                      ) -> dict[str, Any]:
-    """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None);
+                      radius_um: float, shear_tilde: float | None, prior: Prior | None = None,
+                      table: ShellTable | None = None) -> dict[str, Any]:
+    """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None),
+    K̃_S `shear_tilde` given, else the oscillations' `prior`'s, else profiled (module doc);
     `table` the shell ramp table of the surrogate (None: the shipped one)."""
     t, x, f = ramp
-    shear = SHEAR_TILDE if shear_tilde is None else shear_tilde
+    source = GIVEN if shear_tilde is not None else PRIOR if prior is not None else PROFILED
+    shear = shear_tilde if shear_tilde is not None else prior.shear_tilde if prior is not None else None
     out: dict[str, Any] = {k: float("nan") for k in COLUMNS}
-    out.update(power_law_shear_ratio=shear, power_law_shear_ratio_source="assumed" if shear_tilde is None
-               else "given", power_law_hold="none", power_law_note="")
+    out.update(power_law_shear_ratio_source=source, power_law_hold="none", power_law_note="")
+    if shear is not None:
+        out.update(power_law_shear_ratio=shear, power_law_shear_ratio_lo95=shear, power_law_shear_ratio_hi95=shear)
     end = int(np.argmin(x)) + 1                          # the ramp up to its deepest sample
     t, x, f = t[:end], x[:end], f[:end]
     if pause is not None:
@@ -56,8 +72,7 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
     try:
-        fit = fit_ramp_hold(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height",
-                            table)
+        fit = _fit(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height", table)
     except (InputError, SolverError) as err:
         out.update(power_law_note=f"not read: {err}")
         return out
@@ -66,4 +81,7 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
                power_law_tension_hi95_mN_per_m=hi, power_law_bulk_1s_mN_per_m=fit.bulk_1s_mN_per_m,
                power_law_bulk_1s_sd_mN_per_m=fit.bulk_1s_sd_mN_per_m, power_law_exponent=fit.beta,
                power_law_exponent_sd=fit.beta_sd)
+    if fit.shear_band is not None:
+        out.update(power_law_shear_ratio=fit.shear_tilde, power_law_shear_ratio_lo95=fit.shear_band[0],
+                   power_law_shear_ratio_hi95=fit.shear_band[1])
     return out

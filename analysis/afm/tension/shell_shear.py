@@ -31,6 +31,7 @@ row is the droplet's, its interval widened to hold the shell's at K̃_S = 1/3 an
 profile over K_B from 0 at 1/3 and at both ends of K̃_S's range (`_droplet_bands`).
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -102,18 +103,29 @@ def profile(fit: ShellFit, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_
     return Profile(shears, (sses - sses.min()) / (sses.min() / max(dof, 1)), fits, best)
 
 
-def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
-    """The 95 % bands of K̃_S, γ_a and K_B from the profile read on FINE points (module doc)."""
-    u = np.log(prof.shears)
+def profile_bands(shears: npt.ArrayLike, chi2: npt.ArrayLike,
+                  estimates: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]]) -> list[tuple[float, float]]:
+    """The 95 % band of K̃_S from a profile over it (its points `shears`, sorted, and their
+    Δχ²) read on FINE points (module doc), then that of each (values, SDs) at the points:
+    the union of value ± Z95 SD over K̃_S's band (at least 0)."""
+    u = np.log(np.asarray(shears, float))
     grid = np.linspace(u[0], u[-1], FINE) if u.size > 1 else u
     grid = np.union1d(grid, u)
-    ok = np.interp(grid, u, np.sqrt(prof.chi2)) <= np.sqrt(CHI2_95)
+    ok = np.interp(grid, u, np.sqrt(np.asarray(chi2, float))) <= np.sqrt(CHI2_95)
     out = [(float(np.exp(grid[ok].min())), float(np.exp(grid[ok].max())))]
-    for value, sd in (("tension_mN_per_m", "tension_sd_mN_per_m"), ("bulk_mN_per_m", "bulk_sd_mN_per_m")):
-        v = np.interp(grid, u, [getattr(g, value) for g in prof.fits])[ok]
-        w = Z95 * np.interp(grid, u, [getattr(g, sd) for g in prof.fits])[ok]
+    for values, sds in estimates:
+        v = np.interp(grid, u, np.asarray(values, float))[ok]
+        w = Z95 * np.interp(grid, u, np.asarray(sds, float))[ok]
         out.append((float(max(np.min(v - w), 0.0)), float(np.max(v + w))))
-    return out[0], out[1], out[2]
+    return out
+
+
+def _bands(prof: Profile) -> tuple[tuple[float, float], tuple[float, float], tuple[float, float]]:
+    """The 95 % bands of K̃_S, γ_a and K_B from the profile (`profile_bands`)."""
+    shear, tension, bulk = profile_bands(prof.shears, prof.chi2, [
+        ([g.tension_mN_per_m for g in prof.fits], [g.tension_sd_mN_per_m for g in prof.fits]),
+        ([g.bulk_mN_per_m for g in prof.fits], [g.bulk_sd_mN_per_m for g in prof.fits])])
+    return shear, tension, bulk
 
 
 def fit_unknown_shear(x_um: npt.ArrayLike, force_nN: npt.ArrayLike, radius_um: float,

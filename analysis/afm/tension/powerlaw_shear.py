@@ -1,0 +1,85 @@
+"""K̃_S = K_S/K_B of the power-law shell's ramp-and-hold reading unknown (no `--shear-ratio`,
+no oscillation prior): profiled over SHEAR_RANGE, and γ_a's interval widened by what K̃_S
+leaves open (SPEC 11-12; `powerlaw_fit` is the fit at one K̃_S; the profile is read as the
+elastic shell's, `shell_shear.profile_bands`).
+
+The simulator's fit (`powerlaw_fit.solve`, β free) at each of NODES values of K̃_S
+log-spaced over SHEAR_RANGE: first at the node nearest 1/3 from the surrogate's fit, then
+outward, each started from its neighbour's optimum; then once more at the vertex of the
+parabola in ln K̃_S through the best node and its two neighbours (where the best is
+inside the range). The best K̃_S's fit is the reading (`powerlaw_fit.conclude`: without a
+hold, β's profile there), with σ² = SSE_min / (n − 7) (K̃_S the seventh parameter) and
+
+    Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ².
+
+K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}, read between the points; γ_a's is the union
+over that set of γ_a(K̃_S) ± Z95 sd(K̃_S) (sd at the common σ²), joined with β's band at the
+best K̃_S without a hold (β is profiled there only, not over every K̃_S). An end of the range
+inside the set: the recording bounds K̃_S on that side no further than the range.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import numpy.typing as npt
+
+from analysis.afm.tension.powerlaw_fit import PowerLawFit, Samples, Solved, conclude, prepare, sds, solve, start
+from analysis.afm.tension.ramp import RampFit
+from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from analysis.afm.tension.shell_shear import profile_bands
+from analysis.calibration.ramp_table import ShellTable
+
+SHEAR_RANGE = (0.1, 2.0)
+NODES = 5
+NEAR = 0.05              # in ln K̃_S: a vertex this close to a node is not fitted again
+
+
+def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float | None:
+    """The minimum in u of the parabola through three points (None where it opens downwards),
+    kept between the outer two."""
+    a, b, _ = np.polyfit(u, sse, 2)
+    return float(np.clip(-b / (2.0 * a), u[0], u[-1])) if a > 0 else None
+
+
+def _profile(s: Samples, radius_um: float, drop: RampFit,
+             table: ShellTable | None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
+    """{K̃_S: the simulator's fit there} over the nodes and the vertex (module doc), and the
+    surrogate's θ at the first node (on the shell ramp table `table`, None: the shipped one)."""
+    nodes = [float(v) for v in np.geomspace(*SHEAR_RANGE, NODES)]
+    first = int(np.argmin(np.abs(np.log(np.array(nodes) / SHEAR_TILDE))))
+    done: dict[float, Solved] = {}
+    done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table)
+    for k in range(first + 1, NODES):
+        done[nodes[k]] = solve(s, radius_um, nodes[k], done[nodes[k - 1]].q)
+    for k in range(first - 1, -1, -1):
+        done[nodes[k]] = solve(s, radius_um, nodes[k], done[nodes[k + 1]].q)
+    b = int(np.argmin([done[v].sse for v in nodes]))
+    if 0 < b < NODES - 1:
+        u = np.log(nodes[b - 1:b + 2])
+        top = _vertex(u, np.array([done[v].sse for v in nodes[b - 1:b + 2]]))
+        if top is not None and np.min(np.abs(u - top)) > NEAR:
+            done[float(np.exp(top))] = solve(s, radius_um, float(np.exp(top)), done[nodes[b]].q)
+    return done, p
+
+
+def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
+                           ramp_samples: int, radius_um: float, hold: str = "height",
+                           table: ShellTable | None = None) -> PowerLawFit:
+    """`powerlaw_fit.fit_ramp_hold` with K̃_S unknown: the fit at the best K̃_S of the profile,
+    with K̃_S's 95 % interval (`shear_band`) and γ_a's widened over it (module doc); the
+    surrogate on the shell ramp table `table` (None: the shipped one)."""
+    s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
+    done, p = _profile(s, radius_um, drop, table)
+    shears = sorted(done)
+    sse = np.array([done[v].sse for v in shears])
+    b = int(np.argmin(sse))
+    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
+                   profiled=1)
+    sigma2 = fit.noise_nN ** 2
+    sse[b] = min(sse[b], fit.sse_nN2)                  # β's restart at the best K̃_S may fit better
+    tension = np.array([done[v].q[1] for v in shears])
+    sd = np.array([sds(done[v], sigma2)[1] for v in shears])
+    tension[b], sd[b] = fit.tension_mN_per_m, fit.tension_sd_mN_per_m
+    shear_band, band = profile_bands(shears, (sse - sse.min()) / sigma2, [(tension, sd)])
+    lo, hi = fit.tension_interval_mN_per_m
+    return replace(fit, shear_band=shear_band, tension_band_mN_per_m=(min(lo, band[0]), max(hi, band[1])))
