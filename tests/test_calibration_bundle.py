@@ -10,6 +10,7 @@ import pytest
 
 from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
 from analysis.calibration.law import Calibration
+from bundles import bundle_copy
 from common.errors import InputError
 from studies.synthetic import reference_law
 
@@ -23,13 +24,7 @@ def law_only(tmp_path):
 
 def _bundle(folder, table_doc=None):
     """A copy of the shipped bundle in `folder`, with `table_doc` as its viscoelastic table if given."""
-    shutil.copy(shipped_path(), folder / "calibration.json")
-    shutil.copy(shipped_path(RAMP_TABLE_NAME), folder / RAMP_TABLE_NAME)
-    if table_doc is None:
-        shutil.copy(shipped_path(TABLE_NAME), folder / TABLE_NAME)
-    else:
-        (folder / TABLE_NAME).write_text(json.dumps(table_doc))
-    return folder / "calibration.json"
+    return bundle_copy(folder, None if table_doc is None else {TABLE_NAME: table_doc})
 
 
 def test_a_law_only_file_borrows_nothing_unless_its_manifest_says_so(law_only, tmp_path):

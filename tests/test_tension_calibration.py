@@ -5,7 +5,6 @@ none of them (a law-only file) leaves the shipped ones in use and says so; a bad
 line and exit status 2, nothing written."""
 
 import json
-import shutil
 
 import numpy as np
 import pytest
@@ -13,8 +12,9 @@ import pytest
 from analysis.afm.formats.csvcell import write_csv_cell
 from analysis.afm.formats.instruments import to_cell
 from analysis.afm.tension import shell_ramp
-from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, shipped_path
+from analysis.calibration.file import RAMP_TABLE_NAME
 from analysis.calibration.law import Calibration
+from bundles import bundle_copy, shipped_part
 from cortex.cli import main
 from solver.geometry import cell_radius
 from studies.synthetic import reference_law
@@ -47,15 +47,11 @@ def _ramp(capsys, csv, *argv):
 
 def _bundle(folder, scale=None):
     """A copy of the shipped bundle in `folder`, its shell ramp table's forces times `scale` if given."""
-    shutil.copy(shipped_path(), folder / "calibration.json")
-    shutil.copy(shipped_path(TABLE_NAME), folder / TABLE_NAME)
     if scale is None:
-        shutil.copy(shipped_path(RAMP_TABLE_NAME), folder / RAMP_TABLE_NAME)
-    else:
-        doc = json.loads(shipped_path(RAMP_TABLE_NAME).read_text())
-        doc["force_over_kb_r"] = (scale * np.asarray(doc["force_over_kb_r"])).tolist()
-        (folder / RAMP_TABLE_NAME).write_text(json.dumps(doc))
-    return folder / "calibration.json"
+        return bundle_copy(folder)
+    doc = shipped_part(RAMP_TABLE_NAME)
+    doc["force_over_kb_r"] = (scale * np.asarray(doc["force_over_kb_r"])).tolist()
+    return bundle_copy(folder, {RAMP_TABLE_NAME: doc})
 
 
 def test_the_bundles_ramp_table_replaces_the_shipped_one(tmp_path, capsys, elastic_csv):

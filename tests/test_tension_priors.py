@@ -109,19 +109,15 @@ def test_a_bundles_viscoelastic_table_reads_the_oscillations(recording, tmp_path
     """A bundle naming a modified complex-modulus table (ln C + 0.5 δ_B) gives other priors than the
     shipped one, and the row names the bundle (`prior_calibration_source`); the shell ramp table,
     which it names unchanged, gives the same hash."""
-    import shutil
-
     from analysis.afm.tension.calibration_parts import tension_calibration
-    from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
+    from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration
+    from bundles import bundle_copy, shipped_part
     both, _, _ = recording
-    shutil.copy(shipped_path(), tmp_path / "calibration.json")
-    shutil.copy(shipped_path(RAMP_TABLE_NAME), tmp_path / RAMP_TABLE_NAME)
-    doc = json.loads(shipped_path(TABLE_NAME).read_text())
+    doc = shipped_part(TABLE_NAME)
     ln_c = np.asarray(doc["ln_c_real"], float)
     ln_c[..., [tuple(t) for t in doc["terms"]].index((1, 0))] += 0.5
     doc["ln_c_real"] = ln_c.tolist()
-    (tmp_path / TABLE_NAME).write_text(json.dumps(doc))
-    mine = _row(both, calibration=tension_calibration(load_calibration(tmp_path / "calibration.json")))
+    mine = _row(both, calibration=tension_calibration(load_calibration(bundle_copy(tmp_path, {TABLE_NAME: doc}))))
     shipped = _row(both)
     assert (mine["prior_calibration_source"], shipped["prior_calibration_source"]) == (
         str(tmp_path / "calibration.json"), "shipped")
