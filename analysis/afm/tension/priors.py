@@ -32,7 +32,6 @@ a cortex that relaxes much during the ramp is not an elastic shell whatever its 
 """
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -87,11 +86,11 @@ def ramp_modulus(k_1s: Any, beta: Any, time_s: float) -> Any:
     return np.asarray(k_1s) * time_s ** -beta * 2.0 / ((1.0 - beta) * (2.0 - beta))
 
 
-@lru_cache(maxsize=1)
 def _calibration() -> "CalibrationFile":
-    """The shipped calibration file (read once): the default of `read_laws`."""
-    from analysis.calibration.file import load_calibration
-    return load_calibration(None)
+    """The shipped calibration bundle (read once, `calibration_parts.shipped_parts`): the default
+    of `read_laws`."""
+    from analysis.afm.tension.calibration_parts import shipped_parts
+    return shipped_parts().oscillations
 
 
 def read_laws(cell: "Cell", errors: "MeasurementErrors | None" = None,
