@@ -6,7 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.afm.protocol_reading import MAX_ROUNDS, markdown, refused, started, summary
+from analysis.afm.protocol_factors import refused
+from analysis.afm.protocol_reading import MAX_ROUNDS, markdown, started, summary
 
 
 def test_a_tension_shift_beyond_the_tension_is_refused_with_its_numbers():

@@ -69,6 +69,7 @@ from analysis.afm.analyze import TENSION_TOLERANCE, Measured, check_tolerance, i
 from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
+from analysis.afm.protocol_factors import with_memory
 from analysis.afm.protocol_reading import corrected, is_on
 from analysis.afm.confinement import warnings as confinement_warnings
 from analysis.afm.protocol_reading import markdown as protocol_markdown
@@ -108,6 +109,7 @@ class Settings:
     as_made: bool = True          # read each experiment as its provenance says (`analysis.afm.provenance`)
     wait_s: float | None = None   # with as_made False: T_w (s), None each recording's own, inf the relaxed state
     jobs: int | None = None       # processes for the protocol-aware reading's replays (None: usable CPUs)
+    memory_s: float | None = None  # the protocol-aware reading's τ_c (s): None from the data, inf the pure power law
 
     def __post_init__(self) -> None:
         check_tolerance(self.tension_tolerance)
@@ -115,6 +117,8 @@ class Settings:
             raise InputError(f"a wait of {self.wait_s:g} s is given: it goes with as_made=False")
         if self.wait_s is not None and not self.wait_s >= 0:
             raise InputError(f"the wait must be a number of seconds >= 0, or inf (got {self.wait_s:g})")
+        if self.memory_s is not None and not self.memory_s >= 0:
+            raise InputError(f"the memory must be a number of seconds >= 0, or inf (got {self.memory_s:g})")
         if self.jobs is not None and self.jobs < 1:
             raise InputError(f"jobs must be >= 1 (got {self.jobs})")
 
@@ -192,11 +196,14 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     a process beside this one (`common.beside`: forked, where two CPUs serve) while this one
     inverts the selected variant and reads its population and viscoelastic behaviour: the
     numbers, and the first error, of one step after the other."""
+    if settings.memory_s is not None and not rec.protocol_aware(settings):
+        raise InputError(f"a memory is the protocol-aware reading's, and {rec.name} is read {rec.reading.label()} "
+                         "(--wait-s recorded reads it protocol-aware)")
     measured = measure(rec.cells)
     if rec.protocol_aware(settings):
         measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
                              settings.errors, rec.reading.wait_s, settings.lags,
-                             usable_cores() if settings.jobs is None else settings.jobs)
+                             usable_cores() if settings.jobs is None else settings.jobs, memory_s=settings.memory_s)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
@@ -210,6 +217,8 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
             raise
         for variant, (table, summary) in zip(others, rest.result()):
             fitted.tables[variant], fitted.sums[variant] = table, summary
+    if rec.protocol_aware(settings):
+        fitted.tables = {v: with_memory(t, measured.segments) for v, t in fitted.tables.items()}
     return fitted
 
 
@@ -269,7 +278,7 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
-    aware = {"protocol": protocol_summary(fitted.segments, rec.reading.wait_s)} if rec.protocol_aware(settings) else {}
+    aware = {"protocol": protocol_summary(fitted.segments, rec.reading.wait_s, settings.memory_s)} if rec.protocol_aware(settings) else {}
     made = {"reading": rec.reading.label(), "provenance": rec.provenance.to_dict()}
     parts = {"calibration_parts": rec.calibration.sources}
     _write(out, "summary.json", _json({"bending": bending, "method": rec.method, "tension_tolerance": tolerance,

@@ -10,19 +10,24 @@ The correction of a cell's segments (`analysis.afm.replayed`) needs the cell's p
 each round the selected variant's inversion of S_i and its complex point fit
 (`analysis.viscoelastic_fit.fit`, no bootstrap). Only the cells whose power laws moved by more
 than SETTLED since their last replay are replayed again (`unsettled`, the policy; a cell the
-round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. The
+round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. Each
+replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
+(`memory_s` None, the default) or at the one given; the cell's memory is then chosen from the
+drift of its corrected mean tensions (fitted, pooled or assumed: `analysis.afm.protocol_factors`),
+its factors interpolated there. The
 rounds replay linearised (`cell_correction`'s default, fast); with `full_last` (FULL_LAST, the
 default) every replayed cell's last correction is then its full replay with its last power laws
-(the linearised replay's |c| is off the full one's by up to ~6 %, bench/linearised_replay.py).
+and memory (the linearised replay's |c| is off the full one's by up to ~6 %, bench/linearised_replay.py).
 What follows (every variant with the tension filter on the corrected mean tensions, the
 population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
 in `jobs` processes.
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
-`protocol_reason`, `protocol_settled` and `protocol_replays` (how often the cell was replayed
-linearised). A cell is not corrected (False, the reason beside it)
+`protocol_reason`, `protocol_settled`, `protocol_replays` (how often the cell was replayed
+linearised, each time at every memory asked for) and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
+its source). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
-a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`refused`: the correction is refused,
+a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`protocol_factors.refused`: the correction is refused,
 never used); its segments stay as recorded (and the tension filter, on their kept stress, mostly
 excludes it). `protocol_settled` False: the cell's power laws still moved after MAX_ROUNDS.
 
@@ -33,14 +38,17 @@ relaxed-state reading) is no correction and does not come here.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from analysis.afm.analyze import Measured, inverted, measured_of
-from analysis.afm.replayed import apply, cell_correction
+from analysis.afm.analyze import Measured, inverted
+from analysis.afm.memory_fit import MEMORY_GRID_S
+from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors
+from analysis.afm.replayed import cell_correction
 from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
 
@@ -62,48 +70,75 @@ def is_on(wait_s: float | None) -> bool:
 
 
 def _cells(segments: pd.DataFrame) -> pd.DataFrame:
-    """Per cell: corrected, reason, settled."""
+    """Per cell: corrected, reason, settled, and its memory (MEMORY_COLUMNS)."""
+    memory = {k: (k, "first") for k in MEMORY_COLUMNS if k in segments}
     return segments.groupby("cell_id", sort=False).agg(
         corrected=("protocol_corrected", "all"), reason=("protocol_reason", "first"),
-        settled=("protocol_settled", "all"))
+        settled=("protocol_settled", "all"), **memory)
 
 
-def summary(segments: pd.DataFrame, wait_s: float | None) -> dict[str, object]:
-    """summary.json's `protocol`: the wait (s, or "recorded"), which cells were corrected, why
-    the others were not, which did not settle in MAX_ROUNDS, and how often a cell was replayed
-    on average (`replays_per_cell`)."""
+def _seconds(value: float) -> float | None:
+    """A memory in s for JSON: null for ∞."""
+    return None if math.isinf(value) else float(value)
+
+
+def _memory(cells: pd.DataFrame, memory_s: float | None) -> dict[str, object]:
+    """summary.json's `memory`: given or from the data, the grid, and per cell τ_c (s, null ∞), its
+    95 % interval and where it came from (`analysis.afm.protocol_factors`)."""
+    per_cell = {str(c): {"memory_s": _seconds(r.protocol_memory_s), "lo95_s": _seconds(r.protocol_memory_lo95_s),
+                         "hi95_s": _seconds(r.protocol_memory_hi95_s), "source": r.protocol_memory_source}
+                for c, r in cells.iterrows() if r.protocol_memory_source}
+    sources = cells["protocol_memory_source"]
+    return {"memory_s": "from the data" if memory_s is None else _seconds(memory_s),
+            "grid_s": [_seconds(m) for m in MEMORY_GRID_S] if memory_s is None else None,
+            **{f"cells_{k}": int((sources == k).sum()) for k in ("fitted", "pooled", "assumed", "given")},
+            "cells": per_cell}
+
+
+def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None = None) -> dict[str, object]:
+    """summary.json's `protocol`: the wait (s, or "recorded"), the memory (`_memory`), which cells
+    were corrected, why the others were not, which did not settle in MAX_ROUNDS, and how often a
+    cell was replayed on average (`replays_per_cell`)."""
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
     return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
-            "wait_s": "recorded" if wait_s is None else wait_s, "cells_corrected": int(cells["corrected"].sum()),
+            "wait_s": "recorded" if wait_s is None else wait_s,
+            "memory": _memory(cells, memory_s) if "protocol_memory_source" in cells else None,
+            "cells_corrected": int(cells["corrected"].sum()),
             "cells_not_corrected": [str(c) for c in left.index],
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
             "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]],
             "replays_per_cell": None if replays is None or replays.empty else float(replays.mean())}
 
 
+def _memory_lines(cells: pd.DataFrame) -> list[str]:
+    """report.md's sentences on the memory: how many cells read it, pooled it or assumed it."""
+    if "protocol_memory_source" not in cells:
+        return []
+    src = cells["protocol_memory_source"]
+    if (src == "given").any():
+        return [f"The cortex's memory τ_c is given: {cells['protocol_memory_s'].iloc[0]:g} s for every cell.", ""]
+    pooled = cells[src == "pooled"]["protocol_memory_s"]
+    return [f"The cortex's memory τ_c (K(t) ∝ t^-β e^(-t/τ_c)) from the drift of each cell's mean tension "
+            f"across heights: {int((src == 'fitted').sum())} cells read their own; "
+            f"{len(pooled)} cells could not and take the population's"
+            + (f" ({pooled.iloc[0]:g} s)" if len(pooled) else "")
+            + f"; {int((src == 'assumed').sum())} cells are undecided by the data and assume the pure power law "
+            "(τ_c = ∞).", ""]
+
+
 def markdown(segments: pd.DataFrame) -> list[str]:
-    """report.md's section: every cell not corrected and every cell not settled, and why."""
+    """report.md's section: the memory, every cell not corrected and every cell not settled, and why."""
     cells = _cells(segments)
     lines = ["", "## Protocol-aware correction", "",
              f"{int(cells['corrected'].sum())} of {len(cells)} cells corrected for the stress kept from "
-             "their earlier height steps; a cell not corrected keeps its recorded segments.", ""]
+             "their earlier height steps; a cell not corrected keeps its recorded segments.", "",
+             *_memory_lines(cells)]
     rows = [f"| {c} | not corrected: {r.reason} |" for c, r in cells[~cells["corrected"]].iterrows()]
     rows += [f"| {c} | not settled: its power laws still moved after {MAX_ROUNDS} rounds (its last "
              "correction is used) |" for c in cells.index[~cells["settled"].to_numpy()]]
     return lines + (["| cell | reason |", "|---|---|", *rows, ""] if rows else [])
-
-
-def refused(tension_mN_per_m: np.ndarray, factors: np.ndarray) -> str | None:
-    """Why a cell's correction is refused: a corrected mean tension <γ_eff>_j - Δγ_j ≤ 0; None if none."""
-    after = np.asarray(tension_mN_per_m, float) - factors[:, 2]
-    bad = np.flatnonzero(after <= 0)
-    if not bad.size:
-        return None
-    j = int(bad[0])
-    return (f"corrected tension ≤ 0 refused (segment {j}: {tension_mN_per_m[j]:.3g} - "
-            f"{factors[j, 2]:.3g} = {after[j]:.3g} mN/m)")
 
 
 def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[str]:
@@ -130,20 +165,24 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None, bool]) -> np.ndarray | str:
-    """The cell's factors, or why it is not corrected (`cell_correction`)."""
-    cell, law, bending, wait_s, linearised = job
-    return cell_correction(cell, law, bending, wait_s, linearised)
+def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, float]) -> np.ndarray | str:
+    """The cell's factors at one memory, or why it is not corrected (`cell_correction`)."""
+    cell, law, bending, wait_s, linearised, memory_s = job
+    return cell_correction(cell, law, bending, wait_s, linearised, memory_s)
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
-             jobs: int, label: str, linearised: bool = True) -> list[np.ndarray | str]:
-    """Per cell of `cells` its (segments, 3) correction factors or why not, `jobs` processes."""
-    bar = tqdm(total=len(cells), unit="cell", desc=label)
+             jobs: int, label: str, memories: Mapping[str, Sequence[float]],
+             linearised: bool = True) -> dict[str, dict[float, np.ndarray | str]]:
+    """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
+    why not, `jobs` processes (one task a cell and memory)."""
+    tasks = [(c, m) for c in cells for m in memories[c.cell_id]]
+    bar = tqdm(total=len(tasks), unit="replay", desc=label)
+    out: dict[str, dict[float, np.ndarray | str]] = {c.cell_id: {} for c in cells}
     with pool(jobs) as workers:
-        out = []
-        for f in workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised) for c in cells]):
-            out.append(f)
+        for (c, m), f in zip(tasks, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised, m)
+                                                       for c, m in tasks])):
+            out[c.cell_id][m] = f
             bar.update()
     bar.close()
     return out
@@ -151,15 +190,16 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
 
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
-              jobs: int = 1, full_last: bool = FULL_LAST) -> Measured:
-    """`measured` with its segments corrected for the carried stress (module docstring)."""
+              jobs: int = 1, full_last: bool = FULL_LAST, memory_s: float | None = None) -> Measured:
+    """`measured` with its segments corrected for the carried stress (module docstring); `memory_s`
+    τ_c (s), None: each cell's own from its data (`analysis.afm.memory_fit`)."""
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
-    factors = np.full((len(raw), 3), np.nan)
-    why = {c.cell_id: "no viscoelastic point fit of its segments" for c in cells}
-    now = _measured(raw, factors, volumes, measured, why, [])
-    table, tension = inverted(measured, inversion, bending, errors, math.inf), raw["tension_mN_per_m"].to_numpy(float)
+    nodes = MEMORY_GRID_S if memory_s is None else (memory_s,)
+    state = Factors(raw, rows, {c.cell_id: "no viscoelastic point fit of its segments" for c in cells})
+    now = state.measured(volumes, measured, [], {c.cell_id: 0 for c in cells})
+    table = inverted(measured, inversion, bending, errors, math.inf)
     laws: dict[str, dict[str, float]] = {}
     replays, moving = {c.cell_id: 0 for c in cells}, []
     for i in range(MAX_ROUNDS):
@@ -171,31 +211,17 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
             break
         laws.update({r["cell_id"]: r for r in found.to_dict("records") if r["cell_id"] in todo})
         replay_cells = [c for c in cells if c.cell_id in todo]
-        for c, f in zip(replay_cells, _factors(replay_cells, laws, bending, wait_s, jobs,
-                                               f"protocol round {i + 1} (at most {MAX_ROUNDS})")):
-            at, replays[c.cell_id] = rows[c.cell_id], replays[c.cell_id] + 1
-            why[c.cell_id] = f if isinstance(f, str) else (refused(tension[at], f) or "")
-            factors[at] = np.nan if why[c.cell_id] else f
-        now = _measured(raw, factors, volumes, measured, why, [], replays)
+        state.grids.update(_factors(replay_cells, laws, bending, wait_s, jobs,
+                                    f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
+        replays.update({c: replays[c] + 1 for c in todo})
+        state.choose(memory_s)
+        now = state.measured(volumes, measured, [], replays)
         table = inverted(now, inversion, bending, errors, math.inf)
     else:
         moving = todo
     if full_last:
         last = [c for c in cells if c.cell_id in laws]
-        for c, f in zip(last, _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", False)):
-            at = rows[c.cell_id]
-            why[c.cell_id] = f if isinstance(f, str) else (refused(tension[at], f) or "")
-            factors[at] = np.nan if why[c.cell_id] else f
-    return _measured(raw, factors, volumes, measured, why, moving, replays)
-
-
-def _measured(raw: pd.DataFrame, factors: np.ndarray, volumes: pd.Series, measured: Measured,
-              why: dict[str, str], moving: list[str], replays: dict[str, int] | None = None) -> Measured:
-    """The `Measured` of the raw segments corrected by `factors` (NaN rows: not corrected, for
-    the reason `why` gives); `moving` the cells not settled, `replays` how often each was replayed."""
-    segments = apply(raw, factors)
-    segments["protocol_corrected"] = ~np.isnan(factors[:, 0])
-    segments["protocol_reason"] = segments["cell_id"].map(why).fillna("").where(~segments["protocol_corrected"], "")
-    segments["protocol_settled"] = ~segments["cell_id"].isin(moving)
-    segments["protocol_replays"] = segments["cell_id"].map(replays or {}).fillna(0).astype(int)
-    return measured_of(segments.assign(volume_um3=segments["cell_id"].map(volumes)), measured.order)
+        chosen = {c.cell_id: (state.memory[c.cell_id].memory_s,) for c in last}
+        full = _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", chosen, False)
+        state.full({c: next(iter(f.values())) for c, f in full.items()})
+    return state.measured(volumes, measured, moving, replays)

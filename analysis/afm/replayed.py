@@ -19,12 +19,15 @@ K*_r,j (`solver.relaxed_state`) and γ_a. Then
 and the segment as the relaxed-state reading should see it is K*_j / c_j with mean tension
 <γ_eff>_j - Δγ_j (`correct`; the factors in `CORRECTION_COLUMNS`).
 
-With a wait S (`afm analyze --wait-s S`) every height's wait is S (`protocol_of`); a cell
+The cortex forgets with the memory τ_c (K(t) ∝ t^-β e^(-t/τ_c), `memory_s`; inf: the pure power
+law; 0: it keeps nothing, the relaxed-state reading); `analysis.afm.memory_fit` decides it from
+the recording. With a wait S (`afm analyze --wait-s S`) every height's wait is S (`protocol_of`); a cell
 whose protocol is not recorded is not corrected.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -58,16 +61,19 @@ def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
              "tension_mN_per_m": a.force_nN / float(gk)} for a, gk in zip(rep.answers, np.atleast_1d(g))]
 
 
-def cell_correction(cell: Cell, law: dict[str, float], bending: str,
-                    wait_s: float | None = None, linearised: bool = True) -> np.ndarray | str:
+def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
+                    linearised: bool = True, memory_s: float = math.inf) -> np.ndarray | str:
     """(segments, 3): |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws
-    `law` (a row of `cortex_laws`), by the linearised replay or the full one (module docstring);
+    `law` (a row of `cortex_laws`) and the memory τ_c `memory_s` (s; 0: nothing kept, c = 1 and
+    Δγ = 0 without a replay), by the linearised replay or the full one (module docstring);
     where the protocol is not recorded or the replay finds no equilibrium, why (the segments
     stay as recorded)."""
     protocol = read_protocol(cell, wait_s)
     if isinstance(protocol, str):
         return f"protocol not recorded: {protocol}"
-    cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"])
+    if memory_s == 0:
+        return np.tile([1.0, 0.0, 0.0], (len(cell.oscillations()), 1))
+    cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"], memory_s=memory_s)
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     try:

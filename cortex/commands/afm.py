@@ -174,6 +174,12 @@ def _add_analyze(s: Commands) -> None:
                         "'recorded': each recording's own waits (from its approaches or pauses); S: a wait of S s "
                         "at every height; inf: the relaxed-state reading, no correction. summary.json 'reading' "
                         "says which was used and why")
+    a.add_argument("--memory-s", default=None, metavar="S",
+                   help="the protocol-aware reading's cortex memory tau_c, K(t) ~ t^-beta e^(-t/tau_c). Default: "
+                        "each cell's own from the drift of its mean tension across heights, with a 95%% interval "
+                        "(pooled over the cells where one cell cannot tell; cells.csv and summary.json say which; "
+                        "docs/viscoelastic.md). S: tau_c = S s for every cell; inf: the pure power law, never "
+                        "forgetting; 0: nothing kept, the relaxed state (as --wait-s inf)")
     a.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="cells replayed in N processes at once (default: the CPUs this process may use)")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
@@ -449,6 +455,25 @@ def wait_setting(text: str | None, phase: bool) -> tuple[bool, float | None]:
     return False, wait
 
 
+def memory_setting(text: str | None, wait_s: float | None) -> float | None:
+    """`--memory-s` as τ_c in s (None: from the data); InputError (one line) if malformed, negative,
+    or given with the relaxed-state reading (`--wait-s inf`)."""
+    import math
+
+    from common.errors import InputError
+    if text is None:
+        return None
+    try:
+        memory = float(text)
+    except ValueError:
+        raise InputError(f"--memory-s: '{text}' is not a number of seconds or inf") from None
+    if not memory >= 0:
+        raise InputError(f"--memory-s: the memory must be >= 0 s, or inf (got {text})")
+    if wait_s is not None and math.isinf(wait_s):
+        raise InputError("--memory-s is the protocol-aware reading's: it cannot go with --wait-s inf")
+    return memory
+
+
 def analyze(args: argparse.Namespace) -> int:
     import json
 
@@ -462,7 +487,7 @@ def analyze(args: argparse.Namespace) -> int:
     as_made, wait = wait_setting(args.wait_s, phase)
     settings = Settings(bending=args.bending, method=args.method, errors=errors, import_options=options,
                         phase=phase, lags=lags, lag_source=lag_source, tension_tolerance=tolerance,
-                        as_made=as_made, wait_s=wait, jobs=args.jobs)
+                        as_made=as_made, wait_s=wait, jobs=args.jobs, memory_s=memory_setting(args.memory_s, wait))
     result = run(data, file, args.out, settings)
     if args.json:
         print(json.dumps(plain({"report": str(result["report"]), "skipped": result["skipped"],

@@ -1,0 +1,131 @@
+"""Each cell's protocol correction at its memory: the state the protocol-aware reading's rounds
+keep (`analysis.afm.protocol_reading`).
+
+A cell's replays give its factors (|c|, arg c, Δγ per segment, `analysis.afm.replayed`) at each
+memory τ_c asked for (the nodes of `analysis.afm.memory_fit.MEMORY_GRID_S`, or the one given).
+A node is usable where its replay found an equilibrium and no corrected mean tension
+<γ_eff>_j - Δγ_j is ≤ 0 (`refused`). The cell's memory (`choose`), and where it comes from
+(MEMORY_COLUMNS' `protocol_memory_source`):
+
+    given    --memory-s S: every cell's;
+    fitted   the cell's own profile identifies it (`memory_fit.profile`);
+    pooled   it does not, the population's summed profile does (`memory_fit.pooled`);
+    assumed  neither does: UNDECIDED_S (the pure power law), said in the report.
+
+The factors at a memory between nodes are interpolated linearly in the carried coordinate φ
+(`memory_fit.carried`), as the profile interpolates Δγ; the reading's last correction replays the
+memory itself (`full`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from analysis.afm.analyze import Measured, measured_of
+from analysis.afm.memory_fit import UNDECIDED_S, MemoryFit, carried, pooled, profile
+from analysis.afm.replayed import apply
+
+MEMORY_COLUMNS = ("protocol_memory_s", "protocol_memory_lo95_s", "protocol_memory_hi95_s", "protocol_memory_source")
+Grid = dict[float, "np.ndarray | str"]
+
+
+def refused(tension_mN_per_m: np.ndarray, factors: np.ndarray) -> str | None:
+    """Why a cell's correction is refused: a corrected mean tension <γ_eff>_j - Δγ_j ≤ 0; None if none."""
+    after = np.asarray(tension_mN_per_m, float) - factors[:, 2]
+    bad = np.flatnonzero(after <= 0)
+    if not bad.size:
+        return None
+    j = int(bad[0])
+    return (f"corrected tension ≤ 0 refused (segment {j}: {tension_mN_per_m[j]:.3g} - "
+            f"{factors[j, 2]:.3g} = {after[j]:.3g} mN/m)")
+
+
+def _why(f: np.ndarray | str, tension: np.ndarray) -> str:
+    """Why the factors `f` cannot be used ("" if they can)."""
+    return f if isinstance(f, str) else (refused(tension, f) or "")
+
+
+def interpolated(grid: Grid, tension: np.ndarray, memory_s: float) -> np.ndarray | str:
+    """The factors at `memory_s`, linear in φ between the grid's usable nodes; outside them, why not."""
+    usable = {m: f for m, f in grid.items() if not _why(f, tension)}
+    if memory_s in grid and memory_s not in usable:
+        return _why(grid[memory_s], tension)
+    if not usable:
+        return next(_why(f, tension) for f in grid.values())
+    nodes = sorted(usable)
+    phi, x = carried(nodes), float(carried(memory_s))
+    if not phi[0] <= x <= phi[-1]:
+        near = min(grid, key=lambda m: abs(float(carried(m)) - x))
+        return _why(grid[near], tension) or f"no usable replay at a memory of {memory_s:g} s"
+    stack = np.array([usable[m] for m in nodes])
+    return np.apply_along_axis(lambda y: np.interp(x, phi, y), 0, stack)
+
+
+@dataclass
+class Factors:
+    """The rounds' state: per cell its replays (`grids`), memory and its source, and the factors
+    of every raw segment (NaN rows: not corrected, for the reason `why` gives)."""
+
+    raw: pd.DataFrame
+    rows: dict[str, np.ndarray]
+    why: dict[str, str]
+    grids: dict[str, Grid] = field(default_factory=dict)
+    memory: dict[str, MemoryFit] = field(default_factory=dict)
+    source: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.factors = np.full((len(self.raw), 3), np.nan)
+        self.tension = self.raw["tension_mN_per_m"].to_numpy(float)
+
+    def _set(self, cell: str, f: np.ndarray | str) -> None:
+        at = self.rows[cell]
+        self.why[cell] = _why(f, self.tension[at])
+        self.factors[at] = np.nan if self.why[cell] else f
+
+    def _profile(self, cell: str) -> MemoryFit:
+        t = self.tension[self.rows[cell]]
+        return profile(t, {m: f[:, 2] for m, f in self.grids[cell].items() if isinstance(f, np.ndarray) and not _why(f, t)})
+
+    def choose(self, memory_s: float | None) -> None:
+        """Every replayed cell's memory (module docstring) and its factors there."""
+        fits = {c: self._profile(c) for c in self.grids} if memory_s is None else {}
+        population = pooled(list(fits.values()))
+        for c in self.grids:
+            if memory_s is not None:
+                self.memory[c], self.source[c] = MemoryFit(memory_s, memory_s, memory_s, True, None), "given"
+            elif fits[c].identified:
+                self.memory[c], self.source[c] = fits[c], "fitted"
+            elif population.identified:
+                self.memory[c], self.source[c] = population, "pooled"
+            else:
+                self.memory[c], self.source[c] = MemoryFit(UNDECIDED_S, 0.0, math.inf, False, None), "assumed"
+            self._set(c, interpolated(self.grids[c], self.tension[self.rows[c]], self.memory[c].memory_s))
+
+    def full(self, found: dict[str, np.ndarray | str]) -> None:
+        """The full replays' factors at each cell's memory replace the interpolated ones."""
+        for c, f in found.items():
+            self._set(c, f)
+
+    def measured(self, volumes: pd.Series, measured: Measured, moving: list[str], replays: dict[str, int]) -> Measured:
+        """The `Measured` of the raw segments corrected by the factors; `moving` the cells not settled,
+        `replays` how often each was replayed; the memory in MEMORY_COLUMNS."""
+        segments = apply(self.raw, self.factors)
+        cells = segments["cell_id"]
+        segments["protocol_corrected"] = ~np.isnan(self.factors[:, 0])
+        segments["protocol_reason"] = cells.map(self.why).fillna("").where(~segments["protocol_corrected"], "")
+        segments["protocol_settled"] = ~cells.isin(moving)
+        segments["protocol_replays"] = cells.map(replays).fillna(0).astype(int)
+        for name, value in zip(MEMORY_COLUMNS, (lambda f: f.memory_s, lambda f: f.lo95_s, lambda f: f.hi95_s)):
+            segments[name] = cells.map({c: value(f) for c, f in self.memory.items()}).astype(float)
+        segments["protocol_memory_source"] = cells.map(lambda c: self.source.get(c, ""))
+        return measured_of(segments.assign(volume_um3=cells.map(volumes)), measured.order)
+
+
+def with_memory(cells: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
+    """A cells table with each cell's memory (MEMORY_COLUMNS) from its corrected segments."""
+    per_cell = segments.groupby("cell_id")[list(MEMORY_COLUMNS)].first()
+    return cells.join(per_cell, on="cell_id")
