@@ -110,6 +110,10 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
     (["--wait-s", "-5"], "--wait-s: the wait must be >= 0 s"),
     (["--wait-s", "100", "--no-phase"], "cannot go with --no-phase"),
     (["--jobs", "0"], "jobs must be >= 1"),
+    (["--memory-s", "long"], "--memory-s: 'long' is not a number"),
+    (["--memory-s", "-1"], "--memory-s: the memory must be >= 0 s"),
+    (["--memory-s", "30", "--wait-s", "inf"], "cannot go with --wait-s inf"),
+    (["--memory-s", "30"], "a memory is the protocol-aware reading's"),
 ])
 def test_wait_s_bad_values_exit_2(tmp_path, capsys, args, message):
     assert main(["afm", "synth", "--cells", "2", "--out", str(tmp_path / "exp")]) == 0

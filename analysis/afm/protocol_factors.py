@@ -2,7 +2,8 @@
 keep (`analysis.afm.protocol_reading`).
 
 A cell's replays give its factors (|c|, arg c, Δγ per segment, `analysis.afm.replayed`) at each
-memory τ_c asked for (the nodes of `analysis.afm.memory_fit.MEMORY_GRID_S`, or the one given).
+memory asked for (the nodes of `analysis.afm.memory_fit.MEMORY_GRID_S` and its RELAXED history,
+or the τ_c given).
 A node is usable where its replay found an equilibrium and no corrected mean tension
 <γ_eff>_j - Δγ_j is ≤ 0 (`refused`). The cell's memory (`choose`), and where it comes from
 (MEMORY_COLUMNS' `protocol_memory_source`):
@@ -14,23 +15,25 @@ A node is usable where its replay found an equilibrium and no corrected mean ten
 
 The factors at a memory between nodes are interpolated linearly in the carried coordinate φ
 (`memory_fit.carried`), as the profile interpolates Δγ; the reading's last correction replays the
-memory itself (`full`).
+memory itself (`full`). MEMORY_COLUMNS: τ_c (s; inf with a relaxed history: nothing forgotten
+within a height), its 95 % interval over the carried history (NaN where only the relaxed history
+is in the set), the source and the history (carried | relaxed).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from analysis.afm.analyze import Measured, measured_of
-from analysis.afm.memory_fit import UNDECIDED_S, MemoryFit, carried, pooled, profile
+from analysis.afm.memory_fit import RELAXED, UNDECIDED, MemoryFit, Node, carried, pooled, profile
 from analysis.afm.replayed import apply
 
-MEMORY_COLUMNS = ("protocol_memory_s", "protocol_memory_lo95_s", "protocol_memory_hi95_s", "protocol_memory_source")
-Grid = dict[float, "np.ndarray | str"]
+MEMORY_COLUMNS = ("protocol_memory_s", "protocol_memory_lo95_s", "protocol_memory_hi95_s", "protocol_memory_source",
+                  "protocol_history")
+Grid = dict[Node, "np.ndarray | str"]
 
 
 def refused(tension_mN_per_m: np.ndarray, factors: np.ndarray) -> str | None:
@@ -49,19 +52,26 @@ def _why(f: np.ndarray | str, tension: np.ndarray) -> str:
     return f if isinstance(f, str) else (refused(tension, f) or "")
 
 
-def interpolated(grid: Grid, tension: np.ndarray, memory_s: float) -> np.ndarray | str:
-    """The factors at `memory_s`, linear in φ between the grid's usable nodes; outside them, why not."""
-    usable = {m: f for m, f in grid.items() if not _why(f, tension)}
-    if memory_s in grid and memory_s not in usable:
-        return _why(grid[memory_s], tension)
+def node(fit: MemoryFit) -> Node:
+    """The replay a memory asks for: RELAXED, or its τ_c (s)."""
+    return RELAXED if fit.relaxed else fit.memory_s
+
+
+def interpolated(grid: Grid, tension: np.ndarray, fit: MemoryFit) -> np.ndarray | str:
+    """The factors at the memory `fit`, linear in φ between the grid's usable carried nodes; outside
+    them, why not."""
+    if fit.relaxed or node(fit) in grid:
+        return grid[node(fit)] if not _why(grid[node(fit)], tension) else _why(grid[node(fit)], tension)
+    memory_s = fit.memory_s
+    usable = {m: f for m, f in grid.items() if m != RELAXED and not _why(f, tension)}
     if not usable:
         return next(_why(f, tension) for f in grid.values())
     nodes = sorted(usable)
     phi, x = carried(nodes), float(carried(memory_s))
     if not phi[0] <= x <= phi[-1]:
-        near = min(grid, key=lambda m: abs(float(carried(m)) - x))
+        near = min((m for m in grid if m != RELAXED), key=lambda m: abs(float(carried(m)) - x))
         return _why(grid[near], tension) or f"no usable replay at a memory of {memory_s:g} s"
-    stack = np.array([usable[m] for m in nodes])
+    stack = np.array([usable[m] for m in nodes], float)
     return np.apply_along_axis(lambda y: np.interp(x, phi, y), 0, stack)
 
 
@@ -87,8 +97,10 @@ class Factors:
         self.factors[at] = np.nan if self.why[cell] else f
 
     def _profile(self, cell: str) -> MemoryFit:
-        t = self.tension[self.rows[cell]]
-        return profile(t, {m: f[:, 2] for m, f in self.grids[cell].items() if isinstance(f, np.ndarray) and not _why(f, t)})
+        at = self.rows[cell]
+        t = self.tension[at]
+        return profile(t, {m: f[:, 2] for m, f in self.grids[cell].items() if isinstance(f, np.ndarray) and not _why(f, t)},
+                       self.raw["frequency_hz"].to_numpy(float)[at])
 
     def choose(self, memory_s: float | None) -> None:
         """Every replayed cell's memory (module docstring) and its factors there."""
@@ -96,14 +108,14 @@ class Factors:
         population = pooled(list(fits.values()))
         for c in self.grids:
             if memory_s is not None:
-                self.memory[c], self.source[c] = MemoryFit(memory_s, memory_s, memory_s, True, None), "given"
+                self.memory[c], self.source[c] = MemoryFit(memory_s, memory_s, memory_s, True), "given"
             elif fits[c].identified:
                 self.memory[c], self.source[c] = fits[c], "fitted"
             elif population.identified:
                 self.memory[c], self.source[c] = population, "pooled"
             else:
-                self.memory[c], self.source[c] = MemoryFit(UNDECIDED_S, 0.0, math.inf, False, None), "assumed"
-            self._set(c, interpolated(self.grids[c], self.tension[self.rows[c]], self.memory[c].memory_s))
+                self.memory[c], self.source[c] = UNDECIDED, "assumed"
+            self._set(c, interpolated(self.grids[c], self.tension[self.rows[c]], self.memory[c]))
 
     def full(self, found: dict[str, np.ndarray | str]) -> None:
         """The full replays' factors at each cell's memory replace the interpolated ones."""
@@ -122,6 +134,8 @@ class Factors:
         for name, value in zip(MEMORY_COLUMNS, (lambda f: f.memory_s, lambda f: f.lo95_s, lambda f: f.hi95_s)):
             segments[name] = cells.map({c: value(f) for c, f in self.memory.items()}).astype(float)
         segments["protocol_memory_source"] = cells.map(lambda c: self.source.get(c, ""))
+        segments["protocol_history"] = cells.map(lambda c: (RELAXED if self.memory[c].relaxed else "carried")
+                                                 if c in self.memory else "")
         return measured_of(segments.assign(volume_um3=cells.map(volumes)), measured.order)
 
 

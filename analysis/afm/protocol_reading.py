@@ -46,8 +46,8 @@ import pandas as pd
 from tqdm import tqdm
 
 from analysis.afm.analyze import Measured, inverted
-from analysis.afm.memory_fit import MEMORY_GRID_S
-from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors
+from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
+from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
 from analysis.afm.replayed import cell_correction
 from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
@@ -78,20 +78,23 @@ def _cells(segments: pd.DataFrame) -> pd.DataFrame:
 
 
 def _seconds(value: float) -> float | None:
-    """A memory in s for JSON: null for ∞."""
-    return None if math.isinf(value) else float(value)
+    """A memory in s for JSON: null for ∞ or none."""
+    return None if not math.isfinite(value) else float(value)
 
 
 def _memory(cells: pd.DataFrame, memory_s: float | None) -> dict[str, object]:
     """summary.json's `memory`: given or from the data, the grid, and per cell τ_c (s, null ∞), its
-    95 % interval and where it came from (`analysis.afm.protocol_factors`)."""
+    95 % interval (null: ∞, or no carried history in the set), where it came from and the history
+    (`analysis.afm.protocol_factors`)."""
     per_cell = {str(c): {"memory_s": _seconds(r.protocol_memory_s), "lo95_s": _seconds(r.protocol_memory_lo95_s),
-                         "hi95_s": _seconds(r.protocol_memory_hi95_s), "source": r.protocol_memory_source}
+                         "hi95_s": _seconds(r.protocol_memory_hi95_s), "source": r.protocol_memory_source,
+                         "history": r.protocol_history}
                 for c, r in cells.iterrows() if r.protocol_memory_source}
     sources = cells["protocol_memory_source"]
     return {"memory_s": "from the data" if memory_s is None else _seconds(memory_s),
             "grid_s": [_seconds(m) for m in MEMORY_GRID_S] if memory_s is None else None,
             **{f"cells_{k}": int((sources == k).sum()) for k in ("fitted", "pooled", "assumed", "given")},
+            "cells_relaxed_history": int((cells["protocol_history"] == RELAXED).sum()),
             "cells": per_cell}
 
 
@@ -125,7 +128,8 @@ def _memory_lines(cells: pd.DataFrame) -> list[str]:
             f"{len(pooled)} cells could not and take the population's"
             + (f" ({pooled.iloc[0]:g} s)" if len(pooled) else "")
             + f"; {int((src == 'assumed').sum())} cells are undecided by the data and assume the pure power law "
-            "(τ_c = ∞).", ""]
+            f"(τ_c = ∞). {int((cells['protocol_history'] == RELAXED).sum())} cells read best with the history relaxed "
+            "at every height (only the last step's stress kept).", ""]
 
 
 def markdown(segments: pd.DataFrame) -> list[str]:
@@ -165,20 +169,22 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, float]) -> np.ndarray | str:
-    """The cell's factors at one memory, or why it is not corrected (`cell_correction`)."""
-    cell, law, bending, wait_s, linearised, memory_s = job
-    return cell_correction(cell, law, bending, wait_s, linearised, memory_s)
+def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Node]) -> np.ndarray | str:
+    """The cell's factors at one memory (a τ_c or RELAXED), or why it is not corrected (`cell_correction`)."""
+    cell, law, bending, wait_s, linearised, memory = job
+    if memory == RELAXED:
+        return cell_correction(cell, law, bending, wait_s, linearised, math.inf, "relaxed")
+    return cell_correction(cell, law, bending, wait_s, linearised, float(memory))
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
-             jobs: int, label: str, memories: Mapping[str, Sequence[float]],
-             linearised: bool = True) -> dict[str, dict[float, np.ndarray | str]]:
+             jobs: int, label: str, memories: Mapping[str, Sequence[Node]],
+             linearised: bool = True) -> dict[str, dict[Node, np.ndarray | str]]:
     """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
     why not, `jobs` processes (one task a cell and memory)."""
     tasks = [(c, m) for c in cells for m in memories[c.cell_id]]
     bar = tqdm(total=len(tasks), unit="replay", desc=label)
-    out: dict[str, dict[float, np.ndarray | str]] = {c.cell_id: {} for c in cells}
+    out: dict[str, dict[Node, np.ndarray | str]] = {c.cell_id: {} for c in cells}
     with pool(jobs) as workers:
         for (c, m), f in zip(tasks, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised, m)
                                                        for c, m in tasks])):
@@ -196,7 +202,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
-    nodes = MEMORY_GRID_S if memory_s is None else (memory_s,)
+    nodes: tuple[Node, ...] = (*MEMORY_GRID_S, RELAXED) if memory_s is None else (memory_s,)
     state = Factors(raw, rows, {c.cell_id: "no viscoelastic point fit of its segments" for c in cells})
     now = state.measured(volumes, measured, [], {c.cell_id: 0 for c in cells})
     table = inverted(measured, inversion, bending, errors, math.inf)
@@ -221,7 +227,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         moving = todo
     if full_last:
         last = [c for c in cells if c.cell_id in laws]
-        chosen = {c.cell_id: (state.memory[c.cell_id].memory_s,) for c in last}
+        chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in last}
         full = _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", chosen, False)
         state.full({c: next(iter(f.values())) for c, f in full.items()})
     return state.measured(volumes, measured, moving, replays)

@@ -37,7 +37,7 @@ from analysis.afm.cell import Cell
 from analysis.afm.recorded_protocol import read_protocol
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
-from common.errors import SolverError
+from common.errors import InputError, SolverError
 from solver.model import Shell
 from solver.protocol import Oscillate
 from solver.geometry import droplet
@@ -62,10 +62,11 @@ def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
 
 
 def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
-                    linearised: bool = True, memory_s: float = math.inf) -> np.ndarray | str:
+                    linearised: bool = True, memory_s: float = math.inf, history: str = "carried") -> np.ndarray | str:
     """(segments, 3): |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws
-    `law` (a row of `cortex_laws`) and the memory τ_c `memory_s` (s; 0: nothing kept, c = 1 and
-    Δγ = 0 without a replay), by the linearised replay or the full one (module docstring);
+    `law` (a row of `cortex_laws`), the memory τ_c `memory_s` (s; 0: nothing kept, c = 1 and
+    Δγ = 0 without a replay) and the `history` across heights (`solver.protocol_simulation`:
+    carried, or relaxed at every height), by the linearised replay or the full one (module docstring);
     where the protocol is not recorded or the replay finds no equilibrium, why (the segments
     stay as recorded)."""
     protocol = read_protocol(cell, wait_s)
@@ -77,10 +78,12 @@ def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: flo
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     try:
-        rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY)
+        rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY, history=history)
         rows = answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)
     except SolverError as e:
         return f"the replay found no equilibrium ({e})"
+    except InputError as e:            # a relaxed history needs a first ramp down from the start
+        return f"the replay cannot relax its history ({e})"
     oscillations = [s for s in protocol.steps if isinstance(s, Oscillate)]
     out = np.empty((len(rows), 3))
     for k, (row, osc, seg) in enumerate(zip(rows, oscillations, cell.oscillations())):
