@@ -48,7 +48,7 @@ from tqdm import tqdm
 from analysis.afm.analyze import Measured, inverted
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
-from analysis.afm.replayed import cell_correction
+from analysis.afm.replayed import cell_corrections
 from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
 
@@ -169,26 +169,22 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Node]) -> np.ndarray | str:
-    """The cell's factors at one memory (a τ_c or RELAXED), or why it is not corrected (`cell_correction`)."""
-    cell, law, bending, wait_s, linearised, memory = job
-    if memory == RELAXED:
-        return cell_correction(cell, law, bending, wait_s, linearised, math.inf, "relaxed")
-    return cell_correction(cell, law, bending, wait_s, linearised, float(memory))
+def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Sequence[Node]]) -> dict[Node, np.ndarray | str]:
+    """The cell's factors at each memory (a τ_c or RELAXED), or why it is not corrected (`cell_corrections`)."""
+    return cell_corrections(*job)
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
              jobs: int, label: str, memories: Mapping[str, Sequence[Node]],
              linearised: bool = True) -> dict[str, dict[Node, np.ndarray | str]]:
     """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
-    why not, `jobs` processes (one task a cell and memory)."""
-    tasks = [(c, m) for c in cells for m in memories[c.cell_id]]
-    bar = tqdm(total=len(tasks), unit="replay", desc=label)
-    out: dict[str, dict[Node, np.ndarray | str]] = {c.cell_id: {} for c in cells}
+    why not, `jobs` processes (one task a cell)."""
+    bar = tqdm(total=len(cells), unit="cell", desc=label)
+    out: dict[str, dict[Node, np.ndarray | str]] = {}
     with pool(jobs) as workers:
-        for (c, m), f in zip(tasks, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised, m)
-                                                       for c, m in tasks])):
-            out[c.cell_id][m] = f
+        for c, f in zip(cells, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised,
+                                                   memories[c.cell_id]) for c in cells])):
+            out[c.cell_id] = f
             bar.update()
     bar.close()
     return out

@@ -19,27 +19,31 @@ K*_r,j (`solver.relaxed_state`) and γ_a. Then
 and the segment as the relaxed-state reading should see it is K*_j / c_j with mean tension
 <γ_eff>_j - Δγ_j (`correct`; the factors in `CORRECTION_COLUMNS`).
 
-The cortex forgets with the memory τ_c (K(t) ∝ t^-β e^(-t/τ_c), `memory_s`; inf: the pure power
-law; 0: it keeps nothing, the relaxed-state reading); `analysis.afm.memory_fit` decides it from
-the recording. With a wait S (`afm analyze --wait-s S`) every height's wait is S (`protocol_of`); a cell
+The cortex forgets with the memory τ_c (K(t) ∝ t^-β e^(-t/τ_c); inf: the pure power law; 0: it
+keeps nothing, the relaxed-state reading), or keeps only its last step (RELAXED: the history
+relaxed at every height); `analysis.afm.memory_fit` decides which from the recording. K*_r is the
+pure power law's whatever the memory: c then also maps a turnover's bend of K*(f) back onto the
+power law the reading fits. With a wait S (`afm analyze --wait-s S`) every height's wait is S (`protocol_of`); a cell
 whose protocol is not recorded is not corrected.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.afm.cell import Cell
+from analysis.afm.memory_fit import RELAXED, Node
 from analysis.afm.recorded_protocol import read_protocol
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
 from common.errors import InputError, SolverError
 from solver.model import Shell
-from solver.protocol import Oscillate
+from solver.protocol import Oscillate, Protocol
 from solver.geometry import droplet
 from solver.protocol_simulation import LINEARISED, REPLAY, Recording, simulate
 from solver.relaxed_state import relaxed_state
@@ -61,36 +65,63 @@ def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
              "tension_mN_per_m": a.force_nN / float(gk)} for a, gk in zip(rep.answers, np.atleast_1d(g))]
 
 
-def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
-                    linearised: bool = True, memory_s: float = math.inf, history: str = "carried") -> np.ndarray | str:
-    """(segments, 3): |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws
-    `law` (a row of `cortex_laws`), the memory τ_c `memory_s` (s; 0: nothing kept, c = 1 and
-    Δγ = 0 without a replay) and the `history` across heights (`solver.protocol_simulation`:
-    carried, or relaxed at every height), by the linearised replay or the full one (module docstring);
-    where the protocol is not recorded or the replay finds no equilibrium, why (the segments
-    stay as recorded)."""
+def cell_corrections(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
+                     linearised: bool = True, memories: Sequence[Node] = (math.inf,)) -> dict[Node, np.ndarray | str]:
+    """Per memory of `memories` (τ_c in s, or RELAXED: the history relaxed at every height) the
+    (segments, 3) |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws `law` (a
+    row of `cortex_laws`), by the linearised replay or the full one (module docstring); τ_c = 0:
+    nothing kept, c = 1 and Δγ = 0 without a replay. Where the protocol is not recorded or the
+    replay finds no equilibrium, why (the segments stay as recorded). K*_r is the pure power law's
+    at every memory, so c also undoes the bend a finite τ_c gives K*(f); it is computed once."""
     protocol = read_protocol(cell, wait_s)
     if isinstance(protocol, str):
-        return f"protocol not recorded: {protocol}"
-    if memory_s == 0:
-        return np.tile([1.0, 0.0, 0.0], (len(cell.oscillations()), 1))
-    cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"], memory_s=memory_s)
+        return {m: f"protocol not recorded: {protocol}" for m in memories}
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
+    power_law = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"])
+    reference: list[complex] = []
+    out: dict[Node, np.ndarray | str] = {}
+    for m in memories:
+        if m == 0:
+            out[m] = np.tile([1.0, 0.0, 0.0], (len(cell.oscillations()), 1))
+            continue
+        rows = _replayed(cell, law, shell, protocol, m, linearised)
+        if isinstance(rows, str):
+            out[m] = rows
+            continue
+        reference = reference or _references(cell, shell, power_law, protocol)
+        K = np.array([r["modulus_mN_per_m"] * np.exp(1j * r["loss_angle_rad"]) for r in rows]) / np.array(reference)
+        out[m] = np.column_stack([np.abs(K), np.angle(K), [r["tension_mN_per_m"] - law["tension"] for r in rows]])
+    return out
+
+
+def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
+                    linearised: bool = True, memory: Node = math.inf) -> np.ndarray | str:
+    """`cell_corrections` at one memory."""
+    return cell_corrections(cell, law, bending, wait_s, linearised, (memory,))[memory]
+
+
+def _replayed(cell: Cell, law: dict[str, float], shell: Shell, protocol: Protocol, memory: Node,
+              linearised: bool) -> list[dict[str, Any]] | str:
+    """The replay's segments (|K*|, loss angle, mean tension) at one memory, or why none."""
+    tau = math.inf if memory == RELAXED else float(memory)
+    cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"], memory_s=tau)
     try:
-        rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY, history=history)
-        rows = answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)
+        rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY,
+                       history="relaxed" if memory == RELAXED else "carried")
+        return answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)
     except SolverError as e:
         return f"the replay found no equilibrium ({e})"
     except InputError as e:            # a relaxed history needs a first ramp down from the start
         return f"the replay cannot relax its history ({e})"
+
+
+def _references(cell: Cell, shell: Shell, cortex: Cortex, protocol: Protocol) -> list[complex]:
+    """K*_r (mN/m) of the relaxed-state model with `cortex` per oscillation: at its recorded mean
+    height and frequency."""
     oscillations = [s for s in protocol.steps if isinstance(s, Oscillate)]
-    out = np.empty((len(rows), 3))
-    for k, (row, osc, seg) in enumerate(zip(rows, oscillations, cell.oscillations())):
-        mean = float(cell.height_um[seg.start:seg.stop].mean())
-        K = row["modulus_mN_per_m"] * np.exp(1j * row["loss_angle_rad"]) / _relaxed(shell, cortex, mean, osc)
-        out[k] = abs(K), float(np.angle(K)), row["tension_mN_per_m"] - law["tension"]
-    return out
+    return [_relaxed(shell, cortex, float(cell.height_um[seg.start:seg.stop].mean()), osc)
+            for osc, seg in zip(oscillations, cell.oscillations())]
 
 
 def _relaxed(shell: Shell, cortex: Cortex, mean_um: float, osc: Oscillate) -> complex:
