@@ -1,12 +1,16 @@
 """What the protocol-aware reading says of the cells it did not correct or settle
 (`analysis.afm.protocol_reading`): a corrected tension <= 0 refused with its reason, and
-summary.json's and report.md's lists of every such cell and why; where the rounds start."""
+summary.json's and report.md's lists of every such cell and why, and of each cell's memory; where the rounds
+start."""
+
+import json
+import math
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.afm.protocol_factors import refused
+from analysis.afm.protocol_factors import MEMORY_COLUMNS, refused
 from analysis.afm.protocol_reading import MAX_ROUNDS, markdown, started, summary
 
 
@@ -52,3 +56,25 @@ def test_the_rounds_start_from_the_shallowest_heights_tension_and_count_the_repl
     rows = _segments().assign(protocol_replays=[1, 1, 3, 3, 2, 2, 0, 0])
     assert summary(rows, None)["replays_per_cell"] == pytest.approx(1.5)
     assert summary(_segments(), None)["replays_per_cell"] is None
+
+
+def test_summary_and_report_say_each_cells_memory_and_where_it_came_from():
+    """Memory columns per cell (fitted, pooled, assumed, the relaxed history): summary.json counts
+    them and lists each (null for ∞ or no interval: strict JSON), report.md says the counts."""
+    memory = {"a": (40.0, 20.0, 90.0, "fitted", "carried"), "b": (30.0, 10.0, 80.0, "pooled", "carried"),
+              "c": (math.inf, 0.0, math.inf, "assumed", "carried"), "d": (math.inf, math.nan, math.nan, "fitted", "relaxed")}
+    rows = _segments()
+    for k, name in enumerate(MEMORY_COLUMNS):
+        rows[name] = rows["cell_id"].map({c: m[k] for c, m in memory.items()})
+    said = summary(rows, None)["memory"]
+    json.dumps(said, allow_nan=False)
+    assert said["memory_s"] == "from the data" and said["grid_s"][-1] is None
+    assert (said["cells_fitted"], said["cells_pooled"], said["cells_assumed"], said["cells_relaxed_history"]) == (2, 1, 1, 1)
+    assert said["cells"]["c"] == {"memory_s": None, "lo95_s": 0.0, "hi95_s": None, "source": "assumed", "history": "carried"}
+    assert said["cells"]["d"]["lo95_s"] is None and said["cells"]["d"]["history"] == "relaxed"
+    text = "\n".join(markdown(rows))
+    assert "2 cells read their own; 1 cells could not and take the population's (30 s)" in text
+    assert "1 cells are undecided by the data" in text and "1 cells read best with the history relaxed" in text
+    given = rows.assign(protocol_memory_s=45.0, protocol_memory_source="given")
+    assert summary(given, None, 45.0)["memory"]["memory_s"] == 45.0
+    assert "given: 45 s for every cell" in "\n".join(markdown(given))

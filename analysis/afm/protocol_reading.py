@@ -105,7 +105,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
-    return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex",
+    return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex and memory",
             "wait_s": "recorded" if wait_s is None else wait_s,
             "memory": _memory(cells, memory_s) if "protocol_memory_source" in cells else None,
             "cells_corrected": int(cells["corrected"].sum()),

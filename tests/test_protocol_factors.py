@@ -1,0 +1,72 @@
+"""Each cell's memory chosen in the protocol-aware reading (`analysis.afm.protocol_factors`): its
+own where its drift tells, the population's where it does not, the pure power law where nothing
+tells; the factors interpolated between the replayed memories, and a refused memory left out."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, UNDECIDED_S
+from analysis.afm.protocol_factors import Factors
+
+WAIT_S = 100.0
+
+
+def _kept(memory_s: float) -> float:
+    return 0.0 if memory_s == 0 else math.exp(-WAIT_S / memory_s)
+
+
+def _grid(scale: np.ndarray) -> dict:
+    """Factors at every candidate: |c| 1 + Δγ, arg c 0, Δγ = scale × the share kept (RELAXED: none drifts)."""
+    out = {m: np.column_stack([1 + scale * _kept(m), np.zeros_like(scale), scale * _kept(m)]) for m in MEMORY_GRID_S}
+    out[RELAXED] = np.column_stack([np.ones_like(scale), np.zeros_like(scale), np.full_like(scale, scale.mean())])
+    return out
+
+
+def _state(cells: dict) -> Factors:
+    raw = pd.concat([pd.DataFrame({"cell_id": c, "tension_mN_per_m": t, "frequency_hz": 1.0})
+                     for c, (t, _) in cells.items()], ignore_index=True)
+    rows = {c: np.flatnonzero(raw["cell_id"].to_numpy() == c) for c in cells}
+    state = Factors(raw, rows, {c: "" for c in cells})
+    state.grids = {c: g for c, (_, g) in cells.items()}
+    return state
+
+
+def test_own_pooled_and_assumed_memories_and_their_factors():
+    """Cell a drifts as τ_c = 100 s keeps (8 heights, noise 0.005 mN/m): its own memory, and its factors
+    at it between the 30 and 300 s replays; cell b, at two heights of flat drift, cannot tell and
+    takes the population's (a's); with a alone removed, nothing tells and ∞ is assumed."""
+    rng = np.random.default_rng(0)
+    depth = np.arange(1.0, 9.0)
+    scale = 0.1 * depth
+    a = (1.0 + scale * _kept(100.0) + rng.normal(0, 0.005, 8), _grid(scale))
+    b = (np.array([1.0, 1.01, 1.0]), _grid(np.array([0.01, 0.01, 0.01])))
+    state = _state({"a": a, "b": b})
+    state.choose(None)
+    assert state.source == {"a": "fitted", "b": "pooled"}
+    fit = state.memory["a"]
+    assert fit.lo95_s <= 100.0 <= fit.hi95_s and 30.0 < fit.memory_s < 300.0
+    shift = state.factors[state.rows["a"], 2]
+    assert np.all(shift > scale * _kept(30.0)) and np.all(shift < scale * _kept(300.0))
+    assert state.memory["b"].memory_s == fit.memory_s
+    alone = _state({"b": b})
+    alone.choose(None)
+    assert alone.source == {"b": "assumed"} and alone.memory["b"].memory_s == UNDECIDED_S
+    assert alone.factors[:, 2] == pytest.approx(0.01)           # the ∞ replay's shift
+
+
+def test_a_refused_memory_is_left_out_and_a_given_one_is_used():
+    """Where τ_c = ∞ would leave a corrected tension ≤ 0, the fit keeps to the others; --memory-s picks
+    its replay as it is."""
+    scale = np.linspace(0.1, 0.8, 8)
+    t = 1.0 + scale * _kept(30.0)
+    grid = _grid(scale)
+    grid[math.inf][:, 2] = 1.1
+    state = _state({"a": (t, grid)})
+    state.choose(None)
+    assert math.isfinite(state.memory["a"].hi95_s) and state.why["a"] == ""
+    given = _state({"a": (t, {300.0: grid[300.0]})})
+    given.choose(300.0)
+    assert given.source == {"a": "given"} and given.factors[:, 2] == pytest.approx(grid[300.0][:, 2])
