@@ -433,6 +433,18 @@ def experiment_in(paths: Sequence[str]) -> Sequence[str]:
     return paths
 
 
+def seconds_option(option: str, text: str, what: str, expected: str) -> float:
+    """`text` of `option` as a number of seconds >= 0 (inf allowed); InputError (one line) otherwise."""
+    from common.errors import InputError
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{option}: '{text}' is not {expected}") from None
+    if not value >= 0:
+        raise InputError(f"{option}: {what} must be >= 0 s, or inf (got {text})")
+    return value
+
+
 def wait_setting(text: str | None, phase: bool) -> tuple[bool, float | None]:
     """`--wait-s` as (as made, wait): (True, None) when not given (the experiment read as its
     provenance says), else (False, None) for each recording's own waits ('recorded') or (False, the
@@ -444,12 +456,7 @@ def wait_setting(text: str | None, phase: bool) -> tuple[bool, float | None]:
         return True, None
     if text == "recorded":
         return False, None
-    try:
-        wait = float(text)
-    except ValueError:
-        raise InputError(f"--wait-s: '{text}' is not a number of seconds, 'recorded' or inf") from None
-    if not wait >= 0:
-        raise InputError(f"--wait-s: the wait must be >= 0 s, or inf (got {text})")
+    wait = seconds_option("--wait-s", text, "the wait", "a number of seconds, 'recorded' or inf")
     if not phase and math.isfinite(wait):
         raise InputError("--wait-s corrects the viscoelastic reading: it cannot go with --no-phase")
     return False, wait
@@ -463,12 +470,7 @@ def memory_setting(text: str | None, wait_s: float | None) -> float | None:
     from common.errors import InputError
     if text is None:
         return None
-    try:
-        memory = float(text)
-    except ValueError:
-        raise InputError(f"--memory-s: '{text}' is not a number of seconds or inf") from None
-    if not memory >= 0:
-        raise InputError(f"--memory-s: the memory must be >= 0 s, or inf (got {text})")
+    memory = seconds_option("--memory-s", text, "the memory", "a number of seconds or inf")
     if wait_s is not None and math.isinf(wait_s):
         raise InputError("--memory-s is the protocol-aware reading's: it cannot go with --wait-s inf")
     return memory
