@@ -61,7 +61,8 @@ def interpolated(grid: Grid, tension: np.ndarray, fit: MemoryFit) -> np.ndarray 
     """The factors at the memory `fit`, linear in φ between the grid's usable carried nodes; outside
     them, why not."""
     if fit.relaxed or node(fit) in grid:
-        return grid[node(fit)] if not _why(grid[node(fit)], tension) else _why(grid[node(fit)], tension)
+        found = grid[node(fit)]
+        return _why(found, tension) or found
     memory_s = fit.memory_s
     usable = {m: f for m, f in grid.items() if m != RELAXED and not _why(f, tension)}
     if not usable:
