@@ -15,7 +15,9 @@ hold, β's profile there), with σ² = SSE_min / (n − 7) (K̃_S the seventh pa
 K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}: each end between a point inside and the
 next outside found by regula falsi on √Δχ² − √CHI2_95 in ln K̃_S (at most END_FITS fits an
 end, each started from the nearer point's optimum, until the end's two points are END_TOL
-apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); γ_a's is the union
+apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); where an end's
+fit finds a lower SSE than the best (a sharp profile's vertex fit stopped short of it), it is
+the best: the reading concluded there and the ends located again, once. γ_a's is the union
 over that set of γ_a(K̃_S) ± Z95 sd(K̃_S) (sd at the common σ²), joined with β's band at the
 best K̃_S without a hold (β is profiled there only, not over every K̃_S). An end of the range
 inside the set: the recording bounds K̃_S on that side no further than the range.
@@ -88,6 +90,18 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
             done[float(np.exp(u))] = solve(s, radius_um, float(np.exp(u)), done[near].q)
 
 
+def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64]) -> tuple[float, PowerLawFit]:
+    """The best K̃_S of the profile `done` and the reading there (`powerlaw_fit.conclude`, σ²
+    from the lowest SSE); its SSE in `done` lowered to the reading's (β's restart may fit better)."""
+    shears = sorted(done)
+    sse = np.array([done[v].sse for v in shears])
+    b = int(np.argmin(sse))
+    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
+                   profiled=1)
+    done[shears[b]] = replace(done[shears[b]], sse=min(sse[b], fit.sse_nN2))
+    return shears[b], fit
+
+
 def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
                            ramp_samples: int, radius_um: float, hold: str = "height",
                            table: ShellTable | None = None) -> PowerLawFit:
@@ -96,21 +110,18 @@ def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN:
     surrogate on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
     done, p = _profile(s, radius_um, drop, table)
-    shears = sorted(done)
-    sse = np.array([done[v].sse for v in shears])
-    b = int(np.argmin(sse))
-    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
-                   profiled=1)
+    best, fit = _best(s, radius_um, done, p)
+    _ends(s, radius_um, done, fit.noise_nN ** 2)
+    if min(done.values(), key=lambda v: v.sse).sse < done[best].sse:   # an end's fit found a better one
+        best, fit = _best(s, radius_um, done, p)
+        _ends(s, radius_um, done, fit.noise_nN ** 2)
     sigma2 = fit.noise_nN ** 2
-    done[shears[b]] = replace(done[shears[b]], sse=min(sse[b], fit.sse_nN2))   # β's restart may fit better
-    best = shears[b]
-    _ends(s, radius_um, done, sigma2)
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
     b = shears.index(best)
     tension = np.array([done[v].q[1] for v in shears])
     sd = np.array([sds(done[v], sigma2)[1] for v in shears])
     tension[b], sd[b] = fit.tension_mN_per_m, fit.tension_sd_mN_per_m
-    shear_band, band = profile_bands(shears, (sse - sse.min()) / sigma2, [(tension, sd)])
+    shear_band, band = profile_bands(shears, np.maximum(sse - sse[b], 0.0) / sigma2, [(tension, sd)])
     lo, hi = fit.tension_interval_mN_per_m
     return replace(fit, shear_band=shear_band, tension_band_mN_per_m=(min(lo, band[0]), max(hi, band[1])))
