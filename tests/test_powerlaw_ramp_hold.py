@@ -4,6 +4,7 @@ closed forms and cells made by the time-domain shell (`studies.powerlaw_ramps`);
 40-cell check is `bench/powerlaw_ramp_hold.py`."""
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, shell_ramp
@@ -149,6 +150,36 @@ def test_the_command_reads_a_ramp_and_its_pause(tmp_path, capsys):
     assert ramp["tension_mN_per_m"] > 1.3 * cell.tension_mN_per_m          # the elastic shell's reading
     import pandas as pd
     assert "power_law_exponent" in pd.read_csv(tmp_path / "out" / "tension.csv")
+
+
+def test_the_ends_of_the_shear_ratio_interval_are_located_between_the_profile_points(monkeypatch):
+    """A profile whose √Δχ² is not linear in ln K̃_S (Δχ² = 16 (K̃_S/0.5 − 1)², its 95 % set
+    0.255-0.745): read between the five nodes and the best alone, its ends miss by ~0.05 in
+    ln K̃_S; each end located between the last node inside and the first outside (at most
+    END_FITS fits an end) is read within 0.01 of it."""
+    from analysis.afm.tension import powerlaw_shear
+    from analysis.afm.tension.powerlaw_fit import Solved
+    from analysis.afm.tension.shell_shear import profile_bands
+
+    def chi2(shear: float) -> float:
+        return 16.0 * (shear / 0.5 - 1.0) ** 2
+    fits = []
+
+    def solve(s, radius, shear, q0):
+        fits.append(shear)
+        return Solved(np.array([shear]), 100.0 + chi2(shear), np.eye(1), np.zeros(2))
+    monkeypatch.setattr(powerlaw_shear, "solve", solve)
+    nodes = [float(v) for v in np.geomspace(*powerlaw_shear.SHEAR_RANGE, powerlaw_shear.NODES)] + [0.5]
+    done = {v: Solved(np.array([v]), 100.0 + chi2(v), np.eye(1), np.zeros(2)) for v in nodes}
+
+    def band() -> npt.NDArray[np.float64]:
+        shears = sorted(done)
+        return np.log(profile_bands(shears, [chi2(v) for v in shears], [])[0])
+    truth = np.log([0.255, 0.745])
+    assert np.all(np.abs(band() - truth) > 0.04)
+    powerlaw_shear._ends(None, 6.0, done, 1.0)
+    np.testing.assert_allclose(band(), truth, atol=0.01)
+    assert 2 <= len(fits) <= 2 * powerlaw_shear.END_FITS
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,12 @@ hold, β's profile there), with σ² = SSE_min / (n − 7) (K̃_S the seventh pa
 
     Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ².
 
-K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}, read between the points; γ_a's is the union
+K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}: each end between a point inside and the
+next outside found by regula falsi on √Δχ² − √CHI2_95 in ln K̃_S (at most END_FITS fits an
+end, each started from the nearer point's optimum, until the end's two points are END_TOL
+apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); where an end's
+fit finds a lower SSE than the best (a sharp profile's vertex fit stopped short of it), it is
+the best: the reading concluded there and the ends located again, once. γ_a's is the union
 over that set of γ_a(K̃_S) ± Z95 sd(K̃_S) (sd at the common σ²), joined with β's band at the
 best K̃_S without a hold (β is profiled there only, not over every K̃_S). An end of the range
 inside the set: the recording bounds K̃_S on that side no further than the range.
@@ -25,13 +30,15 @@ import numpy.typing as npt
 
 from analysis.afm.tension.powerlaw_fit import PowerLawFit, Samples, Solved, conclude, prepare, sds, solve, start
 from analysis.afm.tension.ramp import RampFit
-from analysis.afm.tension.shell_fit import SHEAR_TILDE
+from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.afm.tension.shell_shear import profile_bands
 from analysis.calibration.ramp_table import ShellTable
 
 SHEAR_RANGE = (0.1, 2.0)
 NODES = 5
 NEAR = 0.05              # in ln K̃_S: a vertex this close to a node is not fitted again
+END_FITS = 2             # fits locating each end of K̃_S's interval, at most
+END_TOL = 0.02           # in ln K̃_S: an end between two points this close is located
 
 
 def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float | None:
@@ -62,6 +69,39 @@ def _profile(s: Samples, radius_um: float, drop: RampFit,
     return done, p
 
 
+def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float) -> None:
+    """Each end of K̃_S's interval located between the points of the profile `done` (module
+    doc); the fits added to `done`."""
+    for side in (-1, 1):
+        for _ in range(END_FITS):
+            shears = sorted(done)
+            sse = np.array([done[v].sse for v in shears])
+            z = np.sqrt(np.maximum(sse - sse.min(), 0.0) / sigma2) - np.sqrt(CHI2_95)
+            b = int(np.argmin(sse))
+            out = [k for k in range(b, len(shears) if side > 0 else -1, side) if z[k] > 0]
+            if not out:
+                break
+            k, j = out[0], out[0] - side
+            u_in, u_out = np.log(shears[j]), np.log(shears[k])
+            if abs(u_out - u_in) < END_TOL:
+                break
+            u = float(u_in + (u_out - u_in) * -z[j] / (z[k] - z[j]))
+            near = shears[j] if abs(u - u_in) <= abs(u - u_out) else shears[k]
+            done[float(np.exp(u))] = solve(s, radius_um, float(np.exp(u)), done[near].q)
+
+
+def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64]) -> tuple[float, PowerLawFit]:
+    """The best K̃_S of the profile `done` and the reading there (`powerlaw_fit.conclude`, σ²
+    from the lowest SSE); its SSE in `done` lowered to the reading's (β's restart may fit better)."""
+    shears = sorted(done)
+    sse = np.array([done[v].sse for v in shears])
+    b = int(np.argmin(sse))
+    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
+                   profiled=1)
+    done[shears[b]] = replace(done[shears[b]], sse=min(sse[b], fit.sse_nN2))
+    return shears[b], fit
+
+
 def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
                            ramp_samples: int, radius_um: float, hold: str = "height",
                            table: ShellTable | None = None) -> PowerLawFit:
@@ -70,16 +110,18 @@ def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN:
     surrogate on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
     done, p = _profile(s, radius_um, drop, table)
+    best, fit = _best(s, radius_um, done, p)
+    _ends(s, radius_um, done, fit.noise_nN ** 2)
+    if min(done.values(), key=lambda v: v.sse).sse < done[best].sse:   # an end's fit found a better one
+        best, fit = _best(s, radius_um, done, p)
+        _ends(s, radius_um, done, fit.noise_nN ** 2)
+    sigma2 = fit.noise_nN ** 2
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
-    b = int(np.argmin(sse))
-    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
-                   profiled=1)
-    sigma2 = fit.noise_nN ** 2
-    sse[b] = min(sse[b], fit.sse_nN2)                  # β's restart at the best K̃_S may fit better
+    b = shears.index(best)
     tension = np.array([done[v].q[1] for v in shears])
     sd = np.array([sds(done[v], sigma2)[1] for v in shears])
     tension[b], sd[b] = fit.tension_mN_per_m, fit.tension_sd_mN_per_m
-    shear_band, band = profile_bands(shears, (sse - sse.min()) / sigma2, [(tension, sd)])
+    shear_band, band = profile_bands(shears, np.maximum(sse - sse[b], 0.0) / sigma2, [(tension, sd)])
     lo, hi = fit.tension_interval_mN_per_m
     return replace(fit, shear_band=shear_band, tension_band_mN_per_m=(min(lo, band[0]), max(hi, band[1])))
