@@ -224,9 +224,8 @@ def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resol
              contact_history: bool = False, predict_gap: bool = True) -> Recording:
     """The recording of `protocol` on `shell` (its h0 the protocol's start) with `cortex`
     (module docstring); SolverError where a step finds no equilibrium. `predict_gap` False: a
-    constant-force step's search starts from the last gap, not from `predicted_gap_um` (more
-    equilibria; the same gaps to FORCE_TOL_UM where the step's force is smooth in the gap to the
-    equilibrium's tolerance)."""
+    constant-force step's search starts from the last gap, not from `predicted_gap_um` (the same
+    gaps to FORCE_TOL_UM, more equilibria)."""
     if history not in CORTEX_HISTORIES:
         raise InputError(f"the cortex history must be one of {', '.join(CORTEX_HISTORIES)} (got {history!r})")
     first = protocol.steps[0]
