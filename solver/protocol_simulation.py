@@ -16,7 +16,7 @@ replay, the held-out check):
   to `hold_largest_s`; consecutive height holds are one hold. A constant-force hold finds at
   every step the gap whose force is the hold's to FORCE_TOL_UM (`_at_force`): from the creep
   carried on (`predicted_gap_um`), secant steps and a bracket about where they point, then
-  Brent on h (about 5 equilibria a step; the first step, or `predict_gap` False: a bracket from
+  Brent on h (about 4 equilibria a step; the first step, or `predict_gap` False: a bracket from
   the last gap, about 9);
 - an oscillation takes `steps_per_period` steps a period. FINE: over all its periods, with
   steps doubling from one sample interval up to the first (the plate's speed jumps at its start
