@@ -14,10 +14,7 @@ replay, the held-out check):
   force stops at the step where the force crosses it, that step's gap found by regula falsi;
 - a hold grows its steps from `hold_first_s` (FINE: 1/`sample_hz`) by `hold_growth` up
   to `hold_largest_s`; consecutive height holds are one hold. A constant-force hold finds at
-  every step the gap whose force is the hold's to FORCE_TOL_UM (`_at_force`): from the creep
-  carried on (`predicted_gap_um`), secant steps and a bracket about where they point, then
-  Brent on h (about 4 equilibria a step; the first step, or `predict_gap` False: a bracket from
-  the last gap, about 9);
+  every step the gap whose force is the hold's (bracketed, then Brent on h, `_at_force`);
 - an oscillation takes `steps_per_period` steps a period. FINE: over all its periods, with
   steps doubling from one sample interval up to the first (the plate's speed jumps at its start
   and the fast Maxwell elements answer within their τ), the force splined to the samples (cubic,
@@ -53,9 +50,8 @@ assumption of the published relaxed-state reading); "carried" (default): one cor
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -70,8 +66,6 @@ from solver.time_domain import Cortex, TimeShell
 
 Array = npt.NDArray[np.float64]
 FORCE_TOL_UM = 1e-6       # µm: the gap of a constant-force step, to this
-BRACKET_FIRST_UM = 1e-3   # µm: a constant-force step's bracket search from the last gap, its first step
-SECANT_STEPS = 6          # a constant-force step's secant steps from its predicted gap, at most
 
 
 @dataclass(frozen=True)
@@ -184,48 +178,11 @@ def _bracket(residual: Callable[[float], float], h0_um: float,
     return None, None
 
 
-def predicted_gap_um(gaps_um: Sequence[float], steps_s: Sequence[float]) -> float:
-    """The gap (µm) a constant-force step should reach, from the gaps before and after the last
-    step (Δt_last) and the next step Δt_next: the creep carried on at its last rate,
-    h + (h − h_before) Δt_next / Δt_last (the last gap itself when there is no last step)."""
-    if len(gaps_um) < 2:
-        return float(gaps_um[-1])
-    (before, h), (last_s, next_s) = gaps_um[-2:], steps_s[-2:]
-    return float(h + (h - before) * next_s / last_s)
-
-
-def _secant(residual: Callable[[float], float], h_um: float, slope_nN_per_um: float) -> float:
-    """Where secant steps from h point: the first along `slope_nN_per_um`, each next through
-    the last two gaps solved, until a step is below FORCE_TOL_UM / 4 (at most SECANT_STEPS)."""
-    h, r = h_um, residual(h_um)
-    ahead = h - r / slope_nN_per_um
-    for _ in range(SECANT_STEPS):
-        if abs(ahead - h) < 0.25 * FORCE_TOL_UM:
-            break
-        r_ahead = residual(ahead)
-        if r_ahead == r:
-            break
-        h, r, ahead = ahead, r_ahead, ahead - r_ahead * (ahead - h) / (r_ahead - r)
-    return ahead
-
-
-def _slope(residuals: dict[float, float], root_um: float) -> float | None:
-    """dF/dh (nN/µm) at the root: the secant through the two gaps solved nearest it (None:
-    fewer than two, or a force that does not fall with the gap)."""
-    if len(residuals) < 2:
-        return None
-    (h1, r1), (h2, r2) = sorted(residuals.items(), key=lambda hr: abs(hr[0] - root_um))[:2]
-    slope = (r2 - r1) / (h2 - h1)
-    return slope if slope < 0 else None
-
-
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
              sampling: Sampling = Sampling(), history: str = "carried",
-             contact_history: bool = False, predict_gap: bool = True) -> Recording:
+             contact_history: bool = False) -> Recording:
     """The recording of `protocol` on `shell` (its h0 the protocol's start) with `cortex`
-    (module docstring); SolverError where a step finds no equilibrium. `predict_gap` False: a
-    constant-force step's search starts from the last gap, not from `predicted_gap_um` (the same
-    gaps to FORCE_TOL_UM, more equilibria)."""
+    (module docstring); SolverError where a step finds no equilibrium."""
     if history not in CORTEX_HISTORIES:
         raise InputError(f"the cortex history must be one of {', '.join(CORTEX_HISTORIES)} (got {history!r})")
     first = protocol.steps[0]
@@ -233,20 +190,19 @@ def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resol
                                      and first.to_um < protocol.start_um):
         raise InputError("a relaxed history needs a first ramp down to a height below the protocol's start")
     try:
-        return _Run(shell, cortex, protocol, resolution, sampling, history, contact_history, predict_gap).run()
+        return _Run(shell, cortex, protocol, resolution, sampling, history, contact_history).run()
     except SolverError:
         if resolution.retry_finer <= 1:
             raise
         return _Run(shell, cortex, protocol, resolution.finer(resolution.retry_finer), sampling, history,
-                    contact_history, predict_gap).run()
+                    contact_history).run()
 
 
 class _Run:
     """One simulation: the state, the samples so far and the stretch of ramps and holds being stepped."""
 
     def __init__(self, shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution,
-                 sampling: Sampling, history: str, contact_history: bool, predict_gap: bool = True):
-        self.predict_gap = predict_gap
+                 sampling: Sampling, history: str, contact_history: bool):
         self.shell, self.cortex, self.protocol = replace(shell, h0_um=protocol.start_um), cortex, protocol
         self.res, self.sampling, self.history = resolution, sampling, history
         self.contact_history = contact_history
@@ -380,42 +336,24 @@ class _Run:
         self.pending = 0.0
 
     def _force_hold(self, duration_s: float) -> None:
-        """Hold the force the hold starts with: every step's gap found by `_at_force`, from
-        `predicted_gap_um` and the last step's slope dF/dh (the first step, or `predict_gap`
-        False: bracketed from the last gap)."""
-        target, gaps, slope = self.state.force_nN(), [self.state.h_um], None
-        steps = self._hold_steps(duration_s)
-        for k, dt in enumerate(steps):
-            guess = predicted_gap_um(gaps[-2:], steps[k - 1:k + 1]) if self.predict_gap and k else None
-            root, slope = self._at_force(target, dt, None if guess is None or slope is None else (guess, slope))
-            gaps.append(root)
+        """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method on h."""
+        target = self.state.force_nN()
+        for dt in self._hold_steps(duration_s):
+            self._at_force(target, dt)
         self.level = self.state.h_um
         self.kinds.append(("hold", self.t))
 
-    def _at_force(self, force_nN: float, dt_s: float,
-                  prediction: tuple[float, float] | None) -> tuple[float, float | None]:
-        """One step of Δt to the gap whose plate force is `force_nN`; (the gap, dF/dh there).
-
-        `prediction` (h_p, k) (µm, nN/µm): secant steps from h_p, the first along k
-        (`_secant`), then a bracket of FORCE_TOL_UM / 2 doubling about
-        where they point, then Brent on h; None (or no bracket found so): a bracket from the
-        last gap in BRACKET_FIRST_UM doublings (`_bracket`), then Brent. Every gap solved is
-        remembered with its state (Brent's calls at the bracket's ends and the root's own
-        state cost no second equilibrium)."""
+    def _at_force(self, force_nN: float, dt_s: float) -> None:
+        """One step of Δt to the gap whose plate force is `force_nN`."""
         saved, h0 = self.state.saved(), self.state.h_um
-        known: dict[float, tuple[float, tuple[Any, ...]]] = {}
+        last = [math.nan]
 
         def residual(h: float) -> float:
-            if h not in known:
-                self.state.restore(saved)
-                self.steps += 1
-                known[h] = (_advance(self.state, h, dt_s) - force_nN, self.state.saved())
-            return known[h][0]
-        lo = hi = None
-        if prediction is not None:
-            lo, hi = _bracket(residual, _secant(residual, *prediction), 0.5 * FORCE_TOL_UM)
-        if lo is None or hi is None:
-            lo, hi = _bracket(residual, h0, BRACKET_FIRST_UM)
+            self.state.restore(saved)
+            self.steps += 1
+            last[0] = h
+            return _advance(self.state, h, dt_s) - force_nN
+        lo, hi = _bracket(residual, h0)
         if lo is None or hi is None:
             raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
         root = lo
@@ -424,11 +362,10 @@ class _Run:
             if not found.converged:
                 raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
             root = float(found.root)
-        residual(root)
-        self.state.restore(known[root][1])
+        if last[0] != root:
+            residual(root)
         self.t += dt_s
         self.points.append((self.t, root, self.state.force_nN()))
-        return root, _slope({h: r for h, (r, _) in known.items() if h != h0}, root)
 
     def _close(self) -> None:
         """Sample the stretch of ramps and holds stepped since `_open` (module docstring)."""

@@ -14,7 +14,7 @@ from solver.geometry import droplet
 from solver.model import Shell
 from solver.prony import Prony
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
-from solver.protocol_simulation import FORCE_TOL_UM, Sampling, _advance, simulate
+from solver.protocol_simulation import Sampling, _advance, simulate
 from solver.time_domain import Cortex, TimeShell, power_law_cortex
 
 SHELL = Shell(volume_um3=4300.0, h0_um=13.0, bulk_mN_per_m=25.0, shear_mN_per_m=8.33, tension_mN_per_m=1.5)
@@ -149,22 +149,6 @@ def test_a_step_without_equilibrium_is_taken_in_two_halves(monkeypatch):
     monkeypatch.setattr(TimeShell, "step", lambda self, h_um, dt_s: (_ for _ in ()).throw(SolverError("never")))
     with pytest.raises(SolverError):
         _advance(TimeShell(SHELL, cortex), SHELL.h0_um - 0.1, 0.5)
-
-
-def test_a_constant_force_hold_searched_from_its_predicted_gap_holds_the_same_gaps():
-    """Each step of a constant-force hold searched from the predicted gap (the creep carried on,
-    secant steps) reaches the gaps of the plain bracket search from the last gap to
-    FORCE_TOL_UM (found 1.7e-7 µm over 5 s and 0.037 µm of creep), the same force, with fewer
-    equilibria (found 142 against 153, the ramp's included)."""
-    cortex = power_law_cortex(25.0, 8.33, 0.1, 0.3)
-    by_force = Protocol(13.0, (Ramp(to_nN=40.0), Hold(5.0, "force")))
-    predicted, plain = (simulate(SHELL, cortex, by_force, sampling=Sampling(approach_hz=10.0), predict_gap=p)
-                        for p in (True, False))
-    hold = plain.stretches[1]
-    assert plain.height_um[-1] < plain.height_um[hold.start] - 0.03          # it creeps
-    np.testing.assert_allclose(predicted.height_um, plain.height_um, rtol=0, atol=FORCE_TOL_UM)
-    np.testing.assert_allclose(predicted.force_nN, plain.force_nN, rtol=1e-6)
-    assert predicted.steps < plain.steps
 
 
 def test_a_constant_force_hold_creeps_and_a_ramp_to_a_force_stops_there():
