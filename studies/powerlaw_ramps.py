@@ -1,6 +1,7 @@
 """Known-truth approach ramps and holds of cells whose cortex relaxes as a power law
 (SPEC 11-12), made by the time-domain shell (`solver.time_domain`,
-`solver.protocol_simulation.simulate` at FINE).
+`solver.protocol_simulation.simulate` at FINE, the contact search as the tension model
+has it: `powerlaw_simulated.CONTACT_HISTORY`).
 
 The cell: radius R (µm), active tension γ_a (mN/m), K_B(t) = K_B(1 s) t^-β and
 K_S(t) = K̃_S K_B(t) (`power_law_cortex`, one β). The dish at 0, so the gap is the wedge
@@ -19,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from analysis.afm.tension.powerlaw_simulated import SAMPLE_HZ, START_UM
+from analysis.afm.tension.powerlaw_simulated import CONTACT_HISTORY, SAMPLE_HZ, START_UM
 from solver.model import Shell
 from solver.protocol import Hold, Protocol, Ramp
 from solver.protocol_simulation import FINE, Sampling, simulate
@@ -81,7 +82,7 @@ def recording(cell: Cell, seed: int = 0) -> Made:
         steps += (Hold(cell.hold_s, cell.hold_kind),)
     cortex = power_law_cortex(cell.bulk_1s_mN_per_m, cell.shear_tilde * cell.bulk_1s_mN_per_m, cell.beta, cell.beta)
     rec = simulate(shell, cortex, Protocol(top - START_UM, steps, start_s=t_c), FINE,
-                   Sampling(approach_hz=max(SAMPLE_HZ, cell.rate_hz)))
+                   Sampling(approach_hz=max(SAMPLE_HZ, cell.rate_hz)), contact_history=CONTACT_HISTORY)
     volume = 4.0 * np.pi / 3.0 * R ** 3
     if cell.hold_kind == "force":                  # the plate creeps: the gap as simulated
         x = np.where(t <= t_end, x, np.interp(t, rec.time_s, rec.height_um))

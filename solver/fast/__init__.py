@@ -172,7 +172,11 @@ def lowest_contact(lag: Lagrangian, shell: Shell, u: npt.NDArray[np.float64], zp
     would need the history carried to each; `second` False keeps it too
     (the caller's policy: `solver.time_domain` asks only where the plate
     presses deeper than before). `predict`: both searches take the tangent's
-    touching label (`solver.fast.contact`)."""
+    touching label (`solver.fast.contact`). A history that is zero everywhere (a cortex without
+    Maxwell elements, or the first step from the stress-free droplet) is no history: the
+    elastic search, both searches."""
+    if history[0].size and not (np.any(history[1]) or np.any(history[2])):
+        history = NO_HISTORY
     u, iterations, held = _search(lag, u, zp, retreat=retreat, history=history, predict=predict)
     if not (held and second) or history[0].size:
         return u, iterations                    # G = 0, or the least label
