@@ -34,16 +34,21 @@ built without it and keep that search.
 A stored history (`solver.time_domain`: the prestress P_a, P_s of each element, linear in its
 strain, sampled at the material labels ψ0 of the elements from the disc's edge on) moves with
 the material: at every label l the elements' P are read off it at their mid-labels ψ̄0_e(l)
-(linear in ψ0, as `numpy.interp`; `carry_history`), and the history's share of dE*/dl,
+(`carry_history`: the cubic Hermite interpolant in ψ0 with the slopes of the parabolas through
+three samples, continued along the end's tangent, so that P and dP/dψ0 are continuous in l; the
+samples sit at the mid-labels of the label the history was carried to, next to the answer, where
+a linear P would have its kinks), and the history's share of dE*/dl,
 
     G_hist = Σ_e 4π r̄0_e dS_e [(e1+e2)_e dP_a/dψ0 + (e1-e2)_e dP_s/dψ0] dψ̄0_e/dl,
 
 joins G (`history_share`); k is then the secant of G through the last two labels solved where
 that is positive (the history's share of k is left out of the tangent), else the tangent's. The
-history's share nearly cancels the elastic one (G is small and positive down to the touching
-label, and jumps where an element's mid-label crosses a sample), so towards a side not yet
-bracketed a step is at least OPEN_STEP_L. With no history (empty arrays: the elastic solver)
-nothing changes.
+history's share nearly cancels the elastic one: G is small down to the touching label, and can
+have a root (a minimum of E*) next to the start besides the touching label below it. So the
+first label solved below the plate steps FIRST_STEP_L towards -G (the secant then sees the
+nearby root, and the answer is the minimum the start lies next to, continuous in the cell's
+parameters), and after it a step towards a side not yet bracketed is at least OPEN_STEP_L. With
+no history (empty arrays: the elastic solver) nothing changes.
 
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
 returns a status, which `solver.fast` turns into its errors.
@@ -62,6 +67,7 @@ LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate 
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 OPEN_STEP_L = 0.1            # with a history: the least step of l towards a side not yet bracketed
+FIRST_STEP_L = 0.01          # with a history: the step of l from the first label solved below the plate
 PROBE_L = 0.02               # the tangent's probe of the gap's slope dgap/dl (`_touch_predicted`)
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
@@ -90,28 +96,62 @@ def _node_labels(l, zeta, xi):
 
 
 @njit(cache=True)
+def _slopes(at, v):
+    """dv/dψ0 at the samples: the slope of the parabola through each sample and its two
+    neighbours (the one-sided secant at the ends), linear in v (`carry_history`)."""
+    n = at.size
+    d = np.zeros(n)
+    if n < 2:
+        return d
+    d[0] = (v[1] - v[0]) / (at[1] - at[0])
+    d[n - 1] = (v[n - 1] - v[n - 2]) / (at[n - 1] - at[n - 2])
+    for i in range(1, n - 1):
+        h0, h1 = at[i] - at[i - 1], at[i + 1] - at[i]
+        s0, s1 = (v[i] - v[i - 1]) / h0, (v[i + 1] - v[i]) / h1
+        d[i] = (h1 * s0 + h0 * s1) / (h0 + h1)
+    return d
+
+
+@njit(cache=True)
+def _hermite(at, v, d, x):
+    """(v, dv/dψ0) at x: the cubic Hermite interpolant of v with slopes d at the samples `at`
+    (C¹ in x), continued along the end's tangent beyond the samples."""
+    n = at.size
+    if n == 1:
+        return v[0], 0.0
+    if x <= at[0]:
+        return v[0] + d[0] * (x - at[0]), d[0]
+    if x >= at[n - 1]:
+        return v[n - 1] + d[n - 1] * (x - at[n - 1]), d[n - 1]
+    i = np.searchsorted(at, x)
+    w = at[i] - at[i - 1]
+    t = (x - at[i - 1]) / w
+    t2, t3 = t * t, t * t * t
+    value = ((2 * t3 - 3 * t2 + 1) * v[i - 1] + (t3 - 2 * t2 + t) * w * d[i - 1]
+             + (-2 * t3 + 3 * t2) * v[i] + (t3 - t2) * w * d[i])
+    slope = ((6 * t2 - 6 * t) * (v[i - 1] - v[i]) / w + (3 * t2 - 4 * t + 1) * d[i - 1]
+             + (3 * t2 - 2 * t) * d[i])
+    return value, slope
+
+
+@njit(cache=True)
 def carry_history(l: float, zeta: npt.NDArray[np.float64], xi: npt.NDArray[np.float64],
                   history: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]],
                   terms: Terms) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Set terms.pa, terms.ps of the elements from the disc's edge on to the history
-    (ψ̄0 samples, P_a, P_s) at their mid-labels at contact label l, linear in ψ0 (held beyond the
-    samples, as `numpy.interp`); return dP_a/dl, dP_s/dl of those elements."""
+    (ψ̄0 samples, P_a, P_s) at their mid-labels at contact label l, C¹ in ψ0 (the cubic Hermite
+    interpolant with `_slopes`, continued along the end's tangent beyond the samples); return
+    dP_a/dl, dP_s/dl of those elements."""
     at, pa0, ps0 = history
     psi, dpsi = _node_labels(l, zeta, xi)
     m, nd = psi.size - 1, terms.kc - zeta.size
     dpa, dps = np.zeros(m), np.zeros(m)
+    da, ds = _slopes(at, pa0), _slopes(at, ps0)
     for e in range(m):
         x = 0.5 * (psi[e] + psi[e + 1])
-        i = np.searchsorted(at, x)
-        if i == 0 or i == at.size:
-            j = 0 if i == 0 else at.size - 1
-            terms.pa[nd + e], terms.ps[nd + e] = pa0[j], ps0[j]
-            continue
-        w = at[i] - at[i - 1]
-        sa, ss = (pa0[i] - pa0[i - 1]) / w, (ps0[i] - ps0[i - 1]) / w
-        terms.pa[nd + e] = pa0[i - 1] + sa * (x - at[i - 1])
-        terms.ps[nd + e] = ps0[i - 1] + ss * (x - at[i - 1])
         dx = 0.5 * (dpsi[e] + dpsi[e + 1])
+        terms.pa[nd + e], sa = _hermite(at, pa0, da, x)
+        terms.ps[nd + e], ss = _hermite(at, ps0, ds, x)
         dpa[e], dps[e] = sa * dx, ss * dx
     return dpa, dps
 
@@ -207,6 +247,7 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     carried, nd = history[0].size > 0, kc - labels[1].size
     dpa, dps = np.empty(0), np.empty(0)
     last_l, last_G = np.nan, np.nan          # the last label solved below the plate and its G
+    first = True                             # no label solved below the plate yet
     for _ in range(maxit):
         ref = label_positions(u[-2], labels, shape)
         if carried:
@@ -241,8 +282,11 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             else:
                 lo = l
             step = _step(G, k)
-            if carried and (lo if step < 0 else hi) in (LOG_PSI_MIN, LOG_PSI_MAX) and abs(step) < OPEN_STEP_L:
+            if carried and first:
+                step = FIRST_STEP_L if G < 0 else -FIRST_STEP_L
+            elif carried and (lo if step < 0 else hi) in (LOG_PSI_MIN, LOG_PSI_MAX) and abs(step) < OPEN_STEP_L:
                 step = OPEN_STEP_L if step > 0 else -OPEN_STEP_L
+            first = False
         target = l + step
         if predict and touching == 1 and above <= 0 and G > 0:
             # no further down than the tangent's touching label, at least TOL_L/2 (docstring)
