@@ -24,7 +24,10 @@ replay, the held-out check):
   ramps and oscillations.
 
 LINEARISED (`linearised`): a hold is one step (the Prony series' exponential integrator is
-exact for a strain constant in time, and a hold's strain barely moves; `hold_first_s` inf), and
+exact for a strain constant in time, and a hold's strain barely moves; `hold_first_s` inf), except
+a wait (a height hold after a ramp), stepped from `wait_first_s` (1 s) doubling to 16 s so that
+`Recording.waits` holds its relaxation (the cortex's memory read from it,
+`analysis.afm.wait_relaxation`), and
 an oscillation is not stepped: the plate is held at h_m through it, and halfway through, the
 state answers at f in the frequency domain (`solver.state_response`: K*_lin about the state with
 the cortex's complex moduli; an `Answer` in `Recording.answers`, no samples). Ramps are stepped
@@ -39,7 +42,9 @@ Sampling (`Sampling`): oscillations at `sample_hz` (or `min_samples_per_period` 
 that is finer), the ramps and holds between at `approach_hz` (linear between steps, the last
 sample at their end), the protocol's start the first sample (the reference droplet: its force
 the tension's, F_a = 2 γ_a H A_c at (V, h0)). `Recording.stretches` say which
-samples are a ramp, a hold or an oscillation (at which f).
+samples are a ramp, a hold or an oscillation (at which f); `Recording.waits` the steps
+themselves of every wait (a height hold between a ramp and what follows it): their end times (s)
+and forces (nN), the wait's start first.
 
 `contact_history`: the stored history's share of dE/dl in the contact line's balance
 (`solver.time_domain.TimeShell`; off by default).
@@ -81,6 +86,7 @@ class Resolution:
     spline: bool = True               # False: the oscillation's steps are its samples
     retry_finer: int = 1              # > 1: a failed run again, this many times finer
     linearised: bool = False          # True: oscillations answered about the state, not stepped
+    wait_first_s: float | None = None  # a wait's first step (s), doubling to WAIT_LARGEST_S; None: as a hold
 
     def finer(self, factor: int) -> "Resolution":
         return replace(self, ramp_step_um=self.ramp_step_um / factor,
@@ -91,7 +97,8 @@ FINE = Resolution(ramp_step_um=0.02, hold_first_s=None, hold_growth=1.2, hold_la
 REPLAY = Resolution(ramp_step_um=0.05, hold_first_s=0.01, hold_growth=2.0, hold_largest_s=30.0,
                     steps_per_period=16, max_periods=2, spline=False, retry_finer=4)
 LINEARISED = Resolution(ramp_step_um=0.05, hold_first_s=math.inf, hold_growth=1.0, hold_largest_s=math.inf,
-                        steps_per_period=16, spline=False, retry_finer=4, linearised=True)
+                        steps_per_period=16, spline=False, retry_finer=4, linearised=True, wait_first_s=1.0)
+WAIT_LARGEST_S = 16.0     # s: a wait's largest step where `wait_first_s` steps it
 
 
 @dataclass(frozen=True)
@@ -147,6 +154,7 @@ class Recording:
     steps: int = 0
     contact_label: float = math.nan      # l = ln ψ_c of the shell at the end (`solver.time_domain`)
     answers: list[Answer] = field(default_factory=list)   # LINEARISED: one per oscillation
+    waits: list[tuple[Array, Array]] = field(default_factory=list)   # per wait its steps' (t s, F nN)
 
     def oscillations(self) -> list[Stretch]:
         return [s for s in self.stretches if s.kind == "oscillation"]
@@ -208,6 +216,8 @@ class _Run:
         self.contact_history = contact_history
         self.state = TimeShell(self.shell, cortex, contact_history)
         self.t, self.level, self.steps, self.pending = protocol.start_s, protocol.start_um, 0, 0.0
+        self.pending_wait = False       # the pending hold is a wait: height holds only
+        self.waits: list[tuple[Array, Array]] = []
         f0 = self.state.force_nN()
         self.samples: list[tuple[Array, Array, Array]] = [(np.array([self.t]), np.array([self.level]), np.array([f0]))]
         self.stretches: list[Stretch] = []
@@ -232,6 +242,7 @@ class _Run:
         ramps = 0
         for s in self.protocol.steps:
             if isinstance(s, Hold) and s.kind == "height":
+                self.pending_wait = self.pending_wait or self.pending == 0
                 self.pending += s.duration_s
                 continue
             self._flush()
@@ -249,7 +260,7 @@ class _Run:
         self._flush()
         self._close()
         t, h, f = (np.concatenate([p[k] for p in self.samples]) for k in range(3))
-        return Recording(t, f, h, self.stretches, self.steps, float(self.state.u[-2]), self.answers)
+        return Recording(t, f, h, self.stretches, self.steps, float(self.state.u[-2]), self.answers, self.waits)
 
     def _relax(self, to_um: float) -> None:
         """A fresh cortex, relaxed the first ramp's depth above `to_um` (module docstring)."""
@@ -317,23 +328,32 @@ class _Run:
         self.level = hi
         self.points.append((self.t, hi, self.state.force_nN()))
 
-    def _hold_steps(self, duration_s: float) -> list[float]:
-        """The steps (s) of a hold of `duration_s`: growing from the first (module docstring)."""
-        first = self.res.hold_first_s if self.res.hold_first_s is not None else 1.0 / self.sampling.sample_hz
+    def _hold_steps(self, duration_s: float, wait: bool = False) -> list[float]:
+        """The steps (s) of a hold of `duration_s`: growing from the first (module docstring); a
+        wait's from `wait_first_s` where the resolution sets it."""
+        if wait and self.res.wait_first_s is not None:
+            first, growth, largest = self.res.wait_first_s, 2.0, WAIT_LARGEST_S
+        else:
+            first = self.res.hold_first_s if self.res.hold_first_s is not None else 1.0 / self.sampling.sample_hz
+            growth, largest = self.res.hold_growth, self.res.hold_largest_s
         out, dt, done = [], first, 0.0
         while done < duration_s - 1e-12:
             out.append(min(dt, duration_s - done))
             done += out[-1]
-            dt = min(dt * self.res.hold_growth, self.res.hold_largest_s)
+            dt = min(dt * growth, largest)
         return out
 
     def _flush(self) -> None:
-        """The height holds pending, as one hold at the plate's level."""
+        """The height holds pending, as one hold at the plate's level; a wait's steps kept."""
         if self.pending > 0:
-            for dt in self._hold_steps(self.pending):
-                self._step(self.level, dt)
+            times, forces = [self.t], [self.state.force_nN()]
+            for dt in self._hold_steps(self.pending, self.pending_wait):
+                forces.append(self._step(self.level, dt))
+                times.append(self.t)
             self.kinds.append(("hold", self.t))
-        self.pending = 0.0
+            if self.pending_wait:
+                self.waits.append((np.array(times), np.array(forces)))
+        self.pending, self.pending_wait = 0.0, False
 
     def _force_hold(self, duration_s: float) -> None:
         """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method on h."""
@@ -402,7 +422,7 @@ class _Run:
         K = linear_modulus(state_parts(self.state), osc.frequency_hz)
         self.answers.append(Answer(float(osc.frequency_hz), self.level, force, K))
         self.kinds.append(("hold", self.t))
-        self.pending += half
+        self.pending, self.pending_wait = self.pending + half, False
 
     def _oscillate(self, osc: Oscillate) -> None:
         self._close()
@@ -417,7 +437,7 @@ class _Run:
             periods = min(osc.periods, self.res.max_periods or osc.periods)
             t_steps = per_step * np.arange(1.0, self.res.steps_per_period * periods + 1.0)
             t_samples = t_steps
-            self.pending += osc.duration_s - periods / f
+            self.pending, self.pending_wait = self.pending + osc.duration_s - periods / f, False
         h_steps = h_m + A * np.sin(2 * np.pi * f * t_steps + phi)
         forces = np.empty(t_steps.size)
         for k, (h, d) in enumerate(zip(h_steps, np.diff(t_steps, prepend=0.0))):

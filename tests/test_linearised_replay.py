@@ -59,8 +59,8 @@ def test_an_elastic_cortex_answers_in_phase_and_stiffens_with_frequency_only_if_
 
 
 def test_the_linearised_replay_reads_as_the_fine_simulation():
-    """Two heights, 1 and 10 Hz, a 20 s wait, β_B = 0.1, β_S = 0.3 (the history carried): each hold
-    one step, each oscillation one answer, against the FINE recording (64 steps a period, 5
+    """Two heights, 1 and 10 Hz, a 20 s wait, β_B = 0.1, β_S = 0.3 (the history carried): each wait
+    stepped from 1 s (1, 2, 4, 8, 5 s), each other hold one step, each oscillation one answer, against the FINE recording (64 steps a period, 5
     periods) read by the segment fit: |K*| within 1.5 %, loss angle within 0.012 rad, mean tension
     within 2.5 % (the bounds REPLAY meets; found 0.7 %, 0.0033 rad, 0.8 %; REPLAY 0.5 %, 0.005 rad, 1.4 %)."""
     cortex = power_law_cortex(25.0, 20.0, 0.1, 0.3)
@@ -68,8 +68,9 @@ def test_the_linearised_replay_reads_as_the_fine_simulation():
     fine = segment_moduli(recording_cell(simulate(SHELL, cortex, protocol), SHELL.volume_um3, "c"))
     lin = simulate(SHELL, cortex, protocol, LINEARISED)
     ramps = sum(int(np.ceil(abs(a - b) / LINEARISED.ramp_step_um - 1e-9)) for a, b in ((14.0, 13.5), (13.5, 13.0)))
-    # one step per wait (2), per oscillation to its middle (4) and per rest after it (4)
-    assert lin.steps == ramps + 2 + 4 + 4 and len(lin.answers) == 4
+    # five steps per wait (2 × 5), one per oscillation to its middle (4) and per rest after it (4)
+    assert lin.steps == ramps + 2 * 5 + 4 + 4 and len(lin.answers) == 4
+    assert [np.diff(t).tolist() for t, _ in lin.waits] == [[1.0, 2.0, 4.0, 8.0, 5.0]] * 2
     assert [a.frequency_hz for a in lin.answers] == [s.frequency_hz for s in protocol.steps if isinstance(s, Oscillate)]
     for row, a in zip(fine, lin.answers):
         tension = a.force_nN / droplet(SHELL.volume_um3, a.h_mean_um).force_per_tension_um
