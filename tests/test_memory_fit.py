@@ -43,12 +43,12 @@ def test_a_drift_of_known_memory_is_read_back_within_its_interval():
 
 
 def test_a_relaxed_cell_reads_a_short_memory_and_no_drift_none():
-    """No drift at all: the interval starts at 0 and ends well below the wait; a drift the same at
+    """No drift at all: the interval starts at 0 and ends at a node no later than the wait; a drift the same at
     every height (absorbed by γ_a) decides nothing, and the population of such cells neither."""
     rng = np.random.default_rng(2)
     scale = 0.1 * DEPTHS
     relaxed = profile(1.0 + rng.normal(0, 0.02, DEPTHS.size), _shifts(scale))
-    assert relaxed.identified and relaxed.lo95_s == 0.0 and relaxed.hi95_s < WAIT_S
+    assert relaxed.identified and relaxed.lo95_s == 0.0 and relaxed.hi95_s <= WAIT_S
     flat = np.full(DEPTHS.size, 0.3)
     fits = [profile(1.2 + rng.normal(0, 0.02, DEPTHS.size), _shifts(flat)) for _ in range(5)]
     assert not any(f.identified for f in fits)
@@ -57,16 +57,31 @@ def test_a_relaxed_cell_reads_a_short_memory_and_no_drift_none():
 
 def test_the_population_pools_cells_that_cannot_tell_alone():
     """Twenty cells whose largest drift (0.016 mN/m at τ_c = ∞) is below their noise (0.02 mN/m):
-    no cell tells τ_c = 100 s from both ends, the population's summed profile does (found 22-414 s),
-    and its interval holds 100 s."""
+    no cell tells τ_c = 100 s from both ends, the population's summed profile does (its set found
+    22-414 s), and its interval, widened to the nodes outside the set, holds 100 s and not 0."""
     rng = np.random.default_rng(3)
     scale = 0.002 * DEPTHS
     fits = [profile(1.0 + scale * _kept(100.0) + rng.normal(0, 0.02, DEPTHS.size), _shifts(scale)) for _ in range(20)]
     assert sum(f.identified for f in fits) <= 2
     pool = pooled(fits)
-    assert pool.identified and pool.lo95_s <= 100.0 <= pool.hi95_s and pool.hi95_s < 1000.0
+    assert pool.identified and 0.0 < pool.lo95_s <= 100.0 <= pool.hi95_s
 
 
 def test_too_few_segments_or_nodes_decide_nothing():
     assert not profile([1.0, 1.1], {0.0: np.zeros(2), math.inf: np.ones(2)}).identified
     assert not profile([1.0, 1.1, 1.2], {0.0: np.zeros(3)}).identified
+
+
+def test_two_witnesses_add_and_their_set_holds_where_they_agree():
+    """The drift read at τ_c = 100 s (no noise) and a waits' witness whose own minimum is at 30 s:
+    the sum's estimate lies between them, its set is not empty (the sum's own minimum is taken
+    off), and its interval's ends are nodes of the grid."""
+    scale = 0.1 * DEPTHS
+    tension = 1.0 + scale * _kept(100.0) + np.random.default_rng(4).normal(0, 0.02, DEPTHS.size)
+    phi = np.append(np.linspace(0.0, 1.0, 401), 0.0)
+    waits = (((phi - float(carried(30.0))) / 0.02) ** 2, 500)
+    waits[0][-1] = np.inf                                  # no relaxed-history replay
+    alone, both = profile(tension, _shifts(scale)), profile(tension, _shifts(scale), None, waits)
+    assert alone.memory_s > both.memory_s > 30.0
+    assert both.identified and both.lo95_s in MEMORY_GRID_S and both.hi95_s in MEMORY_GRID_S
+    assert both.lo95_s <= 30.0 and both.memory_s <= both.hi95_s

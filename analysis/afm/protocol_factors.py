@@ -22,7 +22,7 @@ is in the set), the source and the history (carried | relaxed).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -30,6 +30,7 @@ import pandas as pd
 from analysis.afm.analyze import Measured, measured_of
 from analysis.afm.memory_fit import RELAXED, UNDECIDED, MemoryFit, Node, carried, pooled, profile
 from analysis.afm.replayed import apply
+from analysis.afm.wait_relaxation import Waits, excess
 
 MEMORY_COLUMNS = ("protocol_memory_s", "protocol_memory_lo95_s", "protocol_memory_hi95_s", "protocol_memory_source",
                   "protocol_history")
@@ -85,6 +86,7 @@ class Factors:
     rows: dict[str, np.ndarray]
     why: dict[str, str]
     grids: dict[str, Grid] = field(default_factory=dict)
+    waits: dict[str, Waits | None] = field(default_factory=dict)
     memory: dict[str, MemoryFit] = field(default_factory=dict)
     source: dict[str, str] = field(default_factory=dict)
 
@@ -97,11 +99,21 @@ class Factors:
         self.why[cell] = _why(f, self.tension[at])
         self.factors[at] = np.nan if self.why[cell] else f
 
+    def replayed(self, found: dict[str, tuple[Grid, Waits | None]]) -> None:
+        """A round's replays: per cell its factors at every memory and its waits."""
+        for c, (grid, waits) in found.items():
+            self.grids[c], self.waits[c] = grid, waits
+
     def _profile(self, cell: str) -> MemoryFit:
+        """The cell's memory from the drift of its mean tensions and its waits, over the usable nodes."""
         at = self.rows[cell]
         t = self.tension[at]
-        return profile(t, {m: f[:, 2] for m, f in self.grids[cell].items() if isinstance(f, np.ndarray) and not _why(f, t)},
-                       self.raw["frequency_hz"].to_numpy(float)[at])
+        usable = {m: f for m, f in self.grids[cell].items() if isinstance(f, np.ndarray) and not _why(f, t)}
+        waits = self.waits.get(cell)
+        witness = None if waits is None else excess(replace(waits, model={m: waits.model[m] for m in usable
+                                                                          if m in waits.model}))
+        return profile(t, {m: f[:, 2] for m, f in usable.items()}, self.raw["frequency_hz"].to_numpy(float)[at],
+                       witness)
 
     def choose(self, memory_s: float | None) -> None:
         """Every replayed cell's memory (module docstring) and its factors there."""

@@ -13,7 +13,8 @@ than SETTLED since their last replay are replayed again (`unsettled`, the policy
 round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. Each
 replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
 (`memory_s` None, the default) or at the one given; the cell's memory is then chosen from the
-drift of its corrected mean tensions (fitted, pooled or assumed: `analysis.afm.protocol_factors`),
+drift of its corrected mean tensions and the relaxation in its waits (fitted, pooled or assumed:
+`analysis.afm.protocol_factors`),
 its factors interpolated there. The
 rounds replay linearised (`cell_correction`'s default, fast); with `full_last` (FULL_LAST, the
 default) every replayed cell's last correction is then its full replay with its last power laws
@@ -48,7 +49,8 @@ from tqdm import tqdm
 from analysis.afm.analyze import Measured, inverted
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
-from analysis.afm.replayed import cell_corrections
+from analysis.afm.replayed import cell_replays
+from analysis.afm.wait_relaxation import Waits
 from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
 
@@ -124,7 +126,7 @@ def _memory_lines(cells: pd.DataFrame) -> list[str]:
         return [f"The cortex's memory τ_c is given: {cells['protocol_memory_s'].iloc[0]:g} s for every cell.", ""]
     pooled = cells[src == "pooled"]["protocol_memory_s"]
     return [f"The cortex's memory τ_c (K(t) ∝ t^-β e^(-t/τ_c)) from the drift of each cell's mean tension "
-            f"across heights: {int((src == 'fitted').sum())} cells read their own; "
+            f"across heights and the relaxation in its waits: {int((src == 'fitted').sum())} cells read their own; "
             f"{len(pooled)} cells could not and take the population's"
             + (f" ({pooled.iloc[0]:g} s)" if len(pooled) else "")
             + f"; {int((src == 'assumed').sum())} cells are undecided by the data and assume the pure power law "
@@ -169,18 +171,22 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Sequence[Node]]) -> dict[Node, np.ndarray | str]:
-    """The cell's factors at each memory (a τ_c or RELAXED), or why it is not corrected (`cell_corrections`)."""
-    return cell_corrections(*job)
+Replays = tuple[dict[Node, np.ndarray | str], Waits | None]
+
+
+def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Sequence[Node]]) -> Replays:
+    """The cell's factors at each memory (a τ_c or RELAXED), or why it is not corrected, and its
+    waits (`cell_replays`)."""
+    return cell_replays(*job)
 
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
              jobs: int, label: str, memories: Mapping[str, Sequence[Node]],
-             linearised: bool = True) -> dict[str, dict[Node, np.ndarray | str]]:
+             linearised: bool = True) -> dict[str, Replays]:
     """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
-    why not, `jobs` processes (one task a cell)."""
+    why not, and its waits; `jobs` processes (one task a cell)."""
     bar = tqdm(total=len(cells), unit="cell", desc=label)
-    out: dict[str, dict[Node, np.ndarray | str]] = {}
+    out: dict[str, Replays] = {}
     with pool(jobs) as workers:
         for c, f in zip(cells, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised,
                                                    memories[c.cell_id]) for c in cells])):
@@ -213,8 +219,8 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
             break
         laws.update({r["cell_id"]: r for r in found.to_dict("records") if r["cell_id"] in todo})
         replay_cells = [c for c in cells if c.cell_id in todo]
-        state.grids.update(_factors(replay_cells, laws, bending, wait_s, jobs,
-                                    f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
+        state.replayed(_factors(replay_cells, laws, bending, wait_s, jobs,
+                                f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
         replays.update({c: replays[c] + 1 for c in todo})
         state.choose(memory_s)
         now = state.measured(volumes, measured, [], replays)
@@ -225,5 +231,5 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         last = [c for c in cells if c.cell_id in laws]
         chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in last}
         full = _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", chosen, False)
-        state.full({c: next(iter(f.values())) for c, f in full.items()})
+        state.full({c: next(iter(f[0].values())) for c, f in full.items()})
     return state.measured(volumes, measured, moving, replays)

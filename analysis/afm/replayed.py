@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,7 @@ from analysis.afm.memory_fit import RELAXED, Node
 from analysis.afm.recorded_protocol import read_protocol
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
+from analysis.afm.wait_relaxation import Waits, modelled, recorded
 from common.errors import InputError, SolverError
 from solver.model import Shell
 from solver.protocol import Oscillate, Protocol
@@ -65,34 +67,60 @@ def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
              "tension_mN_per_m": a.force_nN / float(gk)} for a, gk in zip(rep.answers, np.atleast_1d(g))]
 
 
-def cell_corrections(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
-                     linearised: bool = True, memories: Sequence[Node] = (math.inf,)) -> dict[Node, np.ndarray | str]:
+def cell_replays(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
+                 linearised: bool = True, memories: Sequence[Node] = (math.inf,)
+                 ) -> tuple[dict[Node, np.ndarray | str], Waits | None]:
     """Per memory of `memories` (τ_c in s, or RELAXED: the history relaxed at every height) the
     (segments, 3) |c|, arg c and Δγ (mN/m) per oscillation of `cell` with the power laws `law` (a
     row of `cortex_laws`), by the linearised replay or the full one (module docstring); τ_c = 0:
     nothing kept, c = 1 and Δγ = 0 without a replay. Where the protocol is not recorded or the
     replay finds no equilibrium, why (the segments stay as recorded). K*_r is the pure power law's
-    at every memory, so c also undoes the bend a finite τ_c gives K*(f); it is computed once."""
+    at every memory, so c also undoes the bend a finite τ_c gives K*(f); it is computed once.
+    Beside them the cell's recorded waits with each replay's force there
+    (`analysis.afm.wait_relaxation`; τ_c = 0: the force constant in a wait; None: no wait reads
+    the memory, or the waits are not the recording's, `wait_s` given)."""
     protocol = read_protocol(cell, wait_s)
     if isinstance(protocol, str):
-        return {m: f"protocol not recorded: {protocol}" for m in memories}
+        return {m: f"protocol not recorded: {protocol}" for m in memories}, None
     shell = Shell(volume_um3=cell.volume_um3, h0_um=protocol.start_um, bulk_mN_per_m=law["bulk_1s"],
                   shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
     power_law = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"])
     reference: list[complex] = []
     out: dict[Node, np.ndarray | str] = {}
+    waits: dict[Node, list[tuple[np.ndarray, np.ndarray]]] = {}
     for m in memories:
         if m == 0:
             out[m] = np.tile([1.0, 0.0, 0.0], (len(cell.oscillations()), 1))
             continue
-        rows = _replayed(cell, law, shell, protocol, m, linearised)
-        if isinstance(rows, str):
-            out[m] = rows
+        found = _replayed(cell, law, shell, protocol, m, linearised)
+        if isinstance(found, str):
+            out[m] = found
             continue
+        rows, waits[m] = found
         reference = reference or _references(cell, shell, power_law, protocol)
         K = np.array([r["modulus_mN_per_m"] * np.exp(1j * r["loss_angle_rad"]) for r in rows]) / np.array(reference)
         out[m] = np.column_stack([np.abs(K), np.angle(K), [r["tension_mN_per_m"] - law["tension"] for r in rows]])
-    return out
+    return out, (_waits(cell, waits, 0 in memories) if wait_s is None else None)
+
+
+def _waits(cell: Cell, steps: dict[Node, list[tuple[np.ndarray, np.ndarray]]], nothing_kept: bool) -> Waits | None:
+    """The recorded waits of `cell` and each replay's force in them (`steps`: per memory its
+    replay's waits); τ_c = 0 (`nothing_kept`): the relaxed state's force, constant in each wait."""
+    if not steps:
+        return None
+    waits = recorded(cell, next(iter(steps.values())))
+    if waits is None:
+        return None
+    model = {m: modelled(waits, s) for m, s in steps.items()}
+    if nothing_kept:
+        model[0.0] = np.zeros(waits.time_s.size)
+    return replace(waits, model=model)
+
+
+def cell_corrections(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
+                     linearised: bool = True, memories: Sequence[Node] = (math.inf,)) -> dict[Node, np.ndarray | str]:
+    """`cell_replays`' factors."""
+    return cell_replays(cell, law, bending, wait_s, linearised, memories)[0]
 
 
 def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
@@ -102,14 +130,14 @@ def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: flo
 
 
 def _replayed(cell: Cell, law: dict[str, float], shell: Shell, protocol: Protocol, memory: Node,
-              linearised: bool) -> list[dict[str, Any]] | str:
-    """The replay's segments (|K*|, loss angle, mean tension) at one memory, or why none."""
+              linearised: bool) -> tuple[list[dict[str, Any]], list[tuple[np.ndarray, np.ndarray]]] | str:
+    """The replay's segments (|K*|, loss angle, mean tension) and waits at one memory, or why none."""
     tau = math.inf if memory == RELAXED else float(memory)
     cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"], memory_s=tau)
     try:
         rep = simulate(shell, cortex, protocol, LINEARISED if linearised else REPLAY,
                        history="relaxed" if memory == RELAXED else "carried")
-        return answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)
+        return (answered_segments(cell, rep) if linearised else replayed_segments(cell, rep)), rep.waits
     except SolverError as e:
         return f"the replay found no equilibrium ({e})"
     except InputError as e:            # a relaxed history needs a first ramp down from the start
