@@ -73,14 +73,16 @@ def recorded(cell: Cell, steps: Steps) -> Waits | None:
     """The samples of `cell` in the replay's waits (`steps`, any memory's: they share the
     protocol's times) that read the memory (module docstring); None where no wait does."""
     t, f = np.asarray(cell.time_s, float), np.asarray(cell.force_nN, float)
-    times, forces, which, used = [], [], [], []
+    used: list[tuple[int, npt.NDArray[np.int64]]] = []
     for k, (ts, _) in enumerate(_long(steps)):
         at = np.flatnonzero((t >= ts[0] + FIRST_S) & (t <= ts[-1]) & np.isfinite(f))
         if at.size >= MIN_SAMPLES:
-            times.append(t[at]), forces.append(f[at]), which.append(np.full(at.size, len(used))), used.append(k)
-    if not times:
+            used.append((k, at))
+    if not used:
         return None
-    return Waits(np.concatenate(times), np.concatenate(forces), np.concatenate(which), tuple(used), {})
+    at = np.concatenate([a for _, a in used])
+    which = np.concatenate([np.full(a.size, i) for i, (_, a) in enumerate(used)])
+    return Waits(t[at], f[at], which, tuple(k for k, _ in used), {})
 
 
 def modelled(waits: Waits, steps: Steps) -> Array:
