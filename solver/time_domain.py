@@ -31,7 +31,9 @@ such step would double the cost of a protocol), started as
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate, the shape
-admissible and its contact label within the search's range (ψ_c ≤ 1.4 rad, `LOG_PSI_MAX`).
+admissible, its contact label within the search's range (ψ_c < 1.4 rad, `LOG_PSI_MAX`) and the
+plate force F ≥ 0 (the plate only pushes: a step that would need it to pull is no equilibrium,
+and `advance` halves it).
 Then a_new, s_new of every element give the new internal variables. (With the
 extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
 force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
@@ -266,7 +268,7 @@ class TimeShell:
         """`step`'s work from the start `_continued` or, if not `continued`, `_extrapolated`: the
         history carried to `carry_label` if given, else to the extrapolated label (or the
         start's), the contact search (`solver.fast`'s, with its retreat), the admissible shape
-        checked, the history carried to the solved label and advanced; the
+        and a pushing plate checked, the history carried to the solved label and advanced; the
         force (nN) and the label the search held the history at."""
         lag = self._step_lagrangian(dt_s)
         _follow_scale(lag, self.shell, h_um)
@@ -285,8 +287,11 @@ class TimeShell:
             carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
             raise SolverError("the free surface crossed the plate")
-        if not u[-2] <= LOG_PSI_MAX:
+        if not u[-2] < LOG_PSI_MAX:
             raise SolverError("the contact label left the search's range")
+        force = float(-0.5 * lag.newton_system(u, 0.5 * h_um, hessian=False)[2])
+        if not force >= 0.0:
+            raise SolverError(f"the plate would have to pull ({force:.4g} nN): it only pushes")
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
@@ -295,7 +300,7 @@ class TimeShell:
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
         self.equilibria += 1
-        return self.force_nN(), carry_label
+        return force, carry_label
 
     def _extrapolated(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
         """The second start at gap h: the last shape squeezed to the new gap, its contact label

@@ -8,14 +8,14 @@ import pytest
 from scipy.special import gamma
 
 from analysis.afm.synth.time_domain import segment_fit
-from common.errors import InputError
+from common.errors import InputError, SolverError
 from solver.compression import compress
 from solver.model import Shell
 from solver.prony import Prony, fit_power_law
 from solver.relaxed_state import relaxed_state
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
 from solver.protocol_simulation import FINE, Sampling, simulate
-from solver.time_domain import Cortex, power_law_cortex
+from solver.time_domain import Cortex, TimeShell, power_law_cortex
 from solver.viscoelastic import hessian_parts, relaxed
 from solver.viscous import hold_label, linearise, respond
 from studies.prestressed_response import material_parts
@@ -182,3 +182,18 @@ def test_a_short_memory_oscillates_at_10_hz_after_a_wait():
     assert (short < forces[np.inf] - 10.0).all()       # forgetting: ~25 nN less throughout
     # to 5e-4: a step re-solved in one and not the other moves its label by up to CARRY_TOL_L
     np.testing.assert_allclose(forces[1e7], forces[np.inf], rtol=1e-3)
+
+
+def test_the_plate_only_pushes():
+    """The stress-free droplet at h0 lifted by the plate: its elastic cortex would pull the plate
+    back (F < 0 from ~0.7 µm above h0, -3.3 nN at 16 µm, -79 nN at 19 µm with the pole held at
+    the plate), which a frictionless plate cannot do: the cell leaves it. No such step is an
+    equilibrium, and the robust step fails honestly instead of returning a pulling force."""
+    shell = Shell(volume_um3=3725.9, h0_um=15.153, bulk_mN_per_m=26.5, shear_mN_per_m=17.0,
+                  tension_mN_per_m=1.34)
+    state = TimeShell(shell, power_law_cortex(26.5, 17.0, 0.137, 0.282))
+    assert 13.0 < state.advance(15.0, 1.0) < 14.5          # 13.8 nN, 0.15 µm deep
+    assert 11.0 < state.advance(15.153, 1.0) < 11.6         # 11.3 nN back at h0
+    with pytest.raises(SolverError, match="would have to pull"):
+        state.advance(16.0, 1.0)
+    assert state.h_um == 15.153                             # the state unchanged
