@@ -32,8 +32,8 @@ else the last shape squeezed to the new gap with its contact label raised as the
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
 last two steps; accepted only if the free surface stays below the plate, the shape
 admissible, its contact label within the search's range (ψ_c < 1.4 rad, `LOG_PSI_MAX`) and the
-plate force F ≥ 0 (the plate only pushes: a step that would need it to pull is no equilibrium,
-and `advance` halves it).
+plate force F ≥ 0 (to PULL_TOL_NN, the least contact's resolution: the plate only pushes, and
+a step that would need it to pull is no equilibrium, which `advance` halves).
 Then a_new, s_new of every element give the new internal variables. (With the
 extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
 force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
@@ -107,6 +107,7 @@ SMALLEST_FRACTION = 2.0**-16  # `advance`: a sub-step halved below this fraction
 STARTS = ((True, True), (True, False), (False, True))
 CARRY_TOL_L = 0.005   # `step`: a label this far from where its history was carried is solved again
 CARRY_SLOPE = -0.5    # `step`: dl/dc assumed for the first re-solve (measured -0.73 to 0)
+PULL_TOL_NN = 1e-3    # `step`: a plate force below -this (nN) would need the plate to pull
 CARRY_TRIES = 6       # `step`: solves of one step before its label is given up as unsettled
 
 
@@ -290,7 +291,7 @@ class TimeShell:
         if not u[-2] < LOG_PSI_MAX:
             raise SolverError("the contact label left the search's range")
         force = float(-0.5 * lag.newton_system(u, 0.5 * h_um, hessian=False)[2])
-        if not force >= 0.0:
+        if not force >= -PULL_TOL_NN:
             raise SolverError(f"the plate would have to pull ({force:.4g} nN): it only pushes")
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
