@@ -42,9 +42,10 @@ joins G (`history_share`); k is then the secant of G through the last two labels
 that is positive (the history's share of k is left out of the tangent), else the tangent's. The
 history's share nearly cancels the elastic one (G is small and positive down to the touching
 label, and jumps where an element's mid-label crosses a sample), so towards a side not yet
-bracketed a step is at least OPEN_STEP_L, and a bracket closed on both sides shrinks by at least
-SHRINK of its width a label (a secant on G's jumps crawls along one end); closed to TOL_L below
-the plate, its label is the answer (G's root there, or the jump where G changes sign). With no history (empty arrays: the elastic solver)
+bracketed a step is at least OPEN_STEP_L. A search still going after CRAWL_AFTER labels with a
+bracket closed on both sides (a secant crawling along one end of it, on G's jumps or where G is
+nearly flat) shrinks it by at least SHRINK of its width a label, and closed to TOL_L below the
+plate its label is the answer (G's root there, or where G changes sign). With no history (empty arrays: the elastic solver)
 nothing changes.
 
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
@@ -64,7 +65,8 @@ LOG_PSI_MAX = np.log(1.4)    # at most 1.4 rad of the free surface on the plate 
 TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 OPEN_STEP_L = 0.1            # with a history: the least step of l towards a side not yet bracketed
-SHRINK = 0.25               # with a history: a closed bracket shrinks by at least this share a label
+SHRINK = 0.25               # with a history, after CRAWL_AFTER labels: a closed bracket shrinks by this share a label
+CRAWL_AFTER = 12             # with a history: labels solved before a closed bracket is made to shrink
 PROBE_L = 0.02               # the tangent's probe of the gap's slope dgap/dl (`_touch_predicted`)
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
@@ -210,7 +212,7 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     carried, nd = history[0].size > 0, kc - labels[1].size
     dpa, dps = np.empty(0), np.empty(0)
     last_l, last_G = np.nan, np.nan          # the last label solved below the plate and its G
-    for _ in range(maxit):
+    for n in range(maxit):
         ref = label_positions(u[-2], labels, shape)
         if carried:
             dpa, dps = carry_history(u[-2], labels[1], labels[2], history, terms)
@@ -260,10 +262,10 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             target = max(target, touch + 0.3 * TOL_L)
         if hi - lo < TOL_L and touching:
             return FOUND, t0_u, g, iterations, HELD, lo, hi
-        if carried and above <= 0 and LOG_PSI_MIN < lo and hi < LOG_PSI_MAX:
+        if carried and n >= CRAWL_AFTER and above <= 0 and LOG_PSI_MIN < lo and hi < LOG_PSI_MAX:
             if hi - lo < TOL_L:          # G changes sign within TOL_L: a root, or its jump
                 return FOUND, u, g, iterations, 0, lo, hi
-            # G jumps where a mid-label crosses a sample: no secant crawls along one end
+            # a secant crawling along one end of a closed bracket: make it shrink
             target = min(max(target, lo + SHRINK * (hi - lo)), hi - SHRINK * (hi - lo))
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
