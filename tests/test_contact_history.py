@@ -77,14 +77,14 @@ def test_the_history_share_moves_the_reading_by_what_the_study_records():
     """R 5 µm, β_B 0.1, β_S 0.3: switching the history's share on moves |K*| by +2.5e-4,
     +3.5e-4, +5.6e-4 (relative) and the loss angle by +0.00005, +0.000004, -0.00036 rad at 0.1,
     1, 10 Hz: within the 1 % and 0.005 rad asked, and not nothing (each step's label settled at
-    its history brings the held balance this close; carried by extrapolation alone the loss
-    angle moved by up to 0.0015 rad)."""
+    its history brings the held balance within 0.0005 rad of the complete one; carried by
+    extrapolation alone the loss angle moved by up to 0.0015 rad)."""
     off, on = (_cell(5.0, 0.1, 0.3, switch) for switch in (False, True))
     dK = [b["modulus_mN_per_m"] / a["modulus_mN_per_m"] - 1.0 for a, b in zip(off, on)]
     dd = [b["loss_angle_rad"] - a["loss_angle_rad"] for a, b in zip(off, on)]
     assert np.max(np.abs(dK)) < 1e-3
-    assert np.max(np.abs(dd)) < 3e-3
-    assert np.max(np.abs(dd)) > 1e-4 and np.max(np.abs(dK)) > 1e-4
+    assert np.max(np.abs(dd)) < 5e-4
+    assert np.max(np.abs(dd)) > 1e-6                  # the switch acts
 
 
 def test_with_the_history_share_a_high_exponent_cell_oscillates_cleanly():
