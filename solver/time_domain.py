@@ -30,8 +30,10 @@ such step would double the cost of a protocol), started as
 `solver.fast.advance` starts its steps (the secant in the gap through the last two equilibria,
 else the last shape squeezed to the new gap with its contact label raised as the droplet's),
 or, where that finds none, from the squeezed shape with its contact label extrapolated from the
-last two steps; accepted only if the free surface stays below the plate and the shape
-admissible and its contact label within the search's range (ψ_c ≤ 1.4 rad, `LOG_PSI_MAX`).
+last two steps; accepted only if the free surface stays below the plate, the shape
+admissible, its contact label within the search's range (ψ_c < 1.4 rad, `LOG_PSI_MAX`) and the
+plate force F ≥ 0 (to PULL_TOL_NN, the least contact's resolution: the plate only pushes, and
+a step that would need it to pull is no equilibrium, which `advance` halves).
 Then a_new, s_new of every element give the new internal variables. (With the
 extrapolated start first the ramps from the sphere at β = 0 give the elastic continuation's
 force too, to 2e-6 on the R 5 µm corners; at paper heights both starts give it to 5e-6.)
@@ -40,6 +42,20 @@ where the material is expected, and the carried history then does not depend on 
 The extrapolation is scaled by the plate's move over the last one where that is shorter (a
 sub-step after a longer step would overshoot the label); where the search still finds no
 equilibrium, the history is carried to the start's label instead (`STARTS`).
+
+The solved label l depends on the label c its history is held at, l = f(c), and the step's
+equilibrium is the one with its history where its label is, f(c) = c. Held per element in the
+search, the history moves l against c: s = dl/dc reaches -0.4 to -0.7 at 10 Hz after a wait
+of several τ_c (the stored history then the cortex's whole stress), and with c extrapolated
+from the last two labels the label's error follows e_n+1 = s (2 e_n - e_n-1), which grows for
+s < -1/3 (label and force alternate until no equilibrium is found). So a step whose label lands
+more than CARRY_TOL_L from its c is solved again with c' = c + (l - c)/(1 - s), s the secant
+through its last two solves (CARRY_SLOPE for the first), until it settles (`_settled`): the
+accepted label is then the fixed point to CARRY_TOL_L whatever s, and the extrapolation only
+saves solves. Where it does not settle in CARRY_TRIES solves (f jumps: near the top of a fast
+retract f(c) can leave the plate for some c and not others, or |s| > 1), or no start finds an
+equilibrium with the history held, the step is solved with the history's share in the balance
+(below), which is the complete balance and needs no fixed point.
 
 Robust stepping (`advance`, what every protocol calls). A step t → t + Δt, h → h', with the gap
 linear in time, is taken in sub-steps [s_k, s_k+1] ⊂ [0, 1] of its own choice: the gap
@@ -58,7 +74,8 @@ from one step to the next, the internal variables and last strains of those elem
 to their material by linear interpolation in ψ0 (element mid-labels; the disc's material is
 fixed). The history is carried to the start's label, and carried again to the solved label;
 within the contact search it is held per element (its derivative in l left out of the contact
-line's balance), or, with `contact_history`, read off its material at every trial label, its
+line's balance, the fixed point above), or, with `contact_history` (every step) or where that
+finds no settled label (that step), read off its material at every trial label, its
 share of dE/dl in the balance (`solver.fast.contact.carry_history`, `history_share`; what it
 changes: docs/studies/contact-history.md). The label is set where the free
 surface touches the plate in the bending layer, where E*(l) is flat: ψ_c swings by a factor of ~6
@@ -88,6 +105,10 @@ SMALLEST_FRACTION = 2.0**-16  # `advance`: a sub-step halved below this fraction
 # `step`'s tries in turn: (start `_continued`, else `_extrapolated`; history carried to the
 # extrapolated label, else to the start's)
 STARTS = ((True, True), (True, False), (False, True))
+CARRY_TOL_L = 0.005   # `step`: a label this far from where its history was carried is solved again
+CARRY_SLOPE = -0.5    # `step`: dl/dc assumed for the first re-solve (measured -0.73 to 0)
+PULL_TOL_NN = 1e-3    # `step`: a plate force below -this (nN) would need the plate to pull
+CARRY_TRIES = 6       # `step`: solves of one step before its label is given up as unsettled
 
 
 @dataclass(frozen=True)
@@ -213,36 +234,65 @@ class TimeShell:
         if not dt_s > 0:
             raise InputError(f"a time step must be > 0 s (got {dt_s:g})")
         saved = self.saved()
-        for continued, carry_extrapolated in STARTS:
-            try:
-                return self._equilibrium(h_um, dt_s, continued, carry_extrapolated)
-            except (SolverError, np.linalg.LinAlgError) as err:
-                self.restore(saved)
-                failure = err
+        for share in (True,) if self.contact_history else (False, True):
+            for continued, carry_extrapolated in STARTS:
+                try:
+                    return self._settled(h_um, dt_s, continued, carry_extrapolated, share, saved)
+                except (SolverError, np.linalg.LinAlgError) as err:
+                    self.restore(saved)
+                    failure = err
         raise SolverError(f"no equilibrium at gap {h_um:.6g} um after {dt_s:.3g} s: {failure}")
 
-    def _equilibrium(self, h_um: float, dt_s: float, continued: bool, carry_extrapolated: bool) -> float:
+    def _settled(self, h_um: float, dt_s: float, continued: bool, carry_extrapolated: bool, share: bool,
+                 saved: tuple[Any, ...]) -> float:
+        """`_equilibrium`, with the history's `share` in the contact balance in one solve; without
+        it, solved again until its label lands within CARRY_TOL_L of the label its history was
+        carried to (module docstring): the next carry c' = c + (l - c)/(1 - s), s = dl/dc on the
+        secant through the last two tries (CARRY_SLOPE for the first); SolverError where the
+        label has not settled after CARRY_TRIES solves."""
+        if share:
+            return self._equilibrium(h_um, dt_s, continued, carry_extrapolated, share=True)[0]
+        carry, tries = None, []
+        for _ in range(CARRY_TRIES):
+            force, carried = self._equilibrium(h_um, dt_s, continued, carry_extrapolated, carry)
+            label = float(self.u[-2])
+            if abs(label - carried) <= CARRY_TOL_L:
+                return force
+            tries.append((carried, label))
+            self.restore(saved)
+            carry = _next_carry(tries)
+        raise SolverError(f"the contact label did not settle at its carried history (at {tries[-1][1]:.4g} "
+                          f"with the history at {tries[-1][0]:.4g})")
+
+    def _equilibrium(self, h_um: float, dt_s: float, continued: bool, carry_extrapolated: bool,
+                     carry_label: float | None = None, share: bool = False) -> tuple[float, float]:
         """`step`'s work from the start `_continued` or, if not `continued`, `_extrapolated`: the
-        history carried to the extrapolated label (or the start's), the contact search (`solver.fast`'s, with its
-        retreat), the admissible shape checked, the history carried to the solved label and
-        advanced."""
+        history carried to `carry_label` if given, else to the extrapolated label (or the
+        start's), the contact search (`solver.fast`'s, with its retreat), the admissible shape
+        and a pushing plate checked, the history carried to the solved label and advanced; the
+        force (nN) and the label the search held the history at."""
         lag = self._step_lagrangian(dt_s)
         _follow_scale(lag, self.shell, h_um)
         bulk, shear = self.channels
         u = self._continued(lag, h_um) if continued else self._extrapolated(lag, h_um)
-        self._carry(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
+        if carry_label is None:
+            carry_label = float(self._extrapolated(lag, h_um)[-2] if carry_extrapolated else u[-2])
+        self._carry(carry_label)
         pa, ps = bulk.history(dt_s), shear.history(dt_s)
         lag.terms = lag.terms._replace(pa=pa, ps=ps)
         history = (self.labels(self._label), pa[lag.nd:].copy(), ps[lag.nd:].copy()) \
-            if self.contact_history else NO_HISTORY
+            if share else NO_HISTORY
         u, _ = lowest_contact(lag, self.shell, u, 0.5 * h_um, history=history, second=h_um < self._deepest_um,
                               predict=True)
-        if self.contact_history:      # the prestress of the label found (the search's last may differ)
+        if history is not NO_HISTORY:      # the prestress of the label found (the search's last may differ)
             carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, lag.terms)
         if not (_gap(lag, u, 0.5 * h_um) <= 0.0 and _admissible(lag, u, 0.5 * h_um)):
             raise SolverError("the free surface crossed the plate")
-        if not u[-2] <= LOG_PSI_MAX:
+        if not u[-2] < LOG_PSI_MAX:
             raise SolverError("the contact label left the search's range")
+        force = float(-0.5 * lag.newton_system(u, 0.5 * h_um, hessian=False)[2])
+        if not force >= -PULL_TOL_NN:
+            raise SolverError(f"the plate would have to pull ({force:.4g} nN): it only pushes")
         self._carry(u[-2])
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
@@ -251,7 +301,7 @@ class TimeShell:
         bulk.advance(dt_s, a)
         shear.advance(dt_s, s)
         self.equilibria += 1
-        return self.force_nN()
+        return force, carry_label
 
     def _extrapolated(self, lag: Lagrangian, h_um: float) -> npt.NDArray[np.float64]:
         """The second start at gap h: the last shape squeezed to the new gap, its contact label
@@ -358,6 +408,17 @@ class TimeShell:
         ref, psic = self.lag.ref, np.exp(label)
         psi = np.concatenate([[0.0], psic * ref.zeta, psic + (0.5 * np.pi - psic) * ref.xi])
         return 0.5 * (psi[1:] + psi[:-1])
+
+
+def _next_carry(tries: list[tuple[float, float]]) -> float:
+    """The next carried label c' = c + (l - c)/(1 - s) from the tries (c, l) so far: the root of
+    l(c) - c on the secant through the last two (s = dl/dc), CARRY_SLOPE for the first; s held
+    below 1/2 (l(c) - c falls in c wherever the carry is stable)."""
+    c, l = tries[-1]
+    s = CARRY_SLOPE
+    if len(tries) > 1 and tries[-2][0] != c:
+        s = min((l - tries[-2][1]) / (c - tries[-2][0]), 0.5)
+    return c + (l - c) / (1.0 - s)
 
 
 def contact_radius_um(volume_um3: float, h_um: float) -> float:

@@ -170,7 +170,7 @@ def test_a_step_that_never_finds_an_equilibrium_leaves_the_state_as_it_was(monke
     state.advance(12.3, 1.0)
     before = state.saved()
 
-    def never(self, *args):
+    def never(self, *args, **kwargs):
         raise SolverError("never")
     monkeypatch.setattr(TimeShell, "_equilibrium", never)
     with pytest.raises(SolverError, match="no equilibrium"):

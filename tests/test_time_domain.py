@@ -8,14 +8,14 @@ import pytest
 from scipy.special import gamma
 
 from analysis.afm.synth.time_domain import segment_fit
-from common.errors import InputError
+from common.errors import InputError, SolverError
 from solver.compression import compress
 from solver.model import Shell
 from solver.prony import Prony, fit_power_law
 from solver.relaxed_state import relaxed_state
 from solver.protocol import Hold, Oscillate, Protocol, Ramp
 from solver.protocol_simulation import FINE, Sampling, simulate
-from solver.time_domain import Cortex
+from solver.time_domain import Cortex, TimeShell, power_law_cortex
 from solver.viscoelastic import hessian_parts, relaxed
 from solver.viscous import hold_label, linearise, respond
 from studies.prestressed_response import material_parts
@@ -156,3 +156,44 @@ def test_oscillation_in_steps_per_period_matches_a_step_per_sample():
     fine = per_sample.force_nN[osc]
     amplitude = np.ptp(fine) / 2
     assert np.max(np.abs(rec.force_nN[osc] - fine)) < 1e-3 * amplitude
+
+
+def test_a_short_memory_oscillates_at_10_hz_after_a_wait():
+    """With τ_c = 10 s a 50 s wait leaves the cortex's whole stress stored as history, which,
+    held per element in the contact search, moves the solved label against the label it sits
+    at (dl/dl_hist down to -0.7 at 10 Hz): with the history carried to the extrapolated label
+    alone the label's error grows by a factor below -1 a step, label and force alternate and the
+    step finds no equilibrium (synth cell007 of seed 0: R 9.6 µm, 3 µm deep). Each step solved
+    again until its label settles within CARRY_TOL_L of its history, the 10 Hz oscillation's
+    force is smooth. A memory far beyond the protocol gives the pure power law's forces (to the
+    label's tolerance)."""
+    shell = Shell(volume_um3=3725.9, h0_um=15.153, bulk_mN_per_m=26.5, shear_mN_per_m=17.0,
+                  tension_mN_per_m=1.34)
+    protocol = Protocol(15.153, (Ramp(to_um=12.153), Hold(50.0), Oscillate(10.0, 0.25, 2)))
+    forces = {}
+    for memory_s in (10.0, 1e7, np.inf):
+        rec = simulate(shell, power_law_cortex(26.5, 17.0, 0.137, 0.282, memory_s=memory_s), protocol)
+        osc = rec.oscillations()[0]
+        forces[memory_s] = rec.force_nN[osc.start:osc.stop]
+    short = forces[10.0]
+    d2 = np.abs(np.diff(short, 2))
+    assert d2.max() < 3.0 * np.median(d2)              # 1.7: no alternating label
+    assert 20.0 < short.min() and short.max() < 47.0   # 21.6-46.3 nN
+    assert (short < forces[np.inf] - 10.0).all()       # forgetting: ~25 nN less throughout
+    # to 5e-4: a step re-solved in one and not the other moves its label by up to CARRY_TOL_L
+    np.testing.assert_allclose(forces[1e7], forces[np.inf], rtol=1e-3)
+
+
+def test_the_plate_only_pushes():
+    """The stress-free droplet at h0 lifted by the plate: its elastic cortex would pull the plate
+    back (F < 0 from ~0.7 µm above h0, -3.3 nN at 16 µm, -79 nN at 19 µm with the pole held at
+    the plate), which a frictionless plate cannot do: the cell leaves it. No such step is an
+    equilibrium, and the robust step fails honestly instead of returning a pulling force."""
+    shell = Shell(volume_um3=3725.9, h0_um=15.153, bulk_mN_per_m=26.5, shear_mN_per_m=17.0,
+                  tension_mN_per_m=1.34)
+    state = TimeShell(shell, power_law_cortex(26.5, 17.0, 0.137, 0.282))
+    assert 13.0 < state.advance(15.0, 1.0) < 14.5          # 13.8 nN, 0.15 µm deep
+    assert 11.0 < state.advance(15.153, 1.0) < 11.6         # 11.3 nN back at h0
+    with pytest.raises(SolverError, match="would have to pull"):
+        state.advance(16.0, 1.0)
+    assert state.h_um == 15.153                             # the state unchanged

@@ -47,8 +47,11 @@ history's share nearly cancels the elastic one: G is small down to the touching 
 have a root (a minimum of E*) next to the start besides the touching label below it. So the
 first label solved below the plate steps FIRST_STEP_L towards -G (the secant then sees the
 nearby root, and the answer is the minimum the start lies next to, continuous in the cell's
-parameters), and after it a step towards a side not yet bracketed is at least OPEN_STEP_L. With
-no history (empty arrays: the elastic solver) nothing changes.
+parameters), and after it a step towards a side not yet bracketed is at least OPEN_STEP_L. A
+search still going after CRAWL_AFTER labels with a bracket closed on both sides (a secant crawling
+along one end of it where G is nearly flat) shrinks it by at least SHRINK of its width a label,
+and closed to TOL_L below the plate its label is the answer (G's root there, or where G changes
+sign). With no history (empty arrays: the elastic solver) nothing changes.
 
 The loop is compiled whole; h_xl · dx/dl is summed in index order. `contact`
 returns a status, which `solver.fast` turns into its errors.
@@ -68,6 +71,8 @@ TRUST_L = 0.3                # largest change of l = log ψ_c in one Newton step
 TOL_L = 1e-3                 # bracket width at which the touching label is accepted
 OPEN_STEP_L = 0.1            # with a history: the least step of l towards a side not yet bracketed
 FIRST_STEP_L = 0.01          # with a history: the step of l from the first label solved below the plate
+SHRINK = 0.25               # with a history, after CRAWL_AFTER labels: a closed bracket shrinks by this share a label
+CRAWL_AFTER = 12             # with a history: labels solved before a closed bracket is made to shrink
 PROBE_L = 0.02               # the tangent's probe of the gap's slope dgap/dl (`_touch_predicted`)
 
 # `contact`'s status beside `newton.newton`'s SINGULAR, REJECTED and NOT_CONVERGED (1-3)
@@ -248,7 +253,7 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
     dpa, dps = np.empty(0), np.empty(0)
     last_l, last_G = np.nan, np.nan          # the last label solved below the plate and its G
     first = True                             # no label solved below the plate yet
-    for _ in range(maxit):
+    for n in range(maxit):
         ref = label_positions(u[-2], labels, shape)
         if carried:
             dpa, dps = carry_history(u[-2], labels[1], labels[2], history, terms)
@@ -301,6 +306,11 @@ def contact(u: npt.NDArray[np.float64], zp: float, labels: tuple[npt.NDArray[np.
             target = max(target, touch + 0.3 * TOL_L)
         if hi - lo < TOL_L and touching:
             return FOUND, t0_u, g, iterations, HELD, lo, hi
+        if carried and n >= CRAWL_AFTER and above <= 0 and LOG_PSI_MIN < lo and hi < LOG_PSI_MAX:
+            if hi - lo < TOL_L:          # G changes sign within TOL_L: a root, or its jump
+                return FOUND, u, g, iterations, 0, lo, hi
+            # a secant crawling along one end of a closed bracket: make it shrink
+            target = min(max(target, lo + SHRINK * (hi - lo)), hi - SHRINK * (hi - lo))
         if not lo < target < hi:
             target = 0.5 * (lo + hi) if hi < LOG_PSI_MAX else min(l + TRUST_L, hi)
         solved, solved_tangent = u, tangent if above <= 0 else np.empty(0)
