@@ -143,8 +143,14 @@ def _drift(tension_mN_per_m: npt.ArrayLike, shifts: Mapping[Node, npt.NDArray[np
     corrected = t[None, :] - dg
     means = np.stack([corrected[:, groups == g].mean(axis=1) for g in range(groups.max() + 1)], axis=1)
     s = np.sum((corrected - means[:, groups]) ** 2, axis=1)
+    return excess_over_best(s, int(dof), float(np.mean(t ** 2))), int(dof)
+
+
+def excess_over_best(s: npt.NDArray[np.float64], dof: int, scale: float) -> npt.NDArray[np.float64]:
+    """F = (S - min S) / s², s² = min S / dof the best fit's own residual (floored at 1e-12 of
+    `scale`, the data's mean square, for a fit without residual); NaN where S is."""
     best = float(np.nanmin(s))
-    return (s - best) / max(best / dof, 1e-12 * float(np.mean(t ** 2))), int(dof)
+    return (s - best) / max(best / dof, 1e-12 * scale)
 
 
 def _fit(excess: npt.NDArray[np.float64], threshold: float, nodes: npt.NDArray[np.float64]) -> MemoryFit:

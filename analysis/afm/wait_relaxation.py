@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from analysis.afm.cell import Cell
-from analysis.afm.memory_fit import Node, interpolated_on_grid
+from analysis.afm.memory_fit import Node, excess_over_best, interpolated_on_grid
 
 Array = npt.NDArray[np.float64]
 MIN_WAIT_S = 10.0       # s: a shorter wait is left out
@@ -113,8 +113,6 @@ def excess(waits: Waits) -> tuple[Array, int] | None:
             X = np.column_stack([onehot, onehot * m[:, None], drift])
             coef = np.linalg.lstsq(X, waits.force_nN, rcond=None)[0]
             s[i] = float(np.sum((waits.force_nN - X @ coef) ** 2))
-    best = float(np.min(s))
-    if not np.isfinite(best):
+    if not np.isfinite(np.min(s)):
         return None
-    noise = max(best / dof, 1e-12 * float(np.mean(waits.force_nN ** 2)))
-    return (s - best) / noise, dof
+    return excess_over_best(s, dof, float(np.mean(waits.force_nN ** 2))), dof
