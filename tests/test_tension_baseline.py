@@ -71,6 +71,26 @@ def test_a_tilted_droplet_is_read_as_the_droplet():
     assert lo <= tension <= hi and k_hi > 0.0
 
 
+def test_a_shallow_ramp_of_a_soft_cell_is_bimodal_and_its_interval_spans_both_valleys():
+    """R 7 µm, γ_a 1, K_B 3 mN/m (K̃_S 1/3), 0.03 nN noise. Pressed to 0.05 R the droplet's valley
+    (K_B = 0, γ_a 1.23) and the shell's are both in the 95 % set (Λ 3.2 ≤ 3.84) and apart by more
+    than the shell's Z95 · sd: `bimodal`, the droplet reported with intervals that hold both
+    (γ_a about [0.3, 2.1], K_B [0, 17]). The same cell pressed to 0.14 R chooses the shell
+    (Λ 12.6), is not bimodal, and its narrow interval holds γ_a and K_B."""
+    radius, gamma, bulk, fixed = 7.0, 1.0, 3.0, Fixed(shear_tilde=1.0 / 3.0)
+    read = {}
+    for depth in (0.05, 0.14):
+        x, f = elastic_ramp(radius, gamma, bulk, bulk / 3.0, depth * radius, n=1500, noise_nN=0.03, seed=2)
+        fit = fit_shell(x, f + 3.0, radius, fixed)
+        read[depth] = fit, shell_interval(fit, x, f + 3.0, 4.0 * np.pi * radius ** 3 / 3.0, fixed, NO_VOLUME_ERROR)
+    (shallow, (lo, hi, k_lo, k_hi)), (deep, (dlo, dhi, dk_lo, dk_hi)) = read[0.05], read[0.14]
+    assert shallow.bimodal and shallow.elastic_term != SIGNIFICANT and shallow.bulk_mN_per_m == 0.0
+    assert lo < gamma < shallow.tension_mN_per_m < hi and k_lo <= bulk <= k_hi
+    assert hi - lo > 1.0                                       # both valleys, not one
+    assert not deep.bimodal and deep.elastic_term == SIGNIFICANT
+    assert dlo <= gamma <= dhi and dk_lo <= bulk <= dk_hi and dhi - dlo < 0.5
+
+
 def _row(depth, gamma, sd):
     return DepthRow(depth, gamma, sd, 10.0, float("nan"), float("nan"))
 
