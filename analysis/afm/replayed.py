@@ -117,16 +117,10 @@ def _waits(cell: Cell, steps: dict[Node, list[tuple[np.ndarray, np.ndarray]]], n
     return replace(waits, model=model)
 
 
-def cell_corrections(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
-                     linearised: bool = True, memories: Sequence[Node] = (math.inf,)) -> dict[Node, np.ndarray | str]:
-    """`cell_replays`' factors."""
-    return cell_replays(cell, law, bending, wait_s, linearised, memories)[0]
-
-
 def cell_correction(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
                     linearised: bool = True, memory: Node = math.inf) -> np.ndarray | str:
-    """`cell_corrections` at one memory."""
-    return cell_corrections(cell, law, bending, wait_s, linearised, (memory,))[memory]
+    """`cell_replays`' factors at one memory."""
+    return cell_replays(cell, law, bending, wait_s, linearised, (memory,))[0][memory]
 
 
 def _replayed(cell: Cell, law: dict[str, float], shell: Shell, protocol: Protocol, memory: Node,
