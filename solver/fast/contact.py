@@ -37,7 +37,9 @@ the material: at every label l the elements' P are read off it at their mid-labe
 (`carry_history`: the cubic Hermite interpolant in ψ0 with the slopes of the parabolas through
 three samples, continued along the end's tangent, so that P and dP/dψ0 are continuous in l; the
 samples sit at the mid-labels of the label the history was carried to, next to the answer, where
-a linear P would have its kinks), and the history's share of dE*/dl,
+a linear P would have its kinks; written here, not scipy's CubicHermiteSpline, because it is
+evaluated inside the compiled search, where no scipy object can be called), and the history's
+share of dE*/dl,
 
     G_hist = Σ_e 4π r̄0_e dS_e [(e1+e2)_e dP_a/dψ0 + (e1-e2)_e dP_s/dψ0] dψ̄0_e/dl,
 
