@@ -290,3 +290,18 @@ def test_no_power_law_is_the_elastic_shell_alone_and_a_droplet_row_says_why(tmp_
     assert _tension_line(ramp).startswith("e: approach 0: power law: not read with --model droplet (--power-law ")
     assert main(["afm", "tension", str(path), "--power-law", "--no-power-law"]) == 2
     assert "not allowed with" in capsys.readouterr().err
+
+
+def test_a_power_law_fit_that_breaks_down_leaves_the_elastic_reading_and_says_why(tmp_path, capsys, monkeypatch):
+    """A numerical failure inside the power-law fit (here made to happen) does not stop the command:
+    the row's note names it and the headline is the elastic shell's (β = 0) reading."""
+    import analysis.afm.tension.pipeline as pipeline
+
+    def broken(*args, **kwargs):
+        raise np.linalg.LinAlgError("Singular matrix")
+    monkeypatch.setattr(pipeline, "power_law_columns", broken)
+    status, doc = _json(capsys, _elastic_ramp_and_hold(tmp_path / "e.csv"), "--shear-ratio", 1 / 3)
+    ramp = doc["rows"][0]
+    assert status == 0 and ramp["power_law_note"] == "not read: LinAlgError: Singular matrix"
+    assert ramp["power_law_tension_mN_per_m"] is None and ramp["headline_reading"] == "elastic shell (β = 0)"
+    assert ramp["headline_tension_mN_per_m"] == ramp["tension_mN_per_m"] == pytest.approx(0.8, rel=0.05)

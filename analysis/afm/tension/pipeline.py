@@ -403,18 +403,26 @@ def analyse(trace: Trace, options: Options) -> Analysed:
 def _power_law(trace: Trace, k: int, options: Options, radius: float, ramp_prior: Prior | None) -> dict[str, Any]:
     """The power-law shell's columns of the approach `trace.parts[k]` and the pause after it
     (`powerlaw_row`) with the calibration columns, where Options.power_law asks for them (module
-    doc): {} with False, only the reason in `power_law_note` for a tension-only model by default."""
+    doc): {} with False, only the reason in `power_law_note` for a tension-only model by default or
+    where the fit breaks down numerically (the elastic reading stays the row's)."""
     if options.power_law is False:
         return {}
     if options.power_law is None and options.model != "shell":
-        return {**{c: float("nan") for c in POWER_LAW_COLUMNS}, "power_law_shear_ratio_source": "",
-                "power_law_hold": "none", "power_law_note": f"not read with --model {options.model} "
-                                                            "(--power-law reads it)"}
+        return _power_law_missing(f"not read with --model {options.model} (--power-law reads it)")
     _, _, t, f, x = trace.parts[k]
     after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
     pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
-    return {**power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table),
-            **table_columns(options)}
+    try:
+        columns = power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as err:
+        return _power_law_missing(f"not read: {type(err).__name__}: {err}")
+    return {**columns, **table_columns(options)}
+
+
+def _power_law_missing(why: str) -> dict[str, Any]:
+    """The power-law columns of a ramp without that reading: NaN, and why in `power_law_note`."""
+    return {**{c: float("nan") for c in POWER_LAW_COLUMNS}, "power_law_shear_ratio_source": "",
+            "power_law_hold": "none", "power_law_note": why}
 
 
 def _analyse_all(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:
