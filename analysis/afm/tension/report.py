@@ -2,8 +2,9 @@
 `COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
-and the comparison model; for the shell model a panel of each model's tension
-against the window's depth (`depths`); each pause's force over time with its fitted
+and the comparison model, the power-law shell's γ_a and β in its title where it
+heads the row; for the shell model a panel of each model's tension against the
+window's depth (`depths`); each pause's force over time with its fitted
 relaxation, the relaxed force F_∞ and the mean of its last half) and report.md
 (the table in short with each part's headline tension (`headline`), the window rule,
 the power-law shell's readings, the elastic shell's, the tensions against depth with the
@@ -92,7 +93,9 @@ def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
     return names
 
 
-def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
+def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float, row: dict[str, Any]) -> None:
+    """The ramp, its window, the model's fit and the comparison; the row's headline in the title
+    where it is the power-law shell's (whose curve this panel does not draw)."""
     _, index, x, f, fit, cmp, _ = plot
     depth = fit.contact_um - x
     base = fit.baseline_at(x)
@@ -102,7 +105,7 @@ def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
             else f"T = {fit.tension_mN_per_m:.3g} mN/m")
     ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_at(fit.contact_um - d), color="tab:red",
-            label=f"{fit.model}: {what}, R² = {fit.r2:.4f}")
+            label=f"{'elastic shell (β = 0)' if fit.model == 'shell' else fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
         ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_at(fit.contact_um - d), "--",
                 color="tab:green",
@@ -112,7 +115,13 @@ def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     ax.set_xlim(-1.5 * fit.depth_um, 1.2 * max(fit.depth_um, np.max(depth)) if depth.size else 1.0)
     ax.set_xlabel("deformation x0 - x (um)")
     ax.set_ylabel("force above baseline (nN)")
-    ax.set_title(f"approach (segment {index})")
+    if row.get("headline_reading") == POWER_LAW:
+        ax.set_title(f"approach (segment {index})\npower-law shell: γ_a = "
+                     f"{_num(row, 'headline_tension_mN_per_m', '.3g')} [{_num(row, 'headline_tension_lo95_mN_per_m', '.3g')}, "
+                     f"{_num(row, 'headline_tension_hi95_mN_per_m', '.3g')}] mN/m, "
+                     f"β = {_num(row, 'power_law_exponent', '.2g')}", fontsize=9)
+    else:
+        ax.set_title(f"approach (segment {index})")
     ax.legend(fontsize=7, loc="upper left")
 
 
@@ -122,7 +131,7 @@ def _depth_axes(ax: Any, plot: tuple[Any, ...]) -> None:
     d = np.array([r.depth_um for r in rows])
     g = np.array([r.tension_mN_per_m for r in rows])
     ax.errorbar(d, g, yerr=1.96 * np.array([r.tension_sd_mN_per_m for r in rows]), fmt="o-", color="tab:red",
-                label="shell: active tension γ_a")
+                label="elastic shell (β = 0): γ_a")
     ax.plot(d, [r.droplet_tension_mN_per_m for r in rows], "s--", color="tab:green", label="droplet (apparent)")
     ax.plot(d, [r.small_deformation_tension_mN_per_m for r in rows], "^:", color="tab:purple",
             label="small-deformation (apparent)")
@@ -159,7 +168,9 @@ def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
         if what == "depth":
             _depth_axes(ax, plot)
         elif plot[0] == "approach":
-            _ramp_axes(ax, plot, analysed.radius_um)
+            row: dict[str, Any] = next((r for r in analysed.rows
+                                        if r["part"] == "approach" and r["segment"] == plot[1]), {})
+            _ramp_axes(ax, plot, analysed.radius_um, row)
         else:
             _pause_axes(ax, plot)
     fig.suptitle(cell_id, fontsize=9)
