@@ -12,8 +12,9 @@ FINE: 0.02 µm a step) and sampled every 1/SAMPLES_PER_UM µm. Above h0 the appr
 tension-only droplet's (`studies.tension_synth.droplet_force_nN`: 0 above 2R), from h0 + Δh + 0.2
 µm, so that the window (as deep above the contact as below) finds its baseline. White noise of SD
 `NOISE_NN` (seeded by `seed`) is added to every sample. The recording, the gap x as its height
-(the dish known), is read by `analysis.afm.tension.pipeline.analyse` with the command's defaults
-(`Options()`: the shell, K̃_S fitted by its profile): the row `cortex afm tension` writes.
+(the dish known), is read by `analysis.afm.tension.pipeline.analyse` by the elastic shell alone
+(`Options(power_law=False)`: K̃_S fitted by its profile): the β = 0 reading of the row
+`cortex afm tension` writes (`tension_mN_per_m`).
 
 Results: γ_a read/true (`tension_ratio`) with its 95 % interval over the truth (`tension_lo95_ratio`,
 `tension_hi95_ratio`), `tension_covered` (1 if the interval holds γ_a, else 0), K_B read
@@ -71,7 +72,7 @@ def read_ramp(shell: Shell, beta: float, speed_um_per_s: float, seed: int) -> di
     """One ramp simulated and read by the shell as `cortex afm tension` reads it (module docstring)."""
     t, x, force = ramp_recording(shell, beta, speed_um_per_s, seed)
     trace = Trace("ramp", "simulated", shell.volume_um3, "given", [(0, "approach", t, force, x)], dish_known=True)
-    row = analyse(trace, Options()).rows[0]
+    row = analyse(trace, Options(power_law=False)).rows[0]
     gamma = shell.tension_mN_per_m
     lo, hi = row["tension_lo95_mN_per_m"], row["tension_hi95_mN_per_m"]
     return {"tension_ratio": row["tension_mN_per_m"] / gamma,

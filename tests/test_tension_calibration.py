@@ -39,7 +39,7 @@ def elastic_csv(tmp_path_factory):
 
 def _ramp(capsys, csv, *argv):
     """The approach row of `afm tension` on `csv` (the shell at K_S/K_B 1/3)."""
-    status = main(["afm", "tension", str(csv), "--shear-ratio", str(SHEAR), "--json", *map(str, argv)])
+    status = main(["afm", "tension", str(csv), "--shear-ratio", str(SHEAR), "--json", "--no-power-law", *map(str, argv)])
     doc = json.loads(capsys.readouterr().out)
     assert status == 0
     return next(r for r in doc["rows"] if r["part"] == "approach")
@@ -87,7 +87,7 @@ def test_a_law_only_bundle_leaves_the_shipped_table_and_says_so(tmp_path, capsys
 
 def _bad(tmp_path, capsys, csv, calibration):
     out = tmp_path / "never"
-    status = main(["afm", "tension", str(csv), "--calibration", str(calibration), "--out", str(out)])
+    status = main(["afm", "tension", str(csv), "--calibration", str(calibration), "--no-power-law", "--out", str(out)])
     err = capsys.readouterr().err.strip()
     assert status == 2 and len(err.splitlines()) == 1 and not out.exists()
     return err

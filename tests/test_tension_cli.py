@@ -85,7 +85,7 @@ def test_the_native_format_and_the_small_deformation_model(tmp_path, capsys):
 def _bad(tmp_path, capsys, *argv):
     """Run, expect exit 2, one line on stderr, the --out folder never made."""
     out = tmp_path / "never"
-    status = main(["afm", "tension", *map(str, argv), "--out", str(out)])
+    status = main(["afm", "tension", *map(str, argv), "--no-power-law", "--out", str(out)])
     err = capsys.readouterr().err.strip()
     assert status == 2 and len(err.splitlines()) == 1 and not out.exists()
     return err
@@ -116,7 +116,7 @@ def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
     (tmp_path / "corrupt.jpk-force").write_bytes(b"garbage")
     out = tmp_path / "out"
     status, doc = _json(capsys, tmp_path / "good.jpk-force", tmp_path / "flat.jpk-force",
-                        tmp_path / "corrupt.jpk-force", "--volume", VOLUME, "--out", out)
+                        tmp_path / "corrupt.jpk-force", "--volume", VOLUME, "--out", out, "--no-power-law")
     assert status == 1
     assert {r["cell_id"] for r in doc["rows"]} == {"good"}
     assert set(doc["not_analysed"]) == {"flat", str(tmp_path / "corrupt.jpk-force")}
@@ -129,7 +129,8 @@ def test_a_batch_lists_what_it_could_not_analyse(tmp_path, capsys):
     assert (row["shear_ratio_source"], row["shear_ratio_identified"]) == ("fitted", "not identified")
     assert (row["shear_ratio_lo95"], row["shear_ratio_hi95"]) == pytest.approx(shear_range())
     assert "| not identified |" in report
-    status, given = _json(capsys, tmp_path / "good.jpk-force", "--volume", VOLUME, "--shear-ratio", 0.5)
+    status, given = _json(capsys, tmp_path / "good.jpk-force", "--volume", VOLUME, "--shear-ratio", 0.5,
+                          "--no-power-law")
     row = given["rows"][0]
     assert status == 0 and (row["shear_ratio"], row["shear_ratio_source"], row["shear_ratio_identified"]) == (
         0.5, "given", "given")
@@ -145,7 +146,7 @@ def test_figure_names_are_files_and_never_shared():
 def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
     """The text export with its constant-force pause (docs/studies/tension-real-files.md has the
     numbers): R = 6.8 µm, the radius the published tool assumes for its test data."""
-    status, doc = _json(capsys, TEXT, "--radius-um", 6.8)
+    status, doc = _json(capsys, TEXT, "--radius-um", 6.8, "--no-power-law")
     assert status == 0
     ramp, pause = doc["rows"]
     assert (ramp["part"], pause["part"]) == ("approach", "pause")
@@ -156,7 +157,7 @@ def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
     assert pause["relaxation_model"] == "none" and pause["relaxation_flag"] == ""
     assert pause["force_nN"] == pytest.approx(pause["last_half_force_nN"], abs=0.002)
     # with the height channel taken as the gap (Z = 0): a pause at h~ ≈ 0.49
-    status, dish = _json(capsys, TEXT, "--radius-um", 6.8, "--dish-height-um", 0)
+    status, dish = _json(capsys, TEXT, "--radius-um", 6.8, "--dish-height-um", 0, "--no-power-law")
     pause = next(r for r in dish["rows"] if r["part"] == "pause")
     assert pause["height_um"] == pytest.approx(6.656, abs=0.002) and pause["height_reference"] == "dish"
     assert np.isfinite(pause["tension_mN_per_m"]) and pause["pressure_Pa"] > 0
@@ -164,7 +165,7 @@ def test_the_real_jpk_text_export_gives_a_tension_and_contact_point(capsys):
 
 @need
 def test_the_real_qi_pixel_is_a_clean_droplet_ramp(capsys):
-    status, doc = _json(capsys, QI, "--radius-um", 6.8)
+    status, doc = _json(capsys, QI, "--radius-um", 6.8, "--no-power-law")
     ramp, = doc["rows"]
     assert status == 0 and ramp["r2"] > 0.95 and ramp["compare_r2"] > 0.95
     assert 3.77 < ramp["contact_um"] < 6.3
@@ -174,7 +175,7 @@ def test_the_real_qi_pixel_is_a_clean_droplet_ramp(capsys):
 def test_the_bruker_binary_file_and_its_text_export_agree(capsys):
     """The same curve, read from the NanoScope file and from NanoScope Analysis's
     export (its spring constant from the file beside it): one tension."""
-    status, doc = _json(capsys, BRUKER, BRUKER_TEXT, "--radius-um", 6.8)
+    status, doc = _json(capsys, BRUKER, BRUKER_TEXT, "--radius-um", 6.8, "--no-power-law")
     assert status == 0 and doc["not_analysed"] == {}
     binary, text = doc["rows"]
     assert binary["part"] == text["part"] == "approach" and binary["r2"] > 0.95 and text["r2"] > 0.95
@@ -204,16 +205,103 @@ def test_a_text_export_alone_is_read_for_its_ramp(tmp_path, capsys):
     --max-depth-um is a warning. afm import still refuses it (it needs the times)."""
     alone = tmp_path / BRUKER_TEXT.name
     alone.write_bytes(BRUKER_TEXT.read_bytes())
-    _, beside = _json(capsys, BRUKER_TEXT, "--radius-um", 6.8)
-    status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945)
+    _, beside = _json(capsys, BRUKER_TEXT, "--radius-um", 6.8, "--no-power-law")
+    status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945, "--no-power-law")
     row, = doc["rows"]
     assert status == 0 and row["tension_mN_per_m"] == pytest.approx(beside["rows"][0]["tension_mN_per_m"], rel=1e-9)
     assert (row["ramp_speed_um_per_s"], row["ramp_speed_source"], row["warning"]) == (None, "unknown", "")
     status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945,
-                        "--ramp-speed-um-per-s", 3.0, "--max-depth-um", 2.0)
+                        "--ramp-speed-um-per-s", 3.0, "--max-depth-um", 2.0, "--no-power-law")
     row, = doc["rows"]
     assert (row["ramp_speed_um_per_s"], row["ramp_speed_source"]) == (3.0, "--ramp-speed-um-per-s")
     assert row["warning"].startswith("--max-depth-um 2 exceeds") and "reaches 0.4" in row["warning"]
     assert main(["afm", "import", str(alone), "--volume", "4000", "--spring-constant", "0.08", "--dish-height-um",
                  "-5", "--out", str(tmp_path / "imp")]) == 2 and not (tmp_path / "imp").exists()
     assert "sample times unknown" in capsys.readouterr().err
+
+
+def _elastic_ramp_and_hold(path, tension=0.8, bulk=10.0, seed=1):
+    """A single-cell CSV of an elastic cell (β = 0; `shell_ramp`, K_S/K_B 1/3) pressed at 1 µm/s to
+    0.14 R, held there 5 s at constant height (its force does not relax), and retracted."""
+    from analysis.afm.cell import Cell, Segment
+    from studies.tension_synth import shell_ramp
+    radius = float(cell_radius(VOLUME))
+    x, f = shell_ramp(radius, tension, bulk, bulk / 3.0, 0.14 * radius, n=400, noise_nN=0.0)
+    n, m = x.size, 500
+    t = np.r_[x[0] - x, x[0] - x[-1] + np.arange(1, m + 1) / 100.0]
+    t = np.r_[t, t[-1] + (t[1] - t[0]) * np.arange(1, n + 1)]
+    force = np.r_[f, np.full(m, f[-1]), f[::-1]] + 0.02 * np.random.default_rng(seed).standard_normal(2 * n + m)
+    segments = [Segment("approach", 0, n), Segment("pause", n, n + m), Segment("retract", n + m, 2 * n + m)]
+    cell = Cell("e", VOLUME, t, force, np.r_[x, np.full(m, x[-1]), x[::-1]], segments, volume_source="synthetic",
+                spring_constant_N_per_m=0.1)
+    return write_csv_cell(path, cell)
+
+
+def test_by_default_the_power_law_shell_reads_the_ramp_and_its_hold_and_heads_the_row(tmp_path, capsys):
+    """The default: the approach row's power_law_* columns filled and its headline; an elastic cell
+    reads β ≈ 0 and its γ_a and K_B(1 s) within their intervals, the elastic shell's γ_a (the β = 0
+    reading) beside it; tension.csv and report.md carry both."""
+    path, out = _elastic_ramp_and_hold(tmp_path / "e.csv"), tmp_path / "out"
+    status, doc = _json(capsys, path, "--shear-ratio", 1 / 3, "--out", out)
+    ramp, pause = doc["rows"]
+    assert status == 0 and ramp["power_law_note"] == "" and ramp["power_law_hold"] == "height"
+    assert ramp["power_law_shear_ratio_source"] == "given"
+    assert ramp["power_law_tension_lo95_mN_per_m"] <= 0.8 <= ramp["power_law_tension_hi95_mN_per_m"]
+    assert ramp["power_law_tension_mN_per_m"] == pytest.approx(0.8, rel=0.05)
+    assert ramp["power_law_exponent"] < 0.02 and ramp["power_law_bulk_1s_mN_per_m"] == pytest.approx(10.0, rel=0.1)
+    assert (ramp["headline_tension_mN_per_m"], ramp["headline_tension_lo95_mN_per_m"],
+            ramp["headline_tension_hi95_mN_per_m"]) == (ramp["power_law_tension_mN_per_m"],
+                                                        ramp["power_law_tension_lo95_mN_per_m"],
+                                                        ramp["power_law_tension_hi95_mN_per_m"])
+    assert ramp["headline_reading"] == "power-law shell" and ramp["model"] == "shell"
+    assert ramp["tension_mN_per_m"] == pytest.approx(0.8, rel=0.05)         # the β = 0 reading
+    assert pause["headline_reading"] == "pause relaxed force" and "power_law_hold" not in pause
+    from cortex.commands.afm import _tension_line
+    assert _tension_line(ramp).startswith(f"e: approach 0: power-law gamma_a {ramp['power_law_tension_mN_per_m']:.4g} "
+                                          "mN/m [") and "; beta = 0 reading: gamma_a " in _tension_line(ramp)
+    import pandas as pd
+    table = pd.read_csv(out / "tension.csv")
+    assert table.loc[0, "power_law_exponent"] == pytest.approx(ramp["power_law_exponent"])
+    assert table.loc[0, "headline_reading"] == "power-law shell"
+    report = (out / "report.md").read_text()
+    assert "## Approach ramps: the power-law shell" in report and "the β = 0 reading" in report
+    assert f"| {ramp['headline_tension_mN_per_m']:.4g} | " in report
+
+
+def test_no_power_law_is_the_elastic_shell_alone_and_a_droplet_row_says_why(tmp_path, capsys):
+    """`--no-power-law`: no power_law_* columns, the headline the elastic shell's (β = 0) reading;
+    `--model droplet` by default: the columns say why there is no power-law reading (`--power-law`
+    asks for it); `--power-law` and `--no-power-law` together are refused."""
+    path, out = _elastic_ramp_and_hold(tmp_path / "e.csv"), tmp_path / "out"
+    status, doc = _json(capsys, path, "--shear-ratio", 1 / 3, "--no-power-law", "--out", out)
+    ramp = doc["rows"][0]
+    assert status == 0 and not [k for k in ramp if k.startswith("power_law")]
+    assert ramp["headline_reading"] == "elastic shell (β = 0)"
+    from cortex.commands.afm import _tension_line
+    assert _tension_line(ramp).startswith(f"e: approach 0: beta = 0 reading: gamma_a {ramp['tension_mN_per_m']:.4g} mN/m [")
+    assert ramp["headline_tension_mN_per_m"] == ramp["tension_mN_per_m"] == pytest.approx(0.8, rel=0.05)
+    import pandas as pd
+    assert not [c for c in pd.read_csv(out / "tension.csv") if c.startswith("power_law")]
+    assert "power-law shell" not in (out / "report.md").read_text()
+    status, doc = _json(capsys, path, "--model", "droplet")
+    ramp = doc["rows"][0]
+    assert ramp["power_law_note"] == "not read with --model droplet (--power-law reads it)"
+    assert ramp["power_law_tension_mN_per_m"] is None and ramp["headline_reading"] == "droplet"
+    assert _tension_line(ramp).startswith("e: approach 0: power law: not read with --model droplet (--power-law ")
+    assert main(["afm", "tension", str(path), "--power-law", "--no-power-law"]) == 2
+    assert "not allowed with" in capsys.readouterr().err
+
+
+def test_a_power_law_fit_that_breaks_down_leaves_the_elastic_reading_and_says_why(tmp_path, capsys, monkeypatch):
+    """A numerical failure inside the power-law fit (here made to happen) does not stop the command:
+    the row's note names it and the headline is the elastic shell's (β = 0) reading."""
+    import analysis.afm.tension.pipeline as pipeline
+
+    def broken(*args, **kwargs):
+        raise np.linalg.LinAlgError("Singular matrix")
+    monkeypatch.setattr(pipeline, "power_law_columns", broken)
+    status, doc = _json(capsys, _elastic_ramp_and_hold(tmp_path / "e.csv"), "--shear-ratio", 1 / 3)
+    ramp = doc["rows"][0]
+    assert status == 0 and ramp["power_law_note"] == "not read: LinAlgError: Singular matrix"
+    assert ramp["power_law_tension_mN_per_m"] is None and ramp["headline_reading"] == "elastic shell (β = 0)"
+    assert ramp["headline_tension_mN_per_m"] == ramp["tension_mN_per_m"] == pytest.approx(0.8, rel=0.05)

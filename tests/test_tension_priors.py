@@ -52,7 +52,7 @@ def recording():
 
 
 def _row(cell, **options):
-    row, = analyse(_trace(cell), Options(**options)).rows
+    row, = analyse(_trace(cell), Options(**{"power_law": False, **options})).rows
     return row
 
 
@@ -92,7 +92,7 @@ def test_a_jpk_archive_with_modulations_and_the_option_that_switches_them_off(re
     path = write_force(tmp_path / "c.jpk-force", both, dish_um=20.0)
     rows = {}
     for flag in (["--out", str(tmp_path / "out")], ["--no-oscillation-priors"]):
-        assert main(["afm", "tension", str(path), "--volume", str(both.volume_um3), "--json", *flag]) == 0
+        assert main(["afm", "tension", str(path), "--volume", str(both.volume_um3), "--json", "--no-power-law", *flag]) == 0
         rows[flag[0] != "--out"], = json.loads(capsys.readouterr().out)["rows"]
     import pandas as pd
     assert pd.read_csv(tmp_path / "out" / "tension.csv")["prior_source"].tolist() == ["oscillations"]

@@ -100,7 +100,7 @@ def _cell(cell_id, tau_s, pause_n):
 def test_the_command_reads_the_relaxed_force_and_flags_a_short_pause(tmp_path):
     paths = [write_csv_cell(tmp_path / "relaxed.csv", _cell("relaxed", 0.5, 4000)),
              write_csv_cell(tmp_path / "short.csv", _cell("short", 1.5, 1000))]
-    result = run(paths, Options(), out=tmp_path / "out")
+    result = run(paths, Options(power_law=False), out=tmp_path / "out")
     pauses = {r["cell_id"]: r for r in result["rows"] if r["part"] == "pause"}
     ok, short = pauses["relaxed"], pauses["short"]
     assert ok["relaxation_model"] == EXPONENTIAL and ok["relaxation_flag"] == ""

@@ -191,8 +191,11 @@ def _add_analyze(s: Commands) -> None:
 def _add_tension(s: Commands) -> None:
     t = s.add_parser("tension", help="cortical tension and pressure from approach ramps and pauses",
                      description="Cortical tension (and pressure) of every recording (SPEC 11): each approach "
-                                 "ramp onto the free cell fitted by the elastic shell pressed from its free "
-                                 "sphere (active tension and bulk modulus), by the exact droplet model and by the "
+                                 "ramp onto the free cell and the pause after it read as one curve of the shell "
+                                 "whose cortex relaxes as a power law (active tension, K_B at 1 s, exponent: the "
+                                 "headline; --no-power-law skips it), the ramp fitted by the elastic shell pressed "
+                                 "from its free sphere (active tension and bulk modulus, the beta = 0 reading), by "
+                                 "the exact droplet model and by the "
                                  "small-deformation formula (contact point, T, R², the automatic fit window), "
                                  "each pause from its relaxed force (its relaxation fitted, exponential or "
                                  "power law, and extrapolated; too short a pause flagged; the last half's mean "
@@ -226,11 +229,18 @@ def _add_tension(s: Commands) -> None:
                         "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
                         "ramp_speed_source say which speed each ramp has (the elastic shell uses it only for the "
                         "time scale of its priors from the recording's oscillations)")
-    t.add_argument("--power-law", action="store_true",
-                   help="also read each approach and the pause right after it (at constant height or force) as one curve of the "
-                        "shell whose cortex relaxes as a power law (the power_law_* columns: the active tension, "
-                        "K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else the oscillations' prior, else "
-                        "profiled over 0.1-2 with its interval); seconds to a minute of CPU a ramp")
+    law = t.add_mutually_exclusive_group()
+    law.add_argument("--power-law", action="store_true", default=None,
+                     help="read each approach and the pause right after it (at constant height or force) as one "
+                          "curve of the shell whose cortex relaxes as a power law (the power_law_* columns: the "
+                          "active tension, K_B at 1 s and the exponent; K_S/K_B the --shear-ratio, else the "
+                          "oscillations' prior, else profiled over 0.1-2 with its interval), the row's headline "
+                          "tension where it reads (headline_*; the elastic shell's tension the beta = 0 reading "
+                          "beside it, and the headline where it does not, power_law_note says why). The default "
+                          "with --model shell; given, with every model. Seconds to a minute of CPU a ramp")
+    law.add_argument("--no-power-law", dest="power_law", action="store_false", default=None,
+                     help="the elastic shell alone (the beta = 0 reading, seconds faster a ramp): no power_law_* "
+                          "columns, the headline the ramp model's tension")
     add_error_options(t, "a pause's height")
     t.add_argument("--calibration", metavar="CAL.json",
                    help="calibration bundle (the format `afm analyze` takes, docs/calibration.md): the shell ramp "
@@ -541,10 +551,20 @@ def _str(path: object) -> str | None:
 
 
 def _tension_line(r: dict[str, Any]) -> str:
-    """One analysed part in a line: tension, interval, pressure, height, and the ramp's contact and comparison."""
-    text = (f"{r['cell_id']}: {r['part']} {r['segment']}: T {r['tension_mN_per_m']:.4g} mN/m "
-            f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
-            f"h {r['height_um']:.4g} um")
+    """One analysed part in a line: an approach's power-law reading (or why none) first, then the ramp
+    model's tension (the shell's the beta = 0 reading), interval, pressure, height, and the ramp's contact
+    and comparison."""
+    from analysis.afm.tension.report import POWER_LAW
+    text = f"{r['cell_id']}: {r['part']} {r['segment']}: "
+    if r["part"] == "approach" and "power_law_hold" in r:
+        text += (f"power-law gamma_a {r['power_law_tension_mN_per_m']:.4g} mN/m "
+                 f"[{r['power_law_tension_lo95_mN_per_m']:.3g}, {r['power_law_tension_hi95_mN_per_m']:.3g}], "
+                 f"beta {r['power_law_exponent']:.3g}" if r["headline_reading"] == POWER_LAW
+                 else f"power law: {r['power_law_note']}") + "; "
+    name = "beta = 0 reading: gamma_a" if r["part"] == "approach" and r["model"] == "shell" else "T"
+    text += (f"{name} {r['tension_mN_per_m']:.4g} mN/m "
+             f"[{r['tension_lo95_mN_per_m']:.3g}, {r['tension_hi95_mN_per_m']:.3g}], dP {r['pressure_Pa']:.4g} Pa, "
+             f"h {r['height_um']:.4g} um")
     if r["part"] == "approach":
         if r["model"] == "shell":
             text += (f", K_B {r['bulk_modulus_mN_per_m']:.4g} mN/m [{r['bulk_modulus_lo95_mN_per_m']:.3g}, "

@@ -26,9 +26,13 @@ analyse  per recording, in order until its first retract: every approach ramp
          `pause.ramp_interval`), with the ramp's speed and where it comes from
          (`_ramp_speed`: recorded times, `--ramp-speed-um-per-s` for a recording
          without them, or unknown) and a warning where `--max-depth-um` is deeper
-         than the data (`_depth_warning`); with `--power-law` also the
-         power-law shell's reading of the ramp and the pause after it
-         (`powerlaw_row`); every pause's tension and pressure
+         than the data (`_depth_warning`); by default (Options.power_law None)
+         the shell's rows also get the power-law shell's reading of the ramp
+         and the pause after it (`powerlaw_row`), every model's with
+         `--power-law` (True), none with `--no-power-law` (False), a
+         tension-only model's row the reason (`_power_law`); each row's
+         headline tension (`headline`: the power-law γ_a where read, else the
+         row's own model's, the elastic shell's the β = 0 reading); every pause's tension and pressure
          (`pause.pause_tension`) from its relaxed force (`relaxation`; the
          last half's mean force beside it for comparison), above the
          first fitted ramp's free baseline (the median force of its first 30 %,
@@ -63,13 +67,14 @@ from analysis.afm.tension.shell_ramp import resolve
 from analysis.afm.tension.depths import depth_rows, depth_test
 from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
 from analysis.afm.tension.priors import columns as prior_columns
+from analysis.afm.tension.powerlaw_row import COLUMNS as POWER_LAW_COLUMNS
 from analysis.afm.tension.powerlaw_row import power_law_columns
 from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
 from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
-from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, write
+from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, headline, write
 from analysis.calibration.ramp_table import ShellTable
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.beside import beside
@@ -93,7 +98,8 @@ class Options:
     bulk_mN_per_m: float | None = None
     max_depth_um: float | None = None
     ramp_speed_um_per_s: float | None = None   # of ramps whose files hold no sample times
-    power_law: bool = False                   # also the power-law shell's ramp-and-hold reading (`powerlaw_row`)
+    power_law: bool | None = None             # the power-law shell's ramp-and-hold reading (`powerlaw_row`):
+                                              # None with the shell model, True with every model, False none
     import_options: ImportOptions = ImportOptions(contact_heights=True, untimed_ramps=True)
     errors: MeasurementErrors = TENSION_ERRORS
     calibration: TensionCalibration | None = None
@@ -378,24 +384,45 @@ def analyse(trace: Trace, options: Options) -> Analysed:
                 row, plot = _ramp_row(trace, index, x, f, options, radius, pr)
                 row.update(_ramp_speed(t, x, plot[4].contact_um, options.ramp_speed_um_per_s))
                 ramp = ramp or (plot[4].contact_um, baseline_noise(f)[0])
-                if options.power_law:
-                    after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
-                    pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
-                    row.update(power_law_columns((t, x, f), pause, radius, options.shear_tilde, pr[0],
-                                                 options.table))
-                    row.update(table_columns(options))
+                row.update(_power_law(trace, k, options, radius, pr[0]))
             elif kind == "pause":
                 row, plot = _pause_row(trace, index, t, x, f, ramp, options, radius)
             else:
                 continue
         except InputError as err:
             raise InputError(f"{where}: {err}") from None
+        row.update(headline(row))
         done.rows.append({"cell_id": trace.cell_id, **row, "volume_um3": trace.volume_um3, "radius_um": radius,
                           "volume_source": trace.volume_source, "source": trace.source})
         done.plots.append(plot)
     if not done.rows:
         raise InputError("no approach ramp or pause before the first retract")
     return done
+
+
+def _power_law(trace: Trace, k: int, options: Options, radius: float, ramp_prior: Prior | None) -> dict[str, Any]:
+    """The power-law shell's columns of the approach `trace.parts[k]` and the pause after it
+    (`powerlaw_row`) with the calibration columns, where Options.power_law asks for them (module
+    doc): {} with False, only the reason in `power_law_note` for a tension-only model by default or
+    where the fit breaks down numerically (the elastic reading stays the row's)."""
+    if options.power_law is False:
+        return {}
+    if options.power_law is None and options.model != "shell":
+        return _power_law_missing(f"not read with --model {options.model} (--power-law reads it)")
+    _, _, t, f, x = trace.parts[k]
+    after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
+    pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
+    try:
+        columns = power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as err:
+        return _power_law_missing(f"not read: {type(err).__name__}: {err}")
+    return {**columns, **table_columns(options)}
+
+
+def _power_law_missing(why: str) -> dict[str, Any]:
+    """The power-law columns of a ramp without that reading: NaN, and why in `power_law_note`."""
+    return {**{c: float("nan") for c in POWER_LAW_COLUMNS}, "power_law_shear_ratio_source": "",
+            "power_law_hold": "none", "power_law_note": why}
 
 
 def _analyse_all(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:

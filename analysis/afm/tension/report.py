@@ -2,12 +2,14 @@
 `COLUMNS`, units in their names), one figure per recording
 (`tension_<cell_id>.png`: each approach ramp's force above its baseline against
 the deformation x0 - x, the samples of the fit window marked, the fitted model
-and the comparison model; for the shell model a panel of each model's tension
-against the window's depth (`depths`); each pause's force over time with its fitted
+and the comparison model, the power-law shell's γ_a and β in its title where it
+heads the row; for the shell model a panel of each model's tension against the
+window's depth (`depths`); each pause's force over time with its fitted
 relaxation, the relaxed force F_∞ and the mean of its last half) and report.md
-(the table in short, the window rule, the tensions against depth with the recordings
-whose active tension moves with it, each pause's relaxation and flag, what was not
-analysed)."""
+(the table in short with each part's headline tension (`headline`), the window rule,
+the power-law shell's readings, the elastic shell's, the tensions against depth with the
+recordings whose active tension moves with it, each pause's relaxation and flag, what was
+not analysed)."""
 
 import re
 from collections.abc import Iterable
@@ -29,7 +31,11 @@ if TYPE_CHECKING:
     from outputs.ownership import OutputDir
 
 TABLE, REPORT = "tension.csv", "report.md"
-COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_lo95_mN_per_m",
+# the row's headline tension and the reading it is (`headline`); after "model" in tension.csv
+HEADLINE = ("headline_tension_mN_per_m", "headline_tension_lo95_mN_per_m", "headline_tension_hi95_mN_per_m",
+            "headline_reading")
+POWER_LAW, ELASTIC = "power-law shell", "elastic shell (β = 0)"
+COLUMNS = ("cell_id", "part", "segment", "model") + HEADLINE + ("tension_mN_per_m", "tension_lo95_mN_per_m",
            "tension_hi95_mN_per_m", "bulk_modulus_mN_per_m", "bulk_modulus_lo95_mN_per_m",
            "bulk_modulus_hi95_mN_per_m", "shear_ratio", "shear_ratio_lo95", "shear_ratio_hi95", "shear_ratio_source",
            "shear_ratio_identified", "elastic_term", "elastic_term_lr", "bimodal",
@@ -41,9 +47,25 @@ COLUMNS = ("cell_id", "part", "segment", "model", "tension_mN_per_m", "tension_l
            "warning", "shell_table_source", "shell_table_sha256", "prior_calibration_source"
            ) + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
+
+
+def headline(row: dict[str, Any]) -> dict[str, Any]:
+    """The row's headline tension (HEADLINE) and the reading it is: an approach's power-law γ_a with
+    its interval where the power-law shell read it (POWER_LAW), else the row's model's tension
+    (ELASTIC for the shell: the β = 0 reading; `power_law_note` says why); a pause's relaxed one."""
+    if row["part"] == "approach" and np.isfinite(row.get("power_law_tension_mN_per_m", float("nan"))):
+        keys, reading = ("power_law_tension_mN_per_m", "power_law_tension_lo95_mN_per_m",
+                         "power_law_tension_hi95_mN_per_m"), POWER_LAW
+    else:
+        keys = ("tension_mN_per_m", "tension_lo95_mN_per_m", "tension_hi95_mN_per_m")
+        reading = (ELASTIC if row["model"] == "shell" else row["model"]) if row["part"] == "approach" else \
+            "pause relaxed force"
+    return {**{h: row[k] for h, k in zip(HEADLINE, keys)}, HEADLINE[-1]: reading}
+
+
 # a pause's relaxation (`relaxation`) and, for comparison, its last half's reading; after COLUMNS in tension.csv
 PAUSE_COLUMNS = RELAXATION_COLUMNS + ("last_half_force_nN", "last_half_tension_mN_per_m")
-# the power-law shell's reading of a ramp and its hold (`--power-law`, `powerlaw_row`); last in tension.csv
+# the power-law shell's reading of a ramp and its hold (by default, `powerlaw_row`); last in tension.csv
 POWER_LAW_COLUMNS = POWER_LAW_ROW_COLUMNS
 
 
@@ -71,7 +93,9 @@ def file_names(cell_ids: Iterable[str]) -> dict[str, str]:
     return names
 
 
-def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
+def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float, row: dict[str, Any]) -> None:
+    """The ramp, its window, the model's fit and the comparison; the row's headline in the title
+    where it is the power-law shell's (whose curve this panel does not draw)."""
     _, index, x, f, fit, cmp, _ = plot
     depth = fit.contact_um - x
     base = fit.baseline_at(x)
@@ -81,7 +105,7 @@ def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
             else f"T = {fit.tension_mN_per_m:.3g} mN/m")
     ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_at(fit.contact_um - d), color="tab:red",
-            label=f"{fit.model}: {what}, R² = {fit.r2:.4f}")
+            label=f"{'elastic shell (β = 0)' if fit.model == 'shell' else fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
         ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_at(fit.contact_um - d), "--",
                 color="tab:green",
@@ -91,7 +115,13 @@ def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float) -> None:
     ax.set_xlim(-1.5 * fit.depth_um, 1.2 * max(fit.depth_um, np.max(depth)) if depth.size else 1.0)
     ax.set_xlabel("deformation x0 - x (um)")
     ax.set_ylabel("force above baseline (nN)")
-    ax.set_title(f"approach (segment {index})")
+    if row.get("headline_reading") == POWER_LAW:
+        ax.set_title(f"approach (segment {index})\npower-law shell: γ_a = "
+                     f"{_num(row, 'headline_tension_mN_per_m', '.3g')} [{_num(row, 'headline_tension_lo95_mN_per_m', '.3g')}, "
+                     f"{_num(row, 'headline_tension_hi95_mN_per_m', '.3g')}] mN/m, "
+                     f"β = {_num(row, 'power_law_exponent', '.2g')}", fontsize=9)
+    else:
+        ax.set_title(f"approach (segment {index})")
     ax.legend(fontsize=7, loc="upper left")
 
 
@@ -101,7 +131,7 @@ def _depth_axes(ax: Any, plot: tuple[Any, ...]) -> None:
     d = np.array([r.depth_um for r in rows])
     g = np.array([r.tension_mN_per_m for r in rows])
     ax.errorbar(d, g, yerr=1.96 * np.array([r.tension_sd_mN_per_m for r in rows]), fmt="o-", color="tab:red",
-                label="shell: active tension γ_a")
+                label="elastic shell (β = 0): γ_a")
     ax.plot(d, [r.droplet_tension_mN_per_m for r in rows], "s--", color="tab:green", label="droplet (apparent)")
     ax.plot(d, [r.small_deformation_tension_mN_per_m for r in rows], "^:", color="tab:purple",
             label="small-deformation (apparent)")
@@ -138,7 +168,9 @@ def figure(path: Path, cell_id: str, analysed: Analysed) -> None:
         if what == "depth":
             _depth_axes(ax, plot)
         elif plot[0] == "approach":
-            _ramp_axes(ax, plot, analysed.radius_um)
+            row: dict[str, Any] = next((r for r in analysed.rows
+                                        if r["part"] == "approach" and r["segment"] == plot[1]), {})
+            _ramp_axes(ax, plot, analysed.radius_um, row)
         else:
             _pause_axes(ax, plot)
     fig.suptitle(cell_id, fontsize=9)
@@ -157,7 +189,7 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
     ramps = [r for r in rows if r["part"] == "approach" and r["model"] == "shell"]
     if not ramps:
         return []
-    lines = ["", "## Approach ramps: the elastic shell", "",
+    lines = ["", "## Approach ramps: the elastic shell (the β = 0 reading)", "",
              "K_S/K_B given, or fitted over the ramp table's range by its profile likelihood: identified (its 95 % "
              "interval inside the range), bounded (one end inside) or not identified; where fitted, the intervals "
              "of γ_a and K_B hold every K_S/K_B of its interval. Priors: the Gaussian priors on K_B and K_S/K_B "
@@ -173,6 +205,30 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
                      f"[{_num(r, 'shear_ratio_lo95', '.3g')}, {_num(r, 'shear_ratio_hi95', '.3g')}] | "
                      f"{r['shear_ratio_identified']} | {r['elastic_term']} ({_num(r, 'elastic_term_lr', '.3g')}) | "
                      f"{_prior_cell(r)} |")
+    return lines
+
+
+def _power_law_lines(rows: list[dict[str, Any]]) -> list[str]:
+    """report.md's power-law shell readings (`powerlaw_row`): γ_a with its interval, K_B(1 s) and β
+    with their SDs, K_S/K_B and where it comes from, the hold, or why there is no reading."""
+    ramps = [r for r in rows if r["part"] == "approach" and "power_law_hold" in r]
+    if not ramps:
+        return []
+    lines = ["", "## Approach ramps: the power-law shell", "",
+             "The approach at its recorded speed and the pause right after it (held at constant height or "
+             "force, or none) read as one curve of the shell whose cortex relaxes as K(t) = K(1 s) t^-β (see "
+             "docs/tension-power-law.md); the elastic shell below is its β = 0 case.", "",
+             "| cell | part | γ_a (mN/m) | 95 % | K_B(1 s) (mN/m) | β | K_S/K_B | 95 % | K_S/K_B is | hold | note |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in ramps:
+        lines.append(f"| {r['cell_id']} | approach {r['segment']} | {_num(r, 'power_law_tension_mN_per_m', '.4g')} | "
+                     f"[{_num(r, 'power_law_tension_lo95_mN_per_m', '.3g')}, "
+                     f"{_num(r, 'power_law_tension_hi95_mN_per_m', '.3g')}] | "
+                     f"{_num(r, 'power_law_bulk_1s_mN_per_m', '.4g')} ± {_num(r, 'power_law_bulk_1s_sd_mN_per_m', '.2g')} | "
+                     f"{_num(r, 'power_law_exponent', '.3g')} ± {_num(r, 'power_law_exponent_sd', '.2g')} | "
+                     f"{_num(r, 'power_law_shear_ratio', '.3g')} | [{_num(r, 'power_law_shear_ratio_lo95', '.3g')}, "
+                     f"{_num(r, 'power_law_shear_ratio_hi95', '.3g')}] | {r.get('power_law_shear_ratio_source', '')} | "
+                     f"{r.get('power_law_hold', '')} | {r.get('power_law_note', '')} |")
     return lines
 
 
@@ -241,20 +297,27 @@ def markdown(rows: list[dict[str, Any]], skipped: dict[str, str], model: str, er
              figures: list[Path], done: dict[str, Analysed] | None = None) -> str:
     """report.md: the parts analysed, the rule of the window, what was left out."""
     lines = ["# Cortical tension", "",
-             f"Ramp model: **{model}** (shell: the active tension γ_a and bulk modulus K_B of the elastic "
-             "cortex, with the droplet's apparent tension for comparison; droplet or small-deformation: the "
+             "The tension of each part is its headline reading: an approach ramp's active tension γ_a by the "
+             "shell whose cortex relaxes as a power law (the ramp and the pause after it as one curve) where it "
+             "was read, else the ramp model's; a pause's from its relaxed force. "
+             f"Ramp model: **{model}** (shell: γ_a and the bulk modulus K_B of the elastic cortex, the β = 0 "
+             "reading, with the droplet's apparent tension for comparison; droplet or small-deformation: the "
              "other for comparison). Volume errors: relative SD "
              f"{errors.volume_rel_sd:g}; height error SD {errors.height_sd_um:g} um; 95 % intervals. "
              "Fit window: deformations up to the deepest one reached (at most R), and as much baseline above "
              "the contact; see docs/tension.md.", "",
-             "| cell | part | T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | h̃ | contact (um) | R² | "
-             "comparison T (mN/m) |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| cell | part | tension (mN/m) | 95 % | reading | model's T or γ (mN/m) | 95 % | ΔP (Pa) | h (um) | "
+             "h̃ | contact (um) | R² | comparison T (mN/m) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['cell_id']} | {r['part']} {r['segment']} | {_num(r, 'tension_mN_per_m', '.4g')} | "
+        lines.append(f"| {r['cell_id']} | {r['part']} {r['segment']} | {_num(r, 'headline_tension_mN_per_m', '.4g')} | "
+                     f"[{_num(r, 'headline_tension_lo95_mN_per_m', '.3g')}, "
+                     f"{_num(r, 'headline_tension_hi95_mN_per_m', '.3g')}] | {r.get('headline_reading', '')} | "
+                     f"{_num(r, 'tension_mN_per_m', '.4g')} | "
                      f"[{_num(r, 'tension_lo95_mN_per_m', '.3g')}, {_num(r, 'tension_hi95_mN_per_m', '.3g')}] | "
                      f"{_num(r, 'pressure_Pa', '.4g')} | {_num(r, 'height_um', '.4g')} | {_num(r, 'h_tilde', '.3f')} | "
                      f"{_num(r, 'contact_um', '.5g')} | {_num(r, 'r2', '.4f')} | "
                      f"{_num(r, 'compare_tension_mN_per_m', '.4g')} |")
+    lines += _power_law_lines(rows)
     lines += _shell_lines(rows)
     lines += _pause_lines(rows)
     lines += depth_lines(done or {})
