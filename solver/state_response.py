@@ -41,13 +41,17 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from solver.fast import contact_at_least
+from solver.fast.contact import _node_labels, _slopes, carry_history, history_share
 from solver.fast.lagrangian import Lagrangian
-from solver.time_domain import Cortex, TimeShell
+from solver.time_domain import Cortex, TimeShell, element_strains
 from solver.viscous import Linearised, full_hessian, hold_label, respond
 
 STATIONARY = 1e-4         # |dE*/dl| below this times the force scale: the label moves with the response
+STATIONARY_L = 0.01       # with the share: E*(l)'s minimum within this of the label, the label moves
+STEP_L = 1e-5             # central difference in l of the balance with the history carried
 
 
 @dataclass
@@ -71,14 +75,94 @@ def _unit(lag: Lagrangian, strain: np.ndarray, channel: str) -> Lagrangian:
     return other
 
 
+def _with_prestress(lag: Lagrangian, pa: npt.NDArray[np.float64], ps: npt.NDArray[np.float64]) -> Lagrangian:
+    """A shallow copy of `lag` with its own prestress arrays."""
+    other = copy.copy(lag)
+    other.terms = lag.terms._replace(pa=pa.copy(), ps=ps.copy())
+    return other
+
+
+def _gradient(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float) -> npt.NDArray[np.float64]:
+    """(∇L, ∂L/∂z_p) at the elements' prestress (size + 1)."""
+    _, g, dzp, _ = lag.evaluate(u, zp, hessian=False)
+    return np.r_[g, dzp]
+
+
+def _balance(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float, history: tuple) -> npt.NDArray[np.float64]:
+    """R: `_gradient` with the history (ψ̄0, P_a, P_s) read off its material at u's label and
+    its share G_hist in the label's row (the step's balance with the share, `solver.fast.contact`)."""
+    other = _with_prestress(lag, lag.terms.pa, lag.terms.ps)
+    dpa, dps = carry_history(float(u[-2]), lag.ref.zeta, lag.ref.xi, history, other.terms)
+    R = _gradient(other, u, zp)
+    r0, z0 = lag.ref.positions(u[-2])[:2]
+    R[-3] += history_share(u, zp, r0, z0, lag.N, lag.kc, lag.nd, dpa, dps)
+    return R
+
+
+def _weighted_strains(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float) -> npt.NDArray[np.float64]:
+    """w_e (a_e, s_e) per element, w_e = 4π r̄0_e dS_e (the prestress term's weight), and w_e."""
+    r0, z0 = lag.ref.positions(u[-2])[:2]
+    w = 4.0 * np.pi * 0.5 * (r0[1:] + r0[:-1]) * np.hypot(np.diff(r0), np.diff(z0))
+    a, s = element_strains(lag, u, zp)
+    return np.stack([w * a, w * s, w])
+
+
+def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.NDArray[np.float64]],
+             strains: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> bool:
+    """With the history's share in the balance: the total Hessian in place of `base` and the
+    parts with the history's response moving with the material (module docstring), where the
+    label is free; False (nothing changed) where the plate holds it."""
+    lag, u, zp = state.lag, state.u, 0.5 * state.h_um
+    k, nd = lag.size - 2, lag.nd
+    l = float(u[-2])
+    history = (state.labels(l), lag.terms.pa[nd:].copy(), lag.terms.ps[nd:].copy())
+    up, um = u.copy(), u.copy()
+    up[-2], um[-2] = l + STEP_L, l - STEP_L
+    column = (_balance(lag, up, zp, history) - _balance(lag, um, zp, history)) / (2 * STEP_L)
+    total = base.copy()
+    total[:, k], total[k, :] = column, column
+    rest = np.r_[0:k, k + 1: lag.size]
+    stiffness = total[k, k] - total[k, rest] @ np.linalg.solve(total[np.ix_(rest, rest)], total[rest, k])
+    G = _balance(lag, u, zp, history)[k]
+    if not (stiffness > 0 and abs(G) <= STATIONARY_L * stiffness):
+        return False
+    base[...] = total
+    dl = (_weighted_strains(lag, up, zp) - _weighted_strains(lag, um, zp)) / (2 * STEP_L)
+    w = _weighted_strains(lag, u, zp)[2]
+    _, dpsi = _node_labels(l, lag.ref.zeta, lag.ref.xi)
+    dmid = 0.5 * (dpsi[1:] + dpsi[:-1])
+    at = history[0]
+    slopes = np.column_stack([_slopes(at, e) for e in np.eye(at.size)])      # D: dv/dψ0 at the samples
+    g0 = _gradient(lag, u, zp)
+    zeros = np.zeros_like(lag.terms.pa)
+    for c, (strain, P) in enumerate(zip(strains, parts)):
+        along = np.zeros_like(strain)
+        along[nd:] = _slopes(at, strain[nd:]) * dmid                     # a'(ψ0) dψ̄0/dl
+        moved = dl[c] / w - strain * dl[2] / w - along                   # M's column in l: ∂a/∂l - a' dψ̄0/dl
+        beta = dl[c].copy()                                              # ∂(w a)/∂l
+        beta[nd:] += slopes.T @ ((w * strain)[nd:] * dmid)
+        shift = (lambda x: (x, zeros)) if c == 0 else (lambda x: (zeros, x))
+        P[:, k] = _gradient(_with_prestress(lag, *(p + x for p, x in zip((lag.terms.pa, lag.terms.ps),
+                                                                         shift(moved)))), u, zp) - g0
+        P[k, :] = _gradient(_with_prestress(lag, *(p + x for p, x in zip((lag.terms.pa, lag.terms.ps),
+                                                                         shift(beta / w)))), u, zp) - g0
+        P[k, k] = beta @ moved
+    return True
+
+
 def state_parts(state: TimeShell) -> StateParts:
     """The linearisation of `state` at its gap and its Hessian's parts (module docstring)."""
     lag, u, zp = state.lag, state.u, 0.5 * state.h_um
     _, g, dzp, H = lag.evaluate(u, zp)
     base = full_hessian(lag, u, zp, H)
-    held = not lag.elastic or contact_at_least(u) or abs(g[-2]) > STATIONARY * lag.force_scale
     a, s = state.strains()
     parts = [full_hessian(_unit(lag, a, "bulk"), u, zp) - base, full_hessian(_unit(lag, s, "shear"), u, zp) - base]
+    if not lag.elastic or contact_at_least(u):
+        held = True
+    elif state.shared:
+        held = not _carried(state, base, parts, (a, s))
+    else:
+        held = abs(g[-2]) > STATIONARY * lag.force_scale
     if held:
         hold_label(base, 1.0)
         for P in parts:
@@ -93,4 +177,3 @@ def linear_modulus(parts: StateParts, frequency_hz: float) -> complex:
     kb, ks = parts.cortex.bulk.complex_modulus(frequency_hz), parts.cortex.shear.complex_modulus(frequency_hz)
     extra = (kb - parts.moduli[0]) * parts.bulk + (ks - parts.moduli[1]) * parts.shear
     return respond(parts.lin, 0.0, frequency_hz, extra, sparse=True).complex_modulus
-

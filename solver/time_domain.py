@@ -189,6 +189,7 @@ class TimeShell:
     _last: tuple[float, npt.NDArray[np.float64]] = field(init=False)
     _stride: float = field(init=False)
     _deepest_um: float = field(init=False)     # the least gap reached so far (µm)
+    shared: bool = field(init=False, default=False)   # the last step balanced a nonzero history's share of dE/dl
     _instant_bulk: float = field(init=False)     # K_B(0) (mN/m)
 
     def __post_init__(self) -> None:
@@ -294,6 +295,7 @@ class TimeShell:
         if not force >= -PULL_TOL_NN:
             raise SolverError(f"the plate would have to pull ({force:.4g} nN): it only pushes")
         self._carry(u[-2])
+        self.shared = history is not NO_HISTORY and bool(np.any(history[1]) or np.any(history[2]))
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
         self._deepest_um = min(self._deepest_um, self.h_um)
@@ -370,11 +372,12 @@ class TimeShell:
     def saved(self) -> tuple[Any, ...]:
         """What a step changes (unknowns, gap, Lagrangian, labels, internal variables), for `restore`."""
         return (self.u.copy(), self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um,
-                [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
+                self.shared, [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         """Back to the state `saved` returned (after a step that failed)."""
-        self.u, self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um, channels = saved
+        (self.u, self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um, self.shared,
+         channels) = saved
         for ch, (strain, viscous) in zip(self.channels, channels):
             ch.strain, ch.viscous = strain.copy(), viscous.copy()
 
