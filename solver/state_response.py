@@ -53,7 +53,7 @@ cell: 0.5-0.9 %, 0.0033 rad; 8 corners over β_B 0.05-0.3, β_S 0.1-0.4, K̃_S 0
 0.01-0.2, standard bending, 13.5 and 11 µm, 0.1-10 Hz, docs/studies/contact-history.md): abs(K*)
 within -1.45..+1.50 % but one segment (+2.08 %, 10 Hz after a 0.1 Hz oscillation), the loss angle
 within 0.008 rad at 1 and 10 Hz (0.026 rad at 0.1 Hz over two periods, FINE's start transient);
-where the plate holds the label, -1.4 %; held there the answer was 1-8 % high. With the history
+where the plate holds the label, -1.4 %; the label held where it is free reads 1-8 % high. With the history
 held per element the label's carry along the strip is not in H*: where the carried history holds
 the label the stepped oscillation's |K*| is up to 6.7 % above this one's on those corners (2-6 %
 at any amplitude down to 0.03 µm, bench/linearised_replay.py), arg K* within 0.014 rad at 1 and
