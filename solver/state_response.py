@@ -139,11 +139,23 @@ def _weighted_strains(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float) ->
     return np.stack([w * a, w * s, w])
 
 
+def _touching(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float, H: npt.NDArray[np.float64],
+              parts: list[npt.NDArray[np.float64]]) -> None:
+    """The label's row of H the touching condition δz_j = δz_p (j the highest free node), of the
+    parts zero: the plate holds the label where the free surface touches it."""
+    k, z = lag.size - 2, lag.nodes(u, zp)[1]
+    j = lag.kc + 1 + int(np.argmax(z[lag.kc + 1: lag.N]))
+    H[k, :] = 0.0
+    H[k, lag.zidx[j]], H[k, lag.size] = 1.0, -1.0
+    for P in parts:
+        P[k, :] = 0.0
+
+
 def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.NDArray[np.float64]],
-             strains: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> bool:
+             strains: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> None:
     """With the history's share in the balance: the total Hessian in place of `base` and the
-    parts with the history's response moving with the material (module docstring), where the
-    label is free; False (nothing changed) where the plate holds it."""
+    parts with the history's response moving with the material (module docstring); the label's
+    row the touching condition (`_touching`) where E*(l) has no minimum at the label."""
     lag, u, zp = state.lag, state.u, 0.5 * state.h_um
     k, nd = lag.size - 2, lag.nd
     l = float(u[-2])
@@ -156,8 +168,6 @@ def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.ND
     rest = lag.keep                                                      # the unknowns but l (banded solve)
     stiffness = total[k, k] - total[k, rest] @ lag.solve(total[:k + 2, :k + 2], total[rest, k])[:, 0]
     G = _balance(lag, u, zp, history)[k]
-    if not (stiffness > 0 and abs(G) <= STATIONARY_L * stiffness):
-        return False
     base[...] = total
     dl = (_weighted_strains(lag, up, zp) - _weighted_strains(lag, um, zp)) / (2 * STEP_L)
     w = _weighted_strains(lag, u, zp)[2]
@@ -175,7 +185,8 @@ def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.ND
         P[:, k] = _shifted(lag, u, zp, c, moved) - g0
         P[k, :] = _shifted(lag, u, zp, c, beta / w) - g0
         P[k, k] = beta @ moved
-    return True
+    if not (stiffness > 0 and abs(G) <= STATIONARY_L * stiffness):
+        _touching(lag, u, zp, base, parts)
 
 
 def state_parts(state: TimeShell) -> StateParts:
@@ -188,7 +199,8 @@ def state_parts(state: TimeShell) -> StateParts:
     if not lag.elastic or contact_at_least(u):
         held = True
     elif state.shared:
-        held = not _carried(state, base, parts, (a, s))
+        _carried(state, base, parts, (a, s))
+        held = False
     else:
         held = abs(g[-2]) > STATIONARY * lag.force_scale
     if held:
