@@ -169,7 +169,10 @@ def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.ND
     total = base.copy()
     total[:, k], total[k, :] = column, column
     rest = lag.keep                                                      # the unknowns but l (banded solve)
-    stiffness = total[k, k] - total[k, rest] @ lag.solve(total[:k + 2, :k + 2], total[rest, k])[:, 0]
+    try:
+        stiffness = total[k, k] - total[k, rest] @ lag.solve(total[:k + 2, :k + 2], total[rest, k])[:, 0]
+    except np.linalg.LinAlgError:        # no equilibrium to relax the rest to: no minimum at the label
+        stiffness = 0.0
     G = _balance(lag, u, zp, history)[k]
     base[...] = total
     dl = (_weighted_strains(lag, up, zp) - _weighted_strains(lag, um, zp)) / (2 * STEP_L)
