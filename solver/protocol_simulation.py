@@ -47,7 +47,9 @@ themselves of every wait (a height hold between a ramp and what follows it): the
 and forces (nN), the wait's start first.
 
 `contact_history`: the stored history's share of dE/dl in the contact line's balance
-(`solver.time_domain.TimeShell`; off by default).
+(`solver.time_domain.TimeShell`; on by default, False holds the history per element in the
+search). LINEARISED's answers linearise the balance the state's step solved
+(`solver.state_response`).
 
 `history` "relaxed": every ramp to a height after the first starts from its own relaxed droplet,
 the first ramp's depth above its target (a fresh `TimeShell`: no stress from earlier steps, the
@@ -188,7 +190,7 @@ def _bracket(residual: Callable[[float], float], h0_um: float,
 
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
              sampling: Sampling = Sampling(), history: str = "carried",
-             contact_history: bool = False) -> Recording:
+             contact_history: bool = True) -> Recording:
     """The recording of `protocol` on `shell` (its h0 the protocol's start) with `cortex`
     (module docstring); SolverError where a step finds no equilibrium."""
     if history not in CORTEX_HISTORIES:

@@ -43,7 +43,9 @@ The extrapolation is scaled by the plate's move over the last one where that is 
 sub-step after a longer step would overshoot the label); where the search still finds no
 equilibrium, the history is carried to the start's label instead (`STARTS`).
 
-The solved label l depends on the label c its history is held at, l = f(c), and the step's
+With `contact_history` (the default) every step's search reads the history off its material at
+each trial label, its share of dE/dl in the balance (below). Without it (`contact_history=False`),
+the solved label l depends on the label c its history is held at, l = f(c), and the step's
 equilibrium is the one with its history where its label is, f(c) = c. Held per element in the
 search, the history moves l against c: s = dl/dc reaches -0.4 to -0.7 at 10 Hz after a wait
 of several τ_c (the stored history then the cortex's whole stress), and with c extrapolated
@@ -73,11 +75,13 @@ are labelled by their reference angle ψ0, which moves with the contact label l:
 from one step to the next, the internal variables and last strains of those elements are carried
 to their material by linear interpolation in ψ0 (element mid-labels; the disc's material is
 fixed). The history is carried to the start's label, and carried again to the solved label;
-within the contact search it is held per element (its derivative in l left out of the contact
-line's balance, the fixed point above), or, with `contact_history` (every step) or where that
-finds no settled label (that step), read off its material at every trial label, its
-share of dE/dl in the balance (`solver.fast.contact.carry_history`, `history_share`; what it
-changes: docs/studies/contact-history.md). The label is set where the free
+within the contact search it is read off its material at every trial label, its share of dE/dl in
+the balance (`contact_history`, the default: every step; `solver.fast.contact.carry_history`,
+`history_share`; `shared` says the last step did so with a nonzero history, and
+`solver.state_response` linearises that balance; what it changes:
+docs/studies/contact-history.md), or, with `contact_history=False`, held per element (its
+derivative in l left out of the contact line's balance, the fixed point above) except where that
+finds no settled label (that step). The label is set where the free
 surface touches the plate in the bending layer, where E*(l) is flat: ψ_c swings by a factor of ~6
 over a 0.05 µm oscillation, so this carry along the strip is the scheme's weakest approximation.
 
@@ -178,7 +182,7 @@ class TimeShell:
 
     shell: Shell
     cortex: Cortex
-    contact_history: bool = False      # the history's share of dE/dl in the contact search
+    contact_history: bool = True       # the history's share of dE/dl in the contact search (False: held)
     lag: Lagrangian = field(init=False)
     u: npt.NDArray[np.float64] = field(init=False)
     h_um: float = field(init=False)
@@ -189,6 +193,7 @@ class TimeShell:
     _last: tuple[float, npt.NDArray[np.float64]] = field(init=False)
     _stride: float = field(init=False)
     _deepest_um: float = field(init=False)     # the least gap reached so far (µm)
+    shared: bool = field(init=False, default=False)   # the last step balanced a nonzero history's share of dE/dl
     _instant_bulk: float = field(init=False)     # K_B(0) (mN/m)
 
     def __post_init__(self) -> None:
@@ -294,6 +299,7 @@ class TimeShell:
         if not force >= -PULL_TOL_NN:
             raise SolverError(f"the plate would have to pull ({force:.4g} nN): it only pushes")
         self._carry(u[-2])
+        self.shared = history is not NO_HISTORY and bool(np.any(history[1]) or np.any(history[2]))
         self._last = (self.h_um, self.u)
         self.u, self.h_um, self.lag = u, float(h_um), lag
         self._deepest_um = min(self._deepest_um, self.h_um)
@@ -370,11 +376,12 @@ class TimeShell:
     def saved(self) -> tuple[Any, ...]:
         """What a step changes (unknowns, gap, Lagrangian, labels, internal variables), for `restore`."""
         return (self.u.copy(), self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um,
-                [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
+                self.shared, [(ch.strain.copy(), ch.viscous.copy()) for ch in self.channels])
 
     def restore(self, saved: tuple[Any, ...]) -> None:
         """Back to the state `saved` returned (after a step that failed)."""
-        self.u, self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um, channels = saved
+        (self.u, self.h_um, self.lag, self._label, self._last, self._stride, self._deepest_um, self.shared,
+         channels) = saved
         for ch, (strain, viscous) in zip(self.channels, channels):
             ch.strain, ch.viscous = strain.copy(), viscous.copy()
 
