@@ -112,3 +112,20 @@ def test_shallow_windows_without_information_are_not_testable():
     assert verdict == NOT_TESTABLE and why.startswith("not testable")
     rows[2] = _row(0.37, 1.0, 0.32)               # an informative window that agrees: it holds
     assert depth_test(rows)[0] == HOLDS
+
+
+def test_an_export_without_times_is_timed_by_its_speed():
+    """A piezo ramp sampled evenly in time at 3 µm/s (the piezo's height z evenly spaced), the
+    gap x = z - F/k slowing in contact (k 0.078 N/m = 78 nN/µm): the times built from
+    `--ramp-speed-um-per-s` (the slope of x per sample above the contact over the speed) are the
+    piezo's own, to 1e-9 s."""
+    from analysis.afm.tension.pipeline import even_times
+    radius, speed, k = 6.8, 3.0, 78.0
+    x, f = elastic_ramp(radius, 1.0, 10.0, 10.0 / 3.0, 0.1 * radius, n=20000, noise_nN=0.0)
+    z = x - f / k                                # the piezo's height at each gap (x = z + F/k): falls monotonically
+    base = np.linspace(z[0], z[-1], 1200)        # sampled evenly in z, so evenly in time
+    gap, force = np.interp(-base, -z, x), np.interp(-base, -z, f)
+    t = (base[0] - base) / speed
+    steps = -np.diff(gap)
+    assert steps[-1] < 0.97 * steps[0]           # the gap moves slower in contact
+    assert even_times(gap, force, speed) == pytest.approx(t, abs=1e-9)

@@ -227,8 +227,9 @@ def _add_tension(s: Commands) -> None:
     t.add_argument("--ramp-speed-um-per-s", type=float, default=None, metavar="V",
                    help="approach speed (um/s) of recordings whose files hold no sample times (a NanoScope "
                         "Analysis export without its NanoScope file); the row's ramp_speed_um_per_s and "
-                        "ramp_speed_source say which speed each ramp has (the elastic shell uses it only for the "
-                        "time scale of its priors from the recording's oscillations)")
+                        "ramp_speed_source say which speed each ramp has; the power-law shell times such a ramp by it "
+                        "(its samples taken evenly in time), the elastic shell uses it only for the time scale of "
+                        "its priors from the recording's oscillations)")
     law = t.add_mutually_exclusive_group()
     law.add_argument("--power-law", action="store_true", default=None,
                      help="read each approach and the pause right after it (at constant height or force) as one "

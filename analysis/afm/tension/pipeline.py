@@ -69,7 +69,7 @@ from analysis.afm.tension.priors import Laws, Prior, prior, read_laws
 from analysis.afm.tension.priors import columns as prior_columns
 from analysis.afm.tension.powerlaw_row import COLUMNS as POWER_LAW_COLUMNS
 from analysis.afm.tension.powerlaw_row import power_law_columns
-from analysis.afm.tension.ramp import MODELS, baseline_noise, fit_ramp, force_per_tension_um
+from analysis.afm.tension.ramp import MODELS, baseline_noise, contact_guess, fit_ramp, force_per_tension_um
 from analysis.afm.tension.shell_fit import NOT_SIGNIFICANT, Fixed, ShellFit, fit_shell, shell_interval
 from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
@@ -83,6 +83,7 @@ from common.names import RAMP_MODELS
 from solver.geometry import cell_radius
 
 MIN_FREE = 10            # samples above the contact to read a ramp's speed from
+TIMES_FROM_SPEED = "times from --ramp-speed-um-per-s (samples taken evenly in time)"
 
 
 @dataclass(frozen=True)
@@ -412,11 +413,33 @@ def _power_law(trace: Trace, k: int, options: Options, radius: float, ramp_prior
     _, _, t, f, x = trace.parts[k]
     after = trace.parts[k + 1] if k + 1 < len(trace.parts) else None
     pause = (after[2], after[4], after[3]) if after is not None and after[1] == "pause" else None
+    note = ""
     try:
+        if not np.all(np.isfinite(t)) and options.ramp_speed_um_per_s is not None:
+            t, pause, note = even_times(x, f, options.ramp_speed_um_per_s), None, TIMES_FROM_SPEED
         columns = power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table)
+    except InputError as err:
+        return _power_law_missing(f"not read: {err}")
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as err:
         return _power_law_missing(f"not read: {type(err).__name__}: {err}")
+    if note:
+        columns["power_law_note"] = "; ".join(n for n in (note, columns["power_law_note"]) if n)
     return {**columns, **table_columns(options)}
+
+
+def even_times(x: np.ndarray, f: np.ndarray, speed_um_per_s: float) -> np.ndarray:
+    """Sample times (s) of a ramp whose file holds none, sampled evenly in time (a piezo ramp):
+    t_i = i Δt, Δt = |dx/di| / v, dx/di the slope of x against the sample index above the
+    contact (`contact_guess`; all samples if fewer than MIN_FREE), v `--ramp-speed-um-per-s`: the
+    speed `_ramp_speed` would read from recorded times."""
+    contact, _ = contact_guess(x, f)
+    free = x > contact
+    use = free if free.sum() >= MIN_FREE else np.ones_like(free)
+    index = np.arange(x.size, dtype=float)
+    per_sample = abs(float(np.polyfit(index[use], x[use], 1)[0]))
+    if not per_sample > 0:
+        raise InputError("a ramp whose height does not move has no speed to time it by")
+    return index * per_sample / speed_um_per_s
 
 
 def _power_law_missing(why: str) -> dict[str, Any]:
