@@ -28,7 +28,8 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from analysis.afm.tension.powerlaw_fit import PowerLawFit, Samples, Solved, conclude, prepare, sds, solve, start
+from analysis.afm.tension.powerlaw_fit import (PROFILE_SIMULATIONS, PowerLawFit, Samples, Solved, conclude, correct,
+                                               prepare, sds, start)
 from analysis.afm.tension.ramp import RampFit
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.afm.tension.shell_shear import profile_bands
@@ -48,6 +49,12 @@ def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float |
     return float(np.clip(-b / (2.0 * a), u[0], u[-1])) if a > 0 else None
 
 
+def _at(s: Samples, radius_um: float, shear: float, near: Solved, table: ShellTable | None) -> Solved:
+    """The fit at K̃_S `shear` from the fit `near` (a neighbour's): its q and correction,
+    refreshed by at most PROFILE_SIMULATIONS simulations (`powerlaw_fit.correct`)."""
+    return correct(s, radius_um, shear, near.q, correction=near.correction, table=table, cap=PROFILE_SIMULATIONS)
+
+
 def _profile(s: Samples, radius_um: float, drop: RampFit,
              table: ShellTable | None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
     """{K̃_S: the simulator's fit there} over the nodes and the vertex (module doc), and the
@@ -57,19 +64,19 @@ def _profile(s: Samples, radius_um: float, drop: RampFit,
     done: dict[float, Solved] = {}
     done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table)
     for k in range(first + 1, NODES):
-        done[nodes[k]] = solve(s, radius_um, nodes[k], done[nodes[k - 1]].q)
+        done[nodes[k]] = _at(s, radius_um, nodes[k], done[nodes[k - 1]], table)
     for k in range(first - 1, -1, -1):
-        done[nodes[k]] = solve(s, radius_um, nodes[k], done[nodes[k + 1]].q)
+        done[nodes[k]] = _at(s, radius_um, nodes[k], done[nodes[k + 1]], table)
     b = int(np.argmin([done[v].sse for v in nodes]))
     if 0 < b < NODES - 1:
         u = np.log(nodes[b - 1:b + 2])
         top = _vertex(u, np.array([done[v].sse for v in nodes[b - 1:b + 2]]))
         if top is not None and np.min(np.abs(u - top)) > NEAR:
-            done[float(np.exp(top))] = solve(s, radius_um, float(np.exp(top)), done[nodes[b]].q)
+            done[float(np.exp(top))] = _at(s, radius_um, float(np.exp(top)), done[nodes[b]], table)
     return done, p
 
 
-def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float) -> None:
+def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float, table: ShellTable | None) -> None:
     """Each end of K̃_S's interval located between the points of the profile `done` (module
     doc); the fits added to `done`."""
     for side in (-1, 1):
@@ -87,18 +94,24 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
                 break
             u = float(u_in + (u_out - u_in) * -z[j] / (z[k] - z[j]))
             near = shears[j] if abs(u - u_in) <= abs(u - u_out) else shears[k]
-            done[float(np.exp(u))] = solve(s, radius_um, float(np.exp(u)), done[near].q)
+            done[float(np.exp(u))] = _at(s, radius_um, float(np.exp(u)), done[near], table)
 
 
-def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64]) -> tuple[float, PowerLawFit]:
+def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64],
+          table: ShellTable | None) -> tuple[float, PowerLawFit]:
     """The best K̃_S of the profile `done` and the reading there (`powerlaw_fit.conclude`, σ²
-    from the lowest SSE); its SSE in `done` lowered to the reading's (β's restart may fit better)."""
+    from the lowest SSE), its correction carried on to the tolerances first where its node's
+    stopped short; its SSE in `done` lowered to the reading's (β's restart may fit better)."""
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
     b = int(np.argmin(sse))
-    fit = conclude(s, radius_um, shears[b], done[shears[b]], p, float(np.min(np.delete(sse, b), initial=np.inf)),
-                   profiled=1)
-    done[shears[b]] = replace(done[shears[b]], sse=min(sse[b], fit.sse_nN2))
+    node = done[shears[b]]
+    if not node.converged:
+        more = correct(s, radius_um, shears[b], node.q, correction=node.correction, table=table)
+        node = replace(more, simulations=node.simulations + more.simulations)
+    fit = conclude(s, radius_um, shears[b], node, p, float(np.min(np.delete(sse, b), initial=np.inf)),
+                   profiled=1, table=table)
+    done[shears[b]] = replace(node, sse=min(node.sse, fit.sse_nN2))
     return shears[b], fit
 
 
@@ -110,11 +123,13 @@ def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN:
     surrogate on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
     done, p = _profile(s, radius_um, drop, table)
-    best, fit = _best(s, radius_um, done, p)
-    _ends(s, radius_um, done, fit.noise_nN ** 2)
+    best, fit = _best(s, radius_um, done, p, table)
+    beta_runs = fit.simulations - done[best].simulations              # β's profile's (no hold)
+    _ends(s, radius_um, done, fit.noise_nN ** 2, table)
     if min(done.values(), key=lambda v: v.sse).sse < done[best].sse:   # an end's fit found a better one
-        best, fit = _best(s, radius_um, done, p)
-        _ends(s, radius_um, done, fit.noise_nN ** 2)
+        best, fit = _best(s, radius_um, done, p, table)
+        beta_runs += fit.simulations - done[best].simulations
+        _ends(s, radius_um, done, fit.noise_nN ** 2, table)
     sigma2 = fit.noise_nN ** 2
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
@@ -124,4 +139,5 @@ def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN:
     tension[b], sd[b] = fit.tension_mN_per_m, fit.tension_sd_mN_per_m
     shear_band, band = profile_bands(shears, np.maximum(sse - sse[b], 0.0) / sigma2, [(tension, sd)])
     lo, hi = fit.tension_interval_mN_per_m
-    return replace(fit, shear_band=shear_band, tension_band_mN_per_m=(min(lo, band[0]), max(hi, band[1])))
+    return replace(fit, shear_band=shear_band, tension_band_mN_per_m=(min(lo, band[0]), max(hi, band[1])),
+                   simulations=sum(v.simulations for v in done.values()) + beta_runs)
