@@ -2,15 +2,16 @@
 
 Cells of `studies.powerlaw_ramps.cells` (R 5-10 µm, γ_a 0.2-2 mN/m, K_B(1 s) 5-50 mN/m,
 K̃_S 0.1-2, β 0.1-0.3, 0.3-3 µm/s, every other one with a hold of 10-30 s (--hold: at
-constant height, the default, or constant force),
-tilts 0-0.15 nN/µm, noise 0.02 nN, pressed to 0.14 R; seed --seed), made by the time-domain
-shell, each fitted by `analysis.afm.tension.powerlaw_fit.fit_ramp_hold` with its K̃_S given
-(--profile: unknown, profiled by `powerlaw_shear.fit_ramp_hold_profiled`); with --elastic also by today's elastic shell (K̃_S given, `shell_fit.fit_shell`) on the ramp.
-Prints one JSON object: per cell the truth, the fit (γ_a, its 95 % interval, K_B(1 s), β),
-γ_a's relative error and whether the interval holds it (profiled: K̃_S, its interval and whether
-it holds K̃_S), the CPU seconds of the fit, its simulations and whether it settled; then a summary: median and worst |error|, median
-error, coverage (profiled: of K̃_S too), for all cells, those with a hold
-and those without, and the CPU per recording (and for 100).
+constant height, the default, or constant force), tilts 0-0.15 nN/µm, noise 0.02 nN,
+pressed to 0.14 R; seed --seed), made by the time-domain shell, each fitted by
+`analysis.afm.tension.powerlaw_fit.fit_ramp_hold` with its K̃_S given (--profile: unknown,
+profiled by `powerlaw_shear.fit_ramp_hold_profiled`); with --elastic also by today's
+elastic shell (K̃_S given, `shell_fit.fit_shell`) on the ramp. Prints one JSON object: per
+cell the truth, the fit (γ_a, its 95 % interval, K_B(1 s), β), γ_a's relative error and
+whether the interval holds it (profiled: K̃_S, its interval and whether it holds K̃_S), the
+CPU seconds of the fit, its simulations and whether it settled; then a summary: median and
+worst |error|, median error, coverage (profiled: of K̃_S too), the median simulations, for
+all cells, those with a hold and those without, and the CPU per recording (and for 100).
 
 With --reference N the first N cells are also read by the simulator's own least squares
 (`powerlaw_fit.solve`, finite differences, up to 60 simulations) from the defect correction's

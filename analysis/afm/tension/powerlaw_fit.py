@@ -16,17 +16,31 @@ most RAMP_POINTS, the hold's in HOLD_BINS bins log-spaced in the time since the 
 began; each mean is weighted by its count (residual sqrt(n_b) (model - mean)), so a
 white noise of SD σ gives every weighted residual SD σ.
 
-Fit. First the surrogate (`powerlaw_shell`: the elastic shell's energy carried as
-one strain with Boltzmann superposition; within a few per cent of the simulator,
-cheap) by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from a few starts;
-then the simulator itself from there, by least squares in (x0, γ_a, K_B(1 s), β),
-(F_b, s) solved linearly at each (variable projection), to SIM_XTOL. SDs from the
-last Jacobian (of the projected residuals, whose normal matrix is the marginal one of
-the nonlinear parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a
-hold β is profiled too: the fit again at each β of PROFILE_BETAS (β fixed, K_B(1 s)
-started where K_B(1 s) T^-β at the ramp's contact time T is the best fit's), and γ_a's
-interval widened to hold every node's γ_a ± Z95 sd (β fixed) with Δχ² = ΔSSE/σ² ≤ CHI2_95
-(σ² from the lowest SSE); the best node, where it fits better, restarts the fit from it.
+Fit: defect correction (output space mapping). The simulator is the model; the surrogate
+(`powerlaw_shell`: the elastic shell's energy carried as one strain with Boltzmann
+superposition; within a few per cent of the simulator, cheap) its proxy. First the surrogate
+by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from START_BULK × START_BETA; then,
+from q_0 its (x0, γ_a, K_B(1 s), β), at each step one simulation at q_k gives the correction
+
+    c_k = F_sim(q_k) - F_sur(q_k)   (at the averaged samples),
+
+and q_{k+1} is the least squares of the corrected surrogate F_sur(q) + c_k (no simulation;
+(F_b, s) solved linearly at each q, variable projection), the next q mixed from the last
+ANDERSON_MEMORY + 1 steps (Anderson); it stops when q moves less than REL_TOL in γ_a and
+K_B(1 s), BETA_TOL in β and X0_TOL_UM in x0 (`converged`) or after SIMULATIONS. At the fixed
+point J_sur^T r = 0 with r the simulator's residual: at zero noise the truth, with noise it
+differs from the simulator's own least squares (`solve`, kept as the bench's reference) by
+about (J_sur^T J_sur)^-1 (J_sim - J_sur)^T r. A constant-force hold's surrogate (the recorded
+creep) and simulator (the held force) differ to first order, so there the correction is
+c_k + D (q - q_k), D by forward differences at the first step (4 simulations) and updated by
+Broyden's rank one after each. SDs from the corrected surrogate's Jacobian at the fixed point
+(of the projected residuals, whose normal matrix is the marginal one of the nonlinear
+parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a hold β is profiled too:
+at each β of PROFILE_BETAS (β fixed, K_B(1 s) started where K_B(1 s) T^-β at the ramp's contact
+time T is the best fit's, the best fit's correction refreshed by at most PROFILE_SIMULATIONS
+simulations), and γ_a's interval widened to hold every node's γ_a ± Z95 sd (β fixed) with
+Δχ² = ΔSSE/σ² ≤ CHI2_95 (σ² from the lowest SSE); the best node, where it fits better,
+restarts the fit from it.
 
 What one ramp without a hold tells: for a pure power law at constant speed v the
 cortex's force depends on K_B(1 s) and v only through K_B(1 s) v^β, and on β through
@@ -58,7 +72,7 @@ BETA_MAX = 0.6
 START_BULK = (0.5, 5.0)    # K_B(1 s) / T of the surrogate's starts (T the droplet's)
 START_BETA = (0.2,)
 SURROGATE_EVALUATIONS = 300        # the surrogate's evaluations a start, at most
-SIMULATIONS = 8            # the defect correction's simulations, at most
+SIMULATIONS = 12           # the defect correction's simulations, at most
 PROFILE_SIMULATIONS = 2    # ... at a profile's node, started from its neighbour's correction
 REL_TOL = 1e-3             # q settled: γ_a and K_B(1 s) moved less than this share,
 BETA_TOL = 1e-3            # β less than this,

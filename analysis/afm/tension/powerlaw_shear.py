@@ -3,19 +3,21 @@ no oscillation prior): profiled over SHEAR_RANGE, and γ_a's interval widened by
 leaves open (SPEC 11-12; `powerlaw_fit` is the fit at one K̃_S; the profile is read as the
 elastic shell's, `shell_shear.profile_bands`).
 
-The simulator's fit (`powerlaw_fit.solve`, β free) at each of NODES values of K̃_S
+The defect correction's fit (`powerlaw_fit.correct`, β free) at each of NODES values of K̃_S
 log-spaced over SHEAR_RANGE: first at the node nearest 1/3 from the surrogate's fit, then
-outward, each started from its neighbour's optimum; then once more at the vertex of the
-parabola in ln K̃_S through the best node and its two neighbours (where the best is
-inside the range). The best K̃_S's fit is the reading (`powerlaw_fit.conclude`: without a
-hold, β's profile there), with σ² = SSE_min / (n − 7) (K̃_S the seventh parameter) and
+outward, each started from its neighbour's optimum and correction, refreshed by at most
+PROFILE_SIMULATIONS simulations at the node; then once more at the vertex of the parabola in
+ln K̃_S through the best node and its two neighbours (where the best is inside the range).
+The best K̃_S's fit, its correction carried on to the tolerances, is the reading
+(`powerlaw_fit.conclude`: without a hold, β's profile there), with σ² = SSE_min / (n − 7)
+(K̃_S the seventh parameter) and
 
     Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ².
 
 K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}: each end between a point inside and the
 next outside found by regula falsi on √Δχ² − √CHI2_95 in ln K̃_S (at most END_FITS fits an
-end, each started from the nearer point's optimum, until the end's two points are END_TOL
-apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); where an end's
+end, each started from the nearer point's optimum and correction, until the end's two
+points are END_TOL apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); where an end's
 fit finds a lower SSE than the best (a sharp profile's vertex fit stopped short of it), it is
 the best: the reading concluded there and the ends located again, once. γ_a's is the union
 over that set of γ_a(K̃_S) ± Z95 sd(K̃_S) (sd at the common σ²), joined with β's band at the
