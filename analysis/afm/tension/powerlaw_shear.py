@@ -15,12 +15,14 @@ The best K̃_S's fit, its correction carried on to the tolerances, is the readin
     Δχ²(K̃_S) = (SSE(K̃_S) − SSE_min) / σ².
 
 K̃_S's 95 % interval is {K̃_S : Δχ² ≤ CHI2_95}: each end between a point inside and the
-next outside found by regula falsi on √Δχ² − √CHI2_95 in ln K̃_S (at most END_FITS fits an
-end, each started from the nearer point's optimum and correction, until the end's two
-points are END_TOL apart in ln K̃_S), then read between the points (√Δχ² linear in ln K̃_S); where an end's
-fit finds a lower SSE than the best (a sharp profile's vertex fit stopped short of it), it is
-the best: the reading concluded there and the ends located again, once. γ_a's is the union
-over that set of γ_a(K̃_S) ± Z95 sd(K̃_S) (sd at the common σ²), joined with β's band at the
+next outside found by regula falsi on √Δχ² − √CHI2_95 in ln K̃_S (the two points' fits first
+carried on to the tolerances, their node's few simulations leaving the SSE high; at most
+END_FITS fits an end, each started from the nearer point's optimum and correction and
+settled, until the end's two points are END_TOL apart in ln K̃_S), then read between the
+points (√Δχ² linear in ln K̃_S); where an end's fit finds a lower SSE than the best (a sharp
+profile's vertex fit stopped short of it), it is the best: the reading concluded there and
+the ends located again, once. γ_a's is the union over that set of γ_a(K̃_S) ± Z95 sd(K̃_S)
+(sd at the common σ²), joined with β's band at the
 best K̃_S without a hold (β is profiled there only, not over every K̃_S). An end of the range
 inside the set: the recording bounds K̃_S on that side no further than the range.
 """
@@ -78,11 +80,21 @@ def _profile(s: Samples, radius_um: float, drop: RampFit,
     return done, p
 
 
+def _settle(s: Samples, radius_um: float, shear: float, fit: Solved, table: ShellTable | None) -> Solved:
+    """A profile point's fit with its correction carried on to the tolerances (`powerlaw_fit.correct`)."""
+    if fit.converged:
+        return fit
+    more = correct(s, radius_um, shear, fit.q, correction=fit.correction, table=table)
+    return replace(more, simulations=fit.simulations + more.simulations)
+
+
 def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float, table: ShellTable | None) -> None:
     """Each end of K̃_S's interval located between the points of the profile `done` (module
-    doc); the fits added to `done`."""
+    doc), the two points around it first settled; the fits added to `done`."""
+    settled: set[float] = set()
     for side in (-1, 1):
-        for _ in range(END_FITS):
+        fits = 0
+        while fits < END_FITS:
             shears = sorted(done)
             sse = np.array([done[v].sse for v in shears])
             z = np.sqrt(np.maximum(sse - sse.min(), 0.0) / sigma2) - np.sqrt(CHI2_95)
@@ -91,12 +103,20 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
             if not out:
                 break
             k, j = out[0], out[0] - side
+            rough = [v for v in (shears[j], shears[k]) if not done[v].converged and v not in settled]
+            if rough:
+                for v in rough:
+                    done[v] = _settle(s, radius_um, v, done[v], table)
+                    settled.add(v)
+                continue
             u_in, u_out = np.log(shears[j]), np.log(shears[k])
             if abs(u_out - u_in) < END_TOL:
                 break
             u = float(u_in + (u_out - u_in) * -z[j] / (z[k] - z[j]))
             near = shears[j] if abs(u - u_in) <= abs(u - u_out) else shears[k]
-            done[float(np.exp(u))] = _at(s, radius_um, float(np.exp(u)), done[near], table)
+            done[float(np.exp(u))] = _settle(s, radius_um, float(np.exp(u)), _at(s, radius_um, float(np.exp(u)),
+                                                                                   done[near], table), table)
+            fits += 1
 
 
 def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64],
@@ -107,10 +127,7 @@ def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArra
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
     b = int(np.argmin(sse))
-    node = done[shears[b]]
-    if not node.converged:
-        more = correct(s, radius_um, shears[b], node.q, correction=node.correction, table=table)
-        node = replace(more, simulations=node.simulations + more.simulations)
+    node = _settle(s, radius_um, shears[b], done[shears[b]], table)
     fit = conclude(s, radius_um, shears[b], node, p, float(np.min(np.delete(sse, b), initial=np.inf)),
                    profiled=1, table=table)
     done[shears[b]] = replace(node, sse=min(node.sse, fit.sse_nN2))
