@@ -393,9 +393,17 @@ def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
 
 def _beta_profile(s: Samples, radius: float, shear: float, best: Solved,
                   table: ShellTable | None) -> list[tuple[float, Solved]]:
-    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS, each from `best`'s correction (module doc)."""
-    return [(beta, correct(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
-                           beta, best.correction, table, PROFILE_SIMULATIONS)) for beta in PROFILE_BETAS]
+    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS, each from `best`'s correction (module
+    doc); a β where the simulator finds no equilibrium left out."""
+    nodes = []
+    for beta in PROFILE_BETAS:
+        try:
+            nodes.append((beta, correct(s, radius, shear, np.array([best.q[0], best.q[1],
+                                                                    _rescaled_bulk(best.q, beta, s)]),
+                                        beta, best.correction, table, PROFILE_SIMULATIONS)))
+        except SolverError:
+            continue                    # the simulator finds no equilibrium there: β left out
+    return nodes
 
 
 def sds(fit: Solved, sigma2: float) -> Array:

@@ -38,6 +38,7 @@ from analysis.afm.tension.ramp import RampFit
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.afm.tension.shell_shear import profile_bands
 from analysis.calibration.ramp_table import ShellTable
+from common.errors import SolverError
 
 SHEAR_RANGE = (0.1, 2.0)
 NODES = 5
@@ -53,38 +54,52 @@ def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float |
     return float(np.clip(-b / (2.0 * a), u[0], u[-1])) if a > 0 else None
 
 
-def _at(s: Samples, radius_um: float, shear: float, near: Solved, table: ShellTable | None) -> Solved:
+def _at(s: Samples, radius_um: float, shear: float, near: Solved, table: ShellTable | None) -> Solved | None:
     """The fit at K̃_S `shear` from the fit `near` (a neighbour's): its q and correction,
-    refreshed by at most PROFILE_SIMULATIONS simulations (`powerlaw_fit.correct`)."""
-    return correct(s, radius_um, shear, near.q, correction=near.correction, table=table, cap=PROFILE_SIMULATIONS)
+    refreshed by at most PROFILE_SIMULATIONS simulations (`powerlaw_fit.correct`); None where
+    the simulator finds no equilibrium (the point left out of the profile)."""
+    try:
+        return correct(s, radius_um, shear, near.q, correction=near.correction, table=table, cap=PROFILE_SIMULATIONS)
+    except SolverError:
+        return None
 
 
 def _profile(s: Samples, radius_um: float, drop: RampFit,
              table: ShellTable | None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
-    """{K̃_S: the simulator's fit there} over the nodes and the vertex (module doc), and the
-    surrogate's θ at the first node (on the shell ramp table `table`, None: the shipped one)."""
+    """{K̃_S: the defect correction's fit there} over the nodes and the vertex (module doc; a
+    node the simulator cannot run left out), and the surrogate's θ at the first node (on the
+    shell ramp table `table`, None: the shipped one)."""
     nodes = [float(v) for v in np.geomspace(*SHEAR_RANGE, NODES)]
     first = int(np.argmin(np.abs(np.log(np.array(nodes) / SHEAR_TILDE))))
     done: dict[float, Solved] = {}
     done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table)
-    for k in range(first + 1, NODES):
-        done[nodes[k]] = _at(s, radius_um, nodes[k], done[nodes[k - 1]], table)
-    for k in range(first - 1, -1, -1):
-        done[nodes[k]] = _at(s, radius_um, nodes[k], done[nodes[k + 1]], table)
-    b = int(np.argmin([done[v].sse for v in nodes]))
-    if 0 < b < NODES - 1:
-        u = np.log(nodes[b - 1:b + 2])
-        top = _vertex(u, np.array([done[v].sse for v in nodes[b - 1:b + 2]]))
+    for way in (range(first + 1, NODES), range(first - 1, -1, -1)):
+        near = done[nodes[first]]
+        for k in way:
+            fit = _at(s, radius_um, nodes[k], near, table)
+            if fit is not None:
+                done[nodes[k]] = near = fit
+    have = [v for v in nodes if v in done]
+    b = int(np.argmin([done[v].sse for v in have]))
+    if 0 < b < len(have) - 1:
+        u = np.log(have[b - 1:b + 2])
+        top = _vertex(u, np.array([done[v].sse for v in have[b - 1:b + 2]]))
         if top is not None and np.min(np.abs(u - top)) > NEAR:
-            done[float(np.exp(top))] = _at(s, radius_um, float(np.exp(top)), done[nodes[b]], table)
+            fit = _at(s, radius_um, float(np.exp(top)), done[have[b]], table)
+            if fit is not None:
+                done[float(np.exp(top))] = fit
     return done, p
 
 
 def _settle(s: Samples, radius_um: float, shear: float, fit: Solved, table: ShellTable | None) -> Solved:
-    """A profile point's fit with its correction carried on to the tolerances (`powerlaw_fit.correct`)."""
+    """A profile point's fit with its correction carried on to the tolerances (`powerlaw_fit.correct`;
+    as it was where the simulator finds no equilibrium on the way)."""
     if fit.converged:
         return fit
-    more = correct(s, radius_um, shear, fit.q, correction=fit.correction, table=table)
+    try:
+        more = correct(s, radius_um, shear, fit.q, correction=fit.correction, table=table)
+    except SolverError:
+        return fit
     return replace(more, simulations=fit.simulations + more.simulations)
 
 
@@ -114,8 +129,10 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
                 break
             u = float(u_in + (u_out - u_in) * -z[j] / (z[k] - z[j]))
             near = shears[j] if abs(u - u_in) <= abs(u - u_out) else shears[k]
-            done[float(np.exp(u))] = _settle(s, radius_um, float(np.exp(u)), _at(s, radius_um, float(np.exp(u)),
-                                                                                   done[near], table), table)
+            fit = _at(s, radius_um, float(np.exp(u)), done[near], table)
+            if fit is None:
+                break
+            done[float(np.exp(u))] = _settle(s, radius_um, float(np.exp(u)), fit, table)
             fits += 1
 
 
