@@ -127,7 +127,11 @@ def test_the_defect_correction_reads_a_noise_free_cell_exactly_in_a_few_simulati
     made = recording(cell)
     calls = []
     simulate = powerlaw_simulated.force_nN
-    monkeypatch.setattr(powerlaw_simulated, "force_nN", lambda *a, **k: calls.append(1) or simulate(*a, **k))
+
+    def counted(*args, **kwargs):
+        calls.append(args)
+        return simulate(*args, **kwargs)
+    monkeypatch.setattr(powerlaw_simulated, "force_nN", counted)
     fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)
     assert fit.converged and 2 <= fit.simulations == len(calls) <= powerlaw_fit.SIMULATIONS
     assert abs(fit.surrogate[0] / cell.tension_mN_per_m - 1.0) > 0.01        # the surrogate alone is off
@@ -198,7 +202,7 @@ def test_the_ends_of_the_shear_ratio_interval_are_located_between_the_profile_po
         return np.log(profile_bands(shears, [chi2(v) for v in shears], [])[0])
     truth = np.log([0.255, 0.745])
     assert np.all(np.abs(band() - truth) > 0.04)
-    powerlaw_shear._ends(None, 6.0, done, 1.0, None)
+    powerlaw_shear._ends(None, 6.0, done, 1.0, None)  # type: ignore[arg-type]
     np.testing.assert_allclose(band(), truth, atol=0.01)
     assert 2 <= len(fits) <= 2 * powerlaw_shear.END_FITS
 
