@@ -33,9 +33,10 @@ differs from the simulator's own least squares (`solve`, kept as the bench's ref
 about (J_sur^T J_sur)^-1 (J_sim - J_sur)^T r. A constant-force hold's surrogate (the recorded
 creep) and simulator (the held force) differ to first order, so there the correction is
 c_k + D (q - q_k), D by forward differences at the first step (4 simulations) and updated by
-Broyden's rank one after each. SDs from the corrected surrogate's Jacobian at the fixed point
-(of the projected residuals, whose normal matrix is the marginal one of the nonlinear
-parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a hold β is profiled too:
+Broyden's rank one after each. SDs from the simulator's own Jacobian at the fixed point
+(`simulator_jacobian`: forward differences, one simulation a parameter and one at q; of the
+projected residuals, whose normal matrix is the marginal one of the nonlinear parameters; the
+corrected surrogate's misses the defect's slope), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a hold β is profiled too:
 at each β of PROFILE_BETAS (β fixed, K_B(1 s) started where K_B(1 s) T^-β at the ramp's contact
 time T is the best fit's, the best fit's correction refreshed by at most PROFILE_SIMULATIONS
 simulations), and γ_a's interval widened to hold every node's γ_a ± Z95 sd (β fixed) with
@@ -230,12 +231,13 @@ def _scale(q: Array) -> Array:
 class _Projected:
     """Residuals at (x0, γ_a, K_B(1 s), β) of a model force with (F_b, s) solved linearly:
     the simulator's (`correction` None) or the surrogate's plus `correction` (module doc);
-    `beta` fixes β (then q = (x0, γ_a, K_B(1 s)))."""
+    `beta` fixes β (then q = (x0, γ_a, K_B(1 s))); `strict`: a simulation without an equilibrium
+    raises (else every residual is 1e3, which the least squares steps away from)."""
 
     def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None,
-                 correction: Correction | None = None, table: ShellTable | None = None):
+                 correction: Correction | None = None, table: ShellTable | None = None, strict: bool = False):
         self.s, self.radius, self.shear, self.w, self.beta = s, radius, shear, np.sqrt(s.count), beta
-        self.correction, self.table = correction, table
+        self.correction, self.table, self.strict = correction, table, strict
         self.linear = np.zeros(2)
 
     def full(self, q: Array) -> Array:
@@ -248,6 +250,8 @@ class _Projected:
             try:
                 model = _simulated(s, self.radius, self.shear, self.full(q))
             except (SolverError, InputError):
+                if self.strict:
+                    raise
                 return np.full(s.time_s.size, 1e3)
         else:
             full = self.full(q)
@@ -411,6 +415,25 @@ def sds(fit: Solved, sigma2: float) -> Array:
     return np.sqrt(np.clip(np.diag(sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)), 0.0, None))
 
 
+def simulator_jacobian(s: Samples, radius: float, shear: float, fit: Solved) -> Solved:
+    """`fit` with the Jacobian of the simulator's own projected residuals at its q, by forward
+    differences (SIM_STEP relative; one simulation a free parameter and one at q): the SDs of
+    the reading (the corrected surrogate's Jacobian misses the defect's slope; its γ_a SD was
+    0.55-0.91 × this one's with a hold). Where a step finds no equilibrium, `fit` as it was
+    (q.size + 1 simulations either way)."""
+    resid = _Projected(s, radius, shear, strict=True)
+    q = np.asarray(fit.q, float)
+    try:
+        r0 = resid(q)
+        jac = np.empty((r0.size, q.size))
+        for i in range(q.size):
+            h = SIM_STEP * max(abs(q[i]), _scale(q)[i])
+            jac[:, i] = (resid(q + h * np.eye(q.size)[i]) - r0) / h
+    except (SolverError, InputError):
+        return fit
+    return replace(fit, jac=jac)
+
+
 def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
             radius_um: float, hold: str = "height") -> tuple[Samples, RampFit]:
     """The fit's samples (`samples`) and the droplet's fit of the ramp (its window and the starts)."""
@@ -446,6 +469,8 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
             best = again if again.sse < best.sse else best
     sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
     sigma2 = sse_min / max(s.time_s.size - 6 - profiled, 1)
+    best = simulator_jacobian(s, radius_um, shear, best)
+    runs += best.q.size + 1
     sd = sds(best, sigma2)
     q = best.q
     band = None
