@@ -16,17 +16,32 @@ most RAMP_POINTS, the hold's in HOLD_BINS bins log-spaced in the time since the 
 began; each mean is weighted by its count (residual sqrt(n_b) (model - mean)), so a
 white noise of SD σ gives every weighted residual SD σ.
 
-Fit. First the surrogate (`powerlaw_shell`: the elastic shell's energy carried as
-one strain with Boltzmann superposition; within a few per cent of the simulator,
-cheap) by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from a few starts;
-then the simulator itself from there, by least squares in (x0, γ_a, K_B(1 s), β),
-(F_b, s) solved linearly at each (variable projection), to SIM_XTOL. SDs from the
-last Jacobian (of the projected residuals, whose normal matrix is the marginal one of
-the nonlinear parameters), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a
-hold β is profiled too: the fit again at each β of PROFILE_BETAS (β fixed, K_B(1 s)
-started where K_B(1 s) T^-β at the ramp's contact time T is the best fit's), and γ_a's
-interval widened to hold every node's γ_a ± Z95 sd (β fixed) with Δχ² = ΔSSE/σ² ≤ CHI2_95
-(σ² from the lowest SSE); the best node, where it fits better, restarts the fit from it.
+Fit: defect correction (output space mapping). The simulator is the model; the surrogate
+(`powerlaw_shell`: the elastic shell's energy carried as one strain with Boltzmann
+superposition; within a few per cent of the simulator, cheap) its proxy. First the surrogate
+by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from START_BULK × START_BETA; then,
+from q_0 its (x0, γ_a, K_B(1 s), β), at each step one simulation at q_k gives the correction
+
+    c_k = F_sim(q_k) - F_sur(q_k)   (at the averaged samples),
+
+and q_{k+1} is the least squares of the corrected surrogate F_sur(q) + c_k (no simulation;
+(F_b, s) solved linearly at each q, variable projection), the next q mixed from the last
+ANDERSON_MEMORY + 1 steps (Anderson); it stops when q moves less than REL_TOL in γ_a and
+K_B(1 s), BETA_TOL in β and X0_TOL_UM in x0 (`converged`) or after SIMULATIONS. At the fixed
+point J_sur^T r = 0 with r the simulator's residual: at zero noise the truth, with noise it
+differs from the simulator's own least squares (`solve`, kept as the bench's reference) by
+about (J_sur^T J_sur)^-1 (J_sim - J_sur)^T r. A constant-force hold's surrogate (the recorded
+creep) and simulator (the held force) differ to first order, so there the correction is
+c_k + D (q - q_k), D by forward differences at the first step (4 simulations) and updated by
+Broyden's rank one after each. SDs from the simulator's own Jacobian at the fixed point
+(`simulator_jacobian`: forward differences, one simulation a parameter and one at q; of the
+projected residuals, whose normal matrix is the marginal one of the nonlinear parameters; the
+corrected surrogate's misses the defect's slope), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a hold β is profiled too:
+at each β of PROFILE_BETAS (β fixed, K_B(1 s) started where K_B(1 s) T^-β at the ramp's contact
+time T is the best fit's, the best fit's correction refreshed by at most PROFILE_SIMULATIONS
+simulations), and γ_a's interval widened to hold every node's γ_a ± Z95 sd (β fixed) with
+Δχ² = ΔSSE/σ² ≤ CHI2_95 (σ² from the lowest SSE); the best node, where it fits better,
+restarts the fit from it.
 
 What one ramp without a hold tells: for a pure power law at constant speed v the
 cortex's force depends on K_B(1 s) and v only through K_B(1 s) v^β, and on β through
@@ -36,7 +51,7 @@ interval the widest without a hold). The hold measures the relaxation itself, so
 and K_B(1 s) come apart.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -55,10 +70,18 @@ RAMP_POINTS = 120
 HOLD_BINS = 30
 MAX_DEPTH = 0.3            # δ/R: the shell table's deepest
 BETA_MAX = 0.6
-START_BULK = (0.5, 5.0, 30.0)      # K_B(1 s) / T of the surrogate's starts (T the droplet's)
-START_BETA = (0.1, 0.25)
-SIM_XTOL = 1e-4
-SIM_STEP = 1e-3            # the simulator fit's relative finite-difference step
+START_BULK = (0.5, 5.0)    # K_B(1 s) / T of the surrogate's starts (T the droplet's)
+START_BETA = (0.2,)
+SURROGATE_EVALUATIONS = 300        # the surrogate's evaluations a start, at most
+SIMULATIONS = 12           # the defect correction's simulations, at most
+PROFILE_SIMULATIONS = 2    # ... at a profile's node, started from its neighbour's correction
+REL_TOL = 1e-3             # q settled: γ_a and K_B(1 s) moved less than this share,
+BETA_TOL = 1e-3            # β less than this,
+X0_TOL_UM = 1e-3           # x0 less than this (µm)
+ANDERSON_MEMORY = 2        # the iteration's earlier steps its mixing uses
+FIRST_ORDER_HOLDS = ("force",)   # holds whose correction is carried to first order
+SIM_XTOL = 1e-4            # the simulator's own least squares (`solve`, the reference):
+SIM_STEP = 1e-3            # its relative finite-difference step
 SIM_EVALUATIONS = 60
 PROFILE_BETAS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)     # β of the profile of a ramp without a hold
 
@@ -97,7 +120,8 @@ class PowerLawFit:
     noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, the
     surrogate's own γ_a, K_B(1 s), β (the simulator's start), without a hold γ_a's band
     over β's profile (`tension_band_mN_per_m`, module doc; with K̃_S profiled also over it,
-    `powerlaw_shear`), the fit's SSE (nN²) and K̃_S's 95 % interval where profiled."""
+    `powerlaw_shear`), the fit's SSE (nN²), K̃_S's 95 % interval where profiled, the
+    simulations the reading ran (all its fits) and whether its best fit's q settled."""
 
     tension_mN_per_m: float
     tension_sd_mN_per_m: float
@@ -116,6 +140,8 @@ class PowerLawFit:
     tension_band_mN_per_m: tuple[float, float] | None = None
     sse_nN2: float = float("nan")
     shear_band: tuple[float, float] | None = None
+    simulations: int = 0
+    converged: bool = True
 
     @property
     def tension_interval_mN_per_m(self) -> tuple[float, float]:
@@ -165,7 +191,7 @@ def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_te
             p0 = np.array([x0, 0.0, 0.0, 0.5 * droplet_tension, kb * droplet_tension, beta])
             scale = [0.01, 0.01, 0.01, max(droplet_tension, 1e-3), max(kb * droplet_tension, 1e-2), 0.05]
             res = least_squares(lambda p: _surrogate(s, radius, shear, p, table), p0, bounds=(lo, hi), x_scale=scale,
-                                xtol=1e-10, ftol=1e-10)
+                                xtol=1e-10, ftol=1e-10, max_nfev=SURROGATE_EVALUATIONS)
             if res.cost < best_cost:
                 best, best_cost = res.x, res.cost
     if best is None:
@@ -173,22 +199,63 @@ def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_te
     return best
 
 
-class _Projected:
-    """The simulator's residuals at (x0, γ_a, K_B(1 s), β) with (F_b, s) solved linearly;
-    `beta` fixes β (then q = (x0, γ_a, K_B(1 s)))."""
+def _simulated(s: Samples, radius: float, shear: float, q: Array) -> Array:
+    """The simulator's force (nN) at q = (x0, γ_a, K_B(1 s), β), averaged as the samples."""
+    return s.averaged(powerlaw_simulated.force_nN(s.history, q[0], radius, q[1], q[2], q[3], shear))
 
-    def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None):
+
+def _surrogate_force(s: Samples, radius: float, shear: float, q: Array, table: ShellTable | None) -> Array:
+    """The surrogate's force (nN) at q = (x0, γ_a, K_B(1 s), β) at the samples."""
+    return powerlaw_shell.force_nN(s.time_s, q[0] - s.x_um, radius, q[1], q[2], q[3], shear, table)
+
+
+@dataclass(frozen=True)
+class Correction:
+    """The simulator's force less the surrogate's at the samples (nN): `offset` at q = `at`
+    (x0, γ_a, K_B(1 s), β), to first order `slope` (n × 4; zero: the defect correction's
+    constant one): c(q) = offset + slope (q - at) (module doc)."""
+
+    offset: Array
+    slope: Array
+    at: Array
+
+    def __call__(self, q: Array) -> Array:
+        return self.offset + self.slope @ (q - self.at)
+
+
+def _scale(q: Array) -> Array:
+    """The scales of (x0, γ_a, K_B(1 s), β) near q (µm, mN/m, mN/m, 1)."""
+    return np.array([0.01, max(abs(q[1]), 1e-3), max(abs(q[2]), 1e-2), 0.05])
+
+
+class _Projected:
+    """Residuals at (x0, γ_a, K_B(1 s), β) of a model force with (F_b, s) solved linearly:
+    the simulator's (`correction` None) or the surrogate's plus `correction` (module doc);
+    `beta` fixes β (then q = (x0, γ_a, K_B(1 s))); `strict`: a simulation without an equilibrium
+    raises (else every residual is 1e3, which the least squares steps away from)."""
+
+    def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None,
+                 correction: Correction | None = None, table: ShellTable | None = None, strict: bool = False):
         self.s, self.radius, self.shear, self.w, self.beta = s, radius, shear, np.sqrt(s.count), beta
+        self.correction, self.table, self.strict = correction, table, strict
         self.linear = np.zeros(2)
+
+    def full(self, q: Array) -> Array:
+        """(x0, γ_a, K_B(1 s), β) of the free parameters q."""
+        return np.asarray(q, float) if self.beta is None else np.append(q, self.beta)
 
     def __call__(self, q: Array) -> Array:
         s = self.s
-        beta = q[3] if self.beta is None else self.beta
-        try:
-            model = s.averaged(powerlaw_simulated.force_nN(s.history, q[0], self.radius, q[1], q[2], beta,
-                                                           self.shear))
-        except (SolverError, InputError):
-            return np.full(s.time_s.size, 1e3)
+        if self.correction is None:
+            try:
+                model = _simulated(s, self.radius, self.shear, self.full(q))
+            except (SolverError, InputError):
+                if self.strict:
+                    raise
+                return np.full(s.time_s.size, 1e3)
+        else:
+            full = self.full(q)
+            model = _surrogate_force(s, self.radius, self.shear, full, self.table) + self.correction(full)
         a = self.w[:, None] * np.stack([np.ones_like(model), s.x_um - q[0]], axis=1)
         coef, *_ = np.linalg.lstsq(a, self.w * (s.force_nN - model), rcond=None)
         self.linear = coef
@@ -197,25 +264,128 @@ class _Projected:
 
 @dataclass(frozen=True)
 class Solved:
-    """One simulator fit: its parameters (x0, γ_a, K_B(1 s)[, β]), SSE, Jacobian, (F_b, s)."""
+    """One fit: its parameters (x0, γ_a, K_B(1 s)[, β]), SSE, Jacobian, (F_b, s); of the
+    defect correction also its last correction (nN at the samples), the simulations it ran and
+    whether q settled within the tolerances (module doc)."""
 
     q: Array
     sse: float
     jac: Array
     linear: Array
+    correction: Correction | None = None
+    simulations: int = 0
+    converged: bool = True
+
+
+def _least_squares(resid: _Projected, q0: Array, **options: float) -> Solved:
+    """`resid`'s least squares in its free parameters from q0, within the parameters' bounds."""
+    q0 = np.asarray(q0, float)[:3 if resid.beta is not None else 4]
+    lo, hi = [-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]
+    k = q0.size
+    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=_scale(resid.full(q0))[:k],
+                        **options)
+    r = resid(res.x)
+    return Solved(res.x, float(r @ r), res.jac, resid.linear.copy(), resid.correction)
 
 
 def solve(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> Solved:
-    """The simulator's least squares from q0 (module doc), β free or fixed at `beta`."""
-    resid = _Projected(s, radius, shear, beta)
-    q0 = np.asarray(q0, float)[:3 if beta is not None else 4]
-    lo, hi = [-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]
-    scale = [0.01, max(q0[1], 1e-3), max(q0[2], 1e-2), 0.05]
-    k = q0.size
-    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=scale[:k],
-                        diff_step=SIM_STEP, xtol=SIM_XTOL, ftol=1e-8, max_nfev=SIM_EVALUATIONS)
-    r = resid(res.x)
-    return Solved(res.x, float(r @ r), res.jac, resid.linear.copy())
+    """The simulator's own least squares from q0 by finite differences (up to SIM_EVALUATIONS
+    simulations), β free or fixed at `beta`: the reference the defect correction is checked
+    against (bench/powerlaw_ramp_hold.py)."""
+    fit = _least_squares(_Projected(s, radius, shear, beta), q0, diff_step=SIM_STEP, xtol=SIM_XTOL, ftol=1e-8,
+                         max_nfev=SIM_EVALUATIONS)
+    return Solved(fit.q, fit.sse, fit.jac, fit.linear, None, SIM_EVALUATIONS, True)
+
+
+def _settled(new: Array, old: Array) -> bool:
+    """Whether q moved less than the tolerances (module doc)."""
+    step = np.abs(new - old)
+    return bool(step[0] <= X0_TOL_UM and np.all(step[1:3] <= REL_TOL * np.abs(old[1:3]))
+                and (step.size < 4 or step[3] <= BETA_TOL))
+
+
+def _anderson(inputs: list[Array], outputs: list[Array], lo: Array, hi: Array) -> Array:
+    """The next q of the fixed-point iteration q → G(q) from its last ANDERSON_MEMORY + 1
+    (input, output) pairs by Anderson's mixing (in the parameters' scales), within [lo, hi]."""
+    g = np.array(outputs[-ANDERSON_MEMORY - 1:])
+    f = g - np.array(inputs[-ANDERSON_MEMORY - 1:])
+    if len(g) < 2:
+        return g[-1]
+    scale = _scale(g[-1])[:g.shape[1]]
+    df, dg = np.diff(f, axis=0) / scale, np.diff(g, axis=0)
+    mix, *_ = np.linalg.lstsq(df.T, f[-1] / scale, rcond=None)
+    return np.clip(g[-1] - mix @ dg, lo, hi)
+
+
+def _defect(s: Samples, radius: float, shear: float, full: Array, table: ShellTable | None) -> Array:
+    """The simulator's force less the surrogate's (nN) at the samples at (x0, γ_a, K_B(1 s), β)."""
+    return _simulated(s, radius, shear, full) - _surrogate_force(s, radius, shear, full, table)
+
+
+def _slope(s: Samples, radius: float, shear: float, full: Array, offset: Array, free: int,
+           table: ShellTable | None) -> Array:
+    """d(simulator − surrogate)/dq at `full` by forward differences (SIM_STEP relative) in the
+    first `free` parameters (n × 4, the rest zero): `free` simulations."""
+    slope = np.zeros((offset.size, 4))
+    for i in range(free):
+        h = SIM_STEP * max(abs(full[i]), _scale(full)[i])
+        slope[:, i] = (_defect(s, radius, shear, full + h * np.eye(4)[i], table) - offset) / h
+    return slope
+
+
+def _broyden(slope: Array, miss: Array, step: Array, scale: Array) -> Array:
+    """The slope updated by Broyden's rank one so that it carries the last step's change of the
+    correction (`miss`: the change less the slope's prediction), in the parameters' `scale`."""
+    w = step / scale ** 2
+    return slope + np.outer(miss, w) / (step @ w) if step @ w > 0 else slope
+
+
+def correct(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
+            correction: Correction | None = None, table: ShellTable | None = None,
+            cap: int = SIMULATIONS) -> Solved:
+    """The defect correction from q0 (module doc), β free or fixed at `beta`: the corrected
+    surrogate fitted first with `correction` where given (a neighbour's; none: q0 is the
+    surrogate's own fit), then at most `cap` simulations, each refreshing the correction's
+    offset at the current q (a constant-force hold: to first order, its slope made once, or
+    the neighbour's kept); the surrogate on the shell ramp table `table`."""
+    q = start = np.asarray(q0, float)[:3 if beta is not None else 4]
+    k = q.size
+    lo, hi = np.array([-np.inf, 1e-4, 1e-3, 0.0])[:k], np.array([np.inf, np.inf, np.inf, BETA_MAX])[:k]
+    fit = None
+    if correction is not None:
+        fit = _least_squares(_Projected(s, radius, shear, beta, correction, table), q, xtol=1e-10, ftol=1e-10)
+        q = fit.q
+    slope = None if correction is None else correction.slope
+    if slope is None and not (s.hold in FIRST_ORDER_HOLDS and s.raw_time_s.size > s.raw_ramp):
+        slope = np.zeros((s.time_s.size, 4))
+    good: Array | None = None
+    previous = Correction(np.zeros(0), np.zeros((0, 4)), np.zeros(4))
+    inputs: list[Array] = []
+    outputs: list[Array] = []
+    extra = 0
+    for run in range(1, cap + 1):
+        full = q if beta is None else np.append(q, beta)
+        try:
+            c = _defect(s, radius, shear, full, table)
+            if slope is None:
+                slope, extra = _slope(s, radius, shear, full, c, k, table), k
+        except (SolverError, InputError):
+            if good is None and q is start:
+                raise SolverError("the simulator finds no equilibrium at the surrogate's fit") from None
+            q = start if good is None else 0.5 * (q + good)     # back towards q0, or the last q simulated
+            inputs, outputs = [], []
+            continue
+        if good is not None and extra:
+            slope = _broyden(slope, c - previous(full), full - previous.at, _scale(full))
+        good, previous = q, Correction(c, slope, full)
+        fit = _least_squares(_Projected(s, radius, shear, beta, previous, table), q, xtol=1e-10, ftol=1e-10)
+        if _settled(fit.q, q):
+            return replace(fit, simulations=run + extra, converged=True)
+        inputs.append(q)
+        outputs.append(fit.q)
+        q = _anderson(inputs, outputs, lo, hi)
+    assert fit is not None
+    return replace(fit, simulations=cap + extra, converged=False)
 
 
 def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
@@ -225,15 +395,43 @@ def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
     return float(q[2] * span ** (beta - q[3]))
 
 
-def _beta_profile(s: Samples, radius: float, shear: float, best: Solved) -> list[tuple[float, Solved]]:
-    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS (module doc)."""
-    return [(beta, solve(s, radius, shear, np.array([best.q[0], best.q[1], _rescaled_bulk(best.q, beta, s)]),
-                         beta=beta)) for beta in PROFILE_BETAS]
+def _beta_profile(s: Samples, radius: float, shear: float, best: Solved,
+                  table: ShellTable | None) -> list[tuple[float, Solved]]:
+    """[(β, the fit at β fixed)] at each β of PROFILE_BETAS, each from `best`'s correction (module
+    doc); a β where the simulator finds no equilibrium left out."""
+    nodes = []
+    for beta in PROFILE_BETAS:
+        try:
+            nodes.append((beta, correct(s, radius, shear, np.array([best.q[0], best.q[1],
+                                                                    _rescaled_bulk(best.q, beta, s)]),
+                                        beta, best.correction, table, PROFILE_SIMULATIONS)))
+        except SolverError:
+            continue                    # the simulator finds no equilibrium there: β left out
+    return nodes
 
 
 def sds(fit: Solved, sigma2: float) -> Array:
     """The SDs of a fit's free parameters from its Jacobian."""
     return np.sqrt(np.clip(np.diag(sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)), 0.0, None))
+
+
+def simulator_jacobian(s: Samples, radius: float, shear: float, fit: Solved) -> Solved:
+    """`fit` with the Jacobian of the simulator's own projected residuals at its q, by forward
+    differences (SIM_STEP relative; one simulation a free parameter and one at q): the SDs of
+    the reading (the corrected surrogate's Jacobian misses the defect's slope; its γ_a SD was
+    0.55-0.91 × this one's with a hold). Where a step finds no equilibrium, `fit` as it was
+    (q.size + 1 simulations either way)."""
+    resid = _Projected(s, radius, shear, strict=True)
+    q = np.asarray(fit.q, float)
+    try:
+        r0 = resid(q)
+        jac = np.empty((r0.size, q.size))
+        for i in range(q.size):
+            h = SIM_STEP * max(abs(q[i]), _scale(q)[i])
+            jac[:, i] = (resid(q + h * np.eye(q.size)[i]) - r0) / h
+    except (SolverError, InputError):
+        return fit
+    return replace(fit, jac=jac)
 
 
 def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
@@ -248,26 +446,31 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
 
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
           table: ShellTable | None = None) -> tuple[Solved, Array]:
-    """The simulator's fit at K̃_S `shear` from the surrogate's (on the shell ramp table `table`,
-    None: the shipped one), and the surrogate's θ."""
+    """The defect correction's fit at K̃_S `shear` from the surrogate's (on the shell ramp table
+    `table`, None: the shipped one), and the surrogate's θ."""
     p = fit_surrogate(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table)
-    return solve(s, radius_um, shear, p[[0, 3, 4, 5]]), p
+    return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table), p
 
 
 def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate: Array,
-             other_sse: float = np.inf, profiled: int = 0) -> PowerLawFit:
-    """The fit from the simulator's `best` at K̃_S `shear`: without a hold β's profile (module
-    doc), σ² from the lowest SSE (also `other_sse`, of fits elsewhere) over n - 6 - `profiled`
-    (the parameters profiled besides), the SDs and γ_a's band over β's nodes."""
+             other_sse: float = np.inf, profiled: int = 0, table: ShellTable | None = None) -> PowerLawFit:
+    """The fit from the defect correction's `best` at K̃_S `shear`: without a hold β's profile
+    (module doc), σ² from the lowest SSE (also `other_sse`, of fits elsewhere) over n - 6 -
+    `profiled` (the parameters profiled besides), the SDs and γ_a's band over β's nodes, the
+    simulations of `best` and β's profile counted; the surrogate on the table `table`."""
     held = s.raw_time_s.size > s.raw_ramp
-    nodes = [] if held else _beta_profile(s, radius_um, shear, best)
+    nodes = [] if held else _beta_profile(s, radius_um, shear, best, table)
+    runs = best.simulations + sum(n.simulations for _, n in nodes)
     if nodes:
         beta, node = min(nodes, key=lambda n: n[1].sse)
         if node.sse < best.sse:
-            again = solve(s, radius_um, shear, np.append(node.q, beta))
+            again = correct(s, radius_um, shear, np.append(node.q, beta), correction=node.correction, table=table)
+            runs += again.simulations
             best = again if again.sse < best.sse else best
     sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
     sigma2 = sse_min / max(s.time_s.size - 6 - profiled, 1)
+    best = simulator_jacobian(s, radius_um, shear, best)
+    runs += best.q.size + 1
     sd = sds(best, sigma2)
     q = best.q
     band = None
@@ -282,7 +485,7 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
                        noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
                        surrogate=(float(surrogate[3]), float(surrogate[4]), float(surrogate[5])),
                        tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])),
-                       sse_nN2=best.sse)
+                       sse_nN2=best.sse, simulations=runs, converged=best.converged)
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
@@ -294,4 +497,4 @@ def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.Arra
     on the shell ramp table `table` (None: the shipped one)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
     best, p = start(s, radius_um, shear_tilde, drop, table)
-    return conclude(s, radius_um, shear_tilde, best, p)
+    return conclude(s, radius_um, shear_tilde, best, p, table=table)

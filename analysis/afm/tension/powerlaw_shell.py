@@ -45,11 +45,24 @@ Array = npt.NDArray[np.float64]
 STRAIN_NODES = 400          # nodes of w(d) from 0 to the table's deepest δ/R
 
 
+_MEMORY: dict[tuple[bytes, float], Array] = {}
+
+
 def memory_matrix(time_s: npt.ArrayLike, beta: float) -> Array:
     """M (n × n, lower triangular): the stress at sample n is Σ_m M_nm ΔU_m for a strain
     linear in time between samples (module doc); column 0 is zero (no step before the first
-    sample). Samples at the same time act as a step (the limit Δt → 0)."""
+    sample). Samples at the same time act as a step (the limit Δt → 0). The last one made
+    is kept (a fit's evaluations at one β share it)."""
     t = np.asarray(time_s, float)
+    key = (t.tobytes(), float(beta))
+    if key not in _MEMORY:
+        _MEMORY.clear()
+        _MEMORY[key] = _memory_matrix(t, float(beta))
+    return _MEMORY[key].copy()
+
+
+def _memory_matrix(t: Array, beta: float) -> Array:
+    """`memory_matrix` made."""
     a = 1.0 - beta
     lag = np.clip(t[:, None] - t[None, :], 0.0, None)         # t_n - t_m
     p = lag ** a
