@@ -220,6 +220,28 @@ def test_a_text_export_alone_is_read_for_its_ramp(tmp_path, capsys):
     assert "sample times unknown" in capsys.readouterr().err
 
 
+@need_bruker
+def test_a_text_export_alone_is_read_by_the_power_law_shell_at_the_given_speed(tmp_path, capsys):
+    """The export alone, timed by --ramp-speed-um-per-s at the binary's recorded speed (its samples
+    taken evenly in time), reads the power-law γ_a and β of the binary within the binary's
+    intervals (a ramp without a pause: γ_a only bounded above), and says how it was timed;
+    without the speed the row says it has no sample times."""
+    alone = tmp_path / BRUKER_TEXT.name
+    alone.write_bytes(BRUKER_TEXT.read_bytes())
+    _, doc = _json(capsys, BRUKER, "--radius-um", 6.8)
+    binary, = doc["rows"]
+    status, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945,
+                        "--ramp-speed-um-per-s", binary["ramp_speed_um_per_s"])
+    text, = doc["rows"]
+    assert status == 0 and text["power_law_note"].startswith("times from --ramp-speed-um-per-s")
+    assert binary["power_law_tension_lo95_mN_per_m"] <= text["power_law_tension_mN_per_m"] \
+        <= binary["power_law_tension_hi95_mN_per_m"]
+    assert abs(text["power_law_exponent"] - binary["power_law_exponent"]) <= 1.96 * binary["power_law_exponent_sd"]
+    assert text["headline_tension_mN_per_m"] == text["power_law_tension_mN_per_m"]
+    _, doc = _json(capsys, alone, "--radius-um", 6.8, "--spring-constant", 0.0777945, "--shear-ratio", 0.5)
+    assert doc["rows"][0]["power_law_note"] == "no sample times"
+
+
 def _elastic_ramp_and_hold(path, tension=0.8, bulk=10.0, seed=1):
     """A single-cell CSV of an elastic cell (β = 0; `shell_ramp`, K_S/K_B 1/3) pressed at 1 µm/s to
     0.14 R, held there 5 s at constant height (its force does not relax), and retracted."""

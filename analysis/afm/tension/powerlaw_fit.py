@@ -73,6 +73,7 @@ BETA_MAX = 0.6
 START_BULK = (0.5, 5.0)    # K_B(1 s) / T of the surrogate's starts (T the droplet's)
 START_BETA = (0.2,)
 SURROGATE_EVALUATIONS = 300        # the surrogate's evaluations a start, at most
+RESCUE_STARTS = ((0.5, 5.0, 30.0), (0.1, 0.25))    # the starts tried where the simulator cannot run the best
 SIMULATIONS = 12           # the defect correction's simulations, at most
 PROFILE_SIMULATIONS = 2    # ... at a profile's node, started from its neighbour's correction
 REL_TOL = 1e-3             # q settled: γ_a and K_B(1 s) moved less than this share,
@@ -180,23 +181,31 @@ def _surrogate(s: Samples, radius: float, shear: float, p: Array, table: ShellTa
     return np.sqrt(s.count) * (model - s.force_nN)
 
 
-def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float,
-                  table: ShellTable | None = None) -> Array:
-    """θ of the surrogate's best fit from the starts (module doc), on the shell ramp table `table`."""
+def surrogate_fits(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float,
+                   table: ShellTable | None = None,
+                   starts: tuple[tuple[float, ...], tuple[float, ...]] = (START_BULK, START_BETA)) -> list[Array]:
+    """θ of the surrogate's fit from each start (K_B(1 s)/T of starts[0] × β of starts[1]; module
+    doc), the best first, on the shell ramp table `table`."""
     lo = [-np.inf, -np.inf, -np.inf, 1e-4, 1e-3, 0.0]
     hi = [np.inf, np.inf, np.inf, np.inf, np.inf, BETA_MAX]
-    best, best_cost = None, np.inf
-    for kb in START_BULK:
-        for beta in START_BETA:
+    found = []
+    for kb in starts[0]:
+        for beta in starts[1]:
             p0 = np.array([x0, 0.0, 0.0, 0.5 * droplet_tension, kb * droplet_tension, beta])
             scale = [0.01, 0.01, 0.01, max(droplet_tension, 1e-3), max(kb * droplet_tension, 1e-2), 0.05]
             res = least_squares(lambda p: _surrogate(s, radius, shear, p, table), p0, bounds=(lo, hi), x_scale=scale,
                                 xtol=1e-10, ftol=1e-10, max_nfev=SURROGATE_EVALUATIONS)
-            if res.cost < best_cost:
-                best, best_cost = res.x, res.cost
-    if best is None:
+            if np.isfinite(res.cost):
+                found.append((float(res.cost), res.x))
+    if not found:
         raise InputError("approach ramp: no rise the power-law shell can fit")
-    return best
+    return [x for _, x in sorted(found, key=lambda c: c[0])]
+
+
+def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float,
+                  table: ShellTable | None = None) -> Array:
+    """θ of the surrogate's best fit from the starts (module doc), on the shell ramp table `table`."""
+    return surrogate_fits(s, radius, shear, x0, droplet_tension, table)[0]
 
 
 def _simulated(s: Samples, radius: float, shear: float, q: Array) -> Array:
@@ -446,10 +455,17 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
 
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
           table: ShellTable | None = None) -> tuple[Solved, Array]:
-    """The defect correction's fit at K̃_S `shear` from the surrogate's (on the shell ramp table
-    `table`, None: the shipped one), and the surrogate's θ."""
-    p = fit_surrogate(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table)
-    return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table), p
+    """The defect correction's fit at K̃_S `shear` from the surrogate's best (on the shell ramp
+    table `table`, None: the shipped one), and the surrogate's θ. Where the simulator finds no
+    equilibrium there (a droplet-like valley, K_B(1 s) near γ_a), from the surrogate's next best
+    fit, then from those of the RESCUE_STARTS."""
+    for starts in ((START_BULK, START_BETA), RESCUE_STARTS):
+        for p in surrogate_fits(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table, starts):
+            try:
+                return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table), p
+            except SolverError:
+                continue
+    raise SolverError("the simulator finds no equilibrium at any of the surrogate's fits")
 
 
 def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate: Array,
