@@ -271,7 +271,7 @@ def test_the_calibrations_table_reaches_the_surrogate_given_or_profiled(monkeypa
         seen.append(args[5] if len(args) > 5 else kwargs.get("table"))
         raise SolverError("stopped at the surrogate")
 
-    monkeypatch.setattr(powerlaw_fit, "fit_surrogate", stop)
+    monkeypatch.setattr(powerlaw_fit, "surrogate_fits", stop)
     for shear in (1.0 / 3.0, None):
         row = power_law_columns(ramp, None, radius, shear, None, mine)
         assert row["power_law_note"] == "not read: stopped at the surrogate"

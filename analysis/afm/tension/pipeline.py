@@ -320,13 +320,19 @@ def _ramp_row(trace: Trace, index: int, x: np.ndarray, f: np.ndarray, options: O
     return row, ("approach", index, x, f, fit, cmp, None)
 
 
+def _above_contact(x: np.ndarray, contact_um: float) -> np.ndarray:
+    """The samples above the contact, where the cantilever's bending does not change (all of them
+    if fewer than MIN_FREE): where a ramp's speed is read."""
+    free = x > contact_um
+    return free if free.sum() >= MIN_FREE else np.ones_like(free)
+
+
 def _ramp_speed(t: np.ndarray, x: np.ndarray, contact_um: float, given: float | None) -> dict[str, Any]:
     """The row's approach speed (µm/s) and where it comes from: the recorded times (the slope of x
     over the samples above the contact, where the cantilever's bending does not change; all
     samples if fewer than MIN_FREE), else `--ramp-speed-um-per-s`, else unknown (NaN)."""
     if np.all(np.isfinite(t)) and t.size > 1:
-        free = x > contact_um
-        use = free if free.sum() >= MIN_FREE else np.ones_like(free)
+        use = _above_contact(x, contact_um)
         return {"ramp_speed_um_per_s": float(abs(np.polyfit(t[use], x[use], 1)[0])), "ramp_speed_source": "recorded"}
     if given is not None:
         return {"ramp_speed_um_per_s": float(given), "ramp_speed_source": "--ramp-speed-um-per-s"}
@@ -430,11 +436,9 @@ def _power_law(trace: Trace, k: int, options: Options, radius: float, ramp_prior
 def even_times(x: np.ndarray, f: np.ndarray, speed_um_per_s: float) -> np.ndarray:
     """Sample times (s) of a ramp whose file holds none, sampled evenly in time (a piezo ramp):
     t_i = i Δt, Δt = |dx/di| / v, dx/di the slope of x against the sample index above the
-    contact (`contact_guess`; all samples if fewer than MIN_FREE), v `--ramp-speed-um-per-s`: the
-    speed `_ramp_speed` would read from recorded times."""
-    contact, _ = contact_guess(x, f)
-    free = x > contact
-    use = free if free.sum() >= MIN_FREE else np.ones_like(free)
+    contact (`contact_guess`, `_above_contact`), v `--ramp-speed-um-per-s`: the speed
+    `_ramp_speed` would read from recorded times."""
+    use = _above_contact(x, contact_guess(x, f)[0])
     index = np.arange(x.size, dtype=float)
     per_sample = abs(float(np.polyfit(index[use], x[use], 1)[0]))
     if not per_sample > 0:

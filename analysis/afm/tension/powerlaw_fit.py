@@ -19,7 +19,8 @@ white noise of SD σ gives every weighted residual SD σ.
 Fit: defect correction (output space mapping). The simulator is the model; the surrogate
 (`powerlaw_shell`: the elastic shell's energy carried as one strain with Boltzmann
 superposition; within a few per cent of the simulator, cheap) its proxy. First the surrogate
-by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from START_BULK × START_BETA; then,
+by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from START_BULK × START_BETA (where the
+simulator finds no equilibrium at its best, its next fit, then those from RESCUE_STARTS); then,
 from q_0 its (x0, γ_a, K_B(1 s), β), at each step one simulation at q_k gives the correction
 
     c_k = F_sim(q_k) - F_sur(q_k)   (at the averaged samples),
@@ -36,7 +37,8 @@ c_k + D (q - q_k), D by forward differences at the first step (4 simulations) an
 Broyden's rank one after each. SDs from the simulator's own Jacobian at the fixed point
 (`simulator_jacobian`: forward differences, one simulation a parameter and one at q; of the
 projected residuals, whose normal matrix is the marginal one of the nonlinear parameters; the
-corrected surrogate's misses the defect's slope), σ² = SSE/(n - 6); γ_a's 95 % interval ± Z95 sd. Without a hold β is profiled too:
+corrected surrogate's misses the defect's slope), σ² = SSE/(n - 6); γ_a's 95 % interval
+± Z95 sd. Without a hold β is profiled too:
 at each β of PROFILE_BETAS (β fixed, K_B(1 s) started where K_B(1 s) T^-β at the ramp's contact
 time T is the best fit's, the best fit's correction refreshed by at most PROFILE_SIMULATIONS
 simulations), and γ_a's interval widened to hold every node's γ_a ± Z95 sd (β fixed) with
@@ -200,12 +202,6 @@ def surrogate_fits(s: Samples, radius: float, shear: float, x0: float, droplet_t
     if not found:
         raise InputError("approach ramp: no rise the power-law shell can fit")
     return [x for _, x in sorted(found, key=lambda c: c[0])]
-
-
-def fit_surrogate(s: Samples, radius: float, shear: float, x0: float, droplet_tension: float,
-                  table: ShellTable | None = None) -> Array:
-    """θ of the surrogate's best fit from the starts (module doc), on the shell ramp table `table`."""
-    return surrogate_fits(s, radius, shear, x0, droplet_tension, table)[0]
 
 
 def _simulated(s: Samples, radius: float, shear: float, q: Array) -> Array:

@@ -48,7 +48,6 @@ COLUMNS = ("cell_id", "part", "segment", "model") + HEADLINE + ("tension_mN_per_
            ) + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 
-
 def headline(row: dict[str, Any]) -> dict[str, Any]:
     """The row's headline tension (HEADLINE) and the reading it is: an approach's power-law γ_a with
     its interval where the power-law shell read it (POWER_LAW), else the row's model's tension
@@ -105,7 +104,7 @@ def _ramp_axes(ax: Any, plot: tuple[Any, ...], radius: float, row: dict[str, Any
     what = (f"γ_a = {fit.tension_mN_per_m:.3g}, K_B = {fit.bulk_mN_per_m:.3g} mN/m" if fit.model == "shell"
             else f"T = {fit.tension_mN_per_m:.3g} mN/m")
     ax.plot(d, fit.force_nN(fit.contact_um - d, radius) - fit.baseline_at(fit.contact_um - d), color="tab:red",
-            label=f"{'elastic shell (β = 0)' if fit.model == 'shell' else fit.model}: {what}, R² = {fit.r2:.4f}")
+            label=f"{ELASTIC if fit.model == 'shell' else fit.model}: {what}, R² = {fit.r2:.4f}")
     if cmp is not None:
         ax.plot(d, cmp.force_nN(fit.contact_um - d, radius) - cmp.baseline_at(fit.contact_um - d), "--",
                 color="tab:green",
@@ -131,7 +130,7 @@ def _depth_axes(ax: Any, plot: tuple[Any, ...]) -> None:
     d = np.array([r.depth_um for r in rows])
     g = np.array([r.tension_mN_per_m for r in rows])
     ax.errorbar(d, g, yerr=1.96 * np.array([r.tension_sd_mN_per_m for r in rows]), fmt="o-", color="tab:red",
-                label="elastic shell (β = 0): γ_a")
+                label=f"{ELASTIC}: γ_a")
     ax.plot(d, [r.droplet_tension_mN_per_m for r in rows], "s--", color="tab:green", label="droplet (apparent)")
     ax.plot(d, [r.small_deformation_tension_mN_per_m for r in rows], "^:", color="tab:purple",
             label="small-deformation (apparent)")
