@@ -52,7 +52,7 @@ START_UM = 0.01          # the stress-free droplet's gap below 2R (µm)
 RESOLUTION = FINE
 SAMPLE_HZ = 100.0        # the simulation's samples on ramp and hold, read linearly between
 STIFFNESS_SHARE = 0.1    # the ramp's stiffness at its end: over this share of its depth (`_stiffness_nN_per_um`)
-CONTACT_HISTORY = False  # the history's share of dE*/dl in the contact search (module doc)
+CONTACT_HISTORY = True   # the history's share of dE*/dl in the contact search (module doc)
 
 
 @dataclass(frozen=True)
@@ -102,6 +102,23 @@ def _stiffness_nN_per_um(rec: Recording, t_end: float, top_um: float, depth_um: 
     return float(np.polyfit(top_um - rec.height_um[last], rec.force_nN[last], 1)[0])
 
 
+def simulated(radius_um: float, tension_mN_per_m: float, bulk_1s_mN_per_m: float, beta: float, shear_tilde: float,
+              speed_um_per_s: float, depth_um: float, hold: tuple[Hold, ...] = (), start_s: float = 0.0,
+              sample_hz: float = SAMPLE_HZ) -> Recording:
+    """The time-domain shell's recording (RESOLUTION, CONTACT_HISTORY) of the cell stress-free as
+    its droplet at the gap 2R - START_UM at `start_s`, pressed at `speed_um_per_s` to the
+    deformation `depth_um` (δ from the free sphere) and held by `hold`; SolverError where the
+    simulator finds no equilibrium."""
+    top = 2.0 * radius_um
+    shell = Shell(volume_um3=4.0 * np.pi / 3.0 * radius_um ** 3, h0_um=top - START_UM,
+                  bulk_mN_per_m=bulk_1s_mN_per_m, shear_mN_per_m=shear_tilde * bulk_1s_mN_per_m,
+                  tension_mN_per_m=tension_mN_per_m)
+    steps = (Ramp(to_um=top - depth_um, speed_um_per_s=speed_um_per_s),) + hold
+    return simulate(shell, power_law_cortex(bulk_1s_mN_per_m, shear_tilde * bulk_1s_mN_per_m, beta, beta),
+                    Protocol(top - START_UM, steps, start_s=start_s), RESOLUTION, Sampling(approach_hz=sample_hz),
+                    contact_history=CONTACT_HISTORY)
+
+
 def force_nN(history: RampHold, x0_um: float, radius_um: float, tension_mN_per_m: float,
              bulk_1s_mN_per_m: float, beta: float, shear_tilde: float) -> npt.NDArray[np.float64]:
     """The simulated plate force (nN) at the history's samples (module doc); SolverError
@@ -113,13 +130,8 @@ def force_nN(history: RampHold, x0_um: float, radius_um: float, tension_mN_per_m
     if depth <= 2 * START_UM:
         raise SolverError("the ramp reaches no depth in contact")
     top = 2.0 * radius_um
-    shell = Shell(volume_um3=4.0 * np.pi / 3.0 * radius_um ** 3, h0_um=top - START_UM,
-                  bulk_mN_per_m=bulk_1s_mN_per_m, shear_mN_per_m=shear_tilde * bulk_1s_mN_per_m,
-                  tension_mN_per_m=tension_mN_per_m)
-    steps = (Ramp(to_um=top - depth, speed_um_per_s=v),) + _hold(history, t_end)
-    rec = simulate(shell, power_law_cortex(bulk_1s_mN_per_m, shear_tilde * bulk_1s_mN_per_m, beta, beta),
-                   Protocol(top - START_UM, steps, start_s=t_c), RESOLUTION, Sampling(approach_hz=SAMPLE_HZ),
-                   contact_history=CONTACT_HISTORY)
+    rec = simulated(radius_um, tension_mN_per_m, bulk_1s_mN_per_m, beta, shear_tilde, v, depth,
+                    _hold(history, t_end), t_c)
     d = np.clip(x0_um - history.x_um, 0.0, None) / radius_um
     before = tension_mN_per_m * radius_um * unit_force_per_tension(np.minimum(d, DEPTH_MAX))
     force = np.where(t > t_c, np.interp(t, rec.time_s, rec.force_nN), before)
