@@ -9,6 +9,7 @@
 #   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
 #   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
 #   make ramp-table      rebuild the shipped shell ramp table (analysis/calibration/data/shell_ramp_table.json)
+#   make powerlaw-table  rebuild the shipped power-law ramp and hold table (analysis/calibration/data/powerlaw_table.json)
 #   make protocol-map    the protocol's bias map (results/protocol-map/: JSON table and figures)
 #   make tension-bias    the shell's reading of power-law ramps (results/tension-bias.md: the table)
 #   make bench           the quick benchmarks (BENCH_QUICK: each under about a minute; JSON on stdout)
@@ -144,6 +145,14 @@ ramp-table: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/ramp.toml --store results/ramp.h5
 	$(BIN)/cortex analysis build-ramp-table results/ramp.h5 --out results/ramp-table
 	cp results/ramp-table/shell_ramp_table.json $(CALIBRATION)/shell_ramp_table.json
+
+# The power-law ramp and hold table (docs/tension-power-law.md): its campaign under mpiexec (5040
+# nodes, about 6 min on 2 ranks; reruns resume), then the table from the store, copied into the package.
+.PHONY: powerlaw-table
+powerlaw-table: setup
+	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/powerlaw-table.toml --store results/powerlaw-table.h5
+	$(BIN)/cortex analysis build-powerlaw-table results/powerlaw-table.h5 --out results/powerlaw-table
+	cp results/powerlaw-table/powerlaw_table.json $(CALIBRATION)/powerlaw_table.json
 
 # The protocol's bias map (SPEC 12, docs/studies/protocol-bias.md): its campaign under mpiexec (see
 # docs/performance.md for its time; reruns resume), then the JSON table and figures from the store.

@@ -19,10 +19,12 @@ fit (β free, K̃_S given; without a hold before β's profile): γ_a's relative 
 ratio of the SDs (the corrected surrogate's Jacobian over the simulator's, at one σ²). With
 --speed the fit's CPU on 100 recordings of ramp plus constant-height hold (the cells with a hold
 of `cells(200)`; made first, not counted), best of --repeat runs, K̃_S given (--profile:
-profiled).
+profiled). With --table the tabled simulator (`powerlaw_tabled`, the shipped table) against
+the simulator at each cell's truth (its recording's protocol, no fit): the largest difference
+over the ramp and over the hold relative to the largest force, and whether the table holds the cell.
 
     .venv/bin/python bench/powerlaw_ramp_hold.py [--cells 40] [--seed 0] [--elastic] [--hold force] [--profile]
-        [--reference 10] [--speed [--repeat 3]]
+        [--reference 10] [--speed [--repeat 3]] [--table]
 """
 
 import argparse
@@ -34,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.afm.tension import powerlaw_fit, powerlaw_shell
+from analysis.afm.tension import powerlaw_fit, powerlaw_shell, powerlaw_simulated, powerlaw_tabled
 from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
 from analysis.afm.tension.powerlaw_shear import fit_ramp_hold_profiled
 from analysis.afm.tension.shell_fit import Fixed, fit_shell
@@ -104,6 +106,39 @@ def run(cell: Cell, seed: int, elastic: bool, profile: bool = False, compare: bo
     return out
 
 
+def table_check(cell: Cell, made: Made) -> dict[str, Any]:
+    """The tabled force against the simulated one at the cell's truth (module doc)."""
+    from analysis.afm.tension.powerlaw_simulated import RampHold
+    table = powerlaw_tabled.shipped()
+    if table is None:
+        raise SystemExit("no shipped power-law table (make powerlaw-table)")
+    history = RampHold(made.time_s, made.x_um, made.ramp_samples, cell.hold_kind)
+    q = np.array([2.0 * cell.radius_um, cell.tension_mN_per_m, cell.bulk_1s_mN_per_m, cell.beta])
+    sim = powerlaw_simulated.force_nN(history, q[0], cell.radius_um, *q[1:3], cell.beta, cell.shear_tilde)
+    force = powerlaw_tabled.TabledForce(history, cell.radius_um, cell.shear_tilde, table)
+    try:
+        tab = force(q)
+    except SolverError:
+        return {"inside": False}
+    top = float(np.max(np.abs(sim)))
+    ramp, hold = slice(0, made.ramp_samples), slice(made.ramp_samples, None)
+    out = {"inside": True, "ramp_max_difference_over_peak": float(np.max(np.abs(tab - sim)[ramp]) / top)}
+    if made.time_s.size > made.ramp_samples:
+        out["hold_max_difference_over_peak"] = float(np.max(np.abs(tab - sim)[hold]) / top)
+    return out
+
+
+def table_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The largest and median differences of `table_check`'s rows the table holds."""
+    inside = [r for r in rows if r["inside"]]
+    out: dict[str, Any] = {"cells": len(rows), "inside": len(inside)}
+    for key in ("ramp_max_difference_over_peak", "hold_max_difference_over_peak"):
+        v = [r[key] for r in inside if key in r]
+        if v:
+            out[key] = {"median": float(np.median(v)), "worst": float(np.max(v))}
+    return out
+
+
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Median and worst |error|, median error and coverage of the rows that were fitted."""
     ok = [r for r in rows if "relative_error" in r]
@@ -170,7 +205,13 @@ def main() -> None:
                         help="the first N cells also by the simulator's own least squares")
     parser.add_argument("--speed", action="store_true", help="CPU of 100 recordings with a constant-height hold")
     parser.add_argument("--repeat", type=int, default=3, help="--speed: runs, the best counted")
+    parser.add_argument("--table", action="store_true", help="the tabled simulator against the simulator")
     args = parser.parse_args()
+    if args.table:
+        checks = [table_check(c, recording(c, seed=args.seed * 10_000 + i))
+                  for i, c in enumerate(cells(args.cells, seed=args.seed))]
+        print(json.dumps({"summary": table_summary(checks), "cells": checks}, indent=1))
+        return
     if args.speed:
         print(json.dumps(speed(args.seed, args.profile, args.repeat), indent=1))
         return

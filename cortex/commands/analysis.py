@@ -1,7 +1,8 @@
 """`cortex analysis calibrate STORE --out DIR [--partial]`, `cortex analysis
 viscosity STORE --out DIR`, `cortex analysis build-calibration --out DIR`,
 `cortex analysis build-viscoelastic-table STORE --out DIR`, `cortex analysis
-build-ramp-table STORE --out DIR`, `cortex analysis build-protocol-map STORE --out DIR` and `cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
+build-ramp-table STORE --out DIR`, `cortex analysis build-powerlaw-table STORE --out DIR`,
+`cortex analysis build-protocol-map STORE --out DIR` and `cortex analysis invert TABLE.csv --out DIR` (argparse only; the work is
 imported when the command runs). Every one takes `--json` (its results as one
 JSON object or list on stdout) and writes into its `--out` folder under the
 manifest rules of `outputs.ownership.OutputDir`."""
@@ -18,6 +19,7 @@ from cortex.results import plain, say_result
 CALIBRATION_FILE = "calibration.json"     # what build-calibration writes into its --out folder
 TABLE_FILE = "viscoelastic_table.json"    # what build-viscoelastic-table writes into its --out folder
 RAMP_TABLE_FILE = "shell_ramp_table.json"  # what build-ramp-table writes into its --out folder
+POWERLAW_TABLE_FILE = "powerlaw_table.json"  # what build-powerlaw-table writes into its --out folder
 PROTOCOL_MAP_FILE = "protocol_map.json"    # what build-protocol-map writes into its --out folder (and figures)
 
 
@@ -27,7 +29,7 @@ def register(sub: Commands) -> None:
                                    "check, Monte-Carlo error study (SPEC 5), figures and a report.")
     s = p.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", required=True)
     for add in (_add_calibrate, _add_viscosity, _add_build_calibration, _add_build_table, _add_build_ramp_table,
-                _add_build_protocol_map, _add_invert):
+                _add_build_powerlaw_table, _add_build_protocol_map, _add_invert):
         add(s)
 
 
@@ -100,6 +102,17 @@ def _add_build_ramp_table(s: Commands) -> None:
         "node, analysis/afm/tension/shell_table.py) from a finished store of campaigns/ramp.toml. `make "
         "ramp-table` rebuilds the one shipped in the package this way.",
         "ramp-table", "one JSON object: table file, nodes, depths filled", build_ramp_table)
+
+
+def _add_build_powerlaw_table(s: Commands) -> None:
+    _add_table_builder(
+        s, "build-powerlaw-table", "the power-law ramp and hold table from its campaign's store",
+        "Build DIR/powerlaw_table.json (the time-domain shell's ramp from its droplet and constant-height hold "
+        "per node, the model of `afm tension`'s power-law reading; analysis/afm/tension/powerlaw_grid.py) from "
+        "a finished store of campaigns/powerlaw-table.toml. `make powerlaw-table` rebuilds the one shipped in "
+        "the package this way.",
+        "powerlaw-table", "one JSON object: table file, nodes, nodes failed", build_powerlaw_table,
+        "every node finished (a failed node is left out of the table)")
 
 
 def _add_build_protocol_map(s: Commands) -> None:
@@ -193,6 +206,18 @@ def build_ramp_table(args: argparse.Namespace) -> int:
     nodes = len(doc["radius_um"]) * len(doc["gamma_tilde"]) * len(doc["shear_tilde"])
     say_result(args, {"table": str(doc["path"]), "nodes": nodes, "filled": doc["filled"]},
                f"wrote {doc['path']} ({nodes} nodes, {doc['filled']} depths filled)")
+    return 0
+
+
+def build_powerlaw_table(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from analysis.afm.tension.powerlaw_grid import from_store
+    doc = _write_table(args, POWERLAW_TABLE_FILE, from_store)
+    r = np.asarray(doc["hold_ratio"], dtype=float)
+    nodes, failed = r[..., 0].size, int(np.isnan(r[..., 0]).sum())
+    say_result(args, {"table": str(doc["path"]), "nodes": nodes, "failed": failed},
+               f"wrote {doc['path']} ({nodes} nodes, {failed} failed)")
     return 0
 
 

@@ -59,7 +59,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
-from analysis.afm.tension import powerlaw_shell, powerlaw_simulated
+from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, powerlaw_tabled
 from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.powerlaw_simulated import RampHold
 from analysis.afm.tension.ramp import RampFit, fit_ramp
@@ -145,6 +145,7 @@ class PowerLawFit:
     shear_band: tuple[float, float] | None = None
     simulations: int = 0
     converged: bool = True
+    tabled: bool = False
 
     @property
     def tension_interval_mN_per_m(self) -> tuple[float, float]:
@@ -235,14 +236,16 @@ def _scale(q: Array) -> Array:
 
 class _Projected:
     """Residuals at (x0, γ_a, K_B(1 s), β) of a model force with (F_b, s) solved linearly:
-    the simulator's (`correction` None) or the surrogate's plus `correction` (module doc);
+    the tabled simulator's (`tabled`), else the simulator's (`correction` None) or the surrogate's
+    plus `correction` (module doc);
     `beta` fixes β (then q = (x0, γ_a, K_B(1 s))); `strict`: a simulation without an equilibrium
     raises (else every residual is 1e3, which the least squares steps away from)."""
 
     def __init__(self, s: Samples, radius: float, shear: float, beta: float | None = None,
-                 correction: Correction | None = None, table: ShellTable | None = None, strict: bool = False):
+                 correction: Correction | None = None, table: ShellTable | None = None, strict: bool = False,
+                 tabled: powerlaw_tabled.TabledForce | None = None):
         self.s, self.radius, self.shear, self.w, self.beta = s, radius, shear, np.sqrt(s.count), beta
-        self.correction, self.table, self.strict = correction, table, strict
+        self.correction, self.table, self.strict, self.tabled = correction, table, strict, tabled
         self.linear = np.zeros(2)
 
     def full(self, q: Array) -> Array:
@@ -251,9 +254,10 @@ class _Projected:
 
     def __call__(self, q: Array) -> Array:
         s = self.s
-        if self.correction is None:
+        if self.tabled is not None or self.correction is None:
             try:
-                model = _simulated(s, self.radius, self.shear, self.full(q))
+                model = (_simulated(s, self.radius, self.shear, self.full(q)) if self.tabled is None
+                         else s.averaged(self.tabled(self.full(q))))
             except (SolverError, InputError):
                 if self.strict:
                     raise
@@ -280,6 +284,7 @@ class Solved:
     correction: Correction | None = None
     simulations: int = 0
     converged: bool = True
+    tabled: bool = False
 
 
 def _least_squares(resid: _Projected, q0: Array, **options: float) -> Solved:
@@ -345,14 +350,32 @@ def _broyden(slope: Array, miss: Array, step: Array, scale: Array) -> Array:
     return slope + np.outer(miss, w) / (step @ w) if step @ w > 0 else slope
 
 
+def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> Solved | None:
+    """The least squares of the tabled simulator (`powerlaw_tabled`, the shipped table) from q0, β
+    free or fixed at `beta`; None where there is no table, the hold is not one it holds, or the fit
+    ends outside it (the caller then simulates)."""
+    table = powerlaw_tabled.shipped()
+    if table is None or (s.raw_time_s.size > s.raw_ramp and s.hold != "height"):
+        return None
+    force = powerlaw_tabled.TabledForce(s.history, radius, shear, table)
+    resid = _Projected(s, radius, shear, beta, tabled=force)
+    fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
+    resid(fit.q)                                   # `inside` of the fit itself
+    return replace(fit, tabled=True, converged=True) if force.inside else None
+
+
 def correct(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
             correction: Correction | None = None, table: ShellTable | None = None,
             cap: int = SIMULATIONS) -> Solved:
-    """The defect correction from q0 (module doc), β free or fixed at `beta`: the corrected
+    """The tabled simulator's fit from q0 where the power-law table holds it (`tabled_fit`), else
+    the defect correction from q0 (module doc), β free or fixed at `beta`: the corrected
     surrogate fitted first with `correction` where given (a neighbour's; none: q0 is the
     surrogate's own fit), then at most `cap` simulations, each refreshing the correction's
     offset at the current q (a constant-force hold: to first order, its slope made once, or
     the neighbour's kept); the surrogate on the shell ramp table `table`."""
+    fast = tabled_fit(s, radius, shear, np.asarray(q0, float)[:3 if beta is not None else 4], beta)
+    if fast is not None:
+        return fast
     q = start = np.asarray(q0, float)[:3 if beta is not None else 4]
     k = q.size
     lo, hi = np.array([-np.inf, 1e-4, 1e-3, 0.0])[:k], np.array([np.inf, np.inf, np.inf, BETA_MAX])[:k]
@@ -425,7 +448,10 @@ def simulator_jacobian(s: Samples, radius: float, shear: float, fit: Solved) -> 
     differences (SIM_STEP relative; one simulation a free parameter and one at q): the SDs of
     the reading (the corrected surrogate's Jacobian misses the defect's slope; its γ_a SD was
     0.55-0.91 × this one's with a hold). Where a step finds no equilibrium, `fit` as it was
-    (q.size + 1 simulations either way)."""
+    (q.size + 1 simulations either way). A tabled fit as it is: its Jacobian is the tabled
+    simulator's."""
+    if fit.tabled:
+        return fit
     resid = _Projected(s, radius, shear, strict=True)
     q = np.asarray(fit.q, float)
     try:
@@ -451,10 +477,17 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
 
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
           table: ShellTable | None = None) -> tuple[Solved, Array]:
-    """The defect correction's fit at K̃_S `shear` from the surrogate's best (on the shell ramp
-    table `table`, None: the shipped one), and the surrogate's θ. Where the simulator finds no
-    equilibrium there (a droplet-like valley, K_B(1 s) near γ_a), from the surrogate's next best
-    fit, then from those of the RESCUE_STARTS."""
+    """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
+    START_BETA where the power-law table holds it (`tabled_fit`), else the defect correction's from
+    the surrogate's best (on the shell ramp table `table`, None: the shipped one). Where the
+    simulator finds no equilibrium there (a droplet-like valley, K_B(1 s) near γ_a), from the
+    surrogate's next best fit, then from those of the RESCUE_STARTS."""
+    fits = [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
+                                                                 kb * drop.tension_mN_per_m, beta]))
+                        for kb in START_BULK for beta in START_BETA) if f is not None]
+    if fits:
+        best = min(fits, key=lambda f: f.sse)
+        return best, np.r_[best.q[0], best.linear, best.q[1:]]
     for starts in ((START_BULK, START_BETA), RESCUE_STARTS):
         for p in surrogate_fits(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table, starts):
             try:
@@ -482,7 +515,7 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
     sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
     sigma2 = sse_min / max(s.time_s.size - 6 - profiled, 1)
     best = simulator_jacobian(s, radius_um, shear, best)
-    runs += best.q.size + 1
+    runs += 0 if best.tabled else best.q.size + 1
     sd = sds(best, sigma2)
     q = best.q
     band = None
@@ -497,7 +530,7 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
                        noise_nN=float(np.sqrt(sigma2)), samples=s, hold=held,
                        surrogate=(float(surrogate[3]), float(surrogate[4]), float(surrogate[5])),
                        tension_band_mN_per_m=None if band is None else (float(band[0]), float(band[1])),
-                       sse_nN2=best.sse, simulations=runs, converged=best.converged)
+                       sse_nN2=best.sse, simulations=runs, converged=best.converged, tabled=best.tabled)
 
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,

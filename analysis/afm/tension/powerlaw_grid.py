@@ -98,8 +98,8 @@ def table_document(radii_um: npt.ArrayLike, gammas: npt.ArrayLike, shears: npt.A
     """The table's JSON document (`powerlaw_tabled.PowerLawTable`): its axes, q of shape
     (radius, gamma, shear, beta, RAMP_DEPTHS) and r of shape (radius, gamma, shear, beta, d_max,
     HOLD_TAUS), NaN (null) where a node failed."""
-    def plain(a: np.ndarray) -> Any:
-        return np.where(np.isfinite(a), a, None).tolist()
+    def plain(a: np.ndarray) -> Any:           # six significant digits (the table's error is 1e-3), null: NaN
+        return np.vectorize(lambda v: float(f"{v:.6g}") if np.isfinite(v) else None, otypes=[object])(a).tolist()
     return {"format": FORMAT, "rate_per_s": RATE_PER_S, "bending": "standard", "thickness_um": 0.2,
             "radius_um": np.asarray(radii_um, float).tolist(), "gamma_tilde": np.asarray(gammas, float).tolist(),
             "shear_tilde": np.asarray(shears, float).tolist(), "beta": np.asarray(betas, float).tolist(),
