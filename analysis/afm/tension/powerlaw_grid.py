@@ -7,13 +7,16 @@ Scaling. A cell of radius R pressed at speed v, ρ = v/R: at the deformation d =
 since the contact is d/ρ, so K_B(t) = K_B(1 s) t^-β = K_eff (ρ t)^-β with
 K_eff = K_B(1 s) ρ^β, and the force is
 
-    F = R K_eff [γ̃ ĝ(d) + d q(d; γ̃, K̃_S, β, R_b)],   γ̃ = γ_a / K_eff,
+    F = R K_eff [γ̃ ĝ(d) + e q(e; γ̃, K̃_S, β, R_b)],   γ̃ = γ_a / K_eff,   e = d - START_UM/R,
 
-ĝ the droplet's unit force (`solver.droplet_table`, the tension alone), q the elastic share
-over d (finite at the sphere: `analysis.calibration.ramp_table`). A hold at constant height
-after a ramp to d_max, at τ = (t - t_end)/T since it began (T the ramp's time in contact):
+ĝ the droplet's unit force (`solver.droplet_table`, the tension alone), e the deformation
+since the cortex was stress-free (the droplet at START_UM, `powerlaw_simulated`) and q the
+elastic share over it (finite as e → 0: `analysis.calibration.ramp_table`; taken over d, the
+start's START_UM/R would differ between R and R_b, which moves the force at δ = 0.02 µm by
+10-30 %). A hold at constant height after a ramp to d_max (e_max), at τ = (t - t_end)/T since
+it began (T the ramp's time in contact):
 
-    F = R K_eff [γ̃ ĝ(d_max) + d_max q(d_max) r(τ; d_max, γ̃, K̃_S, β, R_b)],   r(0) = 1.
+    F = R K_eff [γ̃ ĝ(d_max) + e_max q(e_max) r(τ; d_max, γ̃, K̃_S, β, R_b)],   r(0) = 1.
 
 The bending stiffness B = t_c² (K_B(1 s) + K_S(1 s))/24 is elastic at K(1 s) (`solver.time_domain`),
 so its weight B/(K_eff R²) ∝ ρ^-β/R²: the table, made at RATE_PER_S = ρ_0, holds it at the
@@ -25,7 +28,7 @@ A node (`node_results`, one campaign task: `campaigns/powerlaw-table.toml`, the 
 `[params]` beta and depth_over_radius, the grid's volume_um3 (R_b), gamma_tilde (γ̃),
 ks_tilde (K̃_S) and bulk_mN_per_m (K_eff)) simulates the ramp at ρ_0 to d_max and a hold of
 TAU_MAX T, sampled at SAMPLE_HZ, and returns q at the RAMP_DEPTHS not deeper than d_max (0
-beyond) and r at the HOLD_TAUS. `from_store` (`cortex analysis build-powerlaw-table`) makes
+beyond) and r at the HOLD_TAUS; RAMP_DEPTHS are values of e. `from_store` (`cortex analysis build-powerlaw-table`) makes
 the table's document: q from each node's deepest d_max, r from every d_max; a node whose task
 failed is NaN (outside the table: `powerlaw_tabled`).
 """
@@ -44,7 +47,7 @@ from common.errors import InputError, SolverError
 RATE_PER_S = 0.3          # ρ_0 = v/R of the table's ramps (1/s)
 TAU_MAX = 150.0           # the hold's length in ramp times T
 SAMPLE_HZ = 1000.0        # the simulation's samples (its hold's first step 1/SAMPLE_HZ)
-RAMP_DEPTHS = 0.3 * np.linspace(0.0, 1.0, 33)[1:] ** 1.4           # d of q, to the shell table's deepest
+RAMP_DEPTHS = 0.295 * np.linspace(0.0, 1.0, 33)[1:] ** 1.4         # e of q, to the shell table's deepest d
 HOLD_TAUS = np.r_[0.0, np.geomspace(1e-3, TAU_MAX, 40)]             # τ of r
 FORMAT = "cortex-powerlaw-ramp-hold-table"
 TASK = "powerlaw_table"
@@ -55,13 +58,13 @@ RESULTS = tuple(f"ramp_q_d{i:02d}" for i in range(RAMP_DEPTHS.size)) + \
 
 def node_curves(radius_um: float, gamma_tilde: float, shear_tilde: float, beta: float, depth_over_radius: float,
                 bulk_eff_mN_per_m: float = 10.0) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """(q at RAMP_DEPTHS, NaN deeper than d_max; r at HOLD_TAUS) of one node (module doc)."""
+    """(q at RAMP_DEPTHS, NaN deeper than e_max; r at HOLD_TAUS) of one node (module doc)."""
     from analysis.afm.tension.powerlaw_simulated import START_UM, simulated
     from solver.droplet_table import unit_force_per_tension
     from solver.protocol import Hold
-    if not (0.0 <= beta < 1.0 and 0.0 < depth_over_radius <= RAMP_DEPTHS[-1] + 1e-12):
-        raise InputError(f"a power-law table node needs 0 <= beta < 1 and 0 < depth_over_radius <= "
-                         f"{RAMP_DEPTHS[-1]:g} (got {beta:g}, {depth_over_radius:g})")
+    if not (0.0 <= beta < 1.0 and 2 * START_UM / radius_um < depth_over_radius <= 0.3):
+        raise InputError(f"a power-law table node needs 0 <= beta < 1 and 2 START_UM/R < depth_over_radius <= 0.3 "
+                         f"(got {beta:g}, {depth_over_radius:g})")
     v = RATE_PER_S * radius_um
     depth = depth_over_radius * radius_um
     ramp_time = (depth - START_UM) / v
@@ -71,9 +74,10 @@ def node_curves(radius_um: float, gamma_tilde: float, shear_tilde: float, beta: 
     on = rec.time_s <= ramp_time + 1e-9
     d = (2.0 * radius_um - rec.height_um[on]) / radius_um
     phi = rec.force_nN[on] / unit - gamma_tilde * unit_force_per_tension(d)
-    reach = RAMP_DEPTHS <= depth_over_radius + 1e-12
+    e = d - START_UM / radius_um
+    reach = RAMP_DEPTHS <= e[-1] + 1e-12
     q = np.full(RAMP_DEPTHS.size, np.nan)
-    q[reach] = np.interp(RAMP_DEPTHS[reach], d, phi) / RAMP_DEPTHS[reach]
+    q[reach] = np.interp(RAMP_DEPTHS[reach], e, phi) / RAMP_DEPTHS[reach]
     end = float(phi[-1])
     held = rec.force_nN[~on] / unit - gamma_tilde * float(unit_force_per_tension(depth_over_radius))
     tau = np.r_[0.0, (rec.time_s[~on] - ramp_time) / ramp_time]
@@ -151,5 +155,5 @@ def _index(axis: np.ndarray, values: Any, absolute: bool = False) -> np.ndarray:
     return np.abs(gap if absolute else gap / axis[None, :]).argmin(axis=1)
 
 
-KIND = register(Kind(TASK, 1, dict.fromkeys(RESULTS, "1"), node_results, params=PARAMS,
+KIND = register(Kind(TASK, 2, dict.fromkeys(RESULTS, "1"), node_results, params=PARAMS,
                      doc="one node of the power-law ramp and hold table: q over the ramp, r over the hold"))

@@ -7,21 +7,21 @@ At q = (x0, γ_a, K_B(1 s), β), K̃_S and R, the protocol is the simulator's
 recorded heights over the contact, its end t_end at depth δ_max = START_UM + v (t_end - t_c). With
 ρ = v/R, K_eff = K_B(1 s) ρ^β, γ̃ = γ_a/K_eff, R_b = R (ρ/ρ_0)^(β/2) (`powerlaw_grid`):
 
-    ramp, t_c < t ≤ t_end, d = (START_UM + v (t - t_c))/R:
-        F = R K_eff [γ̃ ĝ(d) + d q(d)]
-    hold, τ = (t - t_end)/(t_end - t_c), d_max = δ_max/R:
-        F = R K_eff [γ̃ ĝ(d_max) + d_max q(d_max) r(τ; d_max)]
+    ramp, t_c < t ≤ t_end, e = v (t - t_c)/R, d = e + START_UM/R:
+        F = R K_eff [γ̃ ĝ(d) + e q(e)]
+    hold, τ = (t - t_end)/(t_end - t_c), d_max = δ_max/R, e_max = d_max - START_UM/R:
+        F = R K_eff [γ̃ ĝ(d_max) + e_max q(e_max) r(τ; d_max)]
 
 and before t_c the tension's alone, γ_a R ĝ(δ/R) at the recorded δ. q and r are interpolated over
 the nodes (ln R_b, ln γ̃, ln K̃_S, β and, for r, ln d_max) by local Lagrange polynomials through
 the POINTS nearest nodes of each axis (cubic; quadratic on an axis of three nodes), then along
-d by a cubic spline (scipy's `CubicSpline`; q held at its first node above the sphere, 0 before
+e by a cubic spline (scipy's `CubicSpline`; q held at its first node above the sphere, 0 before
 the contact) and along τ linearly in ln τ (linearly in τ below the first τ node, r(0) = 1).
 scipy's RegularGridInterpolator is cubic only with four nodes an axis and builds its splines
 over the whole grid at each call; the local weights are a contraction of 4^5 nodes.
 
 The table holds a recording (`TabledForce.inside`) where every parameter lies within its axes
-(EDGE_TOL beyond an end in its coordinate), the ramp within the deepest d, a hold at constant height within
+(EDGE_TOL beyond an end in its coordinate), the ramp within the deepest e, a hold at constant height within
 d_max's axis and TAU_MAX, and no node it reads failed; elsewhere (and for constant-force holds)
 `powerlaw_fit` simulates. `bench/powerlaw_ramp_hold.py --table` measures it against the simulator.
 """
@@ -54,7 +54,7 @@ EDGE_TOL = 1e-6         # how far beyond an axis's end (in its coordinate) still
 
 @dataclass(frozen=True)
 class PowerLawTable:
-    """The table's axes (coordinates: ln R_b, ln γ̃, ln K̃_S, β, ln d_max), its ramp depths d and hold
+    """The table's axes (coordinates: ln R_b, ln γ̃, ln K̃_S, β, ln d_max), its ramp depths e and hold
     times τ, q (R_b, γ̃, K̃_S, β, d) and r (R_b, γ̃, K̃_S, β, d_max, τ), and its ρ_0 (1/s)."""
 
     axes: tuple[Array, Array, Array, Array, Array]
@@ -134,7 +134,8 @@ class TabledForce:
         k_eff = bulk * rho ** beta
         coords = np.array([np.log(R * (rho / self.table.rate_per_s) ** (beta / 2)), np.log(max(gamma / k_eff, 1e-300)),
                            np.log(self.shear), beta])
-        curves = self.table.at(coords) if 0 < d_max <= self.table.depths[-1] + EDGE_TOL else None
+        e_max = d_max - START_UM / R
+        curves = self.table.at(coords) if 0 < e_max <= self.table.depths[-1] + EDGE_TOL else None
         held = t.size > h.ramp_samples
         self.inside = curves is not None and (not held or self._holds(d_max, t[-1] - t_end, t_end - t_c))
         if curves is None or not self.inside:
@@ -142,12 +143,12 @@ class TabledForce:
         q_d, r = curves
         force = gamma * R * unit_force_per_tension(np.minimum(np.clip(x0 - h.x_um, 0.0, None) / R, DEPTH_MAX))
         ramp = (t > t_c) & (np.arange(t.size) < h.ramp_samples)
-        d = (START_UM + v * (t[ramp] - t_c)) / R
-        force[ramp] = R * k_eff * (gamma / k_eff * unit_force_per_tension(d) + d * self._q(q_d, d))
+        e = v * (t[ramp] - t_c) / R
+        force[ramp] = R * k_eff * (gamma / k_eff * unit_force_per_tension(e + START_UM / R) + e * self._q(q_d, e))
         if held:
             tau = (t[h.ramp_samples:] - t_end) / (t_end - t_c)
             ratio = self._r(r, d_max, tau)
-            end = d_max * float(self._q(q_d, np.array([d_max]))[0])
+            end = e_max * float(self._q(q_d, np.array([e_max]))[0])
             force[h.ramp_samples:] = R * k_eff * (gamma / k_eff * float(unit_force_per_tension(d_max)) + end * ratio)
         return force
 
@@ -157,9 +158,9 @@ class TabledForce:
         return (self.history.hold == "height" and axis[0] - EDGE_TOL <= np.log(d_max) <= axis[-1] + EDGE_TOL
                 and hold_s / max(ramp_s, 1e-12) <= self.table.taus[-1] * (1 + 1e-9))
 
-    def _q(self, q_d: Array, d: Array) -> Array:
-        """q at the depths d: a cubic spline over the table's depths, held at the first below it."""
-        return CubicSpline(self.table.depths, q_d)(np.clip(d, self.table.depths[0], self.table.depths[-1]))
+    def _q(self, q_e: Array, e: Array) -> Array:
+        """q at the deformations e: a cubic spline over the table's, held at the first below it."""
+        return CubicSpline(self.table.depths, q_e)(np.clip(e, self.table.depths[0], self.table.depths[-1]))
 
     def _r(self, r: Array, d_max: float, tau: Array) -> Array:
         """r at d_max over τ (module doc)."""
