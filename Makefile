@@ -146,8 +146,8 @@ ramp-table: setup
 	$(BIN)/cortex analysis build-ramp-table results/ramp.h5 --out results/ramp-table
 	cp results/ramp-table/shell_ramp_table.json $(CALIBRATION)/shell_ramp_table.json
 
-# The power-law ramp and hold table (docs/tension-power-law.md): its campaign under mpiexec (5040
-# nodes, about 6 min on 2 ranks; reruns resume), then the table from the store, copied into the package.
+# The power-law ramp and hold table (docs/tension-power-law.md): its campaign under mpiexec (8400
+# nodes, about 20 min on 2 ranks; reruns resume), then the table from the store, copied into the package.
 .PHONY: powerlaw-table
 powerlaw-table: setup
 	$(BIN)/mpiexec -n $(NP) $(BIN)/cortex campaign run campaigns/powerlaw-table.toml --store results/powerlaw-table.h5

@@ -449,7 +449,7 @@ def even_times(x: np.ndarray, f: np.ndarray, speed_um_per_s: float) -> np.ndarra
 def _power_law_missing(why: str) -> dict[str, Any]:
     """The power-law columns of a ramp without that reading: NaN, and why in `power_law_note`."""
     return {**{c: float("nan") for c in POWER_LAW_COLUMNS}, "power_law_shear_ratio_source": "",
-            "power_law_hold": "none", "power_law_note": why}
+            "power_law_hold": "none", "power_law_model": "", "power_law_note": why}
 
 
 def _analyse_all(traces: list[Trace], options: Options) -> tuple[dict[str, Analysed], dict[str, str]]:

@@ -16,7 +16,17 @@ most RAMP_POINTS, the hold's in HOLD_BINS bins log-spaced in the time since the 
 began; each mean is weighted by its count (residual sqrt(n_b) (model - mean)), so a
 white noise of SD σ gives every weighted residual SD σ.
 
-Fit: defect correction (output space mapping). The simulator is the model; the surrogate
+Fit, where the power-law table holds the recording (`powerlaw_tabled`: a ramp alone or with a
+constant-height hold, every parameter within the table's axes): the least squares of the tabled
+simulator in q = (x0, γ_a, K_B(1 s), β), (F_b, s) solved linearly at each q (variable
+projection), from START_BULK × START_BETA (K_B(1 s) = k T, γ_a = T/2, T the droplet's tension),
+the best kept; SDs from its Jacobian; no simulation (`tabled_fit`; the table is within 1.3 % of
+the simulator's peak force on 40 held-out cells, `bench/powerlaw_ramp_hold.py --table`). Every
+later fit (β's and K̃_S's profiles) is the tabled one where it stays inside, the defect
+correction below where it leaves the table (`correct`).
+
+Elsewhere (a constant-force hold; a fit outside the table's axes): defect correction (output
+space mapping). The simulator is the model; the surrogate
 (`powerlaw_shell`: the elastic shell's energy carried as one strain with Boltzmann
 superposition; within a few per cent of the simulator, cheap) its proxy. First the surrogate
 by least squares in θ = (x0, F_b, s, γ_a, K_B(1 s), β) from START_BULK × START_BETA (where the

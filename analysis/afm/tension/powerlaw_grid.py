@@ -44,7 +44,7 @@ import numpy.typing as npt
 from campaign.kinds import Kind, register
 from common.errors import InputError, SolverError
 
-RATE_PER_S = 0.3          # ρ_0 = v/R of the table's ramps (1/s)
+RATE_PER_S = 0.15         # ρ_0 = v/R of the table's ramps (1/s)
 TAU_MAX = 150.0           # the hold's length in ramp times T
 SAMPLE_HZ = 1000.0        # the simulation's samples (its hold's first step 1/SAMPLE_HZ)
 RAMP_DEPTHS = 0.295 * np.linspace(0.0, 1.0, 33)[1:] ** 1.4         # e of q, to the shell table's deepest d
@@ -155,5 +155,5 @@ def _index(axis: np.ndarray, values: Any, absolute: bool = False) -> np.ndarray:
     return np.abs(gap if absolute else gap / axis[None, :]).argmin(axis=1)
 
 
-KIND = register(Kind(TASK, 2, dict.fromkeys(RESULTS, "1"), node_results, params=PARAMS,
+KIND = register(Kind(TASK, 3, dict.fromkeys(RESULTS, "1"), node_results, params=PARAMS,
                      doc="one node of the power-law ramp and hold table: q over the ramp, r over the hold"))

@@ -8,7 +8,9 @@ while its force stays within FORCE_HOLD_SDS noise SDs); `power_law_hold` says wh
 oscillations' prior's K̃_S at the ramp's time scale taken as given (PRIOR,
 `priors.Prior.shear_tilde`), else profiled (PROFILED, `powerlaw_shear`: its 95 % interval in
 `power_law_shear_ratio_lo95`/`_hi95`; given: both the value); `power_law_shear_ratio_source`
-says which. A ramp without sample times, or one the fit cannot read, gets the reason in
+says which. `power_law_model` says whether the reading's fit read the power-law table (`table`,
+`powerlaw_tabled`) or simulated (`simulator`: a constant-force hold, or a fit outside the table).
+A ramp without sample times, or one the fit cannot read, gets the reason in
 `power_law_note` and no values.
 """
 
@@ -28,8 +30,9 @@ FORCE_HOLD_SDS = 3.0
 COLUMNS = ("power_law_tension_mN_per_m", "power_law_tension_lo95_mN_per_m", "power_law_tension_hi95_mN_per_m",
            "power_law_bulk_1s_mN_per_m", "power_law_bulk_1s_sd_mN_per_m", "power_law_exponent",
            "power_law_exponent_sd", "power_law_shear_ratio", "power_law_shear_ratio_lo95", "power_law_shear_ratio_hi95",
-           "power_law_shear_ratio_source", "power_law_hold", "power_law_note")
+           "power_law_shear_ratio_source", "power_law_hold", "power_law_model", "power_law_note")
 GIVEN, PRIOR, PROFILED = "given", "oscillation prior", "profiled"
+TABLE, SIMULATOR = "table", "simulator"     # power_law_model: the tabled simulator or the simulator itself
 
 
 def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
@@ -59,7 +62,7 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
     source = GIVEN if shear_tilde is not None else PRIOR if prior is not None else PROFILED
     shear = shear_tilde if shear_tilde is not None else prior.shear_tilde if prior is not None else None
     out: dict[str, Any] = {k: float("nan") for k in COLUMNS}
-    out.update(power_law_shear_ratio_source=source, power_law_hold="none", power_law_note="")
+    out.update(power_law_shear_ratio_source=source, power_law_hold="none", power_law_model="", power_law_note="")
     if shear is not None:
         out.update(power_law_shear_ratio=shear, power_law_shear_ratio_lo95=shear, power_law_shear_ratio_hi95=shear)
     end = int(np.argmin(x)) + 1                          # the ramp up to its deepest sample
@@ -80,7 +83,7 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
     out.update(power_law_tension_mN_per_m=fit.tension_mN_per_m, power_law_tension_lo95_mN_per_m=lo,
                power_law_tension_hi95_mN_per_m=hi, power_law_bulk_1s_mN_per_m=fit.bulk_1s_mN_per_m,
                power_law_bulk_1s_sd_mN_per_m=fit.bulk_1s_sd_mN_per_m, power_law_exponent=fit.beta,
-               power_law_exponent_sd=fit.beta_sd)
+               power_law_exponent_sd=fit.beta_sd, power_law_model=TABLE if fit.tabled else SIMULATOR)
     if fit.shear_band is not None:
         out.update(power_law_shear_ratio=fit.shear_tilde, power_law_shear_ratio_lo95=fit.shear_band[0],
                    power_law_shear_ratio_hi95=fit.shear_band[1])

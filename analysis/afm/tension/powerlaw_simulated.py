@@ -19,20 +19,13 @@ the ramp's time scale; at the truth x_model = x and the term vanishes). It is si
 own) and read at the sample times (linear between the simulation's samples); before
 t_c the force is the tension's alone, γ_a R ĝ(δ/R) (`shell_ramp`).
 
-The simulated force depends on the simulator's step: its contact search leaves the
-history's share G_hist of dE*/dl out of the contact line's balance (CONTACT_HISTORY False,
-`solver.time_domain`'s `contact_history`), and the elastic share g_l it balances alone swings
-with the step's effective modulus K_Δt (R 7 µm, γ_a 1, K_B(1 s) 20, K̃_S 0.5, β 0.2, 1 µm/s:
-the force falls about 1 % with each halving of the ramp's step, 4 % from 0.04 to 0.005 µm,
-and FINE reads 5 % below the converged force; a hold's force 10 s on moves 3.5 % with its
-first step 1 ms instead of 10 ms). With the share the steps agree within 0.1 % and the force
-is as smooth in the parameters (docs/studies/contact-history.md), but with it in cells and model
-3 of the 14 tests of tests/test_powerlaw_ramp_hold.py fail when read by the simulator's own
-least squares (`powerlaw_fit.solve`; not measured with the defect correction: the ramp-alone cell
-reads γ_a 2.10 for 1.72 at a lower SSE than the truth's), so the model stays without it, a smooth function of
-its parameters at RESOLUTION (docs/tension-power-law.md).
-RESOLUTION and CONTACT_HISTORY are the ones that make the synthetic recordings
-(`studies.powerlaw_ramps`).
+The contact search carries the history's share G_hist of dE*/dl in the contact line's balance
+(CONTACT_HISTORY, `solver.time_domain`'s `contact_history`): with it the ramp's steps agree
+within 0.1 % and a hold's first step moves its force by 7e-5 (without it FINE reads 5 % below
+the converged force and swings with the step; docs/studies/contact-history.md), so the force
+is the shell's, not its step's, and scales as `powerlaw_grid` tables it. RESOLUTION and
+CONTACT_HISTORY are the ones that make the synthetic recordings (`studies.powerlaw_ramps`) and
+the power-law table (`powerlaw_grid`).
 """
 
 from dataclasses import dataclass
