@@ -5,7 +5,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, shipped_path
+from analysis.calibration.file import POWERLAW_TABLE_NAME, RAMP_TABLE_NAME, TABLE_NAME, shipped_path
 
 
 def bundle_copy(folder: Path, parts: dict[str, Any] | None = None) -> Path:
@@ -13,7 +13,7 @@ def bundle_copy(folder: Path, parts: dict[str, Any] | None = None) -> Path:
     `parts` (file name -> its JSON document) written instead of the shipped one; the manifest's path."""
     parts = parts or {}
     shutil.copy(shipped_path(), folder / "calibration.json")
-    for name in (TABLE_NAME, RAMP_TABLE_NAME):
+    for name in (TABLE_NAME, RAMP_TABLE_NAME, POWERLAW_TABLE_NAME):
         if name in parts:
             (folder / name).write_text(json.dumps(parts[name]))
         else:

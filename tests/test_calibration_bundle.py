@@ -8,7 +8,7 @@ import shutil
 import numpy as np
 import pytest
 
-from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
+from analysis.calibration.file import POWERLAW_TABLE_NAME, RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
 from analysis.calibration.law import Calibration
 from bundles import bundle_copy
 from common.errors import InputError
@@ -51,7 +51,7 @@ def test_a_law_only_file_borrows_nothing_unless_its_manifest_says_so(law_only, t
 
 def test_the_shipped_bundle_says_shipped_for_every_part():
     assert load_calibration(None).sources == {p: "shipped" for p in ("law", "emulator", "viscoelastic_table",
-                                                                         "ramp_table")}
+                                                                         "ramp_table", "powerlaw_table")}
 
 
 def test_replacing_the_viscoelastic_table_changes_only_the_complex_factor(tmp_path):
@@ -95,7 +95,7 @@ def test_the_manifest_round_trips(tmp_path):
     cal = _bundle(tmp_path)
     first = load_calibration(cal)
     assert first.manifest == {"law": "embedded", "emulator": "embedded", "viscoelastic_table": TABLE_NAME,
-                              "ramp_table": RAMP_TABLE_NAME}
+                              "ramp_table": RAMP_TABLE_NAME, "powerlaw_table": POWERLAW_TABLE_NAME}
     again = tmp_path / "again.json"
     again.write_text(json.dumps({**json.loads(cal.read_text()), "parts": first.manifest}))
     second = load_calibration(again)
@@ -122,7 +122,10 @@ def test_settings_defaults_are_the_commands(tmp_path):
 
 def test_a_built_bundle_names_the_tables_beside_it_or_borrows_the_shipped_ones(tmp_path):
     from analysis.calibration.file import _table_parts
-    assert _table_parts(tmp_path) == {"viscoelastic_table": "shipped", "ramp_table": "shipped"}
+    assert _table_parts(tmp_path) == {"viscoelastic_table": "shipped", "ramp_table": "shipped",
+                                      "powerlaw_table": "shipped"}
     shutil.copy(shipped_path(TABLE_NAME), tmp_path / TABLE_NAME)
-    assert _table_parts(tmp_path) == {"viscoelastic_table": TABLE_NAME, "ramp_table": "shipped"}
-    assert _table_parts(shipped_path().parent) == {"viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME}
+    assert _table_parts(tmp_path) == {"viscoelastic_table": TABLE_NAME, "ramp_table": "shipped",
+                                      "powerlaw_table": "shipped"}
+    assert _table_parts(shipped_path().parent) == {"viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME,
+                                                   "powerlaw_table": POWERLAW_TABLE_NAME}

@@ -7,6 +7,7 @@ The parts (`PARTS`; adding one, e.g. a correction table, is one line there):
     emulator            the spline of the solver's K/K_B per bending variant (`emulator`)
     viscoelastic_table  the complex-modulus correspondence factor C (`viscoelastic_table`)
     ramp_table          the shell ramp table of `cortex afm tension` (`ramp_table`)
+    powerlaw_table      the power-law ramp and hold table of its power-law reading (`powerlaw_table`)
 
 Layout of the file (a JSON document, versioned):
 
@@ -46,6 +47,9 @@ from typing import Any, Callable
 
 from analysis.calibration.emulator import Emulator, from_results
 from analysis.calibration.law import FORMAT, Calibration, _nan_to_none, read_document
+from analysis.calibration.powerlaw_table import NAME as POWERLAW_TABLE_NAME
+from analysis.calibration.powerlaw_table import PowerLawTable
+from analysis.calibration.powerlaw_table import from_document as powerlaw_from_document
 from analysis.calibration.ramp_table import NAME as RAMP_TABLE_NAME
 from analysis.calibration.ramp_table import ShellTable
 from analysis.calibration.ramp_table import from_document as ramp_from_document
@@ -60,7 +64,8 @@ EMBEDDED = "embedded"                           # a manifest entry: in this docu
 
 
 SHIPPED_WHERE = "the shipped calibration"      # how messages name the default file
-SHIPPED_PARTS = {"viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME}   # the built file's manifest
+SHIPPED_PARTS = {"viscoelastic_table": TABLE_NAME, "ramp_table": RAMP_TABLE_NAME,
+                 "powerlaw_table": POWERLAW_TABLE_NAME}      # the built file's manifest
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,7 @@ PARTS: dict[str, Part] = {
     "viscoelastic_table": Part(None, lambda doc, where: ComplexTable.from_json(doc, where=where),
                                "make viscoelastic-table"),
     "ramp_table": Part(None, lambda doc, where: ramp_from_document(doc, where), "make ramp-table"),
+    "powerlaw_table": Part(None, lambda doc, where: powerlaw_from_document(doc, where), "make powerlaw-table"),
 }
 
 
@@ -137,6 +143,12 @@ class CalibrationFile:
     def shell_ramp(self) -> ShellTable:
         """The shell ramp table of `cortex afm tension` (read on first use)."""
         table: ShellTable = self.part("ramp_table")
+        return table
+
+    @cached_property
+    def powerlaw(self) -> PowerLawTable:
+        """The power-law ramp and hold table of `cortex afm tension` (read on first use)."""
+        table: PowerLawTable = self.part("powerlaw_table")
         return table
 
 

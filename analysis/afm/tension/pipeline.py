@@ -75,6 +75,7 @@ from analysis.afm.tension.shell_shear import fit_unknown_shear, identification
 from analysis.afm.tension.pause import TENSION_ERRORS, pause_tension, pressure_Pa, ramp_interval
 from analysis.afm.tension.relaxation import fit_relaxation, relaxation_columns
 from analysis.afm.tension.report import REPORT, TABLE, Analysed, file_names, headline, write
+from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from analysis.invert.measurement_errors import MeasurementErrors
 from common.beside import beside
@@ -91,7 +92,8 @@ class Options:
     """What to analyse with: the ramp model (and for the shell: whether the recording's
     oscillations give it priors, K̃_S, K_B if known, the deepest deformation), how to read the files (one of the volume sources, the dish reference; heights
     refer to the approach's contact point without one), the errors, and the calibration parts
-    (`calibration_parts`: the shell ramp table, the priors' bundle; None: the shipped ones)."""
+    (`calibration_parts`: the shell ramp table, the priors' bundle, the power-law table; None: the
+    shipped ones)."""
 
     model: str = "shell"
     oscillation_priors: bool = True           # the shell's priors from the recording's oscillations (`priors`)
@@ -109,6 +111,11 @@ class Options:
     def table(self) -> ShellTable | None:
         """The shell ramp table every fit reads (None: the shipped one, `shell_ramp.resolve`)."""
         return None if self.calibration is None else self.calibration.table
+
+    @property
+    def powerlaw_table(self) -> PowerLawTable | None:
+        """The power-law table the power-law reading reads (None: the shipped one, `powerlaw_tabled.resolve`)."""
+        return None if self.calibration is None else self.calibration.powerlaw
 
 
 @dataclass
@@ -423,7 +430,8 @@ def _power_law(trace: Trace, k: int, options: Options, radius: float, ramp_prior
     try:
         if not np.all(np.isfinite(t)) and options.ramp_speed_um_per_s is not None:
             t, pause, note = even_times(x, f, options.ramp_speed_um_per_s), None, TIMES_FROM_SPEED
-        columns = power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table)
+        columns = power_law_columns((t, x, f), pause, radius, options.shear_tilde, ramp_prior, options.table,
+                                    options.powerlaw_table)
     except InputError as err:
         return _power_law_missing(f"not read: {err}")
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as err:

@@ -74,6 +74,7 @@ from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.powerlaw_simulated import RampHold
 from analysis.afm.tension.ramp import RampFit, fit_ramp
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
+from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
@@ -360,13 +361,14 @@ def _broyden(slope: Array, miss: Array, step: Array, scale: Array) -> Array:
     return slope + np.outer(miss, w) / (step @ w) if step @ w > 0 else slope
 
 
-def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None) -> Solved | None:
-    """The least squares of the tabled simulator (`powerlaw_tabled`, the shipped table) from q0, β
-    free or fixed at `beta`; None where there is no table, the hold is not one it holds, or the fit
-    ends outside it (the caller then simulates)."""
-    table = powerlaw_tabled.shipped()
-    if table is None or (s.raw_time_s.size > s.raw_ramp and s.hold != "height"):
+def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
+               powerlaw: PowerLawTable | None = None) -> Solved | None:
+    """The least squares of the tabled simulator (`powerlaw_tabled`) on the power-law table
+    `powerlaw` (None: the shipped one) from q0, β free or fixed at `beta`; None where the hold is
+    not one it holds or the fit ends outside it (the caller then simulates)."""
+    if s.raw_time_s.size > s.raw_ramp and s.hold != "height":
         return None
+    table = powerlaw_tabled.resolve(powerlaw)
     force = powerlaw_tabled.TabledForce(s.history, radius, shear, table)
     resid = _Projected(s, radius, shear, beta, tabled=force)
     fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
@@ -376,14 +378,15 @@ def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float |
 
 def correct(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
             correction: Correction | None = None, table: ShellTable | None = None,
-            cap: int = SIMULATIONS) -> Solved:
+            cap: int = SIMULATIONS, powerlaw: PowerLawTable | None = None) -> Solved:
     """The tabled simulator's fit from q0 where the power-law table holds it (`tabled_fit`), else
     the defect correction from q0 (module doc), β free or fixed at `beta`: the corrected
     surrogate fitted first with `correction` where given (a neighbour's; none: q0 is the
     surrogate's own fit), then at most `cap` simulations, each refreshing the correction's
     offset at the current q (a constant-force hold: to first order, its slope made once, or
-    the neighbour's kept); the surrogate on the shell ramp table `table`."""
-    fast = tabled_fit(s, radius, shear, np.asarray(q0, float)[:3 if beta is not None else 4], beta)
+    the neighbour's kept); the surrogate on the shell ramp table `table`, the tabled simulator on
+    the power-law table `powerlaw` (None: the shipped ones)."""
+    fast = tabled_fit(s, radius, shear, np.asarray(q0, float)[:3 if beta is not None else 4], beta, powerlaw)
     if fast is not None:
         return fast
     q = start = np.asarray(q0, float)[:3 if beta is not None else 4]
@@ -433,8 +436,8 @@ def _rescaled_bulk(q: Array, beta: float, s: Samples) -> float:
     return float(q[2] * span ** (beta - q[3]))
 
 
-def _beta_profile(s: Samples, radius: float, shear: float, best: Solved,
-                  table: ShellTable | None) -> list[tuple[float, Solved]]:
+def _beta_profile(s: Samples, radius: float, shear: float, best: Solved, table: ShellTable | None,
+                  powerlaw: PowerLawTable | None = None) -> list[tuple[float, Solved]]:
     """[(β, the fit at β fixed)] at each β of PROFILE_BETAS, each from `best`'s correction (module
     doc); a β where the simulator finds no equilibrium left out."""
     nodes = []
@@ -442,7 +445,7 @@ def _beta_profile(s: Samples, radius: float, shear: float, best: Solved,
         try:
             nodes.append((beta, correct(s, radius, shear, np.array([best.q[0], best.q[1],
                                                                     _rescaled_bulk(best.q, beta, s)]),
-                                        beta, best.correction, table, PROFILE_SIMULATIONS)))
+                                        beta, best.correction, table, PROFILE_SIMULATIONS, powerlaw)))
         except SolverError:
             continue                    # the simulator finds no equilibrium there: β left out
     return nodes
@@ -485,15 +488,15 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
     return samples(t, x, f, ramp_samples, drop.window, hold), drop
 
 
-def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
-          table: ShellTable | None = None) -> tuple[Solved, Array]:
+def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: ShellTable | None = None,
+          powerlaw: PowerLawTable | None = None) -> tuple[Solved, Array]:
     """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
-    START_BETA where the power-law table holds it (`tabled_fit`), else the defect correction's from
+    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`), else the defect correction's from
     the surrogate's best (on the shell ramp table `table`, None: the shipped one). Where the
     simulator finds no equilibrium there (a droplet-like valley, K_B(1 s) near γ_a), from the
     surrogate's next best fit, then from those of the RESCUE_STARTS."""
     fits = [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
-                                                                 kb * drop.tension_mN_per_m, beta]))
+                                                                 kb * drop.tension_mN_per_m, beta]), None, powerlaw)
                         for kb in START_BULK for beta in START_BETA) if f is not None]
     if fits:
         best = min(fits, key=lambda f: f.sse)
@@ -501,25 +504,28 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit,
     for starts in ((START_BULK, START_BETA), RESCUE_STARTS):
         for p in surrogate_fits(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table, starts):
             try:
-                return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table), p
+                return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table, powerlaw=powerlaw), p
             except SolverError:
                 continue
     raise SolverError("the simulator finds no equilibrium at any of the surrogate's fits")
 
 
 def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate: Array,
-             other_sse: float = np.inf, profiled: int = 0, table: ShellTable | None = None) -> PowerLawFit:
+             other_sse: float = np.inf, profiled: int = 0, table: ShellTable | None = None,
+             powerlaw: PowerLawTable | None = None) -> PowerLawFit:
     """The fit from the defect correction's `best` at K̃_S `shear`: without a hold β's profile
     (module doc), σ² from the lowest SSE (also `other_sse`, of fits elsewhere) over n - 6 -
     `profiled` (the parameters profiled besides), the SDs and γ_a's band over β's nodes, the
-    simulations of `best` and β's profile counted; the surrogate on the table `table`."""
+    simulations of `best` and β's profile counted; the surrogate on the table `table`, the
+    tabled simulator on `powerlaw`."""
     held = s.raw_time_s.size > s.raw_ramp
-    nodes = [] if held else _beta_profile(s, radius_um, shear, best, table)
+    nodes = [] if held else _beta_profile(s, radius_um, shear, best, table, powerlaw)
     runs = best.simulations + sum(n.simulations for _, n in nodes)
     if nodes:
         beta, node = min(nodes, key=lambda n: n[1].sse)
         if node.sse < best.sse:
-            again = correct(s, radius_um, shear, np.append(node.q, beta), correction=node.correction, table=table)
+            again = correct(s, radius_um, shear, np.append(node.q, beta), correction=node.correction, table=table,
+                            powerlaw=powerlaw)
             runs += again.simulations
             best = again if again.sse < best.sse else best
     sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
@@ -545,11 +551,12 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
 
 def fit_ramp_hold(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike, ramp_samples: int,
                   radius_um: float, shear_tilde: float = SHEAR_TILDE, hold: str = "height",
-                  table: ShellTable | None = None) -> PowerLawFit:
+                  table: ShellTable | None = None, powerlaw: PowerLawTable | None = None) -> PowerLawFit:
     """The power-law shell fitted to a ramp (the first `ramp_samples` samples, ending at its
     deepest) and the hold after it (the rest; none: the ramp alone) at constant `hold`
     ("height" or "force"), K̃_S `shear_tilde` given (`powerlaw_shear`: profiled); the surrogate
-    on the shell ramp table `table` (None: the shipped one)."""
+    on the shell ramp table `table`, the tabled simulator on the power-law table `powerlaw` (None:
+    the shipped ones)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
-    best, p = start(s, radius_um, shear_tilde, drop, table)
-    return conclude(s, radius_um, shear_tilde, best, p, table=table)
+    best, p = start(s, radius_um, shear_tilde, drop, table, powerlaw)
+    return conclude(s, radius_um, shear_tilde, best, p, table=table, powerlaw=powerlaw)

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from analysis.calibration.powerlaw_table import FORMAT
 from campaign.kinds import Kind, register
 from common.errors import InputError, SolverError
 
@@ -49,7 +50,6 @@ TAU_MAX = 150.0           # the hold's length in ramp times T
 SAMPLE_HZ = 1000.0        # the simulation's samples (its hold's first step 1/SAMPLE_HZ)
 RAMP_DEPTHS = 0.295 * np.linspace(0.0, 1.0, 33)[1:] ** 1.4         # e of q, to the shell table's deepest d
 HOLD_TAUS = np.r_[0.0, np.geomspace(1e-3, TAU_MAX, 40)]             # τ of r
-FORMAT = "cortex-powerlaw-ramp-hold-table"
 TASK = "powerlaw_table"
 PARAMS = {"beta": "1", "depth_over_radius": "1"}
 RESULTS = tuple(f"ramp_q_d{i:02d}" for i in range(RAMP_DEPTHS.size)) + \
@@ -81,7 +81,7 @@ def node_curves(radius_um: float, gamma_tilde: float, shear_tilde: float, beta: 
     end = float(phi[-1])
     held = rec.force_nN[~on] / unit - gamma_tilde * float(unit_force_per_tension(depth_over_radius))
     tau = np.r_[0.0, (rec.time_s[~on] - ramp_time) / ramp_time]
-    r = np.interp(HOLD_TAUS, tau, np.r_[end, held]) / end
+    r = np.asarray(np.interp(HOLD_TAUS, tau, np.r_[end, held]), float) / end
     return q, r
 
 
@@ -99,7 +99,7 @@ def node_results(point: Any) -> dict[str, float]:
 
 def table_document(radii_um: npt.ArrayLike, gammas: npt.ArrayLike, shears: npt.ArrayLike, betas: npt.ArrayLike,
                    depths: npt.ArrayLike, q: np.ndarray, r: np.ndarray) -> dict[str, Any]:
-    """The table's JSON document (`powerlaw_tabled.PowerLawTable`): its axes, q of shape
+    """The table's JSON document (`analysis.calibration.powerlaw_table.PowerLawTable`): its axes, q of shape
     (radius, gamma, shear, beta, RAMP_DEPTHS) and r of shape (radius, gamma, shear, beta, d_max,
     HOLD_TAUS), NaN (null) where a node failed."""
     def plain(a: np.ndarray) -> Any:           # six significant digits (the table's error is 1e-3), null: NaN

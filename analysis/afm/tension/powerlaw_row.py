@@ -22,6 +22,7 @@ from analysis.afm.tension.powerlaw_fit import PowerLawFit, fit_ramp_hold
 from analysis.afm.tension.powerlaw_shear import fit_ramp_hold_profiled
 from analysis.afm.tension.priors import Prior
 from analysis.afm.tension.ramp import baseline_noise
+from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
 
@@ -44,20 +45,22 @@ def hold_kind(x_um: np.ndarray, force_nN: np.ndarray, noise_nN: float) -> str:
 
 
 def _fit(t: np.ndarray, x: np.ndarray, f: np.ndarray, end: int, radius_um: float, shear_tilde: float | None,
-         hold: str, table: ShellTable | None) -> PowerLawFit:
-    """The fit at the given K̃_S, or with it profiled (None); `table` the shell ramp table."""
+         hold: str, table: ShellTable | None, powerlaw: PowerLawTable | None) -> PowerLawFit:
+    """The fit at the given K̃_S, or with it profiled (None); `table` the shell ramp table,
+    `powerlaw` the power-law table."""
     if shear_tilde is None:
-        return fit_ramp_hold_profiled(t, x, f, end, radius_um, hold, table)
-    return fit_ramp_hold(t, x, f, end, radius_um, shear_tilde, hold, table)
+        return fit_ramp_hold_profiled(t, x, f, end, radius_um, hold, table, powerlaw)
+    return fit_ramp_hold(t, x, f, end, radius_um, shear_tilde, hold, table, powerlaw)
 
 
 def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
                       pause: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
                       radius_um: float, shear_tilde: float | None, prior: Prior | None = None,
-                      table: ShellTable | None = None) -> dict[str, Any]:
+                      table: ShellTable | None = None, powerlaw: PowerLawTable | None = None) -> dict[str, Any]:
     """The columns (COLUMNS) of one approach (t s, x µm, F nN) and the pause after it (or None),
     K̃_S `shear_tilde` given, else the oscillations' `prior`'s, else profiled (module doc);
-    `table` the shell ramp table of the surrogate (None: the shipped one)."""
+    `table` the shell ramp table of the surrogate, `powerlaw` the power-law table of the tabled
+    simulator (None: the shipped ones)."""
     t, x, f = ramp
     source = GIVEN if shear_tilde is not None else PRIOR if prior is not None else PROFILED
     shear = shear_tilde if shear_tilde is not None else prior.shear_tilde if prior is not None else None
@@ -75,7 +78,8 @@ def power_law_columns(ramp: tuple[np.ndarray, np.ndarray, np.ndarray],
         out.update(power_law_hold="none", power_law_note="no sample times")
         return out
     try:
-        fit = _fit(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height", table)
+        fit = _fit(t, x, f, end, radius_um, shear, out["power_law_hold"] if pause is not None else "height", table,
+                   powerlaw)
     except (InputError, SolverError) as err:
         out.update(power_law_note=f"not read: {err}")
         return out

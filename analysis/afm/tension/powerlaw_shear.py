@@ -37,6 +37,7 @@ from analysis.afm.tension.powerlaw_fit import (PROFILE_SIMULATIONS, PowerLawFit,
 from analysis.afm.tension.ramp import RampFit
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.afm.tension.shell_shear import profile_bands
+from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import SolverError
 
@@ -54,29 +55,31 @@ def _vertex(u: npt.NDArray[np.float64], sse: npt.NDArray[np.float64]) -> float |
     return float(np.clip(-b / (2.0 * a), u[0], u[-1])) if a > 0 else None
 
 
-def _at(s: Samples, radius_um: float, shear: float, near: Solved, table: ShellTable | None) -> Solved | None:
+def _at(s: Samples, radius_um: float, shear: float, near: Solved, table: ShellTable | None,
+        powerlaw: PowerLawTable | None = None) -> Solved | None:
     """The fit at K̃_S `shear` from the fit `near` (a neighbour's): its q and correction,
     refreshed by at most PROFILE_SIMULATIONS simulations (`powerlaw_fit.correct`); None where
     the simulator finds no equilibrium (the point left out of the profile)."""
     try:
-        return correct(s, radius_um, shear, near.q, correction=near.correction, table=table, cap=PROFILE_SIMULATIONS)
+        return correct(s, radius_um, shear, near.q, correction=near.correction, table=table, cap=PROFILE_SIMULATIONS,
+                       powerlaw=powerlaw)
     except SolverError:
         return None
 
 
-def _profile(s: Samples, radius_um: float, drop: RampFit,
-             table: ShellTable | None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
+def _profile(s: Samples, radius_um: float, drop: RampFit, table: ShellTable | None,
+             powerlaw: PowerLawTable | None = None) -> tuple[dict[float, Solved], npt.NDArray[np.float64]]:
     """{K̃_S: the defect correction's fit there} over the nodes and the vertex (module doc; a
     node the simulator cannot run left out), and the surrogate's θ at the first node (on the
     shell ramp table `table`, None: the shipped one)."""
     nodes = [float(v) for v in np.geomspace(*SHEAR_RANGE, NODES)]
     first = int(np.argmin(np.abs(np.log(np.array(nodes) / SHEAR_TILDE))))
     done: dict[float, Solved] = {}
-    done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table)
+    done[nodes[first]], p = start(s, radius_um, nodes[first], drop, table, powerlaw)
     for way in (range(first + 1, NODES), range(first - 1, -1, -1)):
         near = done[nodes[first]]
         for k in way:
-            fit = _at(s, radius_um, nodes[k], near, table)
+            fit = _at(s, radius_um, nodes[k], near, table, powerlaw)
             if fit is not None:
                 done[nodes[k]] = near = fit
     have = [v for v in nodes if v in done]
@@ -85,25 +88,27 @@ def _profile(s: Samples, radius_um: float, drop: RampFit,
         u = np.log(have[b - 1:b + 2])
         top = _vertex(u, np.array([done[v].sse for v in have[b - 1:b + 2]]))
         if top is not None and np.min(np.abs(u - top)) > NEAR:
-            fit = _at(s, radius_um, float(np.exp(top)), done[have[b]], table)
+            fit = _at(s, radius_um, float(np.exp(top)), done[have[b]], table, powerlaw)
             if fit is not None:
                 done[float(np.exp(top))] = fit
     return done, p
 
 
-def _settle(s: Samples, radius_um: float, shear: float, fit: Solved, table: ShellTable | None) -> Solved:
+def _settle(s: Samples, radius_um: float, shear: float, fit: Solved, table: ShellTable | None,
+            powerlaw: PowerLawTable | None = None) -> Solved:
     """A profile point's fit with its correction carried on to the tolerances (`powerlaw_fit.correct`;
     as it was where the simulator finds no equilibrium on the way)."""
     if fit.converged:
         return fit
     try:
-        more = correct(s, radius_um, shear, fit.q, correction=fit.correction, table=table)
+        more = correct(s, radius_um, shear, fit.q, correction=fit.correction, table=table, powerlaw=powerlaw)
     except SolverError:
         return fit
     return replace(more, simulations=fit.simulations + more.simulations)
 
 
-def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float, table: ShellTable | None) -> None:
+def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float, table: ShellTable | None,
+          powerlaw: PowerLawTable | None = None) -> None:
     """Each end of K̃_S's interval located between the points of the profile `done` (module
     doc), the two points around it first settled; the fits added to `done`."""
     settled: set[float] = set()
@@ -121,7 +126,7 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
             rough = [v for v in (shears[j], shears[k]) if not done[v].converged and v not in settled]
             if rough:
                 for v in rough:
-                    done[v] = _settle(s, radius_um, v, done[v], table)
+                    done[v] = _settle(s, radius_um, v, done[v], table, powerlaw)
                     settled.add(v)
                 continue
             u_in, u_out = np.log(shears[j]), np.log(shears[k])
@@ -129,43 +134,44 @@ def _ends(s: Samples, radius_um: float, done: dict[float, Solved], sigma2: float
                 break
             u = float(u_in + (u_out - u_in) * -z[j] / (z[k] - z[j]))
             near = shears[j] if abs(u - u_in) <= abs(u - u_out) else shears[k]
-            fit = _at(s, radius_um, float(np.exp(u)), done[near], table)
+            fit = _at(s, radius_um, float(np.exp(u)), done[near], table, powerlaw)
             if fit is None:
                 break
-            done[float(np.exp(u))] = _settle(s, radius_um, float(np.exp(u)), fit, table)
+            done[float(np.exp(u))] = _settle(s, radius_um, float(np.exp(u)), fit, table, powerlaw)
             fits += 1
 
 
 def _best(s: Samples, radius_um: float, done: dict[float, Solved], p: npt.NDArray[np.float64],
-          table: ShellTable | None) -> tuple[float, PowerLawFit]:
+          table: ShellTable | None, powerlaw: PowerLawTable | None = None) -> tuple[float, PowerLawFit]:
     """The best K̃_S of the profile `done` and the reading there (`powerlaw_fit.conclude`, σ²
     from the lowest SSE), its correction carried on to the tolerances first where its node's
     stopped short; its SSE in `done` lowered to the reading's (β's restart may fit better)."""
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])
     b = int(np.argmin(sse))
-    node = _settle(s, radius_um, shears[b], done[shears[b]], table)
+    node = _settle(s, radius_um, shears[b], done[shears[b]], table, powerlaw)
     fit = conclude(s, radius_um, shears[b], node, p, float(np.min(np.delete(sse, b), initial=np.inf)),
-                   profiled=1, table=table)
+                   profiled=1, table=table, powerlaw=powerlaw)
     done[shears[b]] = replace(node, sse=min(node.sse, fit.sse_nN2))
     return shears[b], fit
 
 
 def fit_ramp_hold_profiled(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
                            ramp_samples: int, radius_um: float, hold: str = "height",
-                           table: ShellTable | None = None) -> PowerLawFit:
+                           table: ShellTable | None = None, powerlaw: PowerLawTable | None = None) -> PowerLawFit:
     """`powerlaw_fit.fit_ramp_hold` with K̃_S unknown: the fit at the best K̃_S of the profile,
     with K̃_S's 95 % interval (`shear_band`) and γ_a's widened over it (module doc); the
-    surrogate on the shell ramp table `table` (None: the shipped one)."""
+    surrogate on the shell ramp table `table`, the tabled simulator on the power-law table
+    `powerlaw` (None: the shipped ones)."""
     s, drop = prepare(time_s, x_um, force_nN, ramp_samples, radius_um, hold)
-    done, p = _profile(s, radius_um, drop, table)
-    best, fit = _best(s, radius_um, done, p, table)
+    done, p = _profile(s, radius_um, drop, table, powerlaw)
+    best, fit = _best(s, radius_um, done, p, table, powerlaw)
     beta_runs = fit.simulations - done[best].simulations              # β's profile's (no hold)
-    _ends(s, radius_um, done, fit.noise_nN ** 2, table)
+    _ends(s, radius_um, done, fit.noise_nN ** 2, table, powerlaw)
     if min(done.values(), key=lambda v: v.sse).sse < done[best].sse:   # an end's fit found a better one
-        best, fit = _best(s, radius_um, done, p, table)
+        best, fit = _best(s, radius_um, done, p, table, powerlaw)
         beta_runs += fit.simulations - done[best].simulations
-        _ends(s, radius_um, done, fit.noise_nN ** 2, table)
+        _ends(s, radius_um, done, fit.noise_nN ** 2, table, powerlaw)
     sigma2 = fit.noise_nN ** 2
     shears = sorted(done)
     sse = np.array([done[v].sse for v in shears])

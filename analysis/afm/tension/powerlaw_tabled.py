@@ -12,34 +12,28 @@ recorded heights over the contact, its end t_end at depth δ_max = START_UM + v 
     hold, τ = (t - t_end)/(t_end - t_c), d_max = δ_max/R, e_max = d_max - START_UM/R:
         F = R K_eff [γ̃ ĝ(d_max) + e_max q(e_max) r(τ; d_max)]
 
-and before t_c the tension's alone, γ_a R ĝ(δ/R) at the recorded δ. q and r are interpolated over
-the nodes (ln R_b, ln γ̃, ln K̃_S, β and, for r, ln d_max) by local Lagrange polynomials through
-the POINTS nearest nodes of each axis (cubic; quadratic on an axis of three nodes), then along
-e by a cubic spline (scipy's `CubicSpline`; q held at its first node above the sphere, 0 before
-the contact) and along τ linearly in ln τ (linearly in τ below the first τ node, r(0) = 1).
-scipy's RegularGridInterpolator is cubic only with four nodes an axis and builds its splines
-over the whole grid at each call; the local weights are a contraction of 4^5 nodes.
+and before t_c the tension's alone, γ_a R ĝ(δ/R) at the recorded δ. q and r are read at the
+parameters (`analysis.calibration.powerlaw_table.PowerLawTable.at`, local polynomials over the
+nodes), then along e by a cubic spline (scipy's `CubicSpline`; q held at its first node, 0 before
+the contact), r over d_max by the same local polynomial and along τ linearly in ln τ (linearly
+in τ below the first τ node, r(0) = 1).
 
 The table holds a recording (`TabledForce.inside`) where every parameter lies within its axes
 (EDGE_TOL beyond an end in its coordinate), the ramp within the deepest e, a hold at constant height within
-d_max's axis and TAU_MAX, and no node it reads failed; elsewhere (and for constant-force holds)
+d_max's axis and its longest τ, and no node it reads failed; elsewhere (and for constant-force holds)
 `powerlaw_fit` simulates. `bench/powerlaw_ramp_hold.py --table` measures it against the simulator.
 """
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
-from functools import lru_cache
-from importlib import resources
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
-from analysis.afm.tension.powerlaw_grid import FORMAT
 from analysis.afm.tension.powerlaw_simulated import START_UM
+from analysis.calibration.powerlaw_table import EDGE_TOL, PowerLawTable, weights
 from common.errors import InputError, SolverError
 from solver.droplet_table import DEPTH_MAX, unit_force_per_tension
 
@@ -47,68 +41,6 @@ if TYPE_CHECKING:
     from analysis.afm.tension.powerlaw_simulated import RampHold
 
 Array = npt.NDArray[np.float64]
-NAME = "powerlaw_table.json"
-POINTS = 4              # nodes of each axis's local polynomial
-EDGE_TOL = 1e-6         # how far beyond an axis's end (in its coordinate) still reads as inside
-
-
-@dataclass(frozen=True)
-class PowerLawTable:
-    """The table's axes (coordinates: ln R_b, ln γ̃, ln K̃_S, β, ln d_max), its ramp depths e and hold
-    times τ, q (R_b, γ̃, K̃_S, β, d) and r (R_b, γ̃, K̃_S, β, d_max, τ), and its ρ_0 (1/s)."""
-
-    axes: tuple[Array, Array, Array, Array, Array]
-    depths: Array
-    taus: Array
-    q: Array
-    r: Array
-    rate_per_s: float
-
-    @classmethod
-    def from_document(cls, doc: dict[str, Any]) -> PowerLawTable:
-        """The table of its JSON document (`powerlaw_grid.table_document`); InputError if it is not one."""
-        if doc.get("format") != FORMAT:
-            raise InputError(f"not a power-law ramp and hold table (format {doc.get('format')!r}, want {FORMAT!r})")
-        axes = (np.log(doc["radius_um"]), np.log(doc["gamma_tilde"]), np.log(doc["shear_tilde"]),
-                np.asarray(doc["beta"], float), np.log(doc["depth_over_radius"]))
-        grid = tuple(np.asarray(a, float) for a in axes)
-        q, r = (np.asarray(doc[k], dtype=float) for k in ("ramp_q", "hold_ratio"))    # null: NaN
-        return cls(grid, np.asarray(doc["ramp_depths"], float), np.asarray(doc["hold_taus"], float), q, r,
-                   float(doc["rate_per_s"]))
-
-    def at(self, coords: Array) -> tuple[Array, Array] | None:
-        """(q over the depths, r over (d_max, τ)) at (ln R_b, ln γ̃, ln K̃_S, β); None outside the axes
-        or where a node it reads failed."""
-        parts = [_weights(a, x) for a, x in zip(self.axes[:4], coords)]
-        if any(p is None for p in parts):
-            return None
-        cut = tuple(slice(i, i + w.size) for i, w in parts)      # type: ignore[misc]
-        ws = [w for _, w in parts]                                   # type: ignore[misc]
-        q = np.einsum("a,b,c,d,abcde->e", *ws, self.q[cut])
-        r = np.einsum("a,b,c,d,abcdef->ef", *ws, self.r[cut])
-        return (q, r) if np.all(np.isfinite(q)) and np.all(np.isfinite(r)) else None
-
-
-def _weights(nodes: Array, x: float) -> tuple[int, Array] | None:
-    """(first node, Lagrange weights) of the local polynomial through the POINTS nodes nearest x
-    (all of a shorter axis); None beyond the axis (EDGE_TOL)."""
-    if not nodes[0] - EDGE_TOL <= x <= nodes[-1] + EDGE_TOL:
-        return None
-    m = min(POINTS, nodes.size)
-    i = int(np.clip(np.searchsorted(nodes, x) - m // 2, 0, nodes.size - m))
-    xs = nodes[i:i + m]
-    w = np.array([np.prod([(x - xs[k]) / (xs[j] - xs[k]) for k in range(m) if k != j]) for j in range(m)])
-    return i, w
-
-
-@lru_cache(maxsize=1)
-def shipped() -> PowerLawTable | None:
-    """The shipped table (`analysis/calibration/data`), None where it is not there (the fit then
-    simulates)."""
-    source = resources.files("analysis.calibration") / "data" / NAME
-    if not source.is_file():
-        return None
-    return PowerLawTable.from_document(json.loads(source.read_text()))
 
 
 class TabledForce:
@@ -164,7 +96,7 @@ class TabledForce:
 
     def _r(self, r: Array, d_max: float, tau: Array) -> Array:
         """r at d_max over τ (module doc)."""
-        part = _weights(self.table.axes[4], float(np.log(d_max)))
+        part = weights(self.table.axes[4], float(np.log(d_max)))
         assert part is not None
         i, w = part
         row = w @ r[i:i + w.size]
@@ -173,3 +105,11 @@ class TabledForce:
         early = tau < taus[1]
         out[early] = row[0] + (row[1] - row[0]) * tau[early] / taus[1]
         return out
+
+
+def resolve(table: PowerLawTable | None) -> PowerLawTable:
+    """`table`, or where None the shipped bundle's: the one place the default is read."""
+    if table is not None:
+        return table
+    from analysis.afm.tension.calibration_parts import shipped_parts
+    return shipped_parts().powerlaw

@@ -44,8 +44,8 @@ COLUMNS = ("cell_id", "part", "segment", "model") + HEADLINE + ("tension_mN_per_
            "height_um", "h_tilde", "height_reference", "contact_um", "baseline_nN", "depth_um", "window_lo_um",
            "window_hi_um", "window_samples", "r2", "compare_model", "compare_tension_mN_per_m",
            "compare_contact_um", "compare_r2", "volume_um3", "radius_um", "volume_source", "source", "ramp_speed_um_per_s", "ramp_speed_source",
-           "warning", "shell_table_source", "shell_table_sha256", "prior_calibration_source"
-           ) + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
+           "warning", "shell_table_source", "shell_table_sha256", "prior_calibration_source",
+           "powerlaw_table_source", "powerlaw_table_sha256") + PRIOR_COLUMNS          # the shell's priors from the recording's oscillations (`priors`)
 
 
 def headline(row: dict[str, Any]) -> dict[str, Any]:
@@ -193,7 +193,8 @@ def _shell_lines(rows: list[dict[str, Any]]) -> list[str]:
              "interval inside the range), bounded (one end inside) or not identified; where fitted, the intervals "
              "of γ_a and K_B hold every K_S/K_B of its interval. Priors: the Gaussian priors on K_B and K_S/K_B "
              "at the ramp's time scale T from the recording's own oscillations, or why none (see "
-             f"docs/tension.md). Shell ramp table: {_table_used(ramps)}.", "",
+             f"docs/tension.md). Shell ramp table: {_table_used(ramps)}. Power-law table: "
+             f"{_table_used(ramps, 'powerlaw_table')}.", "",
              "| cell | part | γ_a (mN/m) | 95 % | K_B (mN/m) | 95 % | K_S/K_B | 95 % | K_S/K_B is | elastic term (Λ) "
              "| priors |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in ramps:
@@ -231,9 +232,10 @@ def _power_law_lines(rows: list[dict[str, Any]]) -> list[str]:
     return lines
 
 
-def _table_used(ramps: list[dict[str, Any]]) -> str:
-    """Which shell ramp table the ramps read: its source (a file, or shipped) and SHA-256."""
-    used = sorted({(r.get("shell_table_source", ""), r.get("shell_table_sha256", "")) for r in ramps})
+def _table_used(ramps: list[dict[str, Any]], part: str = "shell_table") -> str:
+    """Which table the ramps read (`part`: shell_table, powerlaw_table): its source (a file, or
+    shipped) and SHA-256."""
+    used = sorted({(r.get(f"{part}_source", ""), r.get(f"{part}_sha256", "")) for r in ramps})
     return "; ".join(f"{src} (SHA-256 {sha}...)" for src, sha in used)
 
 
