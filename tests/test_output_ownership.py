@@ -50,6 +50,10 @@ def snapshot(root):
 def run_campaign(tmp_path, store, *extra):
     config = tmp_path / "tiny.toml"
     config.write_text(TINY)
+    return run_config(config, store, *extra)
+
+
+def run_config(config, store, *extra):
     return subprocess.run([str(BIN / "cortex"), "campaign", "run", str(config), "--store", str(store), "--quiet",
                            *extra], capture_output=True, text=True, cwd=ROOT, timeout=300)
 
@@ -101,6 +105,71 @@ def test_a_foreign_journal_beside_the_store_is_refused(tmp_path):
     out = run_campaign(tmp_path, store)
     assert out.returncode == 2 and "journal" in out.stderr, out.stderr
     assert snapshot(journal) == before and not store.exists()
+
+
+def other_campaign(tmp_path, name="other.toml", tension="2.0, 3.0"):
+    """A campaign file of another grid than TINY's (another fingerprint), `tension` its tensions."""
+    config = tmp_path / name
+    config.write_text(TINY.replace("tension_mN_per_m = 1.0", f"tension_mN_per_m = [{tension}]"))
+    return config
+
+
+def stored(store, name):
+    with h5py.File(store, "r") as f:
+        return f[name][:]
+
+
+def test_a_new_store_takes_no_stale_journal(tmp_path):
+    """A store moved away leaves its journal: a new store at its path, of another campaign, does
+    not take the journal's tasks as its own (one line, exit 2, nothing written); with the store
+    back beside its journal the run resumes, and --new keeps the journal as a backup."""
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    first_force = stored(store, "force_nN")
+    store.rename(tmp_path / "v1.h5")
+    config = other_campaign(tmp_path)
+    journal = tmp_path / "s.h5.journal"
+    before, old_bytes = snapshot(tmp_path), journal.read_bytes()
+    assert old_bytes
+    out = run_config(config, store)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(journal) in lines[0] and "--store" in lines[0], lines
+    assert snapshot(tmp_path) == before and not store.exists()      # the journal byte for byte, nothing made
+
+    (tmp_path / "v1.h5").rename(store)                               # the store back beside its journal
+    out = run_config(tmp_path / "tiny.toml", store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "attempts") == 1).all() and (stored(store, "state") == 2).all()   # resumed, not redone
+    np.testing.assert_array_equal(stored(store, "force_nN"), first_force)
+
+    store.rename(tmp_path / "v1.h5")
+    stale = journal.read_bytes()
+    assert stale.startswith(old_bytes)
+    out = run_config(config, store, "--new")
+    assert out.returncode == 0, out.stderr
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("s.h5.journal.bak-")]
+    assert len(kept) == 1 and kept[0].read_bytes() == stale != journal.read_bytes()
+    assert (stored(store, "state") == 2).all() and (stored(store, "attempts") == 1).all()
+    np.testing.assert_array_equal(np.sort(stored(store, "tension_mN_per_m")), [2.0, 2.0, 3.0, 3.0])
+    assert not np.isin(stored(store, "force_nN"), first_force).any()   # computed for this campaign
+
+
+def test_a_journal_shorter_than_its_store_holds_is_refused(tmp_path):
+    """A store beside another store's shorter journal: its rows hold more of its journal than is
+    there, so the journal is not its own; refused, both left as they were."""
+    store, small = tmp_path / "s.h5", tmp_path / "small.h5"
+    assert run_config(other_campaign(tmp_path), store).returncode == 0
+    assert run_config(other_campaign(tmp_path, "small.toml", "2.0"), small).returncode == 0
+    journal = tmp_path / "s.h5.journal"
+    assert 0 < (tmp_path / "small.h5.journal").stat().st_size < journal.stat().st_size
+    journal.write_bytes((tmp_path / "small.h5.journal").read_bytes())
+    before = snapshot(tmp_path)
+    out = run_config(tmp_path / "other.toml", store)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(journal) in lines[0], lines
+    assert snapshot(tmp_path) == before
 
 
 def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):

@@ -3,6 +3,12 @@
 Only a file that is ours is ever opened for writing, set aside or rebuilt
 (the rule of `outputs.ownership`): an HDF5 file with our `format` attribute,
 or one a kill left unreadable with our journal and lock beside it.
+
+A journal is written only once its store exists (a run makes the store, then
+opens the journal), so records where no store is belong to another store: one
+moved or deleted, of this campaign or another. A store being created never
+takes them (`check_no_stale_journal`); a journal its store says is longer than
+it is (`journal_bytes`) is not its own either (`check_journal_length`).
 """
 
 from __future__ import annotations
@@ -62,6 +68,29 @@ def check_store_path(path: str) -> None:
     or whose journal is not ours; they are left as they are."""
     check_file(path, is_our_store, "--store")
     check_file(path + ".journal", journal.is_ours, "--store's journal")
+
+
+def check_no_stale_journal(path: str) -> None:
+    """Refuse (InputError, one line) to create a store at `path` beside a journal that holds
+    records: they were written for another store, and the new one would take them as its
+    own results. An empty journal holds nothing: it is used."""
+    stale = path + ".journal"
+    if not os.path.exists(path) and os.path.isfile(stale) and os.path.getsize(stale) > 0:
+        raise InputError(f"--store {path}: no store there, but {stale} holds "
+                         f"{os.path.getsize(stale):,} bytes of another store's finished tasks, which a new "
+                         "store must not take as its own; move or delete that journal, give another --store, "
+                         "or use --new (it is kept as a backup)")
+
+
+def check_journal_length(path: str, journal_bytes: int) -> None:
+    """Refuse (InputError, one line) the store at `path` whose rows hold `journal_bytes` of its
+    journal when the journal there is shorter but not empty: it is another store's journal
+    (a store's journal only grows; an empty or missing one holds nothing and is started again)."""
+    size = os.path.getsize(path + ".journal") if os.path.isfile(path + ".journal") else 0
+    if 0 < size < journal_bytes:
+        raise InputError(f"--store {path}: its rows hold {journal_bytes:,} bytes of its journal but "
+                         f"{path}.journal has {size:,}: it is another store's journal; move the store or "
+                         "that journal so that each is beside its own, or give another --store")
 
 
 def set_aside(path: str, name: str) -> str:

@@ -22,7 +22,11 @@ rest of the journal is replayed into the file (idempotent), rows left
 `running` become `pending` again, and a file a kill left unreadable is set
 aside and rebuilt from the campaign and the journal. So a rerun finishes the
 remaining tasks and ends with the same rows as an uninterrupted run. A lock
-file refuses a second run on the same store.
+file refuses a second run on the same store. A store is only ever paired with
+its own journal: a new one is not made beside a journal that holds records
+(another store's, which it would take as its own results), and an existing
+one is refused beside a journal shorter than its `journal_bytes`
+(`campaign.store.files`).
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
 (`campaign.store.files`). A full disk never reaches HDF5 while it grows the
@@ -57,7 +61,8 @@ from campaign.entry_batch import CompressionBatch, is_batch
 from campaign.store import journal, provenance, schema, verify
 from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
-from campaign.store.files import check_store_path, open_read, set_aside
+from campaign.store.files import (check_journal_length, check_no_stale_journal, check_store_path, open_read,
+                                  set_aside)
 from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_hdf5
 from common.errors import InputError
@@ -81,6 +86,8 @@ class Store:
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.parallel, self.on_record = parallel, on_record
         check_store_path(self.path)               # before anything is created beside it
+        if not new:
+            check_no_stale_journal(self.path)     # a new store takes no other store's records
         self.lock = hold_lock(self.path)
         try:
             self.file = self._open(campaign, new, ranks)
@@ -126,9 +133,11 @@ class Store:
             with open_read(self.path) as f:
                 fingerprint, trials = f.attrs.get("fingerprint"), f.attrs.get("trials_fingerprint", "")
                 kind, version = f.attrs.get("task_kind"), f.attrs.get("task_version")
+                journal_bytes = int(f.attrs.get("journal_bytes", 0))
         except InputError:
             return            # unreadable: rebuilt from the journal
         _check_kind(self.path, kind, version, campaign.kind)
+        check_journal_length(self.path, journal_bytes)
         if fingerprint != campaign.fingerprint:
             raise InputError(f"{self.path} was made from a different campaign file; "
                              "use --new to start over (the old store is kept as a backup)")
