@@ -22,11 +22,10 @@ rest of the journal is replayed into the file (idempotent), rows left
 `running` become `pending` again, and a file a kill left unreadable is set
 aside and rebuilt from the campaign and the journal. So a rerun finishes the
 remaining tasks and ends with the same rows as an uninterrupted run. A lock
-file refuses a second run on the same store. A store is only ever paired with
-its own journal: a new one is not made beside a journal that holds records
-(another store's, which it would take as its own results), and an existing
-one is refused beside a journal shorter than its `journal_bytes`
-(`campaign.store.files`).
+file refuses a second run on the same store. A new store is not made beside
+a journal that holds records (another store's, which it would take as its
+own results), and an existing one is refused beside a journal shorter than
+its `journal_bytes` (`campaign.store.files`).
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
 (`campaign.store.files`). A full disk never reaches HDF5 while it grows the
