@@ -170,6 +170,10 @@ def test_a_journal_shorter_than_its_store_holds_is_refused(tmp_path):
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and str(journal) in lines[0], lines
     assert snapshot(tmp_path) == before
+    out = subprocess.run([str(BIN / "cortex"), "campaign", "repair", str(store)], capture_output=True, text=True,
+                         cwd=ROOT, timeout=300)         # repair takes no other store's entries either
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert snapshot(tmp_path) == before
 
 
 def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):

@@ -88,9 +88,9 @@ def check_journal_length(path: str, journal_bytes: int) -> None:
     (a store's journal only grows; an empty or missing one holds nothing and is started again)."""
     size = os.path.getsize(path + ".journal") if os.path.isfile(path + ".journal") else 0
     if 0 < size < journal_bytes:
-        raise InputError(f"--store {path}: its rows hold {journal_bytes:,} bytes of its journal but "
-                         f"{path}.journal has {size:,}: it is another store's journal; move the store or "
-                         "that journal so that each is beside its own, or give another --store")
+        raise InputError(f"{path}: its rows hold {journal_bytes:,} bytes of its journal but {path}.journal "
+                         f"has {size:,}: it is another store's journal; move the store or that journal so "
+                         "that each is beside its own (both are left as they are)")
 
 
 def set_aside(path: str, name: str) -> str:
