@@ -188,6 +188,31 @@ def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):
         assert (f["state"][:] == 2).all()                      # rebuilt from the journal: all done
 
 
+def test_a_rebuild_the_disk_refuses_leaves_the_unreadable_store_in_place(tmp_path, monkeypatch):
+    """The store is never missing beside its journal (a new store would not take it): a rebuild
+    that fails (a full disk) leaves the unreadable file at its path, and the next run rebuilds it."""
+    from campaign import config
+    from campaign.store import store as store_module
+    from common.errors import WriteError
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    store.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 200)
+    campaign = config.load(str(tmp_path / "tiny.toml"))
+    before = snapshot(tmp_path)
+
+    def full(self, campaign, ranks):
+        raise WriteError(28, "No space left on device", self.path)
+    monkeypatch.setattr(store_module.Store, "_create", full)
+    with pytest.raises(WriteError):
+        store_module.Store(store, campaign)
+    assert {p: v for p, v in snapshot(tmp_path).items() if p != str(tmp_path)} == \
+        {p: v for p, v in before.items() if p != str(tmp_path)}     # the same files, the same bytes
+    monkeypatch.undo()
+    out = run_campaign(tmp_path, store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "state") == 2).all() and (stored(store, "attempts") == 1).all()   # from the journal
+
+
 def test_an_unreadable_file_without_our_journal_is_not_ours(tmp_path):
     store = tmp_path / "s.h5"
     store.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 200)

@@ -96,9 +96,28 @@ def check_journal_length(path: str, journal_bytes: int) -> None:
 def set_aside(path: str, name: str) -> str:
     """Rename our file `path` to `name`, or `name-2`, `name-3`, ... if that is
     taken (never onto someone else's file); returns the name used."""
+    target = _free(name)
+    shutil.move(path, target)
+    return target
+
+
+def keep_aside(path: str, name: str) -> tuple[str, bool]:
+    """Our file `path` kept as `name` (or `name-2`, ... as `set_aside`) and still at `path`, by a
+    second name (a hard link), so that what replaces `path` replaces it at once and `path` is never
+    missing; where the file system has no hard links, set aside (moved). Returns (the name used,
+    whether `path` still holds it)."""
+    target = _free(name)
+    try:
+        os.link(path, target)
+        return target, True
+    except OSError:
+        return set_aside(path, target), False
+
+
+def _free(name: str) -> str:
+    """`name`, or `name-2`, `name-3`, ... whichever is not taken."""
     target, k = name, 1
     while os.path.lexists(target):
         k += 1
         target = f"{name}-{k}"
-    shutil.move(path, target)
     return target

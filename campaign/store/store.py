@@ -60,8 +60,8 @@ from campaign.entry_batch import CompressionBatch, is_batch
 from campaign.store import journal, provenance, schema, verify
 from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
-from campaign.store.files import (check_journal_length, check_no_stale_journal, check_store_path, open_read,
-                                  set_aside)
+from campaign.store.files import (check_journal_length, check_no_stale_journal, check_store_path, keep_aside,
+                                  open_read, set_aside)
 from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_hdf5
 from common.errors import InputError
@@ -162,11 +162,24 @@ class Store:
             f["state"][:1]
             return f
         except (OSError, KeyError):
-            aside = set_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
-            print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
-                  "rebuilding it from the journal", flush=True)
-            self._create(campaign, ranks)
+            self._rebuild(campaign, ranks)
             return h5py.File(self.path, "r+")
+
+    def _rebuild(self, campaign, ranks):
+        """The unreadable file kept as STORE.unreadable-<time> and replaced by a new one (the journal
+        replays into it). The path is never without a store: a new store does not take a journal it
+        finds alone (`check_no_stale_journal`); a failed rebuild (a full disk) leaves it as it was."""
+        aside, linked = keep_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
+        print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
+              "rebuilding it from the journal", flush=True)
+        try:
+            self._create(campaign, ranks)
+        except BaseException:
+            if linked:
+                os.remove(aside)                      # our second name of the file still at the path
+            else:
+                set_aside(aside, self.path)           # back where it was (nothing is there)
+            raise
 
     def _add_trials(self, campaign):
         """A store made without trials gains the campaign's (its compressions are kept).
