@@ -176,6 +176,37 @@ def test_a_journal_shorter_than_its_store_holds_is_refused(tmp_path):
     assert snapshot(tmp_path) == before
 
 
+def test_a_store_beside_another_stores_longer_journal_is_refused(tmp_path):
+    """A store moved back where a later store left its (longer) journal: the journal's first record
+    carries the other store's mark; refused, both left as they were, `repair` too. A store made
+    before records were marked (no `journal_mark`) resumes beside its own journal."""
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    store.rename(tmp_path / "v1.h5")
+    (tmp_path / "s.h5.journal").rename(tmp_path / "v1.h5.journal")
+    assert run_config(other_campaign(tmp_path), store).returncode == 0      # another store, a longer journal
+    store.rename(tmp_path / "v2.h5")
+    (tmp_path / "v1.h5").rename(store)
+    assert (tmp_path / "s.h5.journal").stat().st_size > int(h5py.File(store, "r").attrs["journal_bytes"])
+    before = snapshot(tmp_path)
+    for command in ("run", "repair"):
+        args = ["run", str(tmp_path / "tiny.toml"), "--store"] if command == "run" else ["repair"]
+        out = subprocess.run([str(BIN / "cortex"), "campaign", *args, str(store)], capture_output=True, text=True,
+                             cwd=ROOT, timeout=300)
+        assert out.returncode == 2, out.stderr
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1 and "another store's journal" in lines[0], lines
+        assert snapshot(tmp_path) == before
+
+    (tmp_path / "s.h5.journal").rename(tmp_path / "v2.h5.journal")
+    (tmp_path / "v1.h5.journal").rename(tmp_path / "s.h5.journal")          # each beside its own
+    with h5py.File(store, "r+") as f:
+        del f.attrs["journal_mark"]
+    out = run_config(tmp_path / "tiny.toml", store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "attempts") == 1).all() and (stored(store, "state") == 2).all()
+
+
 def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):
     """A store a kill left unreadable, with our journal and lock beside it, is ours: rebuilt."""
     store = tmp_path / "s.h5"
@@ -200,7 +231,7 @@ def test_a_rebuild_the_disk_refuses_leaves_the_unreadable_store_in_place(tmp_pat
     campaign = config.load(str(tmp_path / "tiny.toml"))
     before = snapshot(tmp_path)
 
-    def full(self, campaign, ranks):
+    def full(self, *args):
         raise WriteError(28, "No space left on device", self.path)
     monkeypatch.setattr(store_module.Store, "_create", full)
     with pytest.raises(WriteError):

@@ -7,8 +7,10 @@ or one a kill left unreadable with our journal and lock beside it.
 A journal is written only once its store exists (a run makes the store, then
 opens the journal), so records where no store is belong to another store: one
 moved or deleted, of this campaign or another. A store being created never
-takes them (`check_no_stale_journal`); a journal its store says is longer than
-it is (`journal_bytes`) is not its own either (`check_journal_length`).
+takes them (`check_no_stale_journal`). A store's journal is its own when its
+first record carries the store's mark (`journal_mark`; a store made before
+records were marked has none) and it is not shorter than the rows hold
+(`journal_bytes`): `check_own_journal`.
 """
 
 from __future__ import annotations
@@ -82,11 +84,18 @@ def check_no_stale_journal(path: str) -> None:
                          "or use --new (it is kept as a backup)")
 
 
-def check_journal_length(path: str, journal_bytes: int) -> None:
-    """Refuse (InputError, one line) the store at `path` whose rows hold `journal_bytes` of its
-    journal when the journal there is shorter but not empty: it is another store's journal
-    (a store's journal only grows; an empty or missing one holds nothing and is started again)."""
+def check_own_journal(path: str, journal_bytes: int, mark: str) -> None:
+    """Refuse (InputError, one line) the store at `path` (its rows hold `journal_bytes` of its journal,
+    its journal's records are marked `mark`, '' if unmarked) beside another store's journal: one
+    whose first record carries another mark or none, or (not empty) one shorter than the rows hold
+    (a store's journal only grows; an empty or missing one holds nothing and is started again).
+    A first record that is damaged tells nothing: the length alone is checked."""
     size = os.path.getsize(path + ".journal") if os.path.isfile(path + ".journal") else 0
+    found = journal.mark(path + ".journal") if mark and size else None
+    if found is not None and found != mark:
+        raise InputError(f"{path}: {path}.journal is another store's journal (its first record is not marked "
+                         f"as this store's); move the store or that journal so that each is beside its own "
+                         "(both are left as they are)")
     if 0 < size < journal_bytes:
         raise InputError(f"{path}: its rows hold {journal_bytes:,} bytes of its journal but {path}.journal "
                          f"has {size:,}: it is another store's journal; move the store or that journal so "
