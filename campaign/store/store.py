@@ -177,8 +177,10 @@ class Store:
         aside, linked = keep_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
         print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
               "rebuilding it from the journal", flush=True)
+        found = journal.mark(self.journal_path)      # the journal's mark (None: not told, or nothing in it)
+        empty = not os.path.isfile(self.journal_path) or os.path.getsize(self.journal_path) == 0
         try:
-            self._create(campaign, ranks, journal.mark(self.journal_path) or "")   # its journal's ('' unmarked)
+            self._create(campaign, ranks, None if empty else found or "")   # '': unmarked, never checked
         except BaseException:
             if linked:
                 os.remove(aside)                      # our second name of the file still at the path
