@@ -64,10 +64,12 @@ def test_only_finished_compressions_with_the_same_result_names_make_a_batch():
     assert CompressionBatch.of([]) is None
 
 
-def test_the_store_journals_a_batch_as_it_journals_its_entries(tmp_path):
-    """Record by record (journal.RECORD_BYTES each), then the rows: the same files."""
+def test_the_store_journals_a_batch_as_it_journals_its_entries(tmp_path, monkeypatch):
+    """Record by record (journal.RECORD_BYTES each), then the rows: the same files (both stores
+    given one mark, which their journals' first records carry)."""
     from campaign import config
     from campaign.store import Store
+    monkeypatch.setattr("campaign.store.store.new_mark", lambda: "0" * 32)
     cfg = tmp_path / "grid.toml"
     cfg.write_text('[campaign]\nname = "g"\n[grid]\nh0_um = [10.0, 11.0, 12.0, 13.0]\nbulk_mN_per_m = 25.0\n'
                    f'shear_mN_per_m = [{", ".join(str(5.0 + i) for i in range(25))}]\n'

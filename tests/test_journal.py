@@ -93,6 +93,33 @@ def test_a_corrupt_last_record_is_ignored(tmp_path):
     assert len(journal.read(path)) == 2
 
 
+def test_the_first_record_marks_its_store(tmp_path):
+    """`mark` reads the store's mark from the first record; the entries are the same with it; a
+    first record without one gives '', an empty journal or a damaged first record None."""
+    path = tmp_path / "j"
+    with open(path, "ab") as fh:
+        journal.append(fh, entries()[:2], "f00d")
+        journal.append(fh, entries()[2:])
+    assert journal.mark(path) == "f00d"
+    plain = tmp_path / "plain"
+    with open(plain, "ab") as fh:
+        journal.append(fh, entries()[:2])
+        journal.append(fh, entries()[2:])
+    marked, unmarked = journal.read(path), journal.read(plain)
+    assert len(marked) == len(unmarked) == 5
+    for a, b in zip(marked, unmarked):
+        same(a, b)                                                      # the same entries, bit for bit
+    assert len(journal.encode(entries(), "f00d")) == len(journal.encode(entries())) + len(',"store":"f00d"')
+    path.write_bytes(journal.encode(entries()))
+    assert journal.mark(path) == ""
+    damaged = bytearray(journal.encode(entries()[:2], "f00d"))
+    damaged[-8] ^= 0x01
+    path.write_bytes(bytes(damaged) + journal.encode(entries()[2:]))
+    assert journal.mark(path) is None and len(journal.read(path)) == 3
+    path.write_bytes(b"")
+    assert journal.mark(path) is None and journal.mark(tmp_path / "missing") is None
+
+
 def test_what_is_not_a_journal(tmp_path):
     for text in (b"hello\n", b'{"a": 1}\n', b"\x00cxk"):
         (tmp_path / "j").write_bytes(text)

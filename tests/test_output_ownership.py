@@ -50,6 +50,10 @@ def snapshot(root):
 def run_campaign(tmp_path, store, *extra):
     config = tmp_path / "tiny.toml"
     config.write_text(TINY)
+    return run_config(config, store, *extra)
+
+
+def run_config(config, store, *extra):
     return subprocess.run([str(BIN / "cortex"), "campaign", "run", str(config), "--store", str(store), "--quiet",
                            *extra], capture_output=True, text=True, cwd=ROOT, timeout=300)
 
@@ -103,6 +107,106 @@ def test_a_foreign_journal_beside_the_store_is_refused(tmp_path):
     assert snapshot(journal) == before and not store.exists()
 
 
+def other_campaign(tmp_path, name="other.toml", tension="2.0, 3.0"):
+    """A campaign file of another grid than TINY's (another fingerprint), `tension` its tensions."""
+    config = tmp_path / name
+    config.write_text(TINY.replace("tension_mN_per_m = 1.0", f"tension_mN_per_m = [{tension}]"))
+    return config
+
+
+def stored(store, name):
+    with h5py.File(store, "r") as f:
+        return f[name][:]
+
+
+def test_a_new_store_takes_no_stale_journal(tmp_path):
+    """A store moved away leaves its journal: a new store at its path, of another campaign, does
+    not take the journal's tasks as its own (one line, exit 2, nothing written); with the store
+    back beside its journal the run resumes, and --new keeps the journal as a backup."""
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    first_force = stored(store, "force_nN")
+    store.rename(tmp_path / "v1.h5")
+    config = other_campaign(tmp_path)
+    journal = tmp_path / "s.h5.journal"
+    before, old_bytes = snapshot(tmp_path), journal.read_bytes()
+    assert old_bytes
+    out = run_config(config, store)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(journal) in lines[0] and "--store" in lines[0], lines
+    assert snapshot(tmp_path) == before and not store.exists()      # the journal byte for byte, nothing made
+
+    (tmp_path / "v1.h5").rename(store)                               # the store back beside its journal
+    out = run_config(tmp_path / "tiny.toml", store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "attempts") == 1).all() and (stored(store, "state") == 2).all()   # resumed, not redone
+    np.testing.assert_array_equal(stored(store, "force_nN"), first_force)
+
+    store.rename(tmp_path / "v1.h5")
+    stale = journal.read_bytes()
+    assert stale.startswith(old_bytes)
+    out = run_config(config, store, "--new")
+    assert out.returncode == 0, out.stderr
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("s.h5.journal.bak-")]
+    assert len(kept) == 1 and kept[0].read_bytes() == stale != journal.read_bytes()
+    assert (stored(store, "state") == 2).all() and (stored(store, "attempts") == 1).all()
+    np.testing.assert_array_equal(np.sort(stored(store, "tension_mN_per_m")), [2.0, 2.0, 3.0, 3.0])
+    assert not np.isin(stored(store, "force_nN"), first_force).any()   # computed for this campaign
+
+
+def test_a_journal_shorter_than_its_store_holds_is_refused(tmp_path):
+    """A store beside another store's shorter journal: its rows hold more of its journal than is
+    there, so the journal is not its own; refused, both left as they were."""
+    store, small = tmp_path / "s.h5", tmp_path / "small.h5"
+    assert run_config(other_campaign(tmp_path), store).returncode == 0
+    assert run_config(other_campaign(tmp_path, "small.toml", "2.0"), small).returncode == 0
+    journal = tmp_path / "s.h5.journal"
+    assert 0 < (tmp_path / "small.h5.journal").stat().st_size < journal.stat().st_size
+    journal.write_bytes((tmp_path / "small.h5.journal").read_bytes())
+    before = snapshot(tmp_path)
+    out = run_config(tmp_path / "other.toml", store)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(journal) in lines[0], lines
+    assert snapshot(tmp_path) == before
+    out = subprocess.run([str(BIN / "cortex"), "campaign", "repair", str(store)], capture_output=True, text=True,
+                         cwd=ROOT, timeout=300)         # repair takes no other store's entries either
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert snapshot(tmp_path) == before
+
+
+def test_a_store_beside_another_stores_longer_journal_is_refused(tmp_path):
+    """A store moved back where a later store left its (longer) journal: the journal's first record
+    carries the other store's mark; refused, both left as they were, `repair` too. A store made
+    before records were marked (no `journal_mark`) resumes beside its own journal."""
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    store.rename(tmp_path / "v1.h5")
+    (tmp_path / "s.h5.journal").rename(tmp_path / "v1.h5.journal")
+    assert run_config(other_campaign(tmp_path), store).returncode == 0      # another store, a longer journal
+    store.rename(tmp_path / "v2.h5")
+    (tmp_path / "v1.h5").rename(store)
+    assert (tmp_path / "s.h5.journal").stat().st_size > int(h5py.File(store, "r").attrs["journal_bytes"])
+    before = snapshot(tmp_path)
+    for command in ("run", "repair"):
+        args = ["run", str(tmp_path / "tiny.toml"), "--store"] if command == "run" else ["repair"]
+        out = subprocess.run([str(BIN / "cortex"), "campaign", *args, str(store)], capture_output=True, text=True,
+                             cwd=ROOT, timeout=300)
+        assert out.returncode == 2, out.stderr
+        lines = out.stderr.strip().splitlines()
+        assert len(lines) == 1 and "another store's journal" in lines[0], lines
+        assert snapshot(tmp_path) == before
+
+    (tmp_path / "s.h5.journal").rename(tmp_path / "v2.h5.journal")
+    (tmp_path / "v1.h5.journal").rename(tmp_path / "s.h5.journal")          # each beside its own
+    with h5py.File(store, "r+") as f:
+        del f.attrs["journal_mark"]
+    out = run_config(tmp_path / "tiny.toml", store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "attempts") == 1).all() and (stored(store, "state") == 2).all()
+
+
 def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):
     """A store a kill left unreadable, with our journal and lock beside it, is ours: rebuilt."""
     store = tmp_path / "s.h5"
@@ -113,6 +217,31 @@ def test_our_unreadable_store_is_set_aside_and_rebuilt(tmp_path):
     assert any(p.name.startswith("s.h5.unreadable-") for p in tmp_path.iterdir())
     with h5py.File(store, "r") as f:
         assert (f["state"][:] == 2).all()                      # rebuilt from the journal: all done
+
+
+def test_a_rebuild_the_disk_refuses_leaves_the_unreadable_store_in_place(tmp_path, monkeypatch):
+    """The store is never missing beside its journal (a new store would not take it): a rebuild
+    that fails (a full disk) leaves the unreadable file at its path, and the next run rebuilds it."""
+    from campaign import config
+    from campaign.store import store as store_module
+    from common.errors import WriteError
+    store = tmp_path / "s.h5"
+    assert run_campaign(tmp_path, store).returncode == 0
+    store.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 200)
+    campaign = config.load(str(tmp_path / "tiny.toml"))
+    before = snapshot(tmp_path)
+
+    def full(self, *args):
+        raise WriteError(28, "No space left on device", self.path)
+    monkeypatch.setattr(store_module.Store, "_create", full)
+    with pytest.raises(WriteError):
+        store_module.Store(store, campaign)
+    assert {p: v for p, v in snapshot(tmp_path).items() if p != str(tmp_path)} == \
+        {p: v for p, v in before.items() if p != str(tmp_path)}     # the same files, the same bytes
+    monkeypatch.undo()
+    out = run_campaign(tmp_path, store)
+    assert out.returncode == 0, out.stderr
+    assert (stored(store, "state") == 2).all() and (stored(store, "attempts") == 1).all()   # from the journal
 
 
 def test_an_unreadable_file_without_our_journal_is_not_ours(tmp_path):

@@ -156,7 +156,8 @@ def test_a_damaged_journal_record_is_skipped_and_its_tasks_run_again(finished, t
     journal.trim_cut(path)
     assert open(path, "rb").read() == bytes(raw)      # not a cut tail: kept whole
     good, good_trials = read_results(store), read_trials(store)
-    store.unlink()                                    # the rows gone: the store is rebuilt from the journal
+    store.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 200)   # the rows gone (as a kill mid-write may leave
+    (tmp_path / "s.h5.lock").touch()                  # the file, its lock beside it): rebuilt from the journal
     again = cortex("campaign", "run", tmp_path / "c.toml", "--store", store, "--quiet")
     assert again.returncode == 0, again.stderr
     redone = journal.read(path, len(raw))             # what this run computed: the damaged record's tasks

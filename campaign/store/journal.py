@@ -5,7 +5,9 @@ A record holds every entry of one flush (`encode`):
     MAGIC | header length, data length (two little-endian u64) | header | data | CRC-32 of header and data
 
 The header is JSON: per array of the data its name, dtype and shape, the
-messages of failed tasks by position, and per trial task its scalars. The
+messages of failed tasks by position, per trial task its scalars, and in a
+journal's first record the mark of its store (`store`: the store's attribute
+`journal_mark`, `mark`), which tells a store its own journal. The
 data are the arrays' raw bytes: a compression's columns (row, state,
 attempts, rank, started, converged and each result present), and per
 trial task its cells' states and float64 arrays (CELL_KEYS, HEIGHT_KEYS), so
@@ -62,11 +64,13 @@ def approx_bytes(entry: Entry) -> int:
     return 64 + sum(getattr(v, "nbytes", 8 * len(v)) for v in cells.values()) if cells else 64
 
 
-def encode(entries: Sequence[Entry | CompressionBatch]) -> bytes:
+def encode(entries: Sequence[Entry | CompressionBatch], store: str = "") -> bytes:
     """One record (bytes) holding `entries` (a `CompressionBatch` among them
-    stands for its entries: the record is the same)."""
+    stands for its entries: the record is the same), marked as `store`'s if given."""
     arrays: dict[str, np.ndarray] = {}
     header: dict[str, Any] = {"errors": {}, "tasks": []}
+    if store:
+        header["store"] = store
     compressions, trials = split_chunks(entries)
     if compressions:
         _compression_arrays(compressions, arrays, header["errors"])
@@ -146,6 +150,19 @@ def _trial_entry(k, t, arrays):
 def _record(buf, at, decoded=True):
     """(end, entries) of the record at byte `at` of `buf`, or None if no whole record that checks is there
     (`decoded` False: entries [] unless its header is not JSON, only its CRC checked)."""
+    got = _header(buf, at)
+    if got is None:
+        return None
+    end, header, data = got
+    try:
+        return end, (decode(header, data) if decoded else [])
+    except (ValueError, KeyError, TypeError):       # a header that checks but is not ours
+        return None
+
+
+def _header(buf, at):
+    """(end, header, data bytes) of the record at byte `at` of `buf`, or None if no whole record that
+    checks, with a JSON header, is there."""
     lead = buf[at:at + _HEAD]
     if len(lead) < _HEAD or lead[:len(MAGIC)] != MAGIC:
         return None
@@ -157,9 +174,10 @@ def _record(buf, at, decoded=True):
     if _CRC.unpack(buf[end - _CRC.size:end])[0] != zlib.crc32(body):
         return None
     try:
-        return end, (decode(json.loads(body[:n_head]), body[n_head:]) if decoded else [])
-    except (ValueError, KeyError, TypeError):       # a header that checks but is not ours
+        header = json.loads(body[:n_head])
+    except ValueError:
         return None
+    return (end, header, body[n_head:]) if isinstance(header, dict) else None
 
 
 def _frames(buf, at=0, decoded=True):
@@ -233,11 +251,24 @@ def trim_cut(path: str | os.PathLike[str]) -> None:
                 fh.truncate(end)
 
 
-def append(fh: BinaryIO, entries: Sequence[Entry]) -> None:
+def append(fh: BinaryIO, entries: Sequence[Entry], store: str = "") -> None:
     """Write one record of `entries` to the open journal `fh` (binary, append),
-    as far as the operating system (a kill cannot lose it; `sync` makes it durable)."""
-    fh.write(encode(entries))
+    as far as the operating system (a kill cannot lose it; `sync` makes it durable);
+    marked as `store`'s if given (a journal's first record)."""
+    fh.write(encode(entries, store))
     fh.flush()
+
+
+def mark(path: str | os.PathLike[str]) -> str | None:
+    """The mark of the store whose journal this is: its first record's ('' if that record has none:
+    written by another store, or before records were marked); None when that cannot be told (an
+    empty or missing journal, a first record cut or damaged)."""
+    with _mapped(path) as buf:
+        got = _header(buf, 0)
+    if got is None:
+        return None
+    value = got[1].get("store", "")
+    return value if isinstance(value, str) else ""
 
 
 def sync(fh: BinaryIO) -> None:

@@ -22,7 +22,12 @@ rest of the journal is replayed into the file (idempotent), rows left
 `running` become `pending` again, and a file a kill left unreadable is set
 aside and rebuilt from the campaign and the journal. So a rerun finishes the
 remaining tasks and ends with the same rows as an uninterrupted run. A lock
-file refuses a second run on the same store.
+file refuses a second run on the same store. A new store is not made beside
+a journal that holds records (another store's, which it would take as its
+own results), and an existing one is refused beside another store's journal:
+its first record does not carry the store's mark (`journal_mark`, which the
+store writes into the first record of its journal), or it is shorter than
+`journal_bytes` (`campaign.store.files`).
 
 Only a file that is ours is ever opened for writing, set aside or rebuilt
 (`campaign.store.files`). A full disk never reaches HDF5 while it grows the
@@ -46,6 +51,7 @@ import json
 import math
 import os
 import time
+import uuid
 
 import numpy as np
 import numpy.typing as npt
@@ -57,7 +63,8 @@ from campaign.entry_batch import CompressionBatch, is_batch
 from campaign.store import journal, provenance, schema, verify
 from campaign.store.rows import put, write_entries
 from campaign.store.schema import PENDING, RUNNING, StoredCampaign, trial_rows
-from campaign.store.files import check_store_path, open_read, set_aside
+from campaign.store.files import (check_no_stale_journal, check_own_journal, check_store_path, keep_aside,
+                                  open_read, set_aside)
 from campaign.task_key import COMPRESSION, TRIAL, Entry, TaskKey, entry_key
 from outputs.writing import ensure_room, hdf5_image, named_failures, write_hdf5
 from common.errors import InputError
@@ -81,6 +88,8 @@ class Store:
         self.path, self.journal_path = str(path), str(path) + ".journal"
         self.parallel, self.on_record = parallel, on_record
         check_store_path(self.path)               # before anything is created beside it
+        if not new:
+            check_no_stale_journal(self.path)     # a new store takes no other store's records
         self.lock = hold_lock(self.path)
         try:
             self.file = self._open(campaign, new, ranks)
@@ -110,6 +119,7 @@ class Store:
         self._add_trials(campaign)
         self.cells = int(self.file["trials"].attrs["cells_per_study"]) if "trials" in self.file else 0
         journal.trim_cut(self.journal_path)
+        self.mark = str(self.file.attrs.get("journal_mark", ""))    # its journal's first record carries it
         write_entries(self.file, journal.read(self.journal_path, self.file.attrs.get("journal_bytes", 0)),
                       self.cells, contiguous=self.parallel)
         self._pending_again()
@@ -126,9 +136,11 @@ class Store:
             with open_read(self.path) as f:
                 fingerprint, trials = f.attrs.get("fingerprint"), f.attrs.get("trials_fingerprint", "")
                 kind, version = f.attrs.get("task_kind"), f.attrs.get("task_version")
+                journal_bytes, mark = int(f.attrs.get("journal_bytes", 0)), str(f.attrs.get("journal_mark", ""))
         except InputError:
             return            # unreadable: rebuilt from the journal
         _check_kind(self.path, kind, version, campaign.kind)
+        check_own_journal(self.path, journal_bytes, mark)
         if fingerprint != campaign.fingerprint:
             raise InputError(f"{self.path} was made from a different campaign file; "
                              "use --new to start over (the old store is kept as a backup)")
@@ -142,9 +154,10 @@ class Store:
             if os.path.exists(p):
                 set_aside(p, f"{p}.bak-{stamp}")
 
-    def _create(self, campaign, ranks):
-        """The new file, written in place with every write failure kept from HDF5 (`outputs.writing`)."""
-        attrs = provenance.store_attrs(campaign, ranks)
+    def _create(self, campaign, ranks, mark=None):
+        """The new file, written in place with every write failure kept from HDF5 (`outputs.writing`);
+        its journal's mark `mark` (None: a new one)."""
+        attrs = {**provenance.store_attrs(campaign, ranks), "journal_mark": new_mark() if mark is None else mark}
         write_hdf5(self.path, lambda f: schema.fill(f, campaign, attrs))
 
     def _open_or_rebuild(self, campaign, ranks):
@@ -154,11 +167,26 @@ class Store:
             f["state"][:1]
             return f
         except (OSError, KeyError):
-            aside = set_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
-            print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
-                  "rebuilding it from the journal", flush=True)
-            self._create(campaign, ranks)
+            self._rebuild(campaign, ranks)
             return h5py.File(self.path, "r+")
+
+    def _rebuild(self, campaign, ranks):
+        """The unreadable file kept as STORE.unreadable-<time> and replaced by a new one (the journal
+        replays into it). The path is never without a store: a new store does not take a journal it
+        finds alone (`check_no_stale_journal`); a failed rebuild (a full disk) leaves it as it was."""
+        aside, linked = keep_aside(self.path, f"{self.path}.unreadable-{time.strftime('%Y%m%d-%H%M%S')}")
+        print(f"campaign: {self.path} was left unreadable (kept as {aside}); "
+              "rebuilding it from the journal", flush=True)
+        found = journal.mark(self.journal_path)      # the journal's mark (None: not told, or nothing in it)
+        empty = not os.path.isfile(self.journal_path) or os.path.getsize(self.journal_path) == 0
+        try:
+            self._create(campaign, ranks, None if empty else found or "")   # '': unmarked, never checked
+        except BaseException:
+            if linked:
+                os.remove(aside)                      # our second name of the file still at the path
+            else:
+                set_aside(aside, self.path)           # back where it was (nothing is there)
+            raise
 
     def _add_trials(self, campaign):
         """A store made without trials gains the campaign's (its compressions are kept).
@@ -270,7 +298,7 @@ class Store:
     def _append_record(self):
         if self.unjournalled:
             with named_failures(self.journal_path):
-                journal.append(self.journal, self.unjournalled)
+                journal.append(self.journal, self.unjournalled, self.mark if self.journal.tell() == 0 else "")
             self.unjournalled, self.unjournalled_bytes, self.unsynced = [], 0, True
 
     def flush(self, rows: bool = False) -> None:
@@ -348,6 +376,11 @@ def _check_kind(path, kind, version, want):
         raise InputError(f"{path} was made by task kind {kind} version {version}, not {want.name} version "
                          f"{want.version}: its rows would mix two codes; use --new to start over "
                          "(the old store is kept as a backup)")
+
+
+def new_mark() -> str:
+    """A new store's mark, which the first record of its journal carries (`journal.mark`)."""
+    return uuid.uuid4().hex
 
 
 def hold_lock(path: str):

@@ -13,7 +13,8 @@ the journal's end is not damage, the next run trims it).
   run wrote), a damaged row the journal does not hold set pending (the next run computes it);
   nothing but the store's damaged rows is written; a row whose parameters are damaged
   (PARAM_CHECKSUM fails) has them rewritten from the campaign's grid (the config text the store
-  keeps, `campaign.config`, its grid's columns as `schema.fill` wrote them);
+  keeps, `campaign.config`, its grid's columns as `schema.fill` wrote them); refused beside
+  another store's journal (`campaign.store.files.check_own_journal`);
 - `pending_again(f)`: on opening for a run (`campaign.store.Store`), damaged rows set pending, to
   be computed again by that run.
 """
@@ -128,12 +129,15 @@ def repair(path: str | os.PathLike[str]) -> list[str]:
     one line per row rewritten or set pending."""
     import h5py
 
-    from campaign.store.files import check_store_path
+    from campaign.store.files import check_own_journal, check_store_path, open_read
     from campaign.store.store import hold_lock
     verify(path)                                    # InputError for what is not a store
     check_store_path(str(path))
     lock = hold_lock(str(path))
     try:
+        with open_read(path) as f:
+            journal_bytes, mark = int(f.attrs.get("journal_bytes", 0)), str(f.attrs.get("journal_mark", ""))
+        check_own_journal(str(path), journal_bytes, mark)      # not another store's journal
         with h5py.File(path, "r+") as f:
             return _rewrite(f, str(path))
     finally:

@@ -22,7 +22,7 @@ def register(sub: Commands) -> None:
     r.add_argument("config", metavar="CONFIG.toml", help="campaign file")
     r.add_argument("--store", metavar="STORE.h5", help="the store (default: [campaign] store of the file); "
                    "a folder, or an existing file that is not a campaign store, is refused")
-    r.add_argument("--new", action="store_true", help="start over; the old store (ours) is kept as a backup")
+    r.add_argument("--new", action="store_true", help="start over; the old store and journal (ours) are kept as backups")
     r.add_argument("--retry-failed", action="store_true", help="run failed tasks again (a rerun otherwise leaves "
                    "them failed: also those that crashed their process or did not answer)")
     r.add_argument("--quiet", action="store_true", help="no progress output")
