@@ -245,9 +245,10 @@ def _add_tension(s: Commands) -> None:
     add_error_options(t, "a pause's height")
     t.add_argument("--calibration", metavar="CAL.json",
                    help="calibration bundle (the format `afm analyze` takes, docs/calibration.md): the shell ramp "
-                        "table its manifest names (ramp_table) replaces the shipped one, and where it names an "
-                        "emulator and a viscoelastic table they read the oscillations for the priors; a part it "
-                        "does not name is the shipped one. The rows' shell_table_source, shell_table_sha256 and "
+                        "table and the power-law table its manifest names (ramp_table, powerlaw_table) replace the "
+                        "shipped ones, and where it names an emulator and a viscoelastic table they read the "
+                        "oscillations for the priors; a part it does not name is the shipped one. The rows' "
+                        "shell_table_source, shell_table_sha256, powerlaw_table_source, powerlaw_table_sha256 and "
                         "prior_calibration_source say which")
     t.add_argument("--out", metavar="DIR", help=OUT_HELP + "; gets tension.csv, a figure per recording and "
                    "report.md")
