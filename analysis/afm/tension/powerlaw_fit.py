@@ -98,6 +98,7 @@ SIM_XTOL = 1e-4            # the simulator's own least squares (`solve`, the ref
 SIM_STEP = 1e-3            # its relative finite-difference step
 SIM_EVALUATIONS = 60
 PROFILE_BETAS = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5)     # β of the profile of a ramp without a hold
+POLISH_SIMULATIONS = 1     # simulations taking the table's own error out of the reading's fit (`polished`)
 
 
 @dataclass(frozen=True)
@@ -269,6 +270,8 @@ class _Projected:
             try:
                 model = (_simulated(s, self.radius, self.shear, self.full(q)) if self.tabled is None
                          else s.averaged(self.tabled(self.full(q))))
+                if self.tabled is not None and self.correction is not None:
+                    model = model + self.correction(self.full(q))
             except (SolverError, InputError):
                 if self.strict:
                     raise
@@ -373,7 +376,33 @@ def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float |
     resid = _Projected(s, radius, shear, beta, tabled=force)
     fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
     resid(fit.q)                                   # `inside` of the fit itself
-    return replace(fit, tabled=True, converged=True) if force.inside else None
+    return replace(fit, tabled=True, converged=True, correction=None) if force.inside else None
+
+
+def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: PowerLawTable | None = None,
+             runs: int | None = None) -> Solved:
+    """A tabled fit (β free) with the table's own error taken out (module doc): at most `runs` times
+    one simulation at q, c = F_sim(q) - F_tab(q), and the least squares of F_tab + c from q; the fit
+    as it was where it is not tabled, and as it was last where a simulation fails or the refit
+    leaves the table."""
+    runs = POLISH_SIMULATIONS if runs is None else runs
+    if not fit.tabled or runs < 1 or fit.q.size != 4:
+        return fit
+    force = powerlaw_tabled.TabledForce(s.history, radius, shear, powerlaw_tabled.resolve(powerlaw))
+    done = 0
+    for _ in range(runs):
+        try:
+            c = _simulated(s, radius, shear, fit.q) - s.averaged(force(fit.q))
+        except (SolverError, InputError):
+            break
+        done += 1
+        resid = _Projected(s, radius, shear, None, Correction(c, np.zeros((c.size, 4)), fit.q), tabled=force)
+        again = _least_squares(resid, fit.q, xtol=1e-10, ftol=1e-10)
+        resid(again.q)
+        if not force.inside:
+            break
+        fit = replace(again, tabled=True, converged=True, correction=None)
+    return replace(fit, simulations=fit.simulations + done)
 
 
 def correct(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
@@ -530,6 +559,9 @@ def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate
             best = again if again.sse < best.sse else best
     sse_min = min([best.sse, other_sse] + [n.sse for _, n in nodes])
     sigma2 = sse_min / max(s.time_s.size - 6 - profiled, 1)
+    before = best.simulations
+    best = polished(s, radius_um, shear, best, powerlaw)
+    runs += best.simulations - before
     best = simulator_jacobian(s, radius_um, shear, best)
     runs += 0 if best.tabled else best.q.size + 1
     sd = sds(best, sigma2)
