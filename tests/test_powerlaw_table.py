@@ -44,15 +44,19 @@ def test_the_shipped_table_is_the_simulator_off_its_nodes():
     assert np.max(np.abs(tab - sim)) > 1e-6 * peak       # two computations, not one
 
 
-def test_a_recording_the_table_holds_is_read_without_simulating(monkeypatch):
+def test_a_recording_the_table_holds_is_read_with_one_simulation(monkeypatch):
+    """The tabled fit, polished by POLISH_SIMULATIONS simulations (1), each counted."""
     made = recording(OFF_NODES, seed=3)
+    calls = []
+    simulate = powerlaw_simulated.simulated
 
-    def no_simulation(*args, **kwargs):
-        raise AssertionError("simulated")
-    monkeypatch.setattr(powerlaw_simulated, "simulated", no_simulation)
+    def counted(*args, **kwargs):
+        calls.append(args)
+        return simulate(*args, **kwargs)
+    monkeypatch.setattr(powerlaw_simulated, "simulated", counted)
     fit = powerlaw_fit.fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, 6.1, 0.6)
     lo, hi = fit.tension_interval_mN_per_m
-    assert fit.tabled and fit.simulations == 0
+    assert fit.tabled and fit.simulations == len(calls) == powerlaw_fit.POLISH_SIMULATIONS == 1
     assert lo <= 0.7 <= hi and hi - lo < 0.2 and abs(fit.beta - 0.22) < 0.03
 
 

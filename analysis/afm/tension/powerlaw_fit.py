@@ -76,7 +76,7 @@ from scipy.optimize import least_squares
 from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, powerlaw_tabled
 from analysis.afm.tension.pause import Z95
 from analysis.afm.tension.powerlaw_simulated import RampHold
-from analysis.afm.tension.ramp import RampFit, fit_ramp
+from analysis.afm.tension.ramp import RampFit, baseline_noise, fit_ramp
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
@@ -91,6 +91,8 @@ START_BULK = (0.5, 5.0)    # K_B(1 s) / T of the surrogate's starts (T the dropl
 START_BETA = (0.2,)
 SURROGATE_EVALUATIONS = 300        # the surrogate's evaluations a start, at most
 RESCUE_STARTS = ((0.5, 5.0, 30.0), (0.1, 0.25))    # the starts tried where the simulator cannot run the best
+TABLE_RESCUE_STARTS = ((0.5, 5.0, 30.0), (0.05, 0.35))  # the tabled fit's, where its best misfits (`_misfit`)
+MISFIT = 2.0               # a fit misfits whose SSE exceeds this times (n - 6) σ_0², σ_0 the baseline's noise
 SIMULATIONS = 12           # the defect correction's simulations, at most
 PROFILE_SIMULATIONS = 2    # ... at a profile's node, started from its neighbour's correction
 REL_TOL = 1e-3             # q settled: γ_a and K_B(1 s) moved less than this share,
@@ -121,6 +123,7 @@ class Samples:
     raw_ramp: int
     edges: npt.NDArray[np.int64]
     hold: str = "height"
+    baseline_noise_nN: float = float("nan")
 
     @property
     def history(self) -> RampHold:
@@ -233,13 +236,14 @@ def _surrogate_force(s: Samples, radius: float, shear: float, q: Array, table: S
 
 @dataclass(frozen=True)
 class Correction:
-    """The simulator's force less the surrogate's at the samples (nN): `offset` at q = `at`
-    (x0, γ_a, K_B(1 s), β), to first order `slope` (n × 4; zero: the defect correction's
-    constant one): c(q) = offset + slope (q - at) (module doc)."""
+    """The simulator's force less the surrogate's (`tabled`: less the tabled simulator's) at the
+    samples (nN): `offset` at q = `at` (x0, γ_a, K_B(1 s), β), to first order `slope` (n × 4;
+    zero: the defect correction's constant one): c(q) = offset + slope (q - at) (module doc)."""
 
     offset: Array
     slope: Array
     at: Array
+    tabled: bool = False
 
     def __call__(self, q: Array) -> Array:
         return self.offset + self.slope @ (q - self.at)
@@ -369,28 +373,31 @@ def _broyden(slope: Array, miss: Array, step: Array, scale: Array) -> Array:
 
 
 def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float | None = None,
-               powerlaw: PowerLawTable | None = None) -> Solved | None:
+               powerlaw: PowerLawTable | None = None, correction: Correction | None = None) -> Solved | None:
     """The least squares of the tabled simulator (`powerlaw_tabled`) on the power-law table
-    `powerlaw` (None: the shipped one) from q0, β free or fixed at `beta`; None where the hold is
-    not one it holds or the fit ends outside it (the caller then simulates)."""
+    `powerlaw` (None: the shipped one), plus `correction` where it is the table's (`polished`: a
+    neighbour's, carried), from q0, β free or fixed at `beta`; None where the hold is not one it
+    holds or the fit ends outside it (the caller then simulates)."""
     if s.raw_time_s.size > s.raw_ramp and s.hold != "height":
         return None
     table = powerlaw_tabled.resolve(powerlaw)
     force = powerlaw_tabled.TabledForce(s.history, radius, shear, table)
-    resid = _Projected(s, radius, shear, beta, tabled=force)
+    carried = correction if correction is not None and correction.tabled else None
+    resid = _Projected(s, radius, shear, beta, carried, tabled=force)
     fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
     resid(fit.q)                                   # `inside` of the fit itself
-    return replace(fit, tabled=True, converged=True, correction=None) if force.inside else None
+    return replace(fit, tabled=True, converged=True, correction=carried) if force.inside else None
 
 
 def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: PowerLawTable | None = None,
              runs: int | None = None) -> Solved:
     """A tabled fit (β free) with the table's own error taken out (module doc): at most `runs` times
     one simulation at q, c = F_sim(q) - F_tab(q), and the least squares of F_tab + c from q; the fit
-    as it was where it is not tabled, and as it was last where a simulation fails or the refit
-    leaves the table."""
+    as it was where it is not tabled or carries the table's correction already, and as it was
+    last where a simulation fails or the refit leaves the table. The correction stays with the fit
+    (`Correction.tabled`): its neighbours in β's and K̃_S's profiles are fitted with it."""
     runs = POLISH_SIMULATIONS if runs is None else runs
-    if not fit.tabled or runs < 1 or fit.q.size != 4:
+    if not fit.tabled or runs < 1 or fit.q.size != 4 or fit.correction is not None:
         return fit
     force = powerlaw_tabled.TabledForce(s.history, radius, shear, powerlaw_tabled.resolve(powerlaw))
     done = 0
@@ -400,12 +407,13 @@ def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: Pow
         except (SolverError, InputError):
             break
         done += 1
-        resid = _Projected(s, radius, shear, None, Correction(c, np.zeros((c.size, 4)), fit.q), tabled=force)
+        carried = Correction(c, np.zeros((c.size, 4)), fit.q, tabled=True)
+        resid = _Projected(s, radius, shear, None, carried, tabled=force)
         again = _least_squares(resid, fit.q, xtol=1e-10, ftol=1e-10)
         resid(again.q)
         if not force.inside:
             break
-        fit = replace(again, tabled=True, converged=True, correction=None)
+        fit = replace(again, tabled=True, converged=True, correction=carried)
     return replace(fit, simulations=fit.simulations + done)
 
 
@@ -419,9 +427,12 @@ def correct(s: Samples, radius: float, shear: float, q0: Array, beta: float | No
     offset at the current q (a constant-force hold: to first order, its slope made once, or
     the neighbour's kept); the surrogate on the shell ramp table `table`, the tabled simulator on
     the power-law table `powerlaw` (None: the shipped ones)."""
-    fast = tabled_fit(s, radius, shear, np.asarray(q0, float)[:3 if beta is not None else 4], beta, powerlaw)
+    fast = tabled_fit(s, radius, shear, np.asarray(q0, float)[:3 if beta is not None else 4], beta, powerlaw,
+                      correction)
     if fast is not None:
         return fast
+    if correction is not None and correction.tabled:
+        correction = None                           # the table's, not the surrogate's: q0 starts afresh
     q = start = np.asarray(q0, float)[:3 if beta is not None else 4]
     k = q.size
     lo, hi = np.array([-np.inf, 1e-4, 1e-3, 0.0])[:k], np.array([np.inf, np.inf, np.inf, BETA_MAX])[:k]
@@ -518,22 +529,28 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
     if not (t.shape == x.shape == f.shape) or not 2 <= ramp_samples <= t.size:
         raise InputError("a ramp and hold needs times, heights and forces of one length and a ramp")
     drop = fit_ramp(x[:ramp_samples], f[:ramp_samples], radius_um, "droplet", cap_um=MAX_DEPTH * radius_um)
-    return samples(t, x, f, ramp_samples, drop.window, hold), drop
+    s = samples(t, x, f, ramp_samples, drop.window, hold)
+    return replace(s, baseline_noise_nN=baseline_noise(f[:ramp_samples])[1]), drop
 
 
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: ShellTable | None = None,
           powerlaw: PowerLawTable | None = None) -> tuple[Solved, Array]:
     """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
-    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`), else the defect correction's from
-    the surrogate's best (on the shell ramp table `table`, None: the shipped one). Where the
-    simulator finds no equilibrium there (a droplet-like valley, K_B(1 s) near γ_a), from the
-    surrogate's next best fit, then from those of the RESCUE_STARTS."""
-    fits = [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
-                                                                 kb * drop.tension_mN_per_m, beta]), None, powerlaw)
-                        for kb in START_BULK for beta in START_BETA) if f is not None]
+    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`; where that best misfits,
+    also from TABLE_RESCUE_STARTS), else the defect correction's from the surrogate's best (on the
+    shell ramp table `table`, None: the shipped one). Where the simulator finds no equilibrium there
+    (a droplet-like valley, K_B(1 s) near γ_a), from the surrogate's next best fit, then from those
+    of the RESCUE_STARTS."""
+    fits: list[Solved] = []
+    for bulks, betas in ((START_BULK, START_BETA), TABLE_RESCUE_STARTS):
+        fits += [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
+                                                                      kb * drop.tension_mN_per_m, beta]), None, powerlaw)
+                             for kb in bulks for beta in betas) if f is not None]
+        if fits and not _misfit(s, min(f.sse for f in fits)):
+            break
     if fits:
         best = min(fits, key=lambda f: f.sse)
-        return best, np.r_[best.q[0], best.linear, best.q[1:]]
+        return polished(s, radius_um, shear, best, powerlaw), np.r_[best.q[0], best.linear, best.q[1:]]
     for starts in ((START_BULK, START_BETA), RESCUE_STARTS):
         for p in surrogate_fits(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table, starts):
             try:
@@ -541,6 +558,13 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: Shel
             except SolverError:
                 continue
     raise SolverError("the simulator finds no equilibrium at any of the surrogate's fits")
+
+
+def _misfit(s: Samples, sse: float) -> bool:
+    """Whether a fit's SSE exceeds MISFIT times what the baseline's noise σ_0 leaves, (n - 6) σ_0²
+    (a start that ended in another valley, e.g. the droplet's at the table's edge; a fit of the
+    right model leaves 1 ± sqrt(2/n) of it)."""
+    return bool(sse > MISFIT * max(s.time_s.size - 6, 1) * s.baseline_noise_nN ** 2)
 
 
 def conclude(s: Samples, radius_um: float, shear: float, best: Solved, surrogate: Array,
