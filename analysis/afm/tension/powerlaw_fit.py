@@ -385,8 +385,28 @@ def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float |
     carried = correction if correction is not None and correction.tabled else None
     resid = _Projected(s, radius, shear, beta, carried, tabled=force)
     fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
-    resid(fit.q)                                   # `inside` of the fit itself
-    return replace(fit, tabled=True, converged=True, correction=carried) if force.inside else None
+    resid(fit.q)                                   # `interior` of the fit itself
+    if not force.interior:
+        return None
+    strict = _Projected(s, radius, shear, beta, carried, strict=True, tabled=force)
+    return replace(fit, jac=_inside_jacobian(strict, fit.q), tabled=True, converged=True, correction=carried)
+
+
+def _inside_jacobian(resid: _Projected, q: Array) -> Array:
+    """The Jacobian of a tabled fit's residuals at q by forward differences (SIM_STEP relative),
+    a backward one where the forward step leaves the table (the least squares' own may have
+    stepped across its wall)."""
+    r0 = resid(q)
+    jac = np.empty((r0.size, q.size))
+    for i in range(q.size):
+        h = SIM_STEP * max(abs(q[i]), _scale(resid.full(q))[i])
+        step = h * np.eye(q.size)[i]
+        try:
+            jac[:, i] = (resid(q + step) - r0) / h
+        except (SolverError, InputError):
+            jac[:, i] = (r0 - resid(q - step)) / h
+    resid(q)
+    return jac
 
 
 def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: PowerLawTable | None = None,
@@ -411,9 +431,10 @@ def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: Pow
         resid = _Projected(s, radius, shear, None, carried, tabled=force)
         again = _least_squares(resid, fit.q, xtol=1e-10, ftol=1e-10)
         resid(again.q)
-        if not force.inside:
+        if not force.interior:
             break
-        fit = replace(again, tabled=True, converged=True, correction=carried)
+        jac = _inside_jacobian(_Projected(s, radius, shear, None, carried, strict=True, tabled=force), again.q)
+        fit = replace(again, jac=jac, tabled=True, converged=True, correction=carried)
     return replace(fit, simulations=fit.simulations + done)
 
 

@@ -21,7 +21,9 @@ in τ below the first τ node, r(0) = 1).
 The table holds a recording (`TabledForce.inside`) where every parameter lies within its axes
 (EDGE_TOL beyond an end in its coordinate), the ramp within the deepest e, a hold at constant height within
 d_max's axis and its longest τ, and no node it reads failed; elsewhere (and for constant-force holds)
-`powerlaw_fit` simulates. `bench/powerlaw_ramp_hold.py --table` measures it against the simulator.
+`powerlaw_fit` simulates; so it does where a fit ends within EDGE_MARGIN of an axis's end
+(`interior`; β = 0 aside), where the table's wall (no value beyond) and not the recording stopped
+it. `bench/powerlaw_ramp_hold.py --table` measures it against the simulator.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ if TYPE_CHECKING:
     from analysis.afm.tension.powerlaw_simulated import RampHold
 
 Array = npt.NDArray[np.float64]
+EDGE_MARGIN = 0.01      # how far inside an axis's ends (its coordinate) a fit must end to be the table's
 
 
 class TabledForce:
@@ -51,6 +54,7 @@ class TabledForce:
     def __init__(self, history: RampHold, radius_um: float, shear_tilde: float, table: PowerLawTable):
         self.history, self.radius, self.shear, self.table = history, radius_um, shear_tilde, table
         self.inside = False
+        self.interior = False
 
     def __call__(self, q: Array) -> Array:
         h, R = self.history, self.radius
@@ -70,6 +74,7 @@ class TabledForce:
         curves = self.table.at(coords) if 0 < e_max <= self.table.depths[-1] + EDGE_TOL else None
         held = t.size > h.ramp_samples
         self.inside = curves is not None and (not held or self._holds(d_max, t[-1] - t_end, t_end - t_c))
+        self.interior = self.inside and self._interior(coords)
         if curves is None or not self.inside:
             raise SolverError("outside the power-law table")
         q_d, r = curves
@@ -83,6 +88,16 @@ class TabledForce:
             end = e_max * float(self._q(q_d, np.array([e_max]))[0])
             force[h.ramp_samples:] = R * k_eff * (gamma / k_eff * float(unit_force_per_tension(d_max)) + end * ratio)
         return force
+
+    def _interior(self, coords: Array) -> bool:
+        """Whether (ln R_b, ln γ̃, ln K̃_S, β) lie EDGE_MARGIN inside the table's axes (β = 0, the
+        elastic shell and β's own bound, counts as inside): a fit stopped at an edge is not the
+        table's to read."""
+        for k, (axis, x) in enumerate(zip(self.table.axes[:4], coords)):
+            low = axis[0] + (0.0 if k == 3 and axis[0] == 0.0 else EDGE_MARGIN)
+            if not low - EDGE_TOL <= x <= axis[-1] - EDGE_MARGIN:
+                return False
+        return True
 
     def _holds(self, d_max: float, hold_s: float, ramp_s: float) -> bool:
         """Whether the table holds the hold: at constant height, d_max within its axis, τ within TAU_MAX."""
