@@ -52,8 +52,9 @@ class PowerLawTable:
             return None
         cut = tuple(slice(i, i + w.size) for i, w in parts)      # type: ignore[misc]
         ws = [w for _, w in parts]                                   # type: ignore[misc]
-        q = np.einsum("a,b,c,d,abcde->e", *ws, self.q[cut])
-        r = np.einsum("a,b,c,d,abcdef->ef", *ws, self.r[cut])
+        q, r = self.q[cut], self.r[cut]
+        for w in ws:                                                  # one axis at a time
+            q, r = np.tensordot(w, q, axes=(0, 0)), np.tensordot(w, r, axes=(0, 0))
         return (q, r) if np.all(np.isfinite(q)) and np.all(np.isfinite(r)) else None
 
 
@@ -65,8 +66,9 @@ def weights(nodes: Array, x: float) -> tuple[int, Array] | None:
     m = min(POINTS, nodes.size)
     i = int(np.clip(np.searchsorted(nodes, x) - m // 2, 0, nodes.size - m))
     xs = nodes[i:i + m]
-    w = np.array([np.prod([(x - xs[k]) / (xs[j] - xs[k]) for k in range(m) if k != j]) for j in range(m)])
-    return i, w
+    gap = xs[:, None] - xs[None, :] + np.eye(m)                   # x_j - x_k, 1 on the diagonal
+    factors = np.where(np.eye(m, dtype=bool), 1.0, (x - xs[None, :]) / gap)
+    return i, factors.prod(axis=1)                                # w_j = Π_{k≠j} (x - x_k)/(x_j - x_k)
 
 
 def from_document(doc: dict[str, Any], where: str = "power-law table") -> PowerLawTable:

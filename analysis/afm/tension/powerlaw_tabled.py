@@ -78,14 +78,15 @@ class TabledForce:
         if curves is None or not self.inside:
             raise SolverError("outside the power-law table")
         q_d, r = curves
+        spline = CubicSpline(self.table.depths, q_d)
         force = gamma * R * unit_force_per_tension(np.minimum(np.clip(x0 - h.x_um, 0.0, None) / R, DEPTH_MAX))
         ramp = (t > t_c) & (np.arange(t.size) < h.ramp_samples)
         e = v * (t[ramp] - t_c) / R
-        force[ramp] = R * k_eff * (gamma / k_eff * unit_force_per_tension(e + START_UM / R) + e * self._q(q_d, e))
+        force[ramp] = R * k_eff * (gamma / k_eff * unit_force_per_tension(e + START_UM / R) + e * self._q(spline, e))
         if held:
             tau = (t[h.ramp_samples:] - t_end) / (t_end - t_c)
             ratio = self._r(r, d_max, tau)
-            end = e_max * float(self._q(q_d, np.array([e_max]))[0])
+            end = e_max * float(self._q(spline, np.array([e_max]))[0])
             force[h.ramp_samples:] = R * k_eff * (gamma / k_eff * float(unit_force_per_tension(d_max)) + end * ratio)
         return force
 
@@ -105,9 +106,9 @@ class TabledForce:
         return (self.history.hold == "height" and axis[0] - EDGE_TOL <= np.log(d_max) <= axis[-1] + EDGE_TOL
                 and hold_s / max(ramp_s, 1e-12) <= self.table.taus[-1] * (1 + 1e-9))
 
-    def _q(self, q_e: Array, e: Array) -> Array:
-        """q at the deformations e: a cubic spline over the table's, held at the first below it."""
-        return CubicSpline(self.table.depths, q_e)(np.clip(e, self.table.depths[0], self.table.depths[-1]))
+    def _q(self, spline: CubicSpline, e: Array) -> Array:
+        """q at the deformations e from its cubic spline over the table's, held at the first below it."""
+        return np.asarray(spline(np.clip(e, self.table.depths[0], self.table.depths[-1])), float)
 
     def _r(self, r: Array, d_max: float, tau: Array) -> Array:
         """r at d_max over τ (module doc)."""
