@@ -57,7 +57,8 @@ def test_the_tree_has_every_command():
     assert {"geometry", "compress", "poroelastic", "campaign run", "campaign status", "campaign verify",
             "campaign repair", "analysis calibrate",
             "analysis viscosity", "analysis build-calibration", "analysis build-viscoelastic-table",
-            "analysis build-ramp-table", "analysis build-protocol-map", "analysis invert", "afm synth", "afm import",
+            "analysis build-ramp-table", "analysis build-powerlaw-table", "analysis build-protocol-map", "analysis invert",
+            "afm synth", "afm import",
             "afm analyze", "afm tension", "doctor"} == set(IDS)
 
 
