@@ -175,8 +175,7 @@ def speed(seed: int, profile: bool, repeat: int) -> dict[str, Any]:
     totals: list[float] = []
     simulations: list[int] = []
     for _ in range(repeat):
-        powerlaw_shell._STRAINS.clear()
-        powerlaw_shell._MEMORY.clear()
+        powerlaw_shell.clear_caches()
         start = time.process_time()
         simulations, failed = [], 0
         for cell, m in made:

@@ -35,7 +35,7 @@ where the material under an element moves with l (the disc's does not):
 
 J M is P_B off the label's row and column; its column (w = 4π r̄0 dS, the prestress's weight)
 Σ_e w_e ∇a_e M_e,l and its row Σ_e β_e ∇a_e, β = ∂(w a)/∂l + Dᵀ(w a dψ̄0/dl) (D the samples'
-slopes, `_slopes`), each one gradient with the prestress shifted, and β·M_l. The label moves
+slopes, `hermite_slopes`), each one gradient with the prestress shifted, and β·M_l. The label moves
 freely where E*(l) with the history carried has its minimum within STATIONARY_L of it
 (|G| ≤ STATIONARY_L k, k = dG/dl > 0 with the rest relaxed, H_tot's Schur complement); elsewhere
 the plate holds it (touching: k ≈ 0 or below), and its row is the touching condition
@@ -70,7 +70,7 @@ import numpy as np
 import numpy.typing as npt
 
 from solver.fast import contact_at_least
-from solver.fast.contact import _node_labels, _slopes, carry_history, history_share
+from solver.fast.contact import carry_history, hermite_slopes, history_share, node_labels
 from solver.fast.lagrangian import Lagrangian
 from solver.time_domain import Cortex, TimeShell, element_strains
 from solver.viscous import Linearised, full_hessian, hold_label, respond
@@ -160,11 +160,27 @@ def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.ND
     parts with the history's response moving with the material (module docstring); the label's
     row the touching condition (`_touching`) where E*(l) has no minimum at the label."""
     lag, u, zp = state.lag, state.u, 0.5 * state.h_um
-    k, nd = lag.size - 2, lag.nd
-    l = float(u[-2])
-    history = (state.labels(l), lag.terms.pa[nd:].copy(), lag.terms.ps[nd:].copy())
+    history = (state.labels(float(u[-2])), lag.terms.pa[lag.nd:].copy(), lag.terms.ps[lag.nd:].copy())
+    stiffness, G = _label_balance(lag, u, zp, history, base)
+    _moving_history(lag, u, zp, history[0], parts, strains)
+    if not (stiffness > 0 and abs(G) <= STATIONARY_L * stiffness):
+        _touching(lag, u, zp, base, parts)
+
+
+def _stepped(u: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """u with its label l stepped by +STEP_L and -STEP_L."""
     up, um = u.copy(), u.copy()
-    up[-2], um[-2] = l + STEP_L, l - STEP_L
+    up[-2], um[-2] = u[-2] + STEP_L, u[-2] - STEP_L
+    return up, um
+
+
+def _label_balance(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float, history: tuple[npt.NDArray[np.float64], ...],
+                   base: npt.NDArray[np.float64]) -> tuple[float, float]:
+    """The total Hessian's row and column of the label, the balance's central difference in l,
+    written into `base`; returns the label's stiffness with the rest relaxed (0 where the rest has
+    no equilibrium) and its balance G."""
+    k = lag.size - 2
+    up, um = _stepped(u)
     column = (_balance(lag, up, zp, history) - _balance(lag, um, zp, history)) / (2 * STEP_L)
     total = base.copy()
     total[:, k], total[k, :] = column, column
@@ -175,24 +191,31 @@ def _carried(state: TimeShell, base: npt.NDArray[np.float64], parts: list[npt.ND
         stiffness = 0.0
     G = _balance(lag, u, zp, history)[k]
     base[...] = total
+    return float(stiffness), float(G)
+
+
+def _moving_history(lag: Lagrangian, u: npt.NDArray[np.float64], zp: float, at: npt.NDArray[np.float64],
+                    parts: list[npt.NDArray[np.float64]],
+                    strains: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> None:
+    """The parts' row and column of the label with the history (sampled at the labels `at`)
+    moving with its material (module docstring), in place."""
+    k, nd = lag.size - 2, lag.nd
+    up, um = _stepped(u)
     dl = (_weighted_strains(lag, up, zp) - _weighted_strains(lag, um, zp)) / (2 * STEP_L)
     w = _weighted_strains(lag, u, zp)[2]
-    _, dpsi = _node_labels(l, lag.ref.zeta, lag.ref.xi)
+    _, dpsi = node_labels(float(u[-2]), lag.ref.zeta, lag.ref.xi)
     dmid = 0.5 * (dpsi[1:] + dpsi[:-1])
-    at = history[0]
-    slopes = np.column_stack([_slopes(at, e) for e in np.eye(at.size)])      # D: dv/dψ0 at the samples
+    slopes = np.column_stack([hermite_slopes(at, e) for e in np.eye(at.size)])      # D: dv/dψ0 at the samples
     g0 = _gradient(lag, u, zp)
     for c, (strain, P) in enumerate(zip(strains, parts)):
         along = np.zeros_like(strain)
-        along[nd:] = _slopes(at, strain[nd:]) * dmid                     # a'(ψ0) dψ̄0/dl
+        along[nd:] = hermite_slopes(at, strain[nd:]) * dmid                     # a'(ψ0) dψ̄0/dl
         moved = dl[c] / w - strain * dl[2] / w - along                   # M's column in l: ∂a/∂l - a' dψ̄0/dl
         beta = dl[c].copy()                                              # J's row in l: ∂(w a)/∂l + Dᵀ(w a dψ̄0/dl)
         beta[nd:] += slopes.T @ ((w * strain)[nd:] * dmid)
         P[:, k] = _shifted(lag, u, zp, c, moved) - g0
         P[k, :] = _shifted(lag, u, zp, c, beta / w) - g0
         P[k, k] = beta @ moved
-    if not (stiffness > 0 and abs(G) <= STATIONARY_L * stiffness):
-        _touching(lag, u, zp, base, parts)
 
 
 def state_parts(state: TimeShell) -> StateParts:

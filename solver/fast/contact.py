@@ -90,7 +90,7 @@ def gap(u: npt.NDArray[np.float64], zp: float, N: int, kc: int) -> float:
 
 
 @njit(cache=True)
-def _node_labels(l, zeta, xi):
+def node_labels(l, zeta, xi):
     """ψ0 and dψ0/dl of the nodes from the disc's edge on at contact label l (`solver.fast.mesh`)."""
     psic, nn = np.exp(l), zeta.size
     psi, dpsi = np.zeros(1 + nn + xi.size), np.zeros(1 + nn + xi.size)
@@ -103,7 +103,7 @@ def _node_labels(l, zeta, xi):
 
 
 @njit(cache=True)
-def _slopes(at, v):
+def hermite_slopes(at, v):
     """dv/dψ0 at the samples: the slope of the parabola through each sample and its two
     neighbours (the one-sided secant at the ends), linear in v (`carry_history`)."""
     n = at.size
@@ -147,13 +147,13 @@ def carry_history(l: float, zeta: npt.NDArray[np.float64], xi: npt.NDArray[np.fl
                   terms: Terms) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Set terms.pa, terms.ps of the elements from the disc's edge on to the history
     (ψ̄0 samples, P_a, P_s) at their mid-labels at contact label l, C¹ in ψ0 (the cubic Hermite
-    interpolant with `_slopes`, continued along the end's tangent beyond the samples); return
+    interpolant with `hermite_slopes`, continued along the end's tangent beyond the samples); return
     dP_a/dl, dP_s/dl of those elements."""
     at, pa0, ps0 = history
-    psi, dpsi = _node_labels(l, zeta, xi)
+    psi, dpsi = node_labels(l, zeta, xi)
     m, nd = psi.size - 1, terms.kc - zeta.size
     dpa, dps = np.zeros(m), np.zeros(m)
-    da, ds = _slopes(at, pa0), _slopes(at, ps0)
+    da, ds = hermite_slopes(at, pa0), hermite_slopes(at, ps0)
     for e in range(m):
         x = 0.5 * (psi[e] + psi[e + 1])
         dx = 0.5 * (dpsi[e] + dpsi[e + 1])

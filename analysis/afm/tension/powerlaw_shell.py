@@ -125,3 +125,9 @@ def force_nN(time_s: npt.ArrayLike, depth_um: npt.ArrayLike, radius_um: float, t
         out = out + elastic_force_nN(time_s, depth_um, radius_um, bulk_1s_mN_per_m, beta,
                                      tension_mN_per_m / bulk_1s_mN_per_m, shear_tilde, table)
     return out
+
+
+def clear_caches() -> None:
+    """Forget the memory matrices and strain curves kept (`memory_matrix`, `strain`): a cold start."""
+    _MEMORY.clear()
+    _STRAINS.clear()
