@@ -7,6 +7,7 @@
                 "MODULE:NAME", the kind NAME that MODULE registers (the
                 tables': "analysis.calibration.viscoelastic_table:viscoelastic_table",
                 "analysis.afm.tension.shell_table:ramp_table",
+                "analysis.afm.tension.powerlaw_grid:powerlaw_table",
                 "analysis.afm.synth.protocol_bias:protocol_bias"); a kind other
                 than compression needs the fast solver and an elastic grid
                 without [montecarlo]
