@@ -19,7 +19,7 @@ A kind (`Kind`) names
 The owner registers it where its compute function lives (`register`, at import): the engine's
 compressions in `campaign/tasks.py`, the Monte-Carlo trials in `campaign/trials.py`, the tables in
 analysis (`analysis.calibration.viscoelastic_table`, `analysis.afm.tension.shell_table`,
-`analysis.afm.synth.protocol_bias`). A campaign file names a kind in `[campaign] task`:
+`analysis.afm.tension.powerlaw_grid`, `analysis.afm.synth.protocol_bias`). A campaign file names a kind in `[campaign] task`:
 `"compression"` (the default, the engine's), or `"MODULE:NAME"`, the module that registers it
 (imported then, on every rank and in every task process: a kind's compute function travels to the
 task process by reference) and the kind's name. So a new kind, in any importable module, needs no
