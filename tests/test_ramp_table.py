@@ -11,7 +11,7 @@ import pytest
 
 from analysis.afm.tension import shell_ramp
 from analysis.afm.tension.shell_table import DEPTHS, forces, unit_forces
-from analysis.calibration.file import RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
+from analysis.calibration.file import POWERLAW_TABLE_NAME, RAMP_TABLE_NAME, TABLE_NAME, load_calibration, shipped_path
 from analysis.calibration.ramp_table import ShellTable, from_document, read
 from common.errors import InputError
 from solver.droplet_table import unit_force_per_tension
@@ -70,7 +70,7 @@ def test_calibration_file_carries_the_ramp_table(tmp_path):
     shutil.copy(shipped_path(), mine)
     with pytest.raises(InputError, match="table it names.*is missing"):
         load_calibration(mine)
-    for name in (RAMP_TABLE_NAME, TABLE_NAME):
+    for name in (RAMP_TABLE_NAME, TABLE_NAME, POWERLAW_TABLE_NAME):
         shutil.copy(shipped_path(name), tmp_path / name)
     given = load_calibration(mine).shell_ramp
     for table in (shipped, given, shell_ramp.shipped()):
