@@ -140,10 +140,11 @@ class PowerLawFit:
     """The fitted power-law shell: γ_a (mN/m), K_B(1 s) (mN/m), β with their SDs and γ_a's
     95 % interval; contact x0 (µm), baseline F_b (nN) and slope s (nN/µm), K̃_S used, the
     noise SD σ (nN), the samples fitted (`Samples`), whether a hold was fitted, the
-    surrogate's own γ_a, K_B(1 s), β (the simulator's start), without a hold γ_a's band
-    over β's profile (`tension_band_mN_per_m`, module doc; with K̃_S profiled also over it,
-    `powerlaw_shear`), the fit's SSE (nN²), K̃_S's 95 % interval where profiled, the
-    simulations the reading ran (all its fits) and whether its best fit's q settled."""
+    surrogate's own γ_a, K_B(1 s), β (the simulator's start; tabled: the table's own fit before
+    its polish), without a hold γ_a's band over β's profile (`tension_band_mN_per_m`, module doc;
+    with K̃_S profiled also over it, `powerlaw_shear`), the fit's SSE (nN²), K̃_S's 95 % interval
+    where profiled, the simulations the reading ran (all its fits), whether its best fit's q
+    settled and whether it read the power-law table (`tabled`)."""
 
     tension_mN_per_m: float
     tension_sd_mN_per_m: float
@@ -558,7 +559,7 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: Shel
           powerlaw: PowerLawTable | None = None) -> tuple[Solved, Array]:
     """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
     START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`; where that best misfits,
-    also from TABLE_RESCUE_STARTS), else the defect correction's from the surrogate's best (on the
+    also from TABLE_RESCUE_STARTS), polished (`polished`), else the defect correction's from the surrogate's best (on the
     shell ramp table `table`, None: the shipped one). Where the simulator finds no equilibrium there
     (a droplet-like valley, K_B(1 s) near γ_a), from the surrogate's next best fit, then from those
     of the RESCUE_STARTS."""

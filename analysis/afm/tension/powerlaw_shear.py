@@ -3,10 +3,11 @@ no oscillation prior): profiled over SHEAR_RANGE, and γ_a's interval widened by
 leaves open (SPEC 11-12; `powerlaw_fit` is the fit at one K̃_S; the profile is read as the
 elastic shell's, `shell_shear.profile_bands`).
 
-The defect correction's fit (`powerlaw_fit.correct`, β free) at each of NODES values of K̃_S
-log-spaced over SHEAR_RANGE: first at the node nearest 1/3 from the surrogate's fit, then
-outward, each started from its neighbour's optimum and correction, refreshed by at most
-PROFILE_SIMULATIONS simulations at the node; then once more at the vertex of the parabola in
+The fit (`powerlaw_fit.correct`, β free: the tabled simulator's where the power-law table
+holds the recording, else the defect correction's) at each of NODES values of K̃_S log-spaced
+over SHEAR_RANGE: first at the node nearest 1/3 (`powerlaw_fit.start`, polished), then outward,
+each started from its neighbour's optimum and correction (tabled: the first node's polish carried;
+simulated: refreshed by at most PROFILE_SIMULATIONS simulations at the node); then once more at the vertex of the parabola in
 ln K̃_S through the best node and its two neighbours (where the best is inside the range).
 The best K̃_S's fit, its correction carried on to the tolerances, is the reading
 (`powerlaw_fit.conclude`: without a hold, β's profile there), with σ² = SSE_min / (n − 7)
