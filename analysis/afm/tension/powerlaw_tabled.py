@@ -101,7 +101,7 @@ class TabledForce:
         return True
 
     def _holds(self, d_max: float, hold_s: float, ramp_s: float) -> bool:
-        """Whether the table holds the hold: at constant height, d_max within its axis, τ within TAU_MAX."""
+        """Whether the table holds the hold: at constant height, d_max within its axis, τ within its longest."""
         axis = self.table.axes[4]
         return (self.history.hold == "height" and axis[0] - EDGE_TOL <= np.log(d_max) <= axis[-1] + EDGE_TOL
                 and hold_s / max(ramp_s, 1e-12) <= self.table.taus[-1] * (1 + 1e-9))
