@@ -573,13 +573,42 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: Shel
     if fits:
         best = min(fits, key=lambda f: f.sse)
         return polished(s, radius_um, shear, best, powerlaw), np.r_[best.q[0], best.linear, best.q[1:]]
+    ramp = _ramp_start(s, radius_um, shear, drop, powerlaw)
+    from_ramp = None
+    if ramp is not None:
+        try:
+            from_ramp = correct(s, radius_um, shear, ramp.q, table=table, powerlaw=powerlaw)
+        except SolverError:
+            pass
     for starts in ((START_BULK, START_BETA), RESCUE_STARTS):
         for p in surrogate_fits(s, radius_um, shear, drop.contact_um, drop.tension_mN_per_m, table, starts):
             try:
-                return correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table, powerlaw=powerlaw), p
+                fit = correct(s, radius_um, shear, p[[0, 3, 4, 5]], table=table, powerlaw=powerlaw)
             except SolverError:
                 continue
+            if from_ramp is not None and from_ramp.sse < fit.sse:
+                return replace(from_ramp, simulations=from_ramp.simulations + fit.simulations), p
+            return replace(fit, simulations=fit.simulations + (0 if from_ramp is None else from_ramp.simulations)), p
+    if from_ramp is not None and ramp is not None:
+        return from_ramp, np.r_[ramp.q[0], ramp.linear, ramp.q[1:]]
     raise SolverError("the simulator finds no equilibrium at any of the surrogate's fits")
+
+
+def _ramp_start(s: Samples, radius_um: float, shear: float, drop: RampFit,
+                powerlaw: PowerLawTable | None) -> Solved | None:
+    """The tabled simulator's fit of the recording's ramp alone (its runs before the hold), a start
+    for the defect correction of a hold the table does not hold (a constant-force one); None where
+    there is no such hold or the table does not hold the ramp."""
+    if s.raw_time_s.size == s.raw_ramp:
+        return None
+    k = s.ramp_points
+    alone = replace(s, time_s=s.time_s[:k], x_um=s.x_um[:k], force_nN=s.force_nN[:k], count=s.count[:k],
+                    raw_time_s=s.raw_time_s[:s.raw_ramp], raw_x_um=s.raw_x_um[:s.raw_ramp], edges=s.edges[:k + 1],
+                    hold="height")
+    fits = [f for f in (tabled_fit(alone, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
+                                                                     kb * drop.tension_mN_per_m, beta]), None, powerlaw)
+                        for kb in START_BULK for beta in START_BETA) if f is not None]
+    return min(fits, key=lambda f: f.sse) if fits else None
 
 
 def _misfit(s: Samples, sse: float) -> bool:
