@@ -558,11 +558,12 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: ShellTable | None = None,
           powerlaw: PowerLawTable | None = None) -> tuple[Solved, Array]:
     """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
-    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`; where that best misfits,
-    also from TABLE_RESCUE_STARTS), polished (`polished`), else the defect correction's from the surrogate's best (on the
-    shell ramp table `table`, None: the shipped one). Where the simulator finds no equilibrium there
-    (a droplet-like valley, K_B(1 s) near γ_a), from the surrogate's next best fit, then from those
-    of the RESCUE_STARTS."""
+    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`; where that best
+    misfits, also from TABLE_RESCUE_STARTS), polished (`polished`); else the defect correction's
+    from the surrogate's best (on the shell ramp table `table`, None: the shipped one) and, with a
+    hold the table does not hold, from the tabled fit of the ramp alone (`_ramp_start`), the lower
+    SSE kept. Where the simulator finds no equilibrium at the surrogate's best (a droplet-like
+    valley, K_B(1 s) near γ_a), from its next best fit, then from those of the RESCUE_STARTS."""
     fits: list[Solved] = []
     for bulks, betas in ((START_BULK, START_BETA), TABLE_RESCUE_STARTS):
         fits += [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
