@@ -16,11 +16,12 @@ The shipped table is `data/powerlaw_table.json` (`NAME`), a part of the calibrat
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from scipy.interpolate import CubicSpline
 
 from common.errors import InputError
 
@@ -30,6 +31,7 @@ FORMAT = "cortex-powerlaw-ramp-hold-table"
 POINTS = 4              # nodes of each axis's local polynomial
 EDGE_TOL = 1e-6         # how far beyond an axis's end (in its coordinate) still reads as inside
 AXES = ("radius_um", "gamma_tilde", "shear_tilde", "beta", "depth_over_radius")
+REFINE = 16             # the cubic spline of q over the depths read on this many times finer depths (`refined`)
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,21 @@ class PowerLawTable:
     q: Array
     r: Array
     rate_per_s: float
+    fine_depths: Array = field(init=False, repr=False, compare=False)
+    spline_map: Array = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        d = self.depths
+        fine = np.unique(np.concatenate([np.linspace(a, b, REFINE + 1) for a, b in zip(d[:-1], d[1:])])) \
+            if d.size > 1 else d.copy()
+        object.__setattr__(self, "fine_depths", fine)
+        object.__setattr__(self, "spline_map", CubicSpline(d, np.eye(d.size))(fine) if d.size > 1
+                           else np.ones((fine.size, 1)))
+
+    def refined(self, q_depths: Array) -> Array:
+        """q's cubic spline (not-a-knot, scipy's `CubicSpline`) over the depths, at `fine_depths`:
+        a spline is linear in its values, so one product with `spline_map`."""
+        return np.asarray(self.spline_map @ q_depths, float)
 
     def at(self, coords: Array) -> tuple[Array, Array] | None:
         """(q over the depths, r over (d_max, τ)) at (ln R_b, ln γ̃, ln K̃_S, β); None outside the axes
@@ -52,9 +69,10 @@ class PowerLawTable:
             return None
         cut = tuple(slice(i, i + w.size) for i, w in parts)      # type: ignore[misc]
         ws = [w for _, w in parts]                                   # type: ignore[misc]
-        q, r = self.q[cut], self.r[cut]
-        for w in ws:                                                  # one axis at a time
-            q, r = np.tensordot(w, q, axes=(0, 0)), np.tensordot(w, r, axes=(0, 0))
+        w = ws[0]
+        for wk in ws[1:]:
+            w = np.multiply.outer(w, wk)                              # the nodes' weights, (4, 4, 4, 4)
+        q, r = np.tensordot(w, self.q[cut], axes=4), np.tensordot(w, self.r[cut], axes=4)
         return (q, r) if np.all(np.isfinite(q)) and np.all(np.isfinite(r)) else None
 
 

@@ -14,8 +14,8 @@ recorded heights over the contact, its end t_end at depth δ_max = START_UM + v 
 
 and before t_c the tension's alone, γ_a R ĝ(δ/R) at the recorded δ. q and r are read at the
 parameters (`analysis.calibration.powerlaw_table.PowerLawTable.at`, local polynomials over the
-nodes), then along e by a cubic spline (scipy's `CubicSpline`; q held at its first node, 0 before
-the contact), r over d_max by the same local polynomial and along τ linearly in ln τ (linearly
+nodes), then along e by a cubic spline (`PowerLawTable.refined`: its values on REFINE times finer
+depths, linear between them; q held at its first node, 0 before the contact), r over d_max by the same local polynomial and along τ linearly in ln τ (linearly
 in τ below the first τ node, r(0) = 1).
 
 The table holds a recording (`TabledForce.inside`) where every parameter lies within its axes
@@ -32,7 +32,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import CubicSpline
 
 from analysis.afm.tension.powerlaw_simulated import START_UM
 from analysis.calibration.powerlaw_table import EDGE_TOL, PowerLawTable, weights
@@ -55,14 +54,13 @@ class TabledForce:
         self.history, self.radius, self.shear, self.table = history, radius_um, shear_tilde, table
         self.inside = False
         self.interior = False
+        self._line: tuple[float, tuple[float, float]] | None = None      # the last x0 and its (v, t_c)
+        self._read: tuple[bytes, tuple[Array, Array] | None] | None = None   # the last coordinates and their curves
 
     def __call__(self, q: Array) -> Array:
         h, R = self.history, self.radius
         x0, gamma, bulk, beta = (float(v) for v in q)
-        try:
-            v, t_c = h.speed_um_per_s(x0)
-        except InputError:
-            raise SolverError("the ramp has no line in contact at this contact point") from None
+        v, t_c = self._speed(x0)
         t = h.time_s
         t_end = float(t[h.ramp_samples - 1])
         d_max = (START_UM + v * (t_end - t_c)) / R
@@ -71,24 +69,44 @@ class TabledForce:
         coords = np.array([np.log(R * (rho / self.table.rate_per_s) ** (beta / 2)), np.log(max(gamma / k_eff, 1e-300)),
                            np.log(self.shear), beta])
         e_max = d_max - START_UM / R
-        curves = self.table.at(coords) if 0 < e_max <= self.table.depths[-1] + EDGE_TOL else None
+        curves = self._curves(coords) if 0 < e_max <= self.table.depths[-1] + EDGE_TOL else None
         held = t.size > h.ramp_samples
         self.inside = curves is not None and (not held or self._holds(d_max, t[-1] - t_end, t_end - t_c))
         self.interior = self.inside and self._interior(coords)
         if curves is None or not self.inside:
             raise SolverError("outside the power-law table")
         q_d, r = curves
-        spline = CubicSpline(self.table.depths, q_d)
-        force = gamma * R * unit_force_per_tension(np.minimum(np.clip(x0 - h.x_um, 0.0, None) / R, DEPTH_MAX))
-        ramp = (t > t_c) & (np.arange(t.size) < h.ramp_samples)
-        e = v * (t[ramp] - t_c) / R
-        force[ramp] = R * k_eff * (gamma / k_eff * unit_force_per_tension(e + START_UM / R) + e * self._q(spline, e))
+        fine = self.table.refined(q_d)
+        force = np.empty(t.size)
+        n = h.ramp_samples
+        free = np.nonzero(t[:n] <= t_c)[0]                                # before the contact: the tension's
+        force[free] = gamma * R * unit_force_per_tension(np.minimum(np.clip(x0 - h.x_um[free], 0.0, None) / R,
+                                                                    DEPTH_MAX))
+        on = slice(free.size, n)                                          # t > t_c: the ramp in contact
+        e = v * (t[on] - t_c) / R
+        force[on] = R * k_eff * (gamma / k_eff * unit_force_per_tension(e + START_UM / R) + e * self._q(fine, e))
         if held:
-            tau = (t[h.ramp_samples:] - t_end) / (t_end - t_c)
-            ratio = self._r(r, d_max, tau)
-            end = e_max * float(self._q(spline, np.array([e_max]))[0])
-            force[h.ramp_samples:] = R * k_eff * (gamma / k_eff * float(unit_force_per_tension(d_max)) + end * ratio)
+            tau = (t[n:] - t_end) / (t_end - t_c)
+            end = e_max * float(self._q(fine, np.array([e_max]))[0])
+            force[n:] = R * k_eff * (gamma / k_eff * float(unit_force_per_tension(d_max)) + end * self._r(r, d_max, tau))
         return force
+
+    def _speed(self, x0: float) -> tuple[float, float]:
+        """The ramp's (v, t_c) at the contact x0 (`RampHold.speed_um_per_s`), the last kept: a
+        finite-difference step in γ_a, K_B(1 s) or β does not move it."""
+        if self._line is None or self._line[0] != x0:
+            try:
+                self._line = (x0, self.history.speed_um_per_s(x0))
+            except InputError:
+                raise SolverError("the ramp has no line in contact at this contact point") from None
+        return self._line[1]
+
+    def _curves(self, coords: Array) -> tuple[Array, Array] | None:
+        """`PowerLawTable.at` the coordinates, the last kept (a step in x0 alone moves none)."""
+        key = coords.tobytes()
+        if self._read is None or self._read[0] != key:
+            self._read = (key, self.table.at(coords))
+        return self._read[1]
 
     def _interior(self, coords: Array) -> bool:
         """Whether (ln R_b, ln γ̃, ln K̃_S, β) lie EDGE_MARGIN inside the table's axes (β = 0, the
@@ -106,9 +124,10 @@ class TabledForce:
         return (self.history.hold == "height" and axis[0] - EDGE_TOL <= np.log(d_max) <= axis[-1] + EDGE_TOL
                 and hold_s / max(ramp_s, 1e-12) <= self.table.taus[-1] * (1 + 1e-9))
 
-    def _q(self, spline: CubicSpline, e: Array) -> Array:
-        """q at the deformations e from its cubic spline over the table's, held at the first below it."""
-        return np.asarray(spline(np.clip(e, self.table.depths[0], self.table.depths[-1])), float)
+    def _q(self, fine: Array, e: Array) -> Array:
+        """q at the deformations e from its values on the table's refined depths (`PowerLawTable.refined`),
+        held at the first below them."""
+        return np.interp(e, self.table.fine_depths, fine)
 
     def _r(self, r: Array, d_max: float, tau: Array) -> Array:
         """r at d_max over τ (module doc)."""
