@@ -19,8 +19,9 @@ white noise of SD σ gives every weighted residual SD σ.
 Fit, where the power-law table holds the recording (`powerlaw_tabled`: a ramp alone or with a
 constant-height hold, every parameter within the table's axes): the least squares of the tabled
 simulator in q = (x0, γ_a, K_B(1 s), β), (F_b, s) solved linearly at each q (variable
-projection), from START_BULK × START_BETA (K_B(1 s) = k T, γ_a = T/2, T the droplet's tension),
-the best kept (`tabled_fit`, no simulation). Every later fit (β's and K̃_S's profiles) is the
+projection), from the starts of START_BULK × START_BETA, then TABLE_RESCUE_STARTS (K_B(1 s) =
+k T, γ_a = T/2, T the droplet's tension), in turn until one fits as well as the baseline's noise
+allows (`_misfit`), the best kept (`tabled_fit`, no simulation; SDs from its own Jacobian). Every later fit (β's and K̃_S's profiles) is the
 tabled one where it stays inside, the defect correction below where it leaves the table
 (`correct`). The table rests on a scaling the simulator keeps only approximately (its force at
 v/R far from the table's ρ_0 is 0.1-0.3 % off on the hold, `powerlaw_grid`), and a hold pins
@@ -68,6 +69,7 @@ and K_B(1 s) come apart.
 """
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -310,13 +312,14 @@ class Solved:
     tabled: bool = False
 
 
-def _least_squares(resid: _Projected, q0: Array, **options: float) -> Solved:
-    """`resid`'s least squares in its free parameters from q0, within the parameters' bounds."""
+def _least_squares(resid: _Projected, q0: Array, **options: Any) -> Solved:
+    """`resid`'s least squares in its free parameters from q0, within the parameters' bounds (in
+    the parameters' scales unless `x_scale` is given)."""
     q0 = np.asarray(q0, float)[:3 if resid.beta is not None else 4]
     lo, hi = [-np.inf, 1e-4, 1e-3, 0.0], [np.inf, np.inf, np.inf, BETA_MAX]
     k = q0.size
-    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), x_scale=_scale(resid.full(q0))[:k],
-                        **options)
+    options.setdefault("x_scale", _scale(resid.full(q0))[:k])
+    res = least_squares(resid, np.clip(q0, lo[:k], hi[:k]), bounds=(lo[:k], hi[:k]), **options)
     r = resid(res.x)
     return Solved(res.x, float(r @ r), res.jac, resid.linear.copy(), resid.correction)
 
@@ -385,29 +388,11 @@ def tabled_fit(s: Samples, radius: float, shear: float, q0: Array, beta: float |
     force = powerlaw_tabled.TabledForce(s.history, radius, shear, table)
     carried = correction if correction is not None and correction.tabled else None
     resid = _Projected(s, radius, shear, beta, carried, tabled=force)
-    fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10)
+    fit = _least_squares(resid, q0, xtol=1e-10, ftol=1e-10, x_scale="jac")
     resid(fit.q)                                   # `interior` of the fit itself
     if not force.interior:
         return None
-    strict = _Projected(s, radius, shear, beta, carried, strict=True, tabled=force)
-    return replace(fit, jac=_inside_jacobian(strict, fit.q), tabled=True, converged=True, correction=carried)
-
-
-def _inside_jacobian(resid: _Projected, q: Array) -> Array:
-    """The Jacobian of a tabled fit's residuals at q by forward differences (SIM_STEP relative),
-    a backward one where the forward step leaves the table (the least squares' own may have
-    stepped across its wall)."""
-    r0 = resid(q)
-    jac = np.empty((r0.size, q.size))
-    for i in range(q.size):
-        h = SIM_STEP * max(abs(q[i]), _scale(resid.full(q))[i])
-        step = h * np.eye(q.size)[i]
-        try:
-            jac[:, i] = (resid(q + step) - r0) / h
-        except (SolverError, InputError):
-            jac[:, i] = (r0 - resid(q - step)) / h
-    resid(q)
-    return jac
+    return replace(fit, tabled=True, converged=True, correction=carried)
 
 
 def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: PowerLawTable | None = None,
@@ -430,12 +415,11 @@ def polished(s: Samples, radius: float, shear: float, fit: Solved, powerlaw: Pow
         done += 1
         carried = Correction(c, np.zeros((c.size, 4)), fit.q, tabled=True)
         resid = _Projected(s, radius, shear, None, carried, tabled=force)
-        again = _least_squares(resid, fit.q, xtol=1e-10, ftol=1e-10)
+        again = _least_squares(resid, fit.q, xtol=1e-10, ftol=1e-10, x_scale="jac")
         resid(again.q)
         if not force.interior:
             break
-        jac = _inside_jacobian(_Projected(s, radius, shear, None, carried, strict=True, tabled=force), again.q)
-        fit = replace(again, jac=jac, tabled=True, converged=True, correction=carried)
+        fit = replace(again, tabled=True, converged=True, correction=carried)
     return replace(fit, simulations=fit.simulations + done)
 
 
@@ -557,20 +541,21 @@ def prepare(time_s: npt.ArrayLike, x_um: npt.ArrayLike, force_nN: npt.ArrayLike,
 
 def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: ShellTable | None = None,
           powerlaw: PowerLawTable | None = None) -> tuple[Solved, Array]:
-    """The fit at K̃_S `shear` and its start's θ: the tabled simulator's best from START_BULK ×
-    START_BETA where the power-law table `powerlaw` holds it (`tabled_fit`; where that best
-    misfits, also from TABLE_RESCUE_STARTS), polished (`polished`); else the defect correction's
+    """The fit at K̃_S `shear` and its start's θ: the tabled simulator's from the starts of
+    START_BULK × START_BETA, then TABLE_RESCUE_STARTS, in turn until one does not misfit, the best
+    kept, where the power-law table `powerlaw` holds it (`tabled_fit`), polished (`polished`); else the defect correction's
     from the surrogate's best (on the shell ramp table `table`, None: the shipped one) and, with a
     hold the table does not hold, from the tabled fit of the ramp alone (`_ramp_start`), the lower
     SSE kept. Where the simulator finds no equilibrium at the surrogate's best (a droplet-like
     valley, K_B(1 s) near γ_a), from its next best fit, then from those of the RESCUE_STARTS."""
     fits: list[Solved] = []
-    for bulks, betas in ((START_BULK, START_BETA), TABLE_RESCUE_STARTS):
-        fits += [f for f in (tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
-                                                                      kb * drop.tension_mN_per_m, beta]), None, powerlaw)
-                             for kb in bulks for beta in betas) if f is not None]
+    for kb, beta in [(k, b) for bulks, betas in ((START_BULK, START_BETA), TABLE_RESCUE_STARTS)
+                     for k in bulks for b in betas]:
+        fit = tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
+                                                       kb * drop.tension_mN_per_m, beta]), None, powerlaw)
+        fits += [] if fit is None else [fit]
         if fits and not _misfit(s, min(f.sse for f in fits)):
-            break
+            break                                   # a start that fits as well as the noise allows
     if fits:
         best = min(fits, key=lambda f: f.sse)
         return polished(s, radius_um, shear, best, powerlaw), np.r_[best.q[0], best.linear, best.q[1:]]
