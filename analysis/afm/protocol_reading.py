@@ -5,11 +5,13 @@ The correction of a cell's segments (`analysis.afm.replayed`) needs the cell's p
 
     θ_0 = the viscoelastic point fit of the raw segments (tension filter lifted), γ_a from the
           shallowest height (`started`),
-    S_i = the raw segments corrected with the power laws of θ_{i-1},   θ_i = the point fit of S_i,
+    S_i = the raw segments corrected with the power laws θ_{i-1},   g_i = the point fit of S_i,
 
 each round the selected variant's inversion of S_i and its complex point fit
-(`analysis.viscoelastic_fit.fit`, no bootstrap). Only the cells whose power laws moved by more
-than SETTLED since their last replay are replayed again (`unsettled`, the policy; a cell the
+(`analysis.viscoelastic_fit.fit`, no bootstrap), and θ_i Anderson's mixing of the cell's last
+rounds (`analysis.afm.law_rounds`, the policy: a fixed point that contracts slowly is
+extrapolated, not crept towards). Only the cells whose θ_i differs by more than SETTLED from the
+laws of their last replay are replayed again (`proposed`, `law_rounds.moved`; a cell the
 round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. Each
 replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
 (`memory_s` None, the default) or at the one given; the cell's memory is then chosen from the
@@ -47,6 +49,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from analysis.afm.analyze import Measured, inverted
+from analysis.afm.law_rounds import Laws, moved, next_laws
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
 from analysis.afm.replayed import cell_replays
@@ -63,7 +66,6 @@ if TYPE_CHECKING:
 MAX_ROUNDS = 8
 FULL_LAST = True        # the last correction by the full replay (the linearised one's bias: bench/linearised_replay.py)
 SHALLOWEST_UM = 0.1     # µm: segments this close to a cell's largest mean height are its shallowest
-SETTLED = {"bulk_beta": 0.01, "shear_beta": 0.01, "bulk_1s": 0.02, "shear_1s": 0.02, "tension": 0.02}
 
 
 def is_on(wait_s: float | None) -> bool:
@@ -147,16 +149,23 @@ def markdown(segments: pd.DataFrame) -> list[str]:
     return lines + (["| cell | reason |", "|---|---|", *rows, ""] if rows else [])
 
 
-def unsettled(laws: dict[str, dict[str, float]], found: pd.DataFrame) -> list[str]:
-    """The cells of `found` (`analysis.afm.rheology.cortex_laws`) whose power laws are new or moved
-    by more than SETTLED from `laws` (β by the difference, moduli and γ_a by the log ratio)."""
-    moved = []
+def proposed(laws: dict[str, Laws], rounds: dict[str, list[tuple[Laws, Laws]]],
+             found: pd.DataFrame) -> dict[str, Laws]:
+    """Per cell of `found` (`analysis.afm.rheology.cortex_laws`) the laws for its next replay
+    (`law_rounds.next_laws` of its rounds, each the laws it was replayed with and those then
+    found; `rounds` gains this one, a cell not replayed since its last round replacing it)."""
+    out = {}
     for row in found.to_dict("records"):
-        old = laws.get(row["cell_id"])
-        if old is None or any(abs(row[k] - old[k]) > tol if k.endswith("beta") else
-                              abs(math.log(row[k] / old[k])) > tol for k, tol in SETTLED.items()):
-            moved.append(row["cell_id"])
-    return moved
+        c = row["cell_id"]
+        if c in laws:
+            kept = rounds.setdefault(c, [])
+            if kept and kept[-1][0] is laws[c]:
+                kept.pop()
+            kept.append((laws[c], row))
+            out[c] = next_laws(kept)
+        else:
+            out[c] = row
+    return out
 
 
 def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
@@ -208,16 +217,18 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     state = Factors(raw, rows, {c.cell_id: "no viscoelastic point fit of its segments" for c in cells})
     now = state.measured(volumes, measured, [], {c.cell_id: 0 for c in cells})
     table = inverted(measured, inversion, bending, errors, math.inf)
-    laws: dict[str, dict[str, float]] = {}
+    laws: dict[str, Laws] = {}
+    rounds: dict[str, list[tuple[Laws, Laws]]] = {}
     replays, moving = {c.cell_id: 0 for c in cells}, []
     for i in range(MAX_ROUNDS):
         found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
         if i == 0:
             found = started(found, raw)
-        todo = unsettled(laws, found)
+        following = proposed(laws, rounds, found)
+        todo = [c for c, new in following.items() if moved(laws.get(c), new)]
         if not todo:
             break
-        laws.update({r["cell_id"]: r for r in found.to_dict("records") if r["cell_id"] in todo})
+        laws.update({c: following[c] for c in todo})
         replay_cells = [c for c in cells if c.cell_id in todo]
         state.replayed(_factors(replay_cells, laws, bending, wait_s, jobs,
                                 f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
