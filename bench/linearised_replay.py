@@ -8,8 +8,10 @@ and with `--fine` also by the FINE simulation read by the segment fit (the synth
 experiments' own resolution: the reference both approximate). Per case and over all: the
 largest |c_lin|/|c_full| - 1, |arg c_lin - arg c_full| (rad) and |Δγ_lin - Δγ_full| (mN/m), the
 CPU of one replay each way, and whether the issue's bounds hold (1 % in |K*|, 0.005 rad).
-`--synth DIR` adds every cell of a time-domain synthetic experiment, replayed with its true
-power laws (truth.json).
+`--synth DIR` adds every cell of a time-domain synthetic experiment but its blebbing ones,
+replayed with its true power laws and memory (truth.json); with `--fine` and an experiment made
+without measurement errors (`afm synth --no-errors`) also against its recording, read by the
+segment fit: the FINE simulation itself.
 
 `speed`: `cortex afm analyze DIR --jobs 1` (the default, protocol-aware reading) on a
 time-domain synthetic experiment, this checkout and, with `--reference`, another one, one after
@@ -22,6 +24,7 @@ for 100 cells at 4 frequencies: CPU per cell × 100 × 4 / (the experiment's fre
 
 import argparse
 import json
+import math
 import os
 import resource
 import subprocess
@@ -83,12 +86,12 @@ def _compare(a, b):
             "tension_shift_mN_per_m_max": float(np.max(np.abs(a[:, 2] - b[:, 2])))}
 
 
-def _case(cell, law, bending, fine=None):
+def _case(cell, law, bending, fine=None, memory=math.inf):
     from analysis.afm.replayed import cell_correction
     out, factors = {"segments": len(cell.oscillations())}, {}
     for name, lin in (("linearised", True), ("full", False)):
         t0 = time.process_time()
-        f = cell_correction(cell, law, bending, linearised=lin)
+        f = cell_correction(cell, law, bending, linearised=lin, memory=memory)
         out[f"{name}_cpu_s"] = time.process_time() - t0
         if isinstance(f, str):
             return {**out, "error": f"{name}: {f}"}
@@ -107,13 +110,23 @@ def accuracy(fine: bool, synth: Path | None) -> dict:
         cases[case[0]] = _case(cell, law, case[7], _fine_factors(cell, shell, cortex, law) if fine else None)
     if synth is not None:
         from analysis.afm.formats import reader
+        from solver.model import Shell
+        from solver.time_domain import power_law_cortex
         made = json.loads((synth / "truth.json").read_text())
-        truth, bending = {c["cell_id"]: c for c in made["cells"]}, made["time_domain"]["bending"]
+        truth, made_td = {c["cell_id"]: c for c in made["cells"]}, made["time_domain"]
+        bending, memory = made_td["bending"], made_td.get("memory_s", math.inf)
+        exact = fine and not made["errors"]
         for cell in reader.open(synth / "experiment.h5"):
             t = truth[cell.cell_id]
+            if t.get("blebbing"):
+                continue
             law = {"bulk_1s": t["bulk_1s_mN_per_m"], "shear_1s": t["shear_1s_mN_per_m"],
                    "bulk_beta": t["bulk_exponent"], "shear_beta": t["shear_exponent"], "tension": t["tension_mN_per_m"]}
-            cases[f"synth:{cell.cell_id}"] = _case(cell, law, bending)
+            shell = Shell(volume_um3=cell.volume_um3, h0_um=cell.height_um[0], bulk_mN_per_m=law["bulk_1s"],
+                          shear_mN_per_m=law["shear_1s"], tension_mN_per_m=law["tension"], bending=bending)
+            cortex = power_law_cortex(law["bulk_1s"], law["shear_1s"], law["bulk_beta"], law["shear_beta"])
+            cases[f"synth:{cell.cell_id}"] = _case(cell, law, bending, _fine_factors(cell, shell, cortex, law)
+                                                   if exact else None, memory if memory is not None else math.inf)
     done = [c["linearised_vs_full"] for c in cases.values() if "linearised_vs_full" in c]
     worst = {k: max(c[k] for c in done) for k in done[0]}
     cpu = {k: float(np.mean([c[f"{k}_cpu_s"] for c in cases.values()])) for k in ("linearised", "full")}
