@@ -9,12 +9,9 @@ corrected with the power laws θ (K_B(1 s), K_S(1 s), β_B, β_S and γ_a). In t
 (SETTLED's tolerances are one unit each) the plain iteration θ_{k+1} = g(θ_k) creeps where g
 contracts slowly: a cell read at one frequency moves its β_B by 0.090, 0.037, 0.019, 0.015, 0.012,
 0.012, 0.0097 in successive rounds and stops, below the tolerance, 0.04 short of where it is
-heading. So the next laws are Anderson's mixing of the cell's last rounds (type II, depth m ≤
-DEPTH): with f_k = g(θ_k) − θ_k, ΔF = [f_k − f_{k−1}, ...] and ΔG = [g_k − g_{k−1}, ...],
-
-    γ = argmin |f_k − ΔF γ|,   z_{k+1} = g_k − ΔG γ,
-
-exact in one round for a linear g in one dimension (the secant); its move from g_k at most
+heading. So the next laws z_{k+1} are Anderson's mixing of the cell's last DEPTH + 1 rounds in z
+(`common.mixing.mixed`; f_k = g(θ_k) − θ_k), exact in one round for a linear g in one dimension
+(the secant); its move from g_k at most
 MAX_EXTRAPOLATION |f_k| (a rate of contraction up to 0.8), β clipped to EXPONENT_RANGE. A cell has
 settled when its next laws differ from the laws it was last replayed with by less than SETTLED
 (β by the difference, moduli and γ_a by the log ratio): the extrapolated distance to the fixed
@@ -28,6 +25,7 @@ import math
 import numpy as np
 
 from analysis.afm.rheology import EXPONENT_RANGE
+from common.mixing import mixed
 
 Laws = dict[str, float]
 SETTLED = {"bulk_beta": 0.01, "shear_beta": 0.01, "bulk_1s": 0.02, "shear_1s": 0.02, "tension": 0.02}
@@ -52,15 +50,11 @@ def _laws(z: np.ndarray, like: Laws) -> Laws:
 def next_laws(rounds: list[tuple[Laws, Laws]]) -> Laws:
     """A cell's laws for its next replay from its rounds, each (θ_k replayed, g(θ_k) found), oldest
     first (module docstring); one round: its g."""
-    tried = np.array([_z(x) for x, _ in rounds[-DEPTH - 1:]])
-    found = np.array([_z(g) for _, g in rounds[-DEPTH - 1:]])
-    if len(tried) < 2:
+    if len(rounds) < 2:
         return dict(rounds[-1][1])
-    f = found - tried
-    dF, dG = np.diff(f, axis=0).T, np.diff(found, axis=0).T
-    gamma = np.linalg.lstsq(dF, f[-1], rcond=1e-8)[0]
-    move = -dG @ gamma
-    limit = MAX_EXTRAPOLATION * float(np.linalg.norm(f[-1]))
+    tried, found = (np.array([_z(r[i]) for r in rounds]) for i in (0, 1))
+    move = mixed(tried, found, DEPTH) - found[-1]
+    limit = MAX_EXTRAPOLATION * float(np.linalg.norm(found[-1] - tried[-1]))
     size = float(np.linalg.norm(move))
     if size > limit:
         move *= limit / size

@@ -83,6 +83,7 @@ from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
+from common.mixing import mixed
 
 Array = npt.NDArray[np.float64]
 RAMP_POINTS = 120
@@ -343,14 +344,10 @@ def _settled(new: Array, old: Array) -> bool:
 def _anderson(inputs: list[Array], outputs: list[Array], lo: Array, hi: Array) -> Array:
     """The next q of the fixed-point iteration q → G(q) from its last ANDERSON_MEMORY + 1
     (input, output) pairs by Anderson's mixing (in the parameters' scales), within [lo, hi]."""
-    g = np.array(outputs[-ANDERSON_MEMORY - 1:])
-    f = g - np.array(inputs[-ANDERSON_MEMORY - 1:])
-    if len(g) < 2:
-        return g[-1]
-    scale = _scale(g[-1])[:g.shape[1]]
-    df, dg = np.diff(f, axis=0) / scale, np.diff(g, axis=0)
-    mix, *_ = np.linalg.lstsq(df.T, f[-1] / scale, rcond=None)
-    return np.clip(g[-1] - mix @ dg, lo, hi)
+    if len(outputs) < 2:
+        return outputs[-1]
+    scale = _scale(outputs[-1])[:len(outputs[-1])]
+    return np.clip(mixed(np.array(inputs) / scale, np.array(outputs) / scale, ANDERSON_MEMORY) * scale, lo, hi)
 
 
 def _defect(s: Samples, radius: float, shear: float, full: Array, table: ShellTable | None) -> Array:
