@@ -1,9 +1,9 @@
-"""Anderson's mixing (common.mixing): the secant on a linear map, and the fixed point of a linear
+"""Anderson's mixing (analysis.mixing): the secant on a linear map, and the fixed point of a linear
 map in n dimensions after n + 1 mixed rounds of depth n."""
 
 import numpy as np
 
-from common.mixing import mixed
+from analysis.mixing import mixed
 
 
 def test_one_dimension_is_the_secant_and_exact_for_a_linear_map():

@@ -10,7 +10,7 @@ corrected with the power laws θ (K_B(1 s), K_S(1 s), β_B, β_S and γ_a). In t
 contracts slowly: a cell read at one frequency moves its β_B by 0.090, 0.037, 0.019, 0.015, 0.012,
 0.012, 0.0097 in successive rounds and stops, below the tolerance, 0.04 short of where it is
 heading. So the next laws z_{k+1} are Anderson's mixing of the cell's last DEPTH + 1 rounds in z
-(`common.mixing.mixed`; f_k = g(θ_k) − θ_k), exact in one round for a linear g in one dimension
+(`analysis.mixing.mixed`; f_k = g(θ_k) − θ_k), exact in one round for a linear g in one dimension
 (the secant); its move from g_k at most
 MAX_EXTRAPOLATION |f_k| (a rate of contraction up to 0.8), β clipped to EXPONENT_RANGE. A cell has
 settled when its next laws differ from the laws it was last replayed with by less than SETTLED
@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from analysis.afm.rheology import EXPONENT_RANGE
-from common.mixing import mixed
+from analysis.mixing import mixed
 
 Laws = dict[str, float]
 SETTLED = {"bulk_beta": 0.01, "shear_beta": 0.01, "bulk_1s": 0.02, "shear_1s": 0.02, "tension": 0.02}

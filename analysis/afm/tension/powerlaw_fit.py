@@ -83,7 +83,7 @@ from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
 from common.errors import InputError, SolverError
-from common.mixing import mixed
+from analysis.mixing import mixed
 
 Array = npt.NDArray[np.float64]
 RAMP_POINTS = 120
