@@ -10,6 +10,7 @@ import pytest
 from analysis.afm.tension import powerlaw_shell, powerlaw_simulated, shell_ramp
 from analysis.afm.tension.powerlaw_fit import fit_ramp_hold
 from common.errors import InputError
+from counting import counted
 from studies.powerlaw_ramps import Cell, recording
 
 
@@ -129,13 +130,7 @@ def test_a_noise_free_cell_reads_exactly_in_a_few_simulations(monkeypatch, table
     from analysis.afm.tension import powerlaw_fit
     cell = Cell(6.0, 0.8, 10.0, 0.5, 0.2, 1.5, 0.14 * 6.0, hold_s=4.0, noise_nN=0.0, tilt_nN_per_um=0.05)
     made = recording(cell)
-    calls = []
-    simulate = powerlaw_simulated.force_nN
-
-    def counted(*args, **kwargs):
-        calls.append(args)
-        return simulate(*args, **kwargs)
-    monkeypatch.setattr(powerlaw_simulated, "force_nN", counted)
+    calls = counted(monkeypatch, powerlaw_simulated, "force_nN")
     if not tabled:
         monkeypatch.setattr(powerlaw_fit, "tabled_fit", lambda *args, **kwargs: None)
     fit = fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, cell.radius_um, cell.shear_tilde)

@@ -10,6 +10,7 @@ import pytest
 from analysis.afm.tension import powerlaw_fit, powerlaw_simulated, powerlaw_tabled
 from analysis.afm.tension.powerlaw_grid import HOLD_TAUS, RAMP_DEPTHS, node_curves
 from analysis.afm.tension.powerlaw_simulated import START_UM, RampHold
+from counting import counted
 from studies.powerlaw_ramps import Cell, recording
 from tests.conftest import cortex
 
@@ -47,13 +48,7 @@ def test_the_shipped_table_is_the_simulator_off_its_nodes():
 def test_a_recording_the_table_holds_is_read_with_one_simulation(monkeypatch):
     """The tabled fit, polished by POLISH_SIMULATIONS simulations (1), each counted."""
     made = recording(OFF_NODES, seed=3)
-    calls = []
-    simulate = powerlaw_simulated.simulated
-
-    def counted(*args, **kwargs):
-        calls.append(args)
-        return simulate(*args, **kwargs)
-    monkeypatch.setattr(powerlaw_simulated, "simulated", counted)
+    calls = counted(monkeypatch, powerlaw_simulated, "simulated")
     fit = powerlaw_fit.fit_ramp_hold(made.time_s, made.x_um, made.force_nN, made.ramp_samples, 6.1, 0.6)
     lo, hi = fit.tension_interval_mN_per_m
     assert fit.tabled and fit.simulations == len(calls) == powerlaw_fit.POLISH_SIMULATIONS == 1
