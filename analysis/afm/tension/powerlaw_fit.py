@@ -82,8 +82,8 @@ from analysis.afm.tension.ramp import RampFit, baseline_noise, fit_ramp
 from analysis.afm.tension.shell_fit import CHI2_95, SHEAR_TILDE
 from analysis.calibration.powerlaw_table import PowerLawTable
 from analysis.calibration.ramp_table import ShellTable
-from common.errors import InputError, SolverError
 from analysis.mixing import mixed
+from common.errors import InputError, SolverError
 
 Array = npt.NDArray[np.float64]
 RAMP_POINTS = 120
