@@ -548,8 +548,7 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: Shel
     fits: list[Solved] = []
     for kb, beta in [(k, b) for bulks, betas in ((START_BULK, START_BETA), TABLE_RESCUE_STARTS)
                      for k in bulks for b in betas]:
-        fit = tabled_fit(s, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
-                                                       kb * drop.tension_mN_per_m, beta]), None, powerlaw)
+        fit = tabled_fit(s, radius_um, shear, _tabled_q0(drop, kb, beta), None, powerlaw)
         fits += [] if fit is None else [fit]
         if fits and not _misfit(s, min(f.sse for f in fits)):
             break                                   # a start that fits as well as the noise allows
@@ -577,6 +576,12 @@ def start(s: Samples, radius_um: float, shear: float, drop: RampFit, table: Shel
     raise SolverError("the simulator finds no equilibrium at any of the surrogate's fits")
 
 
+def _tabled_q0(drop: RampFit, bulk_per_tension: float, beta: float) -> Array:
+    """A start q0 = (x0, γ_a, K_B(1 s), β) of the tabled fit from the droplet's fit `drop`: x0 its
+    contact, γ_a half its tension T, K_B(1 s) = `bulk_per_tension` T."""
+    return np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m, bulk_per_tension * drop.tension_mN_per_m, beta])
+
+
 def _ramp_start(s: Samples, radius_um: float, shear: float, drop: RampFit,
                 powerlaw: PowerLawTable | None) -> Solved | None:
     """The tabled simulator's fit of the recording's ramp alone (its runs before the hold), a start
@@ -588,8 +593,7 @@ def _ramp_start(s: Samples, radius_um: float, shear: float, drop: RampFit,
     alone = replace(s, time_s=s.time_s[:k], x_um=s.x_um[:k], force_nN=s.force_nN[:k], count=s.count[:k],
                     raw_time_s=s.raw_time_s[:s.raw_ramp], raw_x_um=s.raw_x_um[:s.raw_ramp], edges=s.edges[:k + 1],
                     hold="height")
-    fits = [f for f in (tabled_fit(alone, radius_um, shear, np.array([drop.contact_um, 0.5 * drop.tension_mN_per_m,
-                                                                     kb * drop.tension_mN_per_m, beta]), None, powerlaw)
+    fits = [f for f in (tabled_fit(alone, radius_um, shear, _tabled_q0(drop, kb, beta), None, powerlaw)
                         for kb in START_BULK for beta in START_BETA) if f is not None]
     return min(fits, key=lambda f: f.sse) if fits else None
 
