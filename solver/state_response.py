@@ -54,8 +54,10 @@ order. With the share, against the FINE simulation with it read by the segment f
 cell: 0.5-0.9 %, 0.0033 rad; 8 corners over β_B 0.05-0.3, β_S 0.1-0.4, K̃_S 0.2-2, γ_a/K_B
 0.01-0.2, standard bending, 13.5 and 11 µm, 0.1-10 Hz, docs/studies/contact-history.md): abs(K*)
 within -0.43..+1.50 % but one segment (+2.08 %, 10 Hz after a 0.1 Hz oscillation), the loss angle
-within 0.0075 rad at 1 and 10 Hz (0.026 rad at 0.1 Hz over two periods, FINE's start transient);
-the held-out protocols of bench/linearised_replay.py within 1.04 % and 0.0072 rad. The label
+within 0.0075 rad at 1 and 10 Hz (0.026 rad at 0.1 Hz over two periods, FINE's start transient,
+which `started` adds); read with that transient and the held force's drift
+(`analysis.afm.replayed`), the held-out protocols of bench/linearised_replay.py within 1.03 %
+and 0.0033 rad. The label
 held (l fixed) reads 1-8 % high where it is free, up to 5 % low where it touches. With the history
 held per element the label's carry along the strip is not in H*: where the carried history holds
 the label the stepped oscillation's |K*| is up to 6.7 % above this one's on those corners (2-6 %
