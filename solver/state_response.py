@@ -288,14 +288,21 @@ def started(parts: StateParts, frequency_hz: float, amplitude_um: float, phase_r
     e^{-Δt/τ_j}), `solver.prony`), from Δt = 1/(DECAY_FIRST f), each Δt DECAY_REPEAT times, then
     doubled, to `duration_s`. The segment fit of a few periods sees this transient
     (`analysis.afm.replayed`)."""
-    lin, n = parts.lin, parts.lin.lag.size
     response = _response(parts, frequency_hz)
     plate = -amplitude_um * np.exp(1j * phase_rad)                # `respond`'s answer is per δh = -1
-    X = response.displacement * plate
-    H0 = csr_matrix(lin.H - parts.moduli[0] * parts.bulk - parts.moduli[1] * parts.shear)
-    channels = ((parts.cortex.bulk, csr_matrix(parts.bulk)), (parts.cortex.shear, csr_matrix(parts.shear)))
+    steady = complex(response.force_amplitude_nN * plate)
     if np.sin(phase_rad) != 0.0:
-        return Started(response.complex_modulus, complex(response.force_amplitude_nN * plate), np.zeros(0), np.zeros(0))
+        return Started(response.complex_modulus, steady, np.zeros(0), np.zeros(0))
+    times, forces = _decay(parts, frequency_hz, duration_s, response.displacement * plate)
+    return Started(response.complex_modulus, steady, times, forces)
+
+
+def _decay(parts: StateParts, frequency_hz: float, duration_s: float,
+           X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`started`'s free decay from minus the steady state at t = 0 (X̂ = `X`): its times (s) and δF (nN)."""
+    n = parts.lin.lag.size
+    H0 = csr_matrix(parts.lin.H - parts.moduli[0] * parts.bulk - parts.moduli[1] * parts.shear)
+    channels = ((parts.cortex.bulk, csr_matrix(parts.bulk)), (parts.cortex.shear, csr_matrix(parts.shear)))
     x = -X.imag
     Y = [-((np.asarray(prony.weights) * _iwt(prony, frequency_hz))[:, None] * X[None, :]).imag for prony, _ in channels]
     times = [0.0]
@@ -316,8 +323,7 @@ def started(parts: StateParts, frequency_hz: float, amplitude_um: float, phase_r
             y += kg[:, None] * (new - x)[None, :]
         x = new
         times.append(times[-1] + dt)
-    return Started(response.complex_modulus, complex(response.force_amplitude_nN * plate),
-                   np.array(times), np.array(forces))
+    return np.array(times), np.array(forces)
 
 
 def _iwt(prony: Prony, frequency_hz: float) -> np.ndarray:
