@@ -28,12 +28,10 @@ exact for a strain constant in time, and a hold's strain barely moves; `hold_fir
 a wait (a height hold after a ramp), stepped from `wait_first_s` (1 s) doubling to 16 s so that
 `Recording.waits` holds its relaxation (the cortex's memory read from it,
 `analysis.afm.wait_relaxation`), and
-an oscillation is not stepped: the plate is held at h_m through it, in steps ending at
-WINDOW_FRACTIONS of its duration, and halfway through, the state answers at f in the frequency
-domain (`solver.state_response`: K*_lin about the state with the cortex's complex moduli; an
-`Answer` in `Recording.answers` with the held force at the steps' ends, the drift the segment fit
-also sees: `analysis.afm.replayed`; no samples). Ramps are stepped as REPLAY steps them. Against
-REPLAY and FINE: bench/linearised_replay.py.
+an oscillation is not stepped: the plate is held at h_m through it, and halfway through, the
+state answers at f in the frequency domain (`solver.state_response`: K*_lin about the state with
+the cortex's complex moduli; an `Answer` in `Recording.answers`, no samples). Ramps are stepped
+as REPLAY steps them. Against REPLAY and FINE: bench/linearised_replay.py.
 
 REPLAY against FINE, read with the true cortex by the segment fit, on two cells of 33 and 18
 segments: |K*| within 1.6 % (0.8 % on average), loss angle within 0.014 rad
@@ -103,28 +101,17 @@ REPLAY = Resolution(ramp_step_um=0.05, hold_first_s=0.01, hold_growth=2.0, hold_
 LINEARISED = Resolution(ramp_step_um=0.05, hold_first_s=math.inf, hold_growth=1.0, hold_largest_s=math.inf,
                         steps_per_period=16, spline=False, retry_finer=4, linearised=True, wait_first_s=1.0)
 WAIT_LARGEST_S = 16.0     # s: a wait's largest step where `wait_first_s` steps it
-WINDOW_FRACTIONS = (0.5, 1.0)   # LINEARISED: an oscillation's held steps end here (of its duration)
-HALF = WINDOW_FRACTIONS.index(0.5)      # the step after which the state answers
 
 
 @dataclass(frozen=True)
 class Answer:
     """An oscillation answered about the state (LINEARISED): at f and mean gap h_m, the plate
-    force F_0 (nN) of the state halfway through it and K*_lin (mN/m, `solver.state_response`);
-    the oscillation's amplitude (µm) and phase (rad), and the plate's force (nN) held at h_m at the
-    window's times (s from the oscillation's start, 0 first): its drift."""
+    force F_0 (nN) of the state halfway through it and K*_lin (mN/m, `solver.state_response`)."""
 
     frequency_hz: float
     h_mean_um: float
     force_nN: float
     modulus_mN_per_m: complex
-    amplitude_um: float = 0.0
-    phase_rad: float = 0.0
-    window_s: Array = field(default_factory=lambda: np.zeros(0))
-    window_force_nN: Array = field(default_factory=lambda: np.zeros(0))
-    force_phasor_nN: complex = 0j                                            # `solver.state_response.started`
-    transient_s: Array = field(default_factory=lambda: np.zeros(0))
-    transient_force_nN: Array = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass(frozen=True)
@@ -429,24 +416,15 @@ class _Run:
             self.stretches.append(Stretch(kind, self.n + start, self.n + stop, frequency_hz))
 
     def _answer(self, osc: Oscillate) -> None:
-        """LINEARISED: the plate held at h_m through the oscillation in steps ending at
-        WINDOW_FRACTIONS of it, the state answering at f after the half
-        (`solver.state_response.linear_modulus`), the held force at each step's end kept; no samples."""
-        from solver.state_response import started, state_parts   # the frequency domain's imports: only here
-        t0, times, forces = self.t, [0.0], [self.state.force_nN()]
-        answer = None
-        for k, fraction in enumerate(WINDOW_FRACTIONS):
-            forces.append(self._step(self.level, t0 + fraction * osc.duration_s - self.t))
-            times.append(self.t - t0)
-            if k == HALF:
-                half = forces[-1]
-                answer = started(state_parts(self.state), osc.frequency_hz, osc.amplitude_um, osc.phase_rad,
-                                 osc.duration_s)
-        assert answer is not None
-        self.answers.append(Answer(float(osc.frequency_hz), self.level, half, answer.modulus_mN_per_m,
-                                   osc.amplitude_um, osc.phase_rad, np.array(times), np.array(forces),
-                                   answer.force_phasor_nN, answer.transient_s, answer.transient_force_nN))
+        """LINEARISED: the plate held at h_m through the oscillation, the state halfway answering
+        at f (`solver.state_response.linear_modulus`); no samples."""
+        from solver.state_response import linear_modulus, state_parts   # the frequency domain's imports: only here
+        half = 0.5 * osc.duration_s
+        force = self._step(self.level, half)
+        K = linear_modulus(state_parts(self.state), osc.frequency_hz)
+        self.answers.append(Answer(float(osc.frequency_hz), self.level, force, K))
         self.kinds.append(("hold", self.t))
+        self.pending, self.pending_wait = self.pending + half, False
 
     def _oscillate(self, osc: Oscillate) -> None:
         self._close()

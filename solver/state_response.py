@@ -54,10 +54,8 @@ order. With the share, against the FINE simulation with it read by the segment f
 cell: 0.5-0.9 %, 0.0033 rad; 8 corners over β_B 0.05-0.3, β_S 0.1-0.4, K̃_S 0.2-2, γ_a/K_B
 0.01-0.2, standard bending, 13.5 and 11 µm, 0.1-10 Hz, docs/studies/contact-history.md): abs(K*)
 within -0.43..+1.50 % but one segment (+2.08 %, 10 Hz after a 0.1 Hz oscillation), the loss angle
-within 0.0075 rad at 1 and 10 Hz (0.026 rad at 0.1 Hz over two periods, FINE's start transient,
-which `started` adds); read with that transient and the held force's drift
-(`analysis.afm.replayed`), the held-out protocols of bench/linearised_replay.py within 1.03 %
-and 0.0033 rad. The label
+within 0.0075 rad at 1 and 10 Hz (0.026 rad at 0.1 Hz over two periods, FINE's start transient);
+the held-out protocols of bench/linearised_replay.py within 1.04 % and 0.0072 rad. The label
 held (l fixed) reads 1-8 % high where it is free, up to 5 % low where it touches. With the history
 held per element the label's carry along the strip is not in H*: where the carried history holds
 the label the stepped oscillation's |K*| is up to 6.7 % above this one's on those corners (2-6 %
@@ -67,25 +65,19 @@ at any amplitude down to 0.03 µm, bench/linearised_replay.py), arg K* within 0.
 
 import copy
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.sparse import csr_matrix
-from scipy.sparse.linalg import splu
 
 from solver.fast import contact_at_least
 from solver.fast.contact import carry_history, hermite_slopes, history_share, node_labels
 from solver.fast.lagrangian import Lagrangian
 from solver.time_domain import Cortex, TimeShell, element_strains
-from solver.prony import Prony
-from solver.viscous import Linearised, Response, full_hessian, hold_label, respond
+from solver.viscous import Linearised, full_hessian, hold_label, respond
 
 STATIONARY = 1e-4         # |dE*/dl| below this times the force scale: the label moves with the response
 STATIONARY_L = 0.01       # with the share: E*(l)'s minimum within this of the label, the label moves
 STEP_L = 1e-5             # central difference in l of the balance with the history carried
-DECAY_FIRST = 32          # `started`: the free decay's first step, 1/(DECAY_FIRST f)
-DECAY_REPEAT = 2          # `started`: steps of each length before it doubles
 
 
 @dataclass
@@ -251,101 +243,6 @@ def state_parts(state: TimeShell) -> StateParts:
 
 def linear_modulus(parts: StateParts, frequency_hz: float) -> complex:
     """K*_lin (mN/m) of the state oscillated at `frequency_hz` (module docstring)."""
-    return _response(parts, frequency_hz).complex_modulus
-
-
-def _response(parts: StateParts, frequency_hz: float) -> Response:
     kb, ks = parts.cortex.bulk.complex_modulus(frequency_hz), parts.cortex.shear.complex_modulus(frequency_hz)
     extra = (kb - parts.moduli[0]) * parts.bulk + (ks - parts.moduli[1]) * parts.shear
-    return respond(parts.lin, 0.0, frequency_hz, extra, sparse=True)
-
-
-@dataclass(frozen=True)
-class Started:
-    """An oscillation started from the state at rest (`started`): K*_lin (mN/m), the steady force
-    phasor F̂ (nN; δF_ss(t) = Im(F̂ e^{iωt})) and the start's transient δF_tr (nN) at its times (s)."""
-
-    modulus_mN_per_m: complex
-    force_phasor_nN: complex
-    transient_s: np.ndarray
-    transient_force_nN: np.ndarray
-
-
-def started(parts: StateParts, frequency_hz: float, amplitude_um: float, phase_rad: float,
-            duration_s: float) -> Started:
-    """The plate force's answer to h(t) = h_m + A sin(ωt + φ) from t = 0, the state at rest before:
-    `linear_modulus`'s system in time. With H_0 = H - K_B,Δt P_B - K_S,Δt P_S and each modulus a Prony
-    series K(t) = K_∞ + Σ_j K_j e^{-t/τ_j}, the free unknowns balance
-
-        H_0 δq + P_B (K_∞ δq + Σ_j y_j) + (the same in S) = 0,   y_j(t) = ∫ K_j e^{-(t-s)/τ_j} dδq(s),
-
-    δz_p = δh/2 given. The answer is the steady one, δq_ss = Im(X̂ e^{iωt}) (X̂ `respond`'s for
-    δh = A e^{iφ}, y_j,ss = Im(K_j iωτ_j/(1 + iωτ_j) X̂ e^{iωt})), plus a free decay (δz_p = 0)
-    from the difference at the start, where the state is at rest. A start off h_m (sin φ ≠ 0) is a
-    jump, whose transient depends on how fast the instrument takes it: it gets none (an empty
-    transient; its reading is the steady answer's). The decay is stepped by the exponential integrator
-    (δq linear within a step Δt: y_j ← e^{-Δt/τ_j} y_j + K_j g_j Δ(δq), g_j = (τ_j/Δt)(1 -
-    e^{-Δt/τ_j}), `solver.prony`), from Δt = 1/(DECAY_FIRST f), each Δt DECAY_REPEAT times, then
-    doubled, to `duration_s`. The segment fit of a few periods sees this transient
-    (`analysis.afm.replayed`)."""
-    response = _response(parts, frequency_hz)
-    plate = -amplitude_um * np.exp(1j * phase_rad)                # `respond`'s answer is per δh = -1
-    steady = complex(response.force_amplitude_nN * plate)
-    if np.sin(phase_rad) != 0.0:
-        return Started(response.complex_modulus, steady, np.zeros(0), np.zeros(0))
-    times, forces = _decay(parts, frequency_hz, duration_s, response.displacement * plate)
-    return Started(response.complex_modulus, steady, times, forces)
-
-
-def _decay(parts: StateParts, frequency_hz: float, duration_s: float,
-           X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`started`'s free decay from minus the steady state at t = 0 (X̂ = `X`): its times (s) and δF (nN)."""
-    n = parts.lin.lag.size
-    H0 = csr_matrix(parts.lin.H - parts.moduli[0] * parts.bulk - parts.moduli[1] * parts.shear)
-    channels = ((parts.cortex.bulk, csr_matrix(parts.bulk)), (parts.cortex.shear, csr_matrix(parts.shear)))
-    x = -X.imag
-    Y = [-((np.asarray(prony.weights) * _iwt(prony, frequency_hz))[:, None] * X[None, :]).imag for prony, _ in channels]
-    times = [0.0]
-    forces = [_force(H0, channels, x, [prony.infinity * x + y.sum(0) for (prony, _), y in zip(channels, Y)])]
-    systems: dict[float, tuple[Any, Any, list[tuple[np.ndarray, np.ndarray]]]] = {}
-    for dt in _decay_steps(frequency_hz, duration_s):
-        if dt not in systems:
-            A = (H0 + sum(prony.step_factors(dt)[0] * P for prony, P in channels)).tocsc()
-            systems[dt] = (A, splu(A[:n, :n]), [(prony.step_factors(dt)[1], np.asarray(prony.weights) * prony.step_factors(dt)[2])
-                                                for prony, _ in channels])
-        A, lu, factors = systems[dt]
-        hist = [d @ y - kg.sum() * x for (d, kg), y in zip(factors, Y)]
-        new = np.zeros(n + 1)
-        new[:n] = lu.solve(-sum(P @ h for (_, P), h in zip(channels, hist))[:n])
-        forces.append(_force(A, channels, new, hist))
-        for (d, kg), y in zip(factors, Y):
-            y *= d[:, None]
-            y += kg[:, None] * (new - x)[None, :]
-        x = new
-        times.append(times[-1] + dt)
-    return np.array(times), np.array(forces)
-
-
-def _iwt(prony: Prony, frequency_hz: float) -> np.ndarray:
-    """iωτ_j / (1 + iωτ_j) per element of `prony`."""
-    iwt = 2j * np.pi * frequency_hz * np.asarray(prony.times_s)
-    return iwt / (1.0 + iwt)
-
-
-def _force(A: Any, channels: tuple, x: np.ndarray, stresses: list[np.ndarray]) -> float:
-    """δF = -(1/2) × the balance's ∂/∂z_p row: A's (sparse) at δq plus the channels' history terms."""
-    return float(-0.5 * ((A @ x)[-1] + sum((P @ h)[-1] for (_, P), h in zip(channels, stresses))))
-
-
-def _decay_steps(frequency_hz: float, duration_s: float) -> list[float]:
-    """The free decay's steps (s): from 1/(DECAY_FIRST f), each DECAY_REPEAT times, then doubled,
-    the last cut to end at `duration_s`."""
-    out, dt, done = [], 1.0 / (DECAY_FIRST * frequency_hz), 0.0
-    while done < duration_s * (1 - 1e-12):
-        for _ in range(DECAY_REPEAT):
-            out.append(min(dt, duration_s - done))
-            done += out[-1]
-            if done >= duration_s * (1 - 1e-12):
-                break
-        dt *= 2.0
-    return out
+    return respond(parts.lin, 0.0, frequency_hz, extra, sparse=True).complex_modulus

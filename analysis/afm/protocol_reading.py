@@ -20,8 +20,7 @@ drift of its corrected mean tensions and the relaxation in its waits (fitted, po
 its factors interpolated there. The
 rounds replay linearised (`cell_correction`'s default, fast); with `full_last` (FULL_LAST, the
 default) every replayed cell's last correction is then its full replay with its last power laws
-and memory (against FINE the linearised replay's |c| is within 1.03 % and arg c 0.0033 rad, the
-full one's 0.57 % and 0.0155 rad: bench/linearised_replay.py, docs/protocol.md).
+and memory (the linearised replay's |c| is off the full one's by up to ~6 %, bench/linearised_replay.py).
 What follows (every variant with the tension filter on the corrected mean tensions, the
 population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
 in `jobs` processes.

@@ -7,9 +7,8 @@ laws (K_B(t) = K_B,1s t^-β_B, K_S(t) = K_S,1s t^-β_S, `analysis.afm.rheology.c
 γ_a, its recording's protocol (`analysis.afm.recorded_protocol.protocol_of`) is simulated
 (`solver.protocol_simulation.simulate`) and read per segment j as K*_td,j and the mean tension
 γ_td,j. By default (`linearised`) at the LINEARISED resolution: every hold one exact Prony step,
-every oscillation held at h_m in a few steps and answered about the replayed state halfway through
-it (K*_td,j = K*_lin of `solver.state_response` plus what the held force's drift adds to the
-segment fit, γ_td,j the fit's mean of that drift: `_answered`); else (`linearised=False`, the full
+every oscillation answered about the replayed state halfway through it (K*_td,j = K*_lin of
+`solver.state_response`, γ_td,j = F_0 / (2 H A_c) at h_m); else (`linearised=False`, the full
 replay: the reading's last correction, `analysis.afm.protocol_reading`, and the held-out check
 of bench/linearised_replay.py) at the REPLAY resolution, read as the recording is read
 (`analysis.afm.timeseries.segment_moduli`). The relaxed-state model gives
@@ -37,25 +36,22 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.interpolate import PchipInterpolator
 
 from analysis.afm.cell import Cell
 from analysis.afm.memory_fit import RELAXED, Node
 from analysis.afm.recorded_protocol import read_protocol
 from analysis.afm.synth.time_domain import recording_cell
-from analysis.afm.timeseries import fit_sinusoid, segment_moduli
+from analysis.afm.timeseries import segment_moduli
 from analysis.afm.wait_relaxation import Waits, modelled, recorded
 from common.errors import InputError, SolverError
 from solver.model import Shell
 from solver.protocol import Oscillate, Protocol
 from solver.geometry import droplet
-from solver.protocol_simulation import LINEARISED, REPLAY, Answer, Recording, simulate
+from solver.protocol_simulation import LINEARISED, REPLAY, Recording, simulate
 from solver.relaxed_state import relaxed_state
 from solver.time_domain import Cortex, power_law_cortex
 
 CORRECTION_COLUMNS = ("protocol_modulus_factor", "protocol_phase_rad", "protocol_tension_shift_mN_per_m")
-AREA_STEP_UM = 1e-3                  # µm: the central differences of the droplet's g(h) and A(h) at h_m
-FIT_SAMPLES_PER_PERIOD = 64          # the answer's samples for the segment fit (256-4096 in all)
 
 
 def replayed_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
@@ -64,37 +60,11 @@ def replayed_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
 
 
 def answered_segments(cell: Cell, rep: Recording) -> list[dict[str, Any]]:
-    """The linearised replay's answers as `segment_moduli` reads a segment (`_answered`)."""
-    return [_answered(cell.volume_um3, a) for a in rep.answers]
-
-
-def _answered(volume_um3: float, a: Answer) -> dict[str, Any]:
-    """|K*|, loss angle and mean tension of one answer as the segment fit reads them. The fit
-    (`analysis.afm.timeseries`: a cos + b sin + c t + d, linear in γ_eff) sees the response
-    δγ(t) = (δF(t) - γ_0 g' δh(t)) / g to δh(t) = A sin(2πft + φ) started at the oscillation's
-    start (`solver.state_response.started`: K*_lin's steady answer and its start's transient;
-    g = 2 H A_c at h_m, γ_0 = F_0 / g) and the drift of the force held at h_m through the
-    window, γ_w(t) = F_w(t) / g (piecewise cubic, PCHIP, between the held steps). Its phasor z
-    over the area strain's, ε = A'(h_m) A e^{iφ} / A(h_m), is K*_td; its mean γ_td. Without a
-    window (one held force) K*_lin and γ_td = F_0 / g."""
-    d = droplet(volume_um3, a.h_mean_um + np.array([-AREA_STEP_UM, 0.0, AREA_STEP_UM]))
-    g, area = float(d.force_per_tension_um[1]), float(d.surface_area_um2[1])
-    if a.window_s.size < 2 or a.transient_s.size < 2:
-        return _reading(a.modulus_mN_per_m, a.force_nN / g)
-    dg, darea = ((x[2] - x[0]) / (2 * AREA_STEP_UM) for x in (d.force_per_tension_um, d.surface_area_um2))
-    omega = 2 * np.pi * a.frequency_hz
-    t = np.linspace(0.0, float(a.window_s[-1]), int(np.clip(FIT_SAMPLES_PER_PERIOD * a.window_s[-1] * a.frequency_hz,
-                                                             256, 4096)))
-    dh = a.amplitude_um * np.sin(omega * t + a.phase_rad)
-    force = (a.force_phasor_nN * np.exp(1j * omega * t)).imag + PchipInterpolator(a.transient_s, a.transient_force_nN)(t)
-    gamma = (force - a.force_nN / g * dg * dh) / g + PchipInterpolator(a.window_s, a.window_force_nN)(t) / g
-    fit = fit_sinusoid(t, gamma, a.frequency_hz)
-    strain = darea * a.amplitude_um * np.exp(1j * a.phase_rad) / area
-    return _reading(fit["amplitude"][0] * np.exp(1j * fit["phase"][0]) / strain, float(fit["mean"][0]))
-
-
-def _reading(K: complex, tension: float) -> dict[str, Any]:
-    return {"modulus_mN_per_m": abs(K), "loss_angle_rad": float(np.angle(K)), "tension_mN_per_m": tension}
+    """The linearised replay's answers as `segment_moduli`'s |K*|, loss angle and mean tension
+    γ_td = F_0 / (2 H A_c) (the droplet of the cell's volume at h_m)."""
+    g = droplet(cell.volume_um3, np.array([a.h_mean_um for a in rep.answers])).force_per_tension_um
+    return [{"modulus_mN_per_m": abs(a.modulus_mN_per_m), "loss_angle_rad": float(np.angle(a.modulus_mN_per_m)),
+             "tension_mN_per_m": a.force_nN / float(gk)} for a, gk in zip(rep.answers, np.atleast_1d(g))]
 
 
 def cell_replays(cell: Cell, law: dict[str, float], bending: str, wait_s: float | None = None,
