@@ -72,22 +72,19 @@ test: typecheck test-serial test-mpi test-mpi-parallel
 typecheck: setup
 	$(BIN)/python -m mypy
 
-# The serial suite in two passes at once (docs/testing.md), each printing its 20 slowest tests
-# (the suite stays under 20 minutes): the tests not marked `serial` on TEST_WORKERS processes
+# The serial suite in two passes (docs/testing.md), each printing its 20 slowest tests (the
+# suite stays under 20 minutes): the tests not marked `serial` on TEST_WORKERS processes
 # (pytest-xdist; a file's tests stay on one worker, so its module fixtures are built once; each
 # on one BLAS thread, as a campaign rank: two workers' BLAS threads would wait on each other's
-# cores) and, beside them in a process of their own, the `serial` ones one at a time (the SLURM
-# jobs, which mostly wait on SLURM's clock), their output printed after the first pass's. A pass's
-# exit status 5 ("no tests collected": PYTEST_ARGS chose none of its tests) is not a failure unless
-# the other pass collected none either.
+# cores), then the `serial` ones alone. A pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none
+# of its tests) is not a failure unless the other pass collected none either.
 TEST_WORKERS ?= 2
 test-serial: setup
 	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)
-	@a=0; b=0; log=$$(mktemp); set -x; \
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -p no:cacheprovider --durations=20 --serial only $(PYTEST_ARGS) tests >$$log 2>&1 & serial=$$!; \
+	@a=0; b=0; set -x; \
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
-	wait $$serial || b=$$?; \
-	{ set +x; } 2>/dev/null; echo "+ (the serial pass, beside it)"; cat $$log; rm -f $$log; \
+	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests || b=$$?; \
+	{ set +x; } 2>/dev/null; \
 	for s in $$a $$b; do [ $$s = 0 ] || [ $$s = 5 ] || exit $$s; done; \
 	[ $$a$$b != 55 ] || { echo "test-serial: no tests collected"; exit 5; }
 

@@ -5,10 +5,9 @@ one way a test waits for something: `poll_until` a condition it can observe
 (a journal entry, a state in the store, a job's state), never a guessed
 number of seconds. `journal_counts` is the progress a campaign test observes.
 
-`--serial {only,skip}` picks the tests marked `serial` (those that must not share
-a worker process with other files' tests: docs/testing.md) or all the others;
-`make test-serial` runs the others on two processes (pytest-xdist, `-n 2`) and,
-at the same time, these one at a time in a process of their own.
+`--serial {only,skip}` picks the tests marked `serial` (those that must not run
+beside another test: docs/testing.md) or all the others; `make test-serial`
+runs the others on two processes (pytest-xdist, `-n 2`), then these alone.
 
 The test suite's faults (`faults.py`: a campaign file's `[test]` section) are
 installed here for the session and every process it starts (`cortex` under

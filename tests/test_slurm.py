@@ -50,7 +50,7 @@ SUBMIT = ROOT / "jobs" / "submit.sh"
 CONFIGS = (DATA / "slurm-tiny.toml", DATA / "slurm-timelimit.toml", DATA / "slurm-failing.toml",
            DATA / "slurm-lostnode.toml")
 pytestmark = [
-    pytest.mark.serial,     # in a process of its own, beside the other tests (docs/testing.md)
+    pytest.mark.serial,     # alone, after the other tests (docs/testing.md): SLURM's node owns both cores
     pytest.mark.skipif(importlib.util.find_spec("campaign") is None,
                        reason="the campaign engine (package `campaign`) is not in this tree"),
     pytest.mark.skipif(not all(c.exists() for c in CONFIGS),
