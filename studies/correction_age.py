@@ -42,7 +42,6 @@ AGE_FACTORS = (0.1, 0.2, 0.35, 0.6, 1.0, 1.6, 2.5, 4.0, 8.0)
 BOUNDS = {"modulus_rel": 0.01, "phase_rad": 0.005}
 
 
-
 def _timeline(protocol: Protocol) -> tuple[list[tuple[float, float, float]], list[tuple[float, float, Oscillate]]]:
     """The ramps as (start s, end s, depth step µm) and the oscillations as (the age of their
     middle since their height's ramp ended s, their middle s, the step)."""
@@ -51,9 +50,9 @@ def _timeline(protocol: Protocol) -> tuple[list[tuple[float, float, float]], lis
         if isinstance(s, Ramp):
             if s.to_um is None:
                 raise ValueError("a ramp to a force has no depth step: the study takes ramps to a gap")
-            d = h - s.to_um
-            ramps.append((t, t + abs(d) / s.speed_um_per_s, d))
-            t, h, ended = t + abs(d) / s.speed_um_per_s, s.to_um, t + abs(d) / s.speed_um_per_s
+            d, end = h - s.to_um, t + abs(h - s.to_um) / s.speed_um_per_s
+            ramps.append((t, end, d))
+            t, h, ended = end, s.to_um, end
         elif isinstance(s, Hold):
             t += s.duration_s
         else:
@@ -80,15 +79,21 @@ def _answer(shell: Shell, cortex: Cortex, protocol: Protocol) -> list[tuple[comp
     return [(a.modulus_mN_per_m, a.force_nN) for a in rep.answers]
 
 
-def _matched(ages: np.ndarray, canon: list[tuple[complex, float]], force: float) -> tuple[float, complex] | None:
-    """The age at which the canonical force equals `force` and K* there (linear in ln a), or None."""
+def _matched(ages: np.ndarray, canon: list[tuple[complex, float]], force: float) -> float | None:
+    """The age at which the canonical force equals `force` (linear in ln a), or None."""
     F = np.array([c[1] for c in canon])
     for k in range(len(ages) - 1):
         if (F[k] - force) * (F[k + 1] - force) <= 0 and F[k] != F[k + 1]:
             w = (force - F[k]) / (F[k + 1] - F[k])
-            K = canon[k][0] + w * (canon[k + 1][0] - canon[k][0])
-            return float(math.exp(math.log(ages[k]) + w * (math.log(ages[k + 1]) - math.log(ages[k])))), K
+            return float(math.exp(math.log(ages[k]) + w * (math.log(ages[k + 1]) - math.log(ages[k]))))
     return None
+
+
+def _canonical(start_um: float, gap_um: float, speed: float, osc: Oscillate, age_s: float) -> Protocol:
+    """The canonical history: a ramp from the start to the gap, a hold, the oscillation, its middle
+    `age_s` after the ramp ended."""
+    hold = [Hold(age_s - 0.5 * osc.duration_s)] if age_s > 0.5 * osc.duration_s else []
+    return Protocol(start_um, (Ramp(to_um=gap_um, speed_um_per_s=speed), *hold, osc))
 
 
 def case(spec: tuple, memory_s: float) -> list[dict[str, float | str]]:
@@ -105,9 +110,7 @@ def case(spec: tuple, memory_s: float) -> list[dict[str, float | str]]:
     for j, ((age, t_mid, osc), (K, F), h) in enumerate(zip(oscillations, real, heights_of)):
         ages = age * np.array(AGE_FACTORS)
         ages = ages[ages > 0.5 * osc.duration_s]
-        canon = [_answer(shell, cortex, Protocol(start, (Ramp(to_um=h, speed_um_per_s=speed),
-                                                         *([Hold(a - 0.5 * osc.duration_s)] if a > 0.5 * osc.duration_s
-                                                           else []), osc)))[0] for a in ages]
+        canon = [_answer(shell, cortex, _canonical(start, h, speed, osc, a))[0] for a in ages]
         found = _matched(ages, canon, F)
         row: dict[str, float | str] = {"case": name, "segment": j, "gap_um": h, "frequency_hz": osc.frequency_hz,
                                        "age_s": age, "force_nN": F}
@@ -116,11 +119,11 @@ def case(spec: tuple, memory_s: float) -> list[dict[str, float | str]]:
         if found is None:
             row["matched"] = "no canonical age gives the replay's force"
         else:
-            a_star, K_star = found
-            row.update(matched_age_s=a_star, modulus_rel=abs(K_star) / abs(K) - 1,
+            K_star = _matched_at(ages, canon, found)[0]
+            row.update(matched_age_s=found, modulus_rel=abs(K_star) / abs(K) - 1,
                        phase_rad=float(np.angle(K_star) - np.angle(K)))
-            at_b = _matched_at(ages, canon, a_b)
-            if at_b is not None:
+            if math.isfinite(a_b) and ages[0] <= a_b <= ages[-1]:
+                at_b = _matched_at(ages, canon, a_b)
                 row.update(boltzmann_modulus_rel=abs(at_b[0]) / abs(K) - 1,
                            boltzmann_phase_rad=float(np.angle(at_b[0]) - np.angle(K)),
                            boltzmann_force_rel=at_b[1] / F - 1)
@@ -128,10 +131,8 @@ def case(spec: tuple, memory_s: float) -> list[dict[str, float | str]]:
     return rows
 
 
-def _matched_at(ages: np.ndarray, canon: list[tuple[complex, float]], age: float) -> tuple[complex, float] | None:
-    """The canonical K* and F at `age` (linear in ln a), None outside the ages."""
-    if not (math.isfinite(age) and ages[0] <= age <= ages[-1]):
-        return None
+def _matched_at(ages: np.ndarray, canon: list[tuple[complex, float]], age: float) -> tuple[complex, float]:
+    """The canonical K* and F at `age` (linear in ln a; `age` within the ages)."""
     x = math.log(age)
     la = np.log(ages)
     K = complex(np.interp(x, la, [c[0].real for c in canon]), np.interp(x, la, [c[0].imag for c in canon]))
