@@ -15,7 +15,8 @@ memory) is a `RuntimeError`. Leaving the `with` block stops a child still at wor
 
 Policy, `forking()`: a child only where it can run beside this process, i.e. where
 the fork start method exists and this process may run on two CPUs or more
-(`common.pool.usable_cores`); elsewhere `fn(*args)` runs in this process when
+(`common.pool.usable_cores`), and not on an MPI rank 0 whose pools are the other ranks
+(`common.pool.ranks`: a process with MPI started is not forked); elsewhere `fn(*args)` runs in this process when
 `result()` is first asked (the same value, serially). At most one child: the
 callers use two processes in all.
 """
@@ -28,14 +29,14 @@ import traceback
 from contextlib import contextmanager
 from typing import Any, Callable, Generic, Iterator, TypeVar
 
-from common.pool import usable_cores
+from common.pool import inside_ranks, usable_cores
 
 T = TypeVar("T")
 
 
 def forking() -> bool:
     """Whether a forked child can run beside this process (module docstring)."""
-    if "fork" not in multiprocessing.get_all_start_methods():
+    if "fork" not in multiprocessing.get_all_start_methods() or inside_ranks():
         return False
     return usable_cores() >= 2
 

@@ -1,10 +1,23 @@
 """A process pool of `jobs` workers, or the same map in this process for one job; how many
-CPUs this process may use (`usable_cores`, the default number of jobs)."""
+CPUs this process may use (`usable_cores`, the default number of jobs); under an MPI launcher,
+the other ranks as the pool (`ranks`).
+
+    with ranks() as main:          # every rank of `mpiexec -n N cortex ...` enters
+        if main:                   # rank 0 (or the only process): the command's work, whose
+            ...                    # pools map over ranks 1..N-1 (mpi4py.futures.MPICommExecutor)
+
+A rank other than 0 serves rank 0's tasks inside `ranks()` until rank 0 leaves it, then gets
+False and does nothing more: every output stays rank 0's to write. With N ranks, N - 1 compute
+(rank 0 hands out the tasks and gathers their answers, as in mpi4py.futures).
+"""
 
 import os
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from multiprocessing import get_context
 from typing import Any, Callable, Iterable, Iterator
+
+_RANKS: list[Any] = []      # rank 0's executor over the other ranks while `ranks()` is open
 
 
 class Serial:
@@ -20,11 +33,58 @@ class Serial:
         return map(fn, items)
 
 
+class _Ranks(Serial):
+    """The pool's map over the other MPI ranks (`ranks`'s executor, kept open on leaving)."""
+
+    def __init__(self, executor: Any) -> None:
+        self._executor = executor
+
+    def map(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+        return self._executor.map(fn, items)
+
+
 def usable_cores() -> int:
     """The CPUs this process may run on (its affinity where the system says, else the machine's count)."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+def launched_ranks() -> int:
+    """How many ranks an MPI launcher started this process among, as its environment says
+    (MPICH's and srun's PMI_SIZE, Open MPI's OMPI_COMM_WORLD_SIZE); 1 without a launcher."""
+    for size in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE"):
+        if os.environ.get(size, "").isdigit():
+            return int(os.environ[size])
+    return 1
+
+
+@contextmanager
+def ranks() -> Iterator[bool]:
+    """True on rank 0 (or without a launcher of two ranks or more), whose `pool`s inside map over
+    the other ranks; False on the others, once rank 0 has left (module docstring)."""
+    if launched_ranks() < 2:
+        yield True
+        return
+    from mpi4py import MPI
+    from mpi4py.futures import MPICommExecutor
+    with MPICommExecutor(MPI.COMM_WORLD, root=0) as executor:
+        if executor is None:        # a serving rank: rank 0 has shut the executor down
+            yield False
+            return
+        _RANKS.append(executor)
+        try:
+            yield True
+        finally:
+            _RANKS.pop()
+
+
+def inside_ranks() -> bool:
+    """Whether this is rank 0 inside `ranks()` with other ranks (its pools are those ranks)."""
+    return bool(_RANKS)
+
+
 def pool(jobs: int) -> Any:
-    """A forked `ProcessPoolExecutor` of `jobs` workers (jobs > 1), else `Serial` (a context manager with `map`)."""
+    """Inside `ranks()` with other ranks: those ranks (`jobs` is not used); else a forked
+    `ProcessPoolExecutor` of `jobs` workers (jobs > 1), else `Serial` (a context manager with `map`)."""
+    if _RANKS:
+        return _Ranks(_RANKS[-1])
     return ProcessPoolExecutor(jobs, mp_context=get_context("fork")) if jobs > 1 else Serial()

@@ -18,7 +18,7 @@ from analysis.afm.replayed import cell_correction, replayed_segments
 from analysis.afm.rheology import cortex_laws
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
-from conftest import first_heights
+from conftest import cortex, first_heights
 from cortex.cli import main
 from solver.model import Shell
 from solver.protocol import Oscillate, Protocol, Ramp
@@ -76,21 +76,33 @@ def five_heights(monkeypatch):
     first_heights(monkeypatch, 5)
 
 
-def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
-    """A noiseless cell simulated in time with its history carried (100 s waits, five heights, τ_c = ∞):
-    the relaxed-state reading excludes it by the tension filter (the kept stress: found 20 %) and,
+@pytest.fixture(scope="module")
+def in_time(tmp_path_factory):
+    """A noiseless cell simulated in time with its history carried (100 s waits, its first five
+    heights, τ_c = ∞; exp/) and its default reading (aware/): the folder holding both."""
+    root = tmp_path_factory.mktemp("in-time")
+    with pytest.MonkeyPatch.context() as patch:
+        first_heights(patch, 5)
+        assert main(["afm", "synth", "--time-domain", "--cells", "1", "--no-errors", "--out", str(root / "exp")]) == 0
+    assert main(["afm", "analyze", str(root / "exp"), "--out", str(root / "aware")]) in (0, 1)
+    return root
+
+
+def test_wait_s_reads_a_cell_simulated_in_time(in_time, tmp_path):
+    """The cell of `in_time`: the relaxed-state reading excludes it by the tension filter (the kept
+    stress: found 20 %) and,
     the filter lifted, reads β_S 0.158 low and β_B 0.025 high, outside their intervals; `--memory-s 0`
     is that same reading. The default reads the memory from the drift (found 3970 s, the carried
     history), keeps the cell and reads both exponents within 0.025 of the truth (found +0.004 and
     -0.021), each inside its 95 % interval."""
-    exp = tmp_path / "exp"
-    assert main(["afm", "synth", "--time-domain", "--cells", "1", "--no-errors", "--out", str(exp)]) == 0
+    exp = in_time / "exp"
     truth = json.loads((exp / "truth.json").read_text())["cells"][0]
     runs = {"relaxed": ["--wait-s", "inf"], "lifted": ["--wait-s", "inf", "--tension-tolerance", "inf"],
-            "forgets": ["--memory-s", "0", "--tension-tolerance", "inf"], "aware": []}
+            "forgets": ["--memory-s", "0", "--tension-tolerance", "inf"]}
     for name, extra in runs.items():
         assert main(["afm", "analyze", str(exp), "--out", str(tmp_path / name), *extra]) in (0, 1)
-    read = {name: pd.read_csv(tmp_path / name / "rheology.csv") for name in runs}
+    dirs = {**{name: tmp_path / name for name in runs}, "aware": in_time / "aware"}
+    read = {name: pd.read_csv(folder / "rheology.csv") for name, folder in dirs.items()}
     assert read["relaxed"].empty
     assert read["lifted"]["shear_exponent"][0] - truth["shear_exponent"] < -0.1
     pd.testing.assert_frame_equal(read["forgets"], read["lifted"])
@@ -98,16 +110,29 @@ def test_wait_s_reads_a_cell_simulated_in_time(five_heights, tmp_path):
     for name in ("bulk", "shear"):
         assert aware[f"{name}_exponent"] == pytest.approx(truth[f"{name}_exponent"], abs=0.025)
         assert aware[f"{name}_exponent_lo95"] <= truth[f"{name}_exponent"] <= aware[f"{name}_exponent_hi95"]
-    segments = pd.read_csv(tmp_path / "aware" / "segments.csv")
+    segments = pd.read_csv(dirs["aware"] / "segments.csv")
     assert segments["protocol_corrected"].all() and (segments["protocol_tension_shift_mN_per_m"] > 0).all()
-    cells = pd.read_csv(tmp_path / "aware" / "cells.csv")
+    cells = pd.read_csv(dirs["aware"] / "cells.csv")
     assert cells["protocol_memory_s"][0] >= 1000.0 and cells["protocol_history"][0] == "carried"
-    said = json.loads((tmp_path / "aware" / "summary.json").read_text())
+    said = json.loads((dirs["aware"] / "summary.json").read_text())
     assert said["protocol"]["wait_s"] == "recorded"
     assert said["protocol"]["memory"]["memory_s"] == "from the data" and said["protocol"]["memory"]["cells_fitted"] == 1
     assert said["protocol"]["cells_not_corrected"] == said["protocol"]["cells_not_settled"] == []
-    assert "1 of 1 cells corrected" in (tmp_path / "aware" / "report.md").read_text()
+    assert "1 of 1 cells corrected" in (dirs["aware"] / "report.md").read_text()
     assert said["reading"] == "protocol-aware (synthetic, time-domain)"      # read as it was made
+
+
+def test_under_mpiexec_the_other_ranks_replay_and_the_reading_is_the_same(in_time):
+    """`mpiexec -n 2 cortex afm analyze` (rank 0 reads and writes, rank 1 replays the cell:
+    `common.pool.ranks`) writes the same files as the reading in one process; --jobs beside
+    mpiexec is one line and exit status 2."""
+    run = cortex("afm", "analyze", in_time / "exp", "--out", in_time / "ranks", mpi=2)
+    assert run.returncode in (0, 1), run.stderr
+    for name in ("cells.csv", "segments.csv", "rheology.csv", "summary.json", "report.md"):
+        assert (in_time / "ranks" / name).read_bytes() == (in_time / "aware" / name).read_bytes(), name
+    bad = cortex("afm", "analyze", in_time / "exp", "--out", in_time / "jobs", "--jobs", "2", mpi=2)
+    assert bad.returncode == 2 and bad.stderr.count("--jobs goes without mpiexec") == 1, bad.stderr
+    assert not (in_time / "jobs").exists()
 
 
 def test_a_cell_relaxed_at_every_height_is_read_so(five_heights, tmp_path):

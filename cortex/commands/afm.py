@@ -182,7 +182,9 @@ def _add_analyze(s: Commands) -> None:
                         "docs/viscoelastic.md). S: tau_c = S s for every cell; inf: the pure power law, never "
                         "forgetting; 0: nothing kept, the relaxed state (as --wait-s inf)")
     a.add_argument("--jobs", type=int, default=None, metavar="N",
-                   help="cells replayed in N processes at once (default: the CPUs this process may use)")
+                   help="cells replayed in N processes at once (default: the CPUs this process may use). "
+                        "Under 'mpiexec -n N cortex afm analyze ...' (or srun: jobs/afm-analyze.sbatch) rank 0 "
+                        "reads and ranks 1..N-1 replay, on any number of nodes; --jobs is then not given")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
     a.set_defaults(handler=analyze)
@@ -490,6 +492,18 @@ def memory_setting(text: str | None, wait_s: float | None) -> float | None:
 
 
 def analyze(args: argparse.Namespace) -> int:
+    """Under `mpiexec -n N` rank 0 reads and the other ranks replay its cells (`common.pool.ranks`)."""
+    from common.errors import EXIT_DONE, InputError
+    from common.pool import inside_ranks, ranks
+    with ranks() as main:
+        if not main:
+            return EXIT_DONE
+        if inside_ranks() and args.jobs is not None:
+            raise InputError("--jobs goes without mpiexec: under mpiexec the ranks other than 0 replay the cells")
+        return _analyze(args)
+
+
+def _analyze(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.analyze import TENSION_TOLERANCE
