@@ -4,7 +4,7 @@
 #   make setup           .venv/: the default stack (MPICH wheel from PyPI, serial h5py), the solver compiled
 #   make setup-parallel  .venv-mpio/: Debian's MPICH + parallel HDF5, h5py built with MPI
 #   make demo            the main job, end to end
-#   make test            the type checker, then the whole suite, MPI tests on both stacks
+#   make test            the type checker (beside the solver's compilation), then the whole suite, MPI tests on both stacks
 #   make analysis        calibration and Monte-Carlo analysis of a finished store
 #   make calibration     rebuild the shipped calibration (analysis/calibration/data/calibration.json)
 #   make viscoelastic-table  rebuild the shipped viscoelastic table (analysis/calibration/data/viscoelastic_table.json)
@@ -29,7 +29,7 @@ PYTEST_ARGS ?=
 
 setup: $(VENV)/.installed
 
-$(VENV)/.installed: pyproject.toml
+$(VENV)/.packages: pyproject.toml
 	@$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "Python >= 3.11 needed"'
 	@$(PYTHON) -m venv --help >/dev/null 2>&1 && $(PYTHON) -c 'import ensurepip' 2>/dev/null || \
 	  { [ "$$(id -u)" = 0 ] || { echo "setup: $(PYTHON) cannot make a venv: apt-get install python3-venv (as root)"; exit 1; }; \
@@ -38,6 +38,9 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[mpich,test]'
+	@touch $@
+
+$(VENV)/.installed: $(VENV)/.packages
 	@echo "setup: compiling the fast solver once (numba's on-disk cache, about a minute; later processes and MPI ranks load it)"
 	@$(BIN)/cortex compress --h0 12 --bulk 25 --shear 10 --tension 1 >/dev/null
 	@touch $@
@@ -66,10 +69,13 @@ demo: setup
 	@sed -n '/^Median/,/^Each cell/p' results/demo-experiment/analysis/report.md
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
-test: typecheck test-serial test-mpi test-mpi-parallel
+# The type checker beside the solver's one compilation (one core each), then the suites.
+test:
+	@$(MAKE) --no-print-directory -j2 typecheck setup
+	@$(MAKE) --no-print-directory test-serial test-mpi test-mpi-parallel
 
 # The type checker over the typed packages (pyproject.toml, [tool.mypy]).
-typecheck: setup
+typecheck: $(VENV)/.packages
 	$(BIN)/python -m mypy
 
 # The serial suite in two passes (docs/testing.md), each printing its 20 slowest tests (the

@@ -75,8 +75,14 @@ pip=("$venv/bin/with-mpi" "$venv/bin/python" -m pip -q --disable-pip-version-che
 "${pip[@]}" install --only-binary=mpi4py 'numpy>=1.26' 'mpi4py>=4.0' 'cython>=3,<4' pkgconfig 'setuptools>=77' wheel
 if ! "$venv/bin/with-mpi" "$venv/bin/python" -c 'import h5py, sys; sys.exit(not h5py.get_config().mpi)' 2>/dev/null; then
     echo "setup-parallel: building h5py against Debian's parallel HDF5 (a few minutes)"
-    HDF5_MPI=ON CC=mpicc HDF5_PKGCONFIG_NAME=hdf5-mpich \
-        "${pip[@]}" install --force-reinstall --no-deps --no-binary=h5py --no-build-isolation --no-cache-dir 'h5py>=3.10'
+    # its C extensions compiled on every CPU (setuptools' build_ext --parallel, through the extra
+    # config file setuptools reads from DIST_EXTRA_CONFIG): 92 s instead of 153 s on two cores
+    build_cfg=$(mktemp)
+    printf '[build_ext]\nparallel = %s\n' "$(nproc)" > "$build_cfg"
+    DIST_EXTRA_CONFIG=$build_cfg HDF5_MPI=ON CC=mpicc HDF5_PKGCONFIG_NAME=hdf5-mpich \
+        "${pip[@]}" install --force-reinstall --no-deps --no-binary=h5py --no-build-isolation --no-cache-dir 'h5py>=3.10' \
+        || { rm -f "$build_cfg"; exit 1; }
+    rm -f "$build_cfg"
 fi
 
 # 4. The project, editable; h5py and mpi4py are already satisfied and stay.
