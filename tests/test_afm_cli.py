@@ -3,6 +3,8 @@ one line, status 2."""
 
 import dataclasses
 import json
+import os
+import subprocess
 
 import h5py
 import numpy as np
@@ -16,6 +18,7 @@ from analysis.afm.provenance import FREQUENCY_DOMAIN
 from analysis.afm.synth.cells import generate, law_forward
 from analysis.calibration.law import Calibration
 from studies.synthetic import reference_law
+from conftest import BIN, ROOT
 from cortex.cli import main
 
 BORROW = ("emulator", "viscoelastic_table")      # a law-only file that borrows the shipped emulator and table
@@ -52,6 +55,24 @@ def test_synth_and_analyze(setup, tmp_path, capsys):
     capsys.readouterr()
     assert main(["afm", "synth", "--cells", "2", "--out", str(data), "--solver", "law",
                  "--calibration", str(cal)]) == 2
+
+
+def test_the_batch_job_reads_on_its_ranks_as_one_process_does(setup, tmp_path):
+    """jobs/afm-analyze.sbatch, run as SLURM runs it (outside SLURM here: two ranks by default):
+    `mpiexec -n 2 cortex afm analyze DATA --out DIR OPTIONS`, the same cells.csv as one process
+    writes; without DATA and DIR its usage line and status 2."""
+    _, cal, good, _ = setup
+    job = [str(ROOT / "jobs" / "afm-analyze.sbatch")]
+    env = {**os.environ, "CORTEX_VENV": str(BIN.parent)}
+    options = ["--calibration", str(cal), "--no-phase"]
+    run = subprocess.run(["bash", *job, str(good), "ranks", *options], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=600, stdin=subprocess.DEVNULL)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert f"mpiexec -n 2 {BIN / 'cortex'} afm analyze {good} --out ranks --calibration" in run.stdout
+    assert main(["afm", "analyze", str(good), "--out", str(tmp_path / "one"), *options]) == 0
+    assert (tmp_path / "ranks" / "cells.csv").read_bytes() == (tmp_path / "one" / "cells.csv").read_bytes()
+    usage = subprocess.run(["bash", *job], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    assert usage.returncode == 2 and usage.stderr.startswith("afm-analyze.sbatch: usage:"), usage.stderr
 
 
 def test_tension_tolerance_excludes_or_keeps_a_blebbing_cell(setup, tmp_path, capsys):
