@@ -50,6 +50,7 @@ from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any
 
 from campaign.task_process import READY, Slot
+from common.pool import launched_rank, launched_ranks
 
 if TYPE_CHECKING:
     from campaign.config import Campaign
@@ -166,10 +167,7 @@ def _serving_rank():
     Its task process then waits to warm up until the rank has opened the
     store (`campaign.scheduler`), so the two cores go to the store and the
     workers' warm-ups first, as they would without task processes."""
-    for rank, size in (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")):
-        if os.environ.get(rank) == "0":
-            return os.environ.get(size, "1") != "1"
-    return False
+    return launched_rank() == 0 and launched_ranks() > 1
 
 
 def signal_name(returncode: int | None) -> str:

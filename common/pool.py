@@ -12,9 +12,7 @@ False and does nothing more: every output stays rank 0's to write. With N ranks,
 """
 
 import os
-from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
-from multiprocessing import get_context
 from typing import Any, Callable, Iterable, Iterator
 
 _RANKS: list[Any] = []      # rank 0's executor over the other ranks while `ranks()` is open
@@ -48,13 +46,24 @@ def usable_cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+_LAUNCHERS = (("PMI_RANK", "PMI_SIZE"), ("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"))   # MPICH's, Open MPI's
+
+
 def launched_ranks() -> int:
     """How many ranks an MPI launcher started this process among, as its environment says
-    (MPICH's and srun's PMI_SIZE, Open MPI's OMPI_COMM_WORLD_SIZE); 1 without a launcher."""
-    for size in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE"):
+    (MPICH's PMI_SIZE, Open MPI's OMPI_COMM_WORLD_SIZE); 1 without a launcher."""
+    for _, size in _LAUNCHERS:
         if os.environ.get(size, "").isdigit():
             return int(os.environ[size])
     return 1
+
+
+def launched_rank() -> int:
+    """This process's rank as the MPI launcher's environment says; 0 without a launcher."""
+    for rank, _ in _LAUNCHERS:
+        if os.environ.get(rank, "").isdigit():
+            return int(os.environ[rank])
+    return 0
 
 
 @contextmanager
@@ -87,4 +96,8 @@ def pool(jobs: int) -> Any:
     `ProcessPoolExecutor` of `jobs` workers (jobs > 1), else `Serial` (a context manager with `map`)."""
     if _RANKS:
         return _Ranks(_RANKS[-1])
-    return ProcessPoolExecutor(jobs, mp_context=get_context("fork")) if jobs > 1 else Serial()
+    if jobs < 2:
+        return Serial()
+    from concurrent.futures import ProcessPoolExecutor      # here: `cortex`'s start-up does not pay for it
+    from multiprocessing import get_context
+    return ProcessPoolExecutor(jobs, mp_context=get_context("fork"))

@@ -9,7 +9,9 @@ Errors from bad input (`common.errors.InputError`, missing or unreadable files)
 become one line on stderr and exit status 2; a solver that finds no
 equilibrium, status 4; a write that fails (disk full), status 5; SIGTERM
 or Ctrl-C, status 3 (`cortex campaign run` handles them itself and stops
-cleanly). The whole table is in `common.errors` and in every `--help`. A
+cleanly). Under `mpiexec -n N` (N > 1) only the commands whose parser sets `ranks`
+run (campaign run, afm analyze, afm synth, doctor); any other is one line from
+rank 0 and status 2 on every rank. The whole table is in `common.errors` and in every `--help`. A
 reader that stops early (`cortex campaign status STORE | head -1`) ends the
 command quietly, status 0.
 
@@ -32,6 +34,7 @@ from typing import Any, NoReturn, cast
 
 from common.errors import (EXIT_BAD_INPUT, EXIT_DONE, EXIT_NO_EQUILIBRIUM, EXIT_SIGNAL, EXIT_STATUS_HELP, EXIT_WRITE_FAILED,
                            InputError, SolverError, is_write_failure)
+from common.pool import launched_rank, launched_ranks
 from cortex.commands import afm, analysis, campaign, doctor, shell
 from cortex.options import Commands
 
@@ -106,6 +109,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as stop:      # argparse has printed its one line (or the help): its status
         return stop.code if isinstance(stop.code, int) else EXIT_BAD_INPUT * bool(stop.code)
     where = " ".join(a for a in (args.command, getattr(args, "subcommand", None)) if a)
+    if launched_ranks() > 1 and not getattr(args, "ranks", False):
+        if launched_rank() == 0:        # each rank would run the whole command and write the same files
+            print(f"cortex {where}: error: runs in one process; under mpiexec only `campaign run`, `afm analyze`, "
+                  "`afm synth` and `doctor` run (docs/cli.md)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     previous = signal.signal(signal.SIGTERM, _interrupt)   # SIGTERM stops like Ctrl-C: status 3
     try:
         status = args.handler(args)

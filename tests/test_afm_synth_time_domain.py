@@ -115,7 +115,7 @@ def test_impossible_time_domain_settings_are_refused(args, message, tmp_path, ca
 
 
 @pytest.mark.parametrize("args", [["--wait-s", "5"], ["--history", "relaxed"], ["--hold", "force"],
-                                  ["--ramp-speed-um-per-s", "1"], ["--memory-s", "5"]])
+                                  ["--ramp-speed-um-per-s", "1"], ["--memory-s", "5"], ["--jobs", "2"]])
 def test_time_domain_options_without_time_domain_are_refused(args, tmp_path, capsys):
     assert main(["afm", "synth", "--cells", "1", *args, "--out", str(tmp_path / "x")]) == 2
     assert "--time-domain" in capsys.readouterr().err

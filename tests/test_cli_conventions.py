@@ -184,3 +184,16 @@ def test_every_command_runs_a_function_of_its_own_command_module():
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             assert not [n for n in names if n.startswith("cortex.commands")], f"{path.name}:{node.lineno}"
+
+
+def test_under_mpiexec_a_one_process_command_is_one_line_and_a_ranked_one_writes_once(tmp_path):
+    """Under `mpiexec -n 2` every rank would run the whole command: a command that does not use
+    ranks (`geometry`) is one line from rank 0 and status 2; `afm synth` (rank 0 writes, the other
+    ranks simulate where it is in time) writes its experiment once, status 0."""
+    one = cortex("geometry", "--volume", 4300, "--height", 12, mpi=2)
+    assert one.returncode == EXIT_BAD_INPUT and one.stdout == ""
+    assert one.stderr.splitlines() == ["cortex geometry: error: runs in one process; under mpiexec only `campaign run`, "
+                                       "`afm analyze`, `afm synth` and `doctor` run (docs/cli.md)"]
+    made = cortex("afm", "synth", "--cells", 2, "--out", tmp_path / "exp", mpi=2)
+    assert made.returncode == 0, made.stderr
+    assert made.stdout.count("wrote ") == 1 and (tmp_path / "exp" / "experiment.h5").is_file()

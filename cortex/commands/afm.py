@@ -11,7 +11,7 @@ on stdout; `--solver` names the forward model as in `cortex compress`
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from common.names import CORTEX_HISTORIES, HOLD_KINDS, RAMP_MODELS, SOLVERS
@@ -105,8 +105,10 @@ def _add_synth(s: Commands) -> None:
     g.add_argument("--memory-s", type=float, default=None, metavar="S",
                    help="--time-domain: the cortex's memory tau_c, K(t) ~ t^-beta e^(-t/tau_c), one for both moduli "
                         "(turnover; default inf: the pure power law, never forgetting)")
-    g.add_argument("--jobs", type=int, default=1, metavar="N",
-                   help="--time-domain: cells simulated in N processes at once (default 1)")
+    g.add_argument("--jobs", type=int, default=None, metavar="N",
+                   help="--time-domain: cells simulated in N processes at once (default 1). Under "
+                        "'mpiexec -n N cortex afm synth --time-domain ...' rank 0 writes and ranks 1..N-1 simulate; "
+                        "--jobs is then not given")
     g.add_argument("--history", choices=CORTEX_HISTORIES, default=None, metavar="HISTORY",
                    help="--time-domain: the cortex's history across mean heights, %(choices)s (default carried: "
                         "one history through the whole protocol; relaxed: every mean height from its own relaxed "
@@ -119,7 +121,7 @@ def _add_synth(s: Commands) -> None:
                         f"{TIME_DOMAIN_RAMP_UM_PER_S:g} um/s)")
     add_bending(g, "bending variant of the forward model")
     g.add_argument("--json", action="store_true", help="one JSON object: the files written and the cell count")
-    g.set_defaults(handler=synth)
+    g.set_defaults(handler=synth, ranks=True)
 
 
 def _add_import(s: Commands) -> None:
@@ -187,7 +189,7 @@ def _add_analyze(s: Commands) -> None:
                         "reads and ranks 1..N-1 replay, on any number of nodes; --jobs is then not given")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
-    a.set_defaults(handler=analyze)
+    a.set_defaults(handler=analyze, ranks=True)
 
 
 def _add_tension(s: Commands) -> None:
@@ -260,6 +262,11 @@ def _add_tension(s: Commands) -> None:
 
 
 def synth(args: argparse.Namespace) -> int:
+    """Under `mpiexec -n N` rank 0 writes and the other ranks simulate its time-domain cells."""
+    return on_ranks(_synth, args)
+
+
+def _synth(args: argparse.Namespace) -> int:
     import json
 
     from analysis.afm.synth import cells as sy
@@ -275,7 +282,7 @@ def synth(args: argparse.Namespace) -> int:
         from analysis.afm.synth import time_cells
         cells, truth = time_cells.generate(args.cells, args.seed, errors=not args.no_errors, **settings)
     else:
-        if (args.wait_s, args.history, args.hold, args.ramp_speed_um_per_s, args.memory_s) != (None,) * 5 or args.jobs != 1:
+        if (args.wait_s, args.history, args.hold, args.ramp_speed_um_per_s, args.memory_s, args.jobs) != (None,) * 6:
             raise InputError("--wait-s, --memory-s, --jobs, --history, --hold and --ramp-speed-um-per-s go with --time-domain")
         out = new_experiment_folder(args.out, [EXPERIMENT, TRUTH])
         cells, truth = sy.generate(args.cells, args.seed, errors=not args.no_errors, forward=_forward(args))
@@ -316,13 +323,14 @@ def _time_domain_settings(args: argparse.Namespace) -> dict[str, Any]:
     memory = math.inf if args.memory_s is None else args.memory_s
     if not memory > 0:
         raise InputError(f"--memory-s must be a number of seconds > 0, or inf (got {memory:g})")
-    if args.jobs < 1:
-        raise InputError(f"--jobs must be >= 1 (got {args.jobs})")
+    jobs = 1 if args.jobs is None else args.jobs
+    if jobs < 1:
+        raise InputError(f"--jobs must be >= 1 (got {jobs})")
     speed = TIME_DOMAIN_RAMP_UM_PER_S if args.ramp_speed_um_per_s is None else args.ramp_speed_um_per_s
     if not (math.isfinite(speed) and 0 < speed <= 100):
         raise InputError(f"--ramp-speed-um-per-s must be a speed in (0, 100] um/s (got {speed:g})")
     return {"bulk_exponent": bulk, "shear_exponent": shear, "wait_s": wait, "memory_s": memory,
-            "bending": args.bending, "jobs": args.jobs, "progress": not args.json,
+            "bending": args.bending, "jobs": jobs, "progress": not args.json,
             "history": args.history or "carried", "hold": args.hold or "height", "ramp_speed_um_per_s": speed}
 
 
@@ -491,16 +499,22 @@ def memory_setting(text: str | None, wait_s: float | None) -> float | None:
     return memory
 
 
-def analyze(args: argparse.Namespace) -> int:
-    """Under `mpiexec -n N` rank 0 reads and the other ranks replay its cells (`common.pool.ranks`)."""
+def on_ranks(work: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """`work(args)` on rank 0, whose pools under `mpiexec -n N` are the other ranks
+    (`common.pool.ranks`); those return 0 once it is done. --jobs beside mpiexec is refused."""
     from common.errors import EXIT_DONE, InputError
     from common.pool import inside_ranks, ranks
     with ranks() as main:
         if not main:
             return EXIT_DONE
         if inside_ranks() and args.jobs is not None:
-            raise InputError("--jobs goes without mpiexec: under mpiexec the ranks other than 0 replay the cells")
-        return _analyze(args)
+            raise InputError("--jobs goes without mpiexec: under mpiexec the ranks other than 0 do the work")
+        return work(args)
+
+
+def analyze(args: argparse.Namespace) -> int:
+    """Under `mpiexec -n N` rank 0 reads and the other ranks replay its cells."""
+    return on_ranks(_analyze, args)
 
 
 def _analyze(args: argparse.Namespace) -> int:

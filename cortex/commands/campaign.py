@@ -33,7 +33,7 @@ def register(sub: Commands) -> None:
                         "HDF5; needs h5py built with MPI), rank0 (rank 0 writes all), auto (mpio where "
                         "h5py has MPI and there are 2 or more ranks; the default). Both give the same rows; "
                         "the one used is printed and kept in the store's `runs` attribute")
-    r.set_defaults(handler=run)
+    r.set_defaults(handler=run, ranks=True)
     s = cs.add_parser("status", help="counts by state, failures, throughput, ETA",
                       description="Summarise a store (also while its campaign is running).")
     s.add_argument("store", metavar="STORE.h5")

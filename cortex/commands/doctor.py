@@ -26,7 +26,7 @@ def register(sub: Commands) -> None:
                                    "(and whether h5py was built with MPI, which enables the "
                                    "parallel store write path).")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(handler=run)
+    p.set_defaults(handler=run, ranks=True)
 
 
 def loaded_libraries(*stems: str) -> list[str]:
