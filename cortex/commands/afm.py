@@ -185,7 +185,7 @@ def _add_analyze(s: Commands) -> None:
                         "forgetting; 0: nothing kept, the relaxed state (as --wait-s inf)")
     a.add_argument("--jobs", type=int, default=None, metavar="N",
                    help="cells replayed in N processes at once (default: the CPUs this process may use). "
-                        "Under 'mpiexec -n N cortex afm analyze ...' (or srun: jobs/afm-analyze.sbatch) rank 0 "
+                        "Under 'mpiexec -n N cortex afm analyze ...' (on a cluster: jobs/afm-analyze.sbatch) rank 0 "
                         "reads and ranks 1..N-1 replay, on any number of nodes; --jobs is then not given")
     a.add_argument("--json", action="store_true", help="one JSON object: the report's path, the skipped "
                    "recordings and the per-frequency summary (median_nu, iqr_nu, frequency_hz, ...)")
