@@ -39,7 +39,7 @@ def test_summary_and_report_name_every_cell_not_corrected_or_not_settled_and_why
     assert "2 of 4 cells corrected" in text
     assert "| b | not corrected: corrected tension ≤ 0 refused (x) |" in text
     assert "| d | not corrected: protocol not recorded: y |" in text
-    assert f"| c | not settled: its power laws still moved after {MAX_ROUNDS} rounds" in text
+    assert f"| c | not settled: its power laws still moved after its last round ({MAX_ROUNDS} linearised" in text
     assert "| a |" not in text
 
 

@@ -135,15 +135,17 @@ class Factors:
         for c, f in found.items():
             self._set(c, f)
 
-    def measured(self, volumes: pd.Series, measured: Measured, moving: list[str], replays: dict[str, int]) -> Measured:
+    def measured(self, volumes: pd.Series, measured: Measured, moving: list[str], replays: dict[str, int],
+                 fulls: dict[str, int]) -> Measured:
         """The `Measured` of the raw segments corrected by the factors; `moving` the cells not settled,
-        `replays` how often each was replayed; the memory in MEMORY_COLUMNS."""
+        `replays` how often each was replayed linearised, `fulls` fully; the memory in MEMORY_COLUMNS."""
         segments = apply(self.raw, self.factors)
         cells = segments["cell_id"]
         segments["protocol_corrected"] = ~np.isnan(self.factors[:, 0])
         segments["protocol_reason"] = cells.map(self.why).fillna("").where(~segments["protocol_corrected"], "")
         segments["protocol_settled"] = ~cells.isin(moving)
         segments["protocol_replays"] = cells.map(replays).fillna(0).astype(int)
+        segments["protocol_full_replays"] = cells.map(fulls).fillna(0).astype(int)
         for name, value in zip(MEMORY_COLUMNS, (lambda f: f.memory_s, lambda f: f.lo95_s, lambda f: f.hi95_s)):
             segments[name] = cells.map({c: value(f) for c, f in self.memory.items()}).astype(float)
         segments["protocol_memory_source"] = cells.map(lambda c: self.source.get(c, ""))

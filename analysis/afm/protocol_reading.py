@@ -18,22 +18,26 @@ replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.ME
 drift of its corrected mean tensions and the relaxation in its waits (fitted, pooled or assumed:
 `analysis.afm.protocol_factors`),
 its factors interpolated there. The
-rounds replay linearised (`cell_correction`'s default, fast); with `full_last` (FULL_LAST, the
-default) every replayed cell's last correction is then its full replay with its last power laws
-and memory (the linearised replay's arg c is off the full one's by up to 0.017 rad, at 0.02 Hz, and
-its |c| by up to 1.0 %: bench/linearised_replay.py).
+rounds replay linearised (`cell_correction`'s default, fast; its arg c is off the full replay's by
+up to 0.017 rad, at 0.02 Hz, and its |c| by up to 1.0 %: bench/linearised_replay.py), and settle
+at a fixed point biased by that. With `full_last` (FULL_LAST, the default) rounds of the full
+replay follow, each cell at its chosen memory (held), from the laws the linearised rounds settled
+at, each cell's next laws Anderson's mixing of its full rounds only (`_full_rounds`), until none
+moved or MAX_FULL_ROUNDS: the fixed point of the full replay (on the noiseless ∞ cell of
+tests/test_protocol_replay.py β_S 0.317 and β_B 0.072 for 0.329 and 0.073, where one full correction
+read 0.310 and 0.078).
 What follows (every variant with the tension filter on the corrected mean tensions, the
 population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
 in `jobs` processes.
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
 `protocol_reason`, `protocol_settled`, `protocol_replays` (how often the cell was replayed
-linearised, each time at every memory asked for) and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
+linearised, each time at every memory asked for), `protocol_full_replays` and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
 its source). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
 a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`protocol_factors.refused`: the correction is refused,
 never used); its segments stay as recorded (and the tension filter, on their kept stress, mostly
-excludes it). `protocol_settled` False: the cell's power laws still moved after MAX_ROUNDS.
+excludes it). `protocol_settled` False: the cell's power laws still moved after its last round.
 
 `wait_s`: None takes each recording's own waits, a number sets T_w at every height; inf (the
 relaxed-state reading) is no correction and does not come here.
@@ -42,7 +46,7 @@ relaxed-state reading) is no correction and does not come here.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -65,6 +69,7 @@ if TYPE_CHECKING:
     from analysis.invert.method import Inversion
 
 MAX_ROUNDS = 8
+MAX_FULL_ROUNDS = 4    # rounds of the full replay after the linearised ones settle
 FULL_LAST = True        # the last correction by the full replay (the linearised one's bias: bench/linearised_replay.py)
 SHALLOWEST_UM = 0.1     # µm: segments this close to a cell's largest mean height are its shallowest
 
@@ -110,6 +115,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
+    fulls = segments.groupby("cell_id")["protocol_full_replays"].first() if "protocol_full_replays" in segments else None
     return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex and memory",
             "wait_s": "recorded" if wait_s is None else wait_s,
             "memory": _memory(cells, memory_s) if "protocol_memory_source" in cells else None,
@@ -117,7 +123,8 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
             "cells_not_corrected": [str(c) for c in left.index],
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
             "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]],
-            "replays_per_cell": None if replays is None or replays.empty else float(replays.mean())}
+            "replays_per_cell": None if replays is None or replays.empty else float(replays.mean()),
+            "full_replays_per_cell": None if fulls is None or fulls.empty else float(fulls.mean())}
 
 
 def _memory_lines(cells: pd.DataFrame) -> list[str]:
@@ -145,8 +152,8 @@ def markdown(segments: pd.DataFrame) -> list[str]:
              "their earlier height steps; a cell not corrected keeps its recorded segments.", "",
              *_memory_lines(cells)]
     rows = [f"| {c} | not corrected: {r.reason} |" for c, r in cells[~cells["corrected"]].iterrows()]
-    rows += [f"| {c} | not settled: its power laws still moved after {MAX_ROUNDS} rounds (its last "
-             "correction is used) |" for c in cells.index[~cells["settled"].to_numpy()]]
+    rows += [f"| {c} | not settled: its power laws still moved after its last round ({MAX_ROUNDS} linearised, "
+             f"{MAX_FULL_ROUNDS} full at most; its last correction is used) |" for c in cells.index[~cells["settled"].to_numpy()]]
     return lines + (["| cell | reason |", "|---|---|", *rows, ""] if rows else [])
 
 
@@ -206,6 +213,27 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
     return out
 
 
+def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
+                 refit: Callable[[], pd.DataFrame]) -> list[str]:
+    """Rounds of the full replay (`replay`: at each cell's chosen memory, into `state`) from the
+    linearised rounds' `laws`, each cell's next laws Anderson's mixing of its full rounds, until
+    none moved or MAX_FULL_ROUNDS; a cell whose full replay is not usable leaves them. `laws` gains
+    the laws replayed; returns the cells still moving."""
+    rounds: dict[str, list[tuple[Laws, Laws]]] = {}
+    todo = [c for c in cells if c.cell_id in laws]
+    for i in range(MAX_FULL_ROUNDS):
+        replay(todo, i)
+        kept = {c.cell_id for c in todo if not state.why[c.cell_id]}
+        found = refit()
+        following = proposed(laws, rounds, found[found["cell_id"].isin(kept)])
+        ids = [c for c, new in following.items() if moved(laws[c], new)]
+        laws.update({c: following[c] for c in ids})
+        todo = [c for c in cells if c.cell_id in ids]
+        if not todo:
+            break
+    return [c.cell_id for c in todo]
+
+
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
               jobs: int = 1, full_last: bool = FULL_LAST, memory_s: float | None = None) -> Measured:
@@ -216,11 +244,12 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
     nodes: tuple[Node, ...] = (*MEMORY_GRID_S, RELAXED) if memory_s is None else (memory_s,)
     state = Factors(raw, rows, {c.cell_id: "no viscoelastic point fit of its segments" for c in cells})
-    now = state.measured(volumes, measured, [], {c.cell_id: 0 for c in cells})
+    replays, fulls = {c.cell_id: 0 for c in cells}, {c.cell_id: 0 for c in cells}
+    now = state.measured(volumes, measured, [], replays, fulls)
     table = inverted(measured, inversion, bending, errors, math.inf)
     laws: dict[str, Laws] = {}
     rounds: dict[str, list[tuple[Laws, Laws]]] = {}
-    replays, moving = {c.cell_id: 0 for c in cells}, []
+    moving: list[str] = []
     for i in range(MAX_ROUNDS):
         found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
         if i == 0:
@@ -235,13 +264,24 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
                                 f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
         replays.update({c: replays[c] + 1 for c in todo})
         state.choose(memory_s)
-        now = state.measured(volumes, measured, [], replays)
+        now = state.measured(volumes, measured, [], replays, fulls)
         table = inverted(now, inversion, bending, errors, math.inf)
     else:
         moving = todo
-    if full_last:
-        last = [c for c in cells if c.cell_id in laws]
-        chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in last}
-        full = _factors(last, laws, bending, wait_s, jobs, "protocol: the full replay", chosen, False)
-        state.full({c: next(iter(f[0].values())) for c, f in full.items()})
-    return state.measured(volumes, measured, moving, replays)
+    if not full_last:
+        return state.measured(volumes, measured, moving, replays, fulls)
+
+    def full(todo: list[Cell], i: int) -> None:
+        chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
+        found = _factors(todo, laws, bending, wait_s, jobs, f"protocol: full replay {i + 1} (at most "
+                         f"{MAX_FULL_ROUNDS})", chosen, False)
+        state.full({c: next(iter(f[0].values())) for c, f in found.items()})
+        fulls.update({c.cell_id: fulls[c.cell_id] + 1 for c in todo})
+
+    def refit() -> pd.DataFrame:
+        now = state.measured(volumes, measured, [], replays, fulls)
+        table = inverted(now, inversion, bending, errors, math.inf)
+        return cortex_laws(point_moduli(table, now.segments, model, bending, lags))
+
+    moving = _full_rounds(state, laws, cells, full, refit)
+    return state.measured(volumes, measured, moving, replays, fulls)
