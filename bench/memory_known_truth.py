@@ -1,6 +1,6 @@
 """Known truth for the cortex's memory read from the data (`afm analyze`'s default): time-domain
 synthetic experiments made with a known τ_c (or with the history relaxed at every height), each
-read by default, against their truth. Prints one JSON object, one entry per experiment:
+read by default, against their truth. Prints one JSON list, one object per experiment:
 
 - `memory_true_s` (null: ∞; "relaxed history": every height from its own relaxed droplet);
 - `bulk`, `shear`: `bench/time_domain_synth.py`'s exponents (medians against the truth's, the
@@ -8,7 +8,10 @@ read by default, against their truth. Prints one JSON object, one entry per expe
 - `memory`: per source (fitted, pooled, assumed) the cells; over the cells whose memory was
   identified (fitted), the share whose 95 % interval holds the true τ_c, and the median estimate;
   the pooled memory and its interval;
-- `cpu_s`: the reading's CPU (from the caller, `--cpu-s`), where given.
+- `cells_corrected`, `cells_not_settled`, `replays_per_cell` (linearised, each at every candidate
+  memory) and `full_replays_per_cell` (summary.json's `protocol`).
+
+The reading's CPU is the caller's to measure (`/usr/bin/time`).
 
     cortex afm synth --time-domain --cells 40 --seed 0 --memory-s 10 --out EXP10     # also 100, inf,
     cortex afm synth --time-domain --cells 40 --seed 0 --history relaxed --out EXPR  # and relaxed
@@ -62,6 +65,8 @@ def one(exp: Path, analysis: Path) -> dict:
     out["memory"] = memory(math.nan if relaxed else math.inf if given is None else float(given), segments)
     said = json.loads((analysis / "summary.json").read_text()).get("protocol", {})
     out["cells_corrected"], out["replays_per_cell"] = said.get("cells_corrected"), said.get("replays_per_cell")
+    out["full_replays_per_cell"] = said.get("full_replays_per_cell")
+    out["cells_not_settled"] = len(said.get("cells_not_settled", []))
     return out
 
 

@@ -45,6 +45,7 @@ def exponents(truth: dict, rheo: pd.DataFrame) -> dict:
         inside = (rheo[f"{name}_exponent_lo95"] <= t) & (t <= rheo[f"{name}_exponent_hi95"])
         out[name] = {"median": float(np.median(est)), "median_true": float(np.median(t)),
                      "median_error": float(np.median(est) - np.median(t)),
+                     "median_abs_error": float(np.median(np.abs(est - t))),
                      "max_abs_error": float(np.max(np.abs(est - t))), "interval_coverage": float(np.mean(inside))}
     return out
 
