@@ -213,6 +213,22 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
     return out
 
 
+def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
+                       refit: Callable[[int], pd.DataFrame]) -> list[str]:
+    """The rounds of the module docstring: `refit(i)` the laws found before round i (θ_0: `started`),
+    `replay` the moved cells at every memory (into `state`), until none moved or MAX_ROUNDS; `laws`
+    gains the laws replayed; returns the cells still moving."""
+    rounds: dict[str, list[tuple[Laws, Laws]]] = {}
+    for i in range(MAX_ROUNDS):
+        following = proposed(laws, rounds, refit(i))
+        todo = [c for c, new in following.items() if moved(laws.get(c), new)]
+        if not todo:
+            return []
+        laws.update({c: following[c] for c in todo})
+        replay([c for c in cells if c.cell_id in todo], i)
+    return todo
+
+
 def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
                  refit: Callable[[], pd.DataFrame]) -> list[str]:
     """Rounds of the full replay (`replay`: at each cell's chosen memory, into `state`) from the
@@ -245,43 +261,30 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     nodes: tuple[Node, ...] = (*MEMORY_GRID_S, RELAXED) if memory_s is None else (memory_s,)
     state = Factors(raw, rows, {c.cell_id: "no viscoelastic point fit of its segments" for c in cells})
     replays, fulls = {c.cell_id: 0 for c in cells}, {c.cell_id: 0 for c in cells}
-    now = state.measured(volumes, measured, [], replays, fulls)
-    table = inverted(measured, inversion, bending, errors, math.inf)
     laws: dict[str, Laws] = {}
-    rounds: dict[str, list[tuple[Laws, Laws]]] = {}
-    moving: list[str] = []
-    for i in range(MAX_ROUNDS):
-        found = cortex_laws(point_moduli(table, now.segments, model, bending, lags))
-        if i == 0:
-            found = started(found, raw)
-        following = proposed(laws, rounds, found)
-        todo = [c for c, new in following.items() if moved(laws.get(c), new)]
-        if not todo:
-            break
-        laws.update({c: following[c] for c in todo})
-        replay_cells = [c for c in cells if c.cell_id in todo]
-        state.replayed(_factors(replay_cells, laws, bending, wait_s, jobs,
-                                f"protocol round {i + 1} (at most {MAX_ROUNDS})", {c: nodes for c in todo}))
-        replays.update({c: replays[c] + 1 for c in todo})
-        state.choose(memory_s)
+
+    def found(now: Measured, table: Measured) -> pd.DataFrame:
+        return cortex_laws(point_moduli(inverted(table, inversion, bending, errors, math.inf), now.segments, model,
+                                        bending, lags))
+
+    def refit(i: int = 1) -> pd.DataFrame:
         now = state.measured(volumes, measured, [], replays, fulls)
-        table = inverted(now, inversion, bending, errors, math.inf)
-    else:
-        moving = todo
-    if not full_last:
-        return state.measured(volumes, measured, moving, replays, fulls)
+        return started(found(now, measured), raw) if i == 0 else found(now, now)
+
+    def linearised(todo: list[Cell], i: int) -> None:
+        state.replayed(_factors(todo, laws, bending, wait_s, jobs, f"protocol round {i + 1} (at most {MAX_ROUNDS})",
+                                {c.cell_id: nodes for c in todo}))
+        replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
+        state.choose(memory_s)
 
     def full(todo: list[Cell], i: int) -> None:
         chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
-        found = _factors(todo, laws, bending, wait_s, jobs, f"protocol: full replay {i + 1} (at most "
-                         f"{MAX_FULL_ROUNDS})", chosen, False)
-        state.full({c: next(iter(f[0].values())) for c, f in found.items()})
+        state.full({c: next(iter(f[0].values())) for c, f in _factors(
+            todo, laws, bending, wait_s, jobs, f"protocol: full replay {i + 1} (at most {MAX_FULL_ROUNDS})", chosen,
+            False).items()})
         fulls.update({c.cell_id: fulls[c.cell_id] + 1 for c in todo})
 
-    def refit() -> pd.DataFrame:
-        now = state.measured(volumes, measured, [], replays, fulls)
-        table = inverted(now, inversion, bending, errors, math.inf)
-        return cortex_laws(point_moduli(table, now.segments, model, bending, lags))
-
-    moving = _full_rounds(state, laws, cells, full, refit)
+    moving = _linearised_rounds(state, laws, cells, linearised, refit)
+    if full_last:
+        moving = _full_rounds(state, laws, cells, full, refit)
     return state.measured(volumes, measured, moving, replays, fulls)
