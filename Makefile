@@ -25,7 +25,7 @@ PVENV  := .venv-mpio
 NP     ?= 2
 PYTEST_ARGS ?=
 
-.PHONY: setup setup-parallel demo test typecheck test-serial test-mpi test-mpi-parallel bench bench-full clean
+.PHONY: setup setup-parallel setup-slurm demo test typecheck test-serial test-mpi test-mpi-parallel bench bench-full clean
 
 setup: $(VENV)/.installed
 
@@ -69,30 +69,48 @@ demo: setup
 	@sed -n '/^Median/,/^Each cell/p' results/demo-experiment/analysis/report.md
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
-# The type checker beside the solver's one compilation (one core each), then the suites.
+# The type checker beside the solver's one compilation (one core each); SLURM's packages; then the
+# suites, the parallel stack built beside them at the lowest priority (nice 19: mostly downloads
+# and Debian's packages; its log follows them), and its own tests last.
 test:
 	@$(MAKE) --no-print-directory -j2 typecheck setup
-	@$(MAKE) --no-print-directory test-serial test-mpi test-mpi-parallel
+	@$(MAKE) --no-print-directory setup-slurm
+	@log=$$(mktemp); nice -n 19 $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
+	trap 'kill $$built 2>/dev/null; exit 130' INT TERM; \
+	s=0; $(MAKE) --no-print-directory test-serial test-mpi || s=$$?; \
+	wait $$built; echo "+ make setup-parallel   (beside the passes above)"; cat $$log; rm -f $$log; \
+	[ $$s = 0 ] || exit $$s; \
+	$(MAKE) --no-print-directory test-mpi-parallel
 
 # The type checker over the typed packages (pyproject.toml, [tool.mypy]).
 typecheck: $(VENV)/.packages
 	$(BIN)/python -m mypy
 
-# The serial suite in two passes (docs/testing.md), each printing its 20 slowest tests (the
-# suite stays under 20 minutes): the tests not marked `serial` on TEST_WORKERS processes
-# (pytest-xdist; a file's tests stay on one worker, so its module fixtures are built once; each
-# on one BLAS thread, as a campaign rank: two workers' BLAS threads would wait on each other's
-# cores), then the `serial` ones alone. A pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none
-# of its tests) is not a failure unless the other pass collected none either.
+# The serial suite in two passes at once (docs/testing.md), each printing its 20 slowest tests
+# (the suite stays under 20 minutes): the tests marked `serial` (SLURM's) at normal priority, and
+# beside them, at the lowest (nice 19: it takes only the CPU they leave idle, about 80 % of it),
+# the others on TEST_WORKERS processes (pytest-xdist; a file's tests stay on one worker, so its
+# module fixtures are built once; each on one BLAS thread, as a campaign rank: two workers' BLAS
+# threads would wait on each other's cores). The serial pass's output follows the other's. A
+# pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none of its tests) is not a
+# failure unless the other pass collected none either.
 TEST_WORKERS ?= 2
-test-serial: setup
-	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]  # SLURM for tests/test_slurm.py (skips itself if 77)
-	@a=0; b=0; set -x; \
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
-	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests || b=$$?; \
+test-serial: setup setup-slurm
+	@a=0; b=0; log=$$(mktemp); \
+	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests >$$log 2>&1 & serial=$$!; \
+	trap 'kill $$serial 2>/dev/null; exit 130' INT TERM; \
+	set -x; \
+	OPENBLAS_NUM_THREADS=1 nice -n 19 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
 	{ set +x; } 2>/dev/null; \
+	wait $$serial || b=$$?; \
+	echo "+ $(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests   (beside the pass above)"; \
+	cat $$log; rm -f $$log; \
 	for s in $$a $$b; do [ $$s = 0 ] || [ $$s = 5 ] || exit $$s; done; \
 	[ $$a$$b != 55 ] || { echo "test-serial: no tests collected"; exit 5; }
+
+# SLURM for tests/test_slurm.py (which skips itself, saying why, where the script exits 77).
+setup-slurm:
+	@bash scripts/setup-slurm.sh install || [ $$? = 77 ]
 
 # MPI runs: each rank runs pytest; exit status 5 ("no tests collected": no
 # MPI tests in the selection) is not a failure, any other non-zero status is.

@@ -41,8 +41,8 @@ if ((${#missing[@]})); then
     fi
     echo "setup-parallel: apt-get install ${missing[*]}"
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq
-    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+    apt-get -o DPkg::Lock::Timeout=600 update -qq
+    apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
 # awk reads to the end (no early `exit`): under pipefail an early exit can kill ldconfig with
