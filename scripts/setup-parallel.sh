@@ -78,11 +78,10 @@ if ! "$venv/bin/with-mpi" "$venv/bin/python" -c 'import h5py, sys; sys.exit(not 
     # its C extensions compiled on every CPU (setuptools' build_ext --parallel, through the extra
     # config file setuptools reads from DIST_EXTRA_CONFIG): 92 s instead of 153 s on two cores
     build_cfg=$(mktemp)
+    trap 'rm -f "$build_cfg"' EXIT     # also where the build fails or is interrupted
     printf '[build_ext]\nparallel = %s\n' "$(nproc)" > "$build_cfg"
     DIST_EXTRA_CONFIG=$build_cfg HDF5_MPI=ON CC=mpicc HDF5_PKGCONFIG_NAME=hdf5-mpich \
-        "${pip[@]}" install --force-reinstall --no-deps --no-binary=h5py --no-build-isolation --no-cache-dir 'h5py>=3.10' \
-        || { rm -f "$build_cfg"; exit 1; }
-    rm -f "$build_cfg"
+        "${pip[@]}" install --force-reinstall --no-deps --no-binary=h5py --no-build-isolation --no-cache-dir 'h5py>=3.10'
 fi
 
 # 4. The project, editable; h5py and mpi4py are already satisfied and stay.
