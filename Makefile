@@ -69,12 +69,11 @@ demo: setup
 	@sed -n '/^Median/,/^Each cell/p' results/demo-experiment/analysis/report.md
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
-# The type checker beside the solver's one compilation (one core each); SLURM's packages; then the
-# suites, the parallel stack built beside them at the lowest priority (nice 19: mostly downloads
+# The type checker beside the solver's one compilation (one core each) and SLURM's packages; then
+# the suites, the parallel stack built beside them at the lowest priority (nice 19: mostly downloads
 # and Debian's packages; its log follows them), and its own tests last.
 test:
-	@$(MAKE) --no-print-directory -j2 typecheck setup
-	@$(MAKE) --no-print-directory setup-slurm
+	@$(MAKE) --no-print-directory -j3 typecheck setup setup-slurm
 	@log=$$(mktemp); nice -n 19 $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
 	trap 'kill $$built 2>/dev/null; exit 130' INT TERM; \
 	s=0; $(MAKE) --no-print-directory test-serial test-mpi || s=$$?; \
