@@ -70,8 +70,8 @@ demo: setup
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
 # The type checker beside the solver's one compilation (one core each) and SLURM's packages; then
-# the suites, the parallel stack built beside them at the lowest priority (nice 19: mostly downloads
-# and Debian's packages; its log follows them), and its own tests last.
+# the suites, the parallel stack built beside them at the lowest priority (nice 19: Debian's
+# packages, pip's downloads, h5py compiled; its log follows them), and its own tests last.
 test:
 	@$(MAKE) --no-print-directory -j3 typecheck setup setup-slurm
 	@log=$$(mktemp); nice -n 19 $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
