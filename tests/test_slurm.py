@@ -29,7 +29,8 @@ left:
 - tests/data/slurm-failing.toml (one compression raises): the job exits 1
   (not requeued) and its analysis is cancelled; `campaign.sbatch CONFIG STORE
   --retry-failed` retries only that task, and `analysis.sbatch STORE DIR
-  --partial` (afterany) analyses the rest.
+  --partial` (afterany) analyses the rest;
+- jobs/afm-analyze.sbatch on two tasks: the AFM reading's files, the same as one process writes.
 """
 
 import fcntl
@@ -336,3 +337,19 @@ def test_no_requeue_left_then_resume(slurm, tmp_path, reference):
     assert all((r["JobState"], r["ExitCode"]) == ("COMPLETED", "0:0") for r in rec.values()), logs(tmp_path)
     assert json.loads((tmp_path / "analysis" / "calibration.json").read_text())
     assert_same_store(store, reference(config))
+
+
+def test_the_afm_reading_job_writes_what_one_process_writes(slurm, tmp_path):
+    """jobs/afm-analyze.sbatch submitted with two tasks (`mpiexec -n 2 cortex afm analyze DATA --out
+    DIR` on the job's tasks, the repository found from the submitted script) writes the cells.csv
+    and rheology.csv the reading in one process writes, of a two-cell synthetic experiment."""
+    from cortex.cli import main
+
+    assert main(["afm", "synth", "--cells", "2", "--seed", "3", "--out", str(tmp_path / "exp")]) == 0
+    jobid = sbatch(slurm, tmp_path, "--ntasks=2", ROOT / "jobs" / "afm-analyze.sbatch", "exp", "ranks")
+    rec = wait(slurm, [jobid], 300)[jobid]
+    assert (rec["JobState"], rec["ExitCode"]) == ("COMPLETED", "0:0"), logs(tmp_path)
+    assert f"mpiexec -n 2 {ROOT / '.venv' / 'bin' / 'cortex'} afm analyze exp --out ranks" in logs(tmp_path)
+    assert main(["afm", "analyze", str(tmp_path / "exp"), "--out", str(tmp_path / "one")]) in (0, 1)
+    for name in ("cells.csv", "rheology.csv"):
+        assert (tmp_path / "ranks" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name
