@@ -86,7 +86,7 @@ typecheck: $(VENV)/.packages
 	$(BIN)/python -m mypy
 
 # The serial suite in two passes at once (docs/testing.md), each printing its 20 slowest tests
-# (the suite stays under 20 minutes): the tests marked `serial` (SLURM's) at normal priority, and
+# (CI gives the suite 20 minutes): the tests marked `serial` (SLURM's) at normal priority, and
 # beside them, at the lowest (nice 19: it takes only the CPU they leave idle, about 80 % of it),
 # the others on TEST_WORKERS processes (pytest-xdist; a file's tests stay on one worker, so its
 # module fixtures are built once; each on one BLAS thread, as a campaign rank: two workers' BLAS
