@@ -70,11 +70,11 @@ demo: setup
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
 # The type checker beside the solver's one compilation (one core each) and SLURM's packages; then
-# the suites, the parallel stack built beside them at the lowest priority (nice 19: Debian's
-# packages, pip's downloads, h5py compiled; its log follows them), and its own tests last.
+# the suites, the parallel stack built beside them (Debian's packages, pip's downloads, h5py
+# compiled; its log follows them), and its own tests last.
 test:
 	@$(MAKE) --no-print-directory -j3 typecheck setup setup-slurm
-	@log=$$(mktemp); nice -n 19 $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
+	@log=$$(mktemp); $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
 	trap 'kill $$built 2>/dev/null; exit 130' INT TERM; \
 	s=0; $(MAKE) --no-print-directory test-serial test-mpi || s=$$?; \
 	wait $$built; echo "+ make setup-parallel   (beside the passes above)"; cat $$log; rm -f $$log; \
@@ -86,9 +86,8 @@ typecheck: $(VENV)/.packages
 	$(BIN)/python -m mypy
 
 # The serial suite in two passes at once (docs/testing.md), each printing its 20 slowest tests
-# (CI gives the suite 20 minutes): the tests marked `serial` (SLURM's) at normal priority, and
-# beside them, at the lowest (nice 19: it takes only the CPU they leave idle, about 80 % of it),
-# the others on TEST_WORKERS processes (pytest-xdist; a file's tests stay on one worker, so its
+# (CI gives the suite 20 minutes): the tests marked `serial` (SLURM's: the CPU 22 % busy) and
+# beside them the others on TEST_WORKERS processes (pytest-xdist; a file's tests stay on one worker, so its
 # module fixtures are built once; each on one BLAS thread, as a campaign rank: two workers' BLAS
 # threads would wait on each other's cores). The serial pass's output follows the other's. A
 # pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none of its tests) is not a
@@ -99,7 +98,7 @@ test-serial: setup setup-slurm
 	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests >$$log 2>&1 & serial=$$!; \
 	trap 'kill $$serial 2>/dev/null; exit 130' INT TERM; \
 	set -x; \
-	OPENBLAS_NUM_THREADS=1 nice -n 19 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
 	{ set +x; } 2>/dev/null; \
 	wait $$serial || b=$$?; \
 	echo "+ $(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests   (beside the pass above)"; \
