@@ -93,15 +93,16 @@ typecheck: $(VENV)/.packages
 # pass's exit status 5 ("no tests collected": PYTEST_ARGS chose none of its tests) is not a
 # failure unless the other pass collected none either.
 TEST_WORKERS ?= 2
+SERIAL_PASS = $(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests
 test-serial: setup setup-slurm
 	@a=0; b=0; log=$$(mktemp); \
-	$(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests >$$log 2>&1 & serial=$$!; \
+	$(SERIAL_PASS) >$$log 2>&1 & serial=$$!; \
 	trap 'kill $$serial 2>/dev/null; exit 130' INT TERM; \
 	set -x; \
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=20 -n $(TEST_WORKERS) --dist loadfile --serial skip $(PYTEST_ARGS) tests || a=$$?; \
 	{ set +x; } 2>/dev/null; \
 	wait $$serial || b=$$?; \
-	echo "+ $(BIN)/python -m pytest -q --durations=20 --serial only $(PYTEST_ARGS) tests   (beside the pass above)"; \
+	echo "+ $(SERIAL_PASS)   (beside the pass above)"; \
 	cat $$log; rm -f $$log; \
 	for s in $$a $$b; do [ $$s = 0 ] || [ $$s = 5 ] || exit $$s; done; \
 	[ $$a$$b != 55 ] || { echo "test-serial: no tests collected"; exit 5; }
