@@ -358,15 +358,21 @@ class _Run:
         self.pending, self.pending_wait = 0.0, False
 
     def _force_hold(self, duration_s: float) -> None:
-        """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method on h."""
-        target = self.state.force_nN()
+        """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method
+        on h; after the first step the bracket is sought around the creep the last step predicts,
+        Δh_k ≈ Δh_(k-1) (Δt_k / Δt_(k-1))^(1/2) (between a creep that slows as t^(β-1) and one
+        that keeps its rate: a guess, the bracket holds the root whatever it is)."""
+        target, last = self.state.force_nN(), None
         for dt in self._hold_steps(duration_s):
-            self._at_force(target, dt)
+            h0 = self.state.h_um
+            self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]))
+            last = (self.state.h_um - h0, dt)
         self.level = self.state.h_um
         self.kinds.append(("hold", self.t))
 
-    def _at_force(self, force_nN: float, dt_s: float) -> None:
-        """One step of Δt to the gap whose plate force is `force_nN`."""
+    def _at_force(self, force_nN: float, dt_s: float, guess_um: float | None = None) -> None:
+        """One step of Δt to the gap whose plate force is `force_nN`, the bracket sought from
+        `guess_um` (steps of a quarter of its distance from the gap now) or from the gap now."""
         saved, h0 = self.state.saved(), self.state.h_um
         last = [math.nan]
 
@@ -375,7 +381,11 @@ class _Run:
             self.steps += 1
             last[0] = h
             return _advance(self.state, h, dt_s) - force_nN
-        lo, hi = _bracket(residual, h0)
+        lo = hi = None
+        if guess_um is not None and math.isfinite(guess_um):
+            lo, hi = _bracket(residual, guess_um, max(0.25 * abs(guess_um - h0), 10.0 * FORCE_TOL_UM))
+        if lo is None or hi is None:
+            lo, hi = _bracket(residual, h0)
         if lo is None or hi is None:
             raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
         root = lo
