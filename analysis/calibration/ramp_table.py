@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import RectBivariateSpline, RegularGridInterpolator
+from scipy.interpolate import BSpline, RectBivariateSpline, RegularGridInterpolator, splev
 
 from common.errors import InputError
 from solver.droplet_table import unit_force_per_tension
@@ -87,8 +87,18 @@ class ShellTable:
         g = np.clip(np.log(gamma_tilde) if gamma_tilde > 0 else -np.inf, *np.log(self.gammas[[0, -1]]))
         dc = np.clip(d, self.d0, self.max_depth)
         dq = np.clip(dc, self.depths[0], None)
-        q = self.slice(shear_tilde, radius_um)(dq.ravel(), np.full(dq.size, g), grid=False).reshape(d.shape)
+        q = at_second(self.slice(shear_tilde, radius_um), g, dq.ravel()).reshape(d.shape)
         return np.where(d > self.d0, q * elastic_scale(dc, self.d0), 0.0)
+
+
+def at_second(spline: RectBivariateSpline, y: float, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """spline(x, y) at one y and many x: the coefficients C_ij contracted with the B-splines in y,
+    c_i = Σ_j C_ij B_j(y), read as one spline in x, Σ_i c_i B_i(x) (the same numbers as
+    spline(x, y, grid=False), in half its time: a fit reads a whole ramp at one γ̃_a)."""
+    tx, ty, c = spline.tck
+    kx, ky = spline.degrees
+    by = BSpline.design_matrix([y], ty, ky).toarray()[0]
+    return np.asarray(splev(x, (tx, c.reshape(tx.size - kx - 1, ty.size - ky - 1) @ by, kx)), float)
 
 
 def from_document(doc: dict[str, Any], where: str = "shell ramp table") -> ShellTable:
