@@ -70,16 +70,16 @@ demo: setup
 	@echo "true medians: results/demo-experiment/truth.json; per cell: results/demo-experiment/analysis/cells.csv"
 
 # The type checker beside the solver's one compilation (one core each) and SLURM's packages; then
-# the suites, the parallel stack built beside them (Debian's packages, pip's downloads, h5py
-# compiled; its log follows them), and its own tests last.
+# the suites, and beside them the parallel stack built (Debian's packages, pip's downloads, h5py
+# compiled) and its own tests run (in a session of their own, so that an interrupt ends them
+# too); their log follows the suites'. Both exit statuses count.
 test:
 	@$(MAKE) --no-print-directory -j3 typecheck setup setup-slurm
-	@log=$$(mktemp); $(MAKE) --no-print-directory setup-parallel >$$log 2>&1 & built=$$!; \
-	trap 'kill $$built 2>/dev/null; exit 130' INT TERM; \
+	@log=$$(mktemp); setsid $(MAKE) --no-print-directory setup-parallel test-mpi-parallel >$$log 2>&1 & side=$$!; \
+	trap 'kill -- -$$side 2>/dev/null; exit 130' INT TERM; \
 	s=0; $(MAKE) --no-print-directory test-serial test-mpi || s=$$?; \
-	wait $$built; echo "+ make setup-parallel   (beside the passes above)"; cat $$log; rm -f $$log; \
-	[ $$s = 0 ] || exit $$s; \
-	$(MAKE) --no-print-directory test-mpi-parallel
+	p=0; wait $$side || p=$$?; echo "+ make setup-parallel test-mpi-parallel   (beside the passes above)"; \
+	cat $$log; rm -f $$log; [ $$s = 0 ] || exit $$s; exit $$p
 
 # The type checker over the typed packages (pyproject.toml, [tool.mypy]).
 typecheck: $(VENV)/.packages
