@@ -70,6 +70,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_factors import with_memory
+from analysis.afm.memory_span import spanned
 from analysis.afm.protocol_reading import corrected, is_on
 from analysis.afm.confinement import warnings as confinement_warnings
 from analysis.afm.protocol_reading import markdown as protocol_markdown
@@ -199,9 +200,9 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     if settings.memory_s is not None and not rec.protocol_aware(settings):
         raise InputError(f"a memory is the protocol-aware reading's, and {rec.name} is read {rec.reading.label()} "
                          "(--wait-s recorded reads it protocol-aware)")
-    measured = measure(rec.cells)
+    measured, ends = measure(rec.cells), list[Measured]()
     if rec.protocol_aware(settings):
-        measured = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
+        measured, ends = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
                              settings.errors, rec.reading.wait_s, settings.lags,
                              usable_cores() if settings.jobs is None else settings.jobs, memory_s=settings.memory_s)
     fitted = Fitted(segments=measured.segments)
@@ -217,9 +218,21 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
             raise
         for variant, (table, summary) in zip(others, rest.result()):
             fitted.tables[variant], fitted.sums[variant] = table, summary
+    if ends and fitted.rheology is not None:
+        fitted.rheology = spanned(fitted.rheology, [_at_end(rec, settings, end) for end in ends])
     if rec.protocol_aware(settings):
         fitted.tables = {v: with_memory(t, measured.segments) for v, t in fitted.tables.items()}
     return fitted
+
+
+def _at_end(rec: Recordings, settings: Settings, end: Measured) -> pd.DataFrame:
+    """The rheology table of the segments corrected at the ends of each cell's memory interval
+    (`analysis.afm.memory_span`)."""
+    from analysis.afm.rheology import analyze as rheology
+    b = settings.bending
+    table = inverted(end, rec.inversion, b, settings.errors, settings.tension_tolerance)
+    return rheology(table, end.segments, rec.calibration.viscoelastic, b, settings.errors, settings.lags,
+                    settings.lag_source)[1]
 
 
 def _readings(rec: Recordings, settings: Settings, fitted: Fitted) -> None:

@@ -22,6 +22,7 @@ is in the set), the source and the history (carried | relaxed).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -89,6 +90,7 @@ class Factors:
     waits: dict[str, Waits | None] = field(default_factory=dict)
     memory: dict[str, MemoryFit] = field(default_factory=dict)
     source: dict[str, str] = field(default_factory=dict)
+    fulls: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.factors = np.full((len(self.raw), 3), np.nan)
@@ -134,12 +136,45 @@ class Factors:
         """The full replays' factors at each cell's memory replace the interpolated ones."""
         for c, f in found.items():
             self._set(c, f)
+            if isinstance(f, np.ndarray) and not self.why[c]:
+                self.fulls[c] = f
+            else:
+                self.fulls.pop(c, None)
+
+    def ends(self) -> list[np.ndarray]:
+        """The factors of every raw segment with each cell's memory moved to the ends of its 95 %
+        interval (`memory_ends`; a cell without such an end keeps its own factors): the lower end,
+        the upper, the other history. Each from the cell's grid shifted by its full replay's defect
+        at its memory (`shifted_grid`), so that an end differs from the memory by what the grid
+        says the memory changes, not by the linearised replay's bias. A given memory keeps its own."""
+        out = [self.factors.copy() for _ in range(3)]
+        for c, fit in self.memory.items():
+            if self.source[c] == "given" or self.why[c]:
+                continue
+            grid, at = self.shifted_grid(c), self.rows[c]
+            for k, end in enumerate(memory_ends(fit)):
+                f = None if end is None else interpolated(grid, self.tension[at], end)
+                if isinstance(f, np.ndarray):
+                    out[k][at] = f
+        return out
+
+    def shifted_grid(self, cell: str) -> Grid:
+        """The cell's grid with every node that keeps stress (all but τ_c = 0) shifted by the full
+        replay's defect at its memory, d = f_full - the grid's there; the grid itself where the cell
+        has no usable full replay."""
+        grid, full = self.grids[cell], self.fulls.get(cell)
+        at = interpolated(grid, self.tension[self.rows[cell]], self.memory[cell])
+        if full is None or not isinstance(at, np.ndarray):
+            return grid
+        d = full - at
+        return {m: g + d if isinstance(g, np.ndarray) and m != 0 else g for m, g in grid.items()}
 
     def measured(self, volumes: pd.Series, measured: Measured, moving: list[str], replays: dict[str, int],
-                 fulls: dict[str, int]) -> Measured:
-        """The `Measured` of the raw segments corrected by the factors; `moving` the cells not settled,
-        `replays` how often each was replayed linearised, `fulls` fully; the memory in MEMORY_COLUMNS."""
-        segments = apply(self.raw, self.factors)
+                 fulls: dict[str, int], factors: np.ndarray | None = None) -> Measured:
+        """The `Measured` of the raw segments corrected by the factors (`factors`: others in their
+        place, as `ends`); `moving` the cells not settled, `replays` how often each was replayed
+        linearised, `fulls` fully; the memory in MEMORY_COLUMNS."""
+        segments = apply(self.raw, self.factors if factors is None else factors)
         cells = segments["cell_id"]
         segments["protocol_corrected"] = ~np.isnan(self.factors[:, 0])
         segments["protocol_reason"] = cells.map(self.why).fillna("").where(~segments["protocol_corrected"], "")
@@ -152,6 +187,21 @@ class Factors:
         segments["protocol_history"] = cells.map(lambda c: (RELAXED if self.memory[c].relaxed else "carried")
                                                  if c in self.memory else "")
         return measured_of(segments.assign(volume_um3=cells.map(volumes)), measured.order)
+
+
+def memory_ends(fit: MemoryFit) -> tuple[MemoryFit | None, MemoryFit | None, MemoryFit | None]:
+    """The memories at the ends of `fit`'s 95 % interval: τ_c at its lower and upper end of the
+    carried history (None where the interval has no carried part, or the end is the memory
+    itself), and the other history (the relaxed one for a carried memory, ∞ carried for a relaxed
+    one) where it is in the set."""
+    if fit.relaxed:
+        lo = hi = None
+        if not math.isnan(fit.lo95_s):
+            lo, hi = MemoryFit(fit.lo95_s, fit.lo95_s, fit.lo95_s, True), MemoryFit(fit.hi95_s, fit.hi95_s, fit.hi95_s, True)
+        return lo, hi, None
+    lo, hi = (None if math.isnan(e) or e == fit.memory_s else MemoryFit(e, e, e, True) for e in (fit.lo95_s, fit.hi95_s))
+    other = MemoryFit(math.inf, math.nan, math.nan, True, relaxed=True) if fit.relaxed_in_set else None
+    return lo, hi, other
 
 
 def with_memory(cells: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:

@@ -252,9 +252,12 @@ def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], repla
 
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
-              jobs: int = 1, full_last: bool = FULL_LAST, memory_s: float | None = None) -> Measured:
-    """`measured` with its segments corrected for the carried stress (module docstring); `memory_s`
-    τ_c (s), None: each cell's own from its data (`analysis.afm.memory_fit`)."""
+              jobs: int = 1, full_last: bool = FULL_LAST,
+              memory_s: float | None = None) -> tuple[Measured, list[Measured]]:
+    """`measured` with its segments corrected for the carried stress (module docstring), and the
+    same corrected with each cell's memory at the ends of its 95 % interval (`Factors.ends`; none
+    for a given memory); `memory_s` τ_c (s), None: each cell's own from its data
+    (`analysis.afm.memory_fit`)."""
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
@@ -287,4 +290,6 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
     moving = _linearised_rounds(state, laws, cells, linearised, refit)
     if full_last:
         moving = _full_rounds(state, laws, cells, full, refit)
-    return state.measured(volumes, measured, moving, replays, fulls)
+    ends = [] if memory_s is not None else state.ends()
+    return (state.measured(volumes, measured, moving, replays, fulls),
+            [state.measured(volumes, measured, moving, replays, fulls, f) for f in ends])
