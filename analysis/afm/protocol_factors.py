@@ -190,18 +190,19 @@ class Factors:
 
 
 def memory_ends(fit: MemoryFit) -> tuple[MemoryFit | None, MemoryFit | None, MemoryFit | None]:
-    """The memories at the ends of `fit`'s 95 % interval: τ_c at its lower and upper end of the
-    carried history (None where the interval has no carried part, or the end is the memory
-    itself), and the other history (the relaxed one for a carried memory, ∞ carried for a relaxed
-    one) where it is in the set."""
-    if fit.relaxed:
-        lo = hi = None
-        if not math.isnan(fit.lo95_s):
-            lo, hi = MemoryFit(fit.lo95_s, fit.lo95_s, fit.lo95_s, True), MemoryFit(fit.hi95_s, fit.hi95_s, fit.hi95_s, True)
-        return lo, hi, None
-    lo, hi = (None if math.isnan(e) or e == fit.memory_s else MemoryFit(e, e, e, True) for e in (fit.lo95_s, fit.hi95_s))
-    other = MemoryFit(math.inf, math.nan, math.nan, True, relaxed=True) if fit.relaxed_in_set else None
-    return lo, hi, other
+    """The memories at the ends of `fit`'s 95 % interval: τ_c at the lower and the upper end of its
+    carried part (None where it has none, or where the end is the memory itself), and the relaxed
+    history where a carried memory's set holds it (a relaxed memory's other history is its
+    carried part, so its third is None)."""
+    ends = [None if math.isnan(e) or (e == fit.memory_s and not fit.relaxed) else _given(e)
+            for e in (fit.lo95_s, fit.hi95_s)]
+    other = _given(math.inf, relaxed=True) if fit.relaxed_in_set and not fit.relaxed else None
+    return ends[0], ends[1], other
+
+
+def _given(memory_s: float, relaxed: bool = False) -> MemoryFit:
+    """A memory taken as it is: its interval itself."""
+    return MemoryFit(memory_s, memory_s, memory_s, True, relaxed=relaxed)
 
 
 def with_memory(cells: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
