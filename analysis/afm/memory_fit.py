@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import chi2, f as fisher
 
-MEMORY_GRID_S = (0.0, 3.0, 10.0, 30.0, 100.0, 300.0, math.inf)
+MEMORY_GRID_S = (0.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0, math.inf)
 RELAXED = "relaxed"       # the candidate whose history is relaxed at every height
 T_REF_S = 30.0            # s: the carried coordinate's scale φ = τ_c / (τ_c + T_REF_S)
 UNDECIDED_S = math.inf    # s: the memory assumed where neither the cell nor the population decides it
