@@ -228,11 +228,17 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
 def _at_end(rec: Recordings, settings: Settings, end: Measured) -> pd.DataFrame:
     """The rheology table of the segments corrected at the ends of each cell's memory interval
     (`analysis.afm.memory_span`)."""
+    table = inverted(end, rec.inversion, settings.bending, settings.errors, settings.tension_tolerance)
+    return _rheology(rec, settings, table, end.segments)[1]
+
+
+def _rheology(rec: Recordings, settings: Settings, table: pd.DataFrame,
+              segments: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
+    """`analysis.afm.rheology.analyze` of the selected variant's `table` and its `segments` with the
+    calibration file's complex forward model and the settings' errors and instrument phase."""
     from analysis.afm.rheology import analyze as rheology
-    b = settings.bending
-    table = inverted(end, rec.inversion, b, settings.errors, settings.tension_tolerance)
-    return rheology(table, end.segments, rec.calibration.viscoelastic, b, settings.errors, settings.lags,
-                    settings.lag_source)[1]
+    return rheology(table, segments, rec.calibration.viscoelastic, settings.bending, settings.errors, settings.lags,
+                    settings.lag_source)
 
 
 def _readings(rec: Recordings, settings: Settings, fitted: Fitted) -> None:
@@ -247,10 +253,8 @@ def _viscoelastic(rec: Recordings, settings: Settings, fitted: Fitted) -> None:
     """The viscoelastic reading of the selected variant (`analysis.afm.rheology`) with the
     calibration file's complex forward model: its cells table gains the per-frequency
     columns; `fitted.rheology` = (table, summary)."""
-    from analysis.afm.rheology import analyze as rheology
     b = settings.bending
-    table, rheo, summ = rheology(fitted.tables[b], fitted.segments, rec.calibration.viscoelastic, b, settings.errors,
-                                 settings.lags, settings.lag_source)
+    table, rheo, summ = _rheology(rec, settings, fitted.tables[b], fitted.segments)
     fitted.tables[b] = table
     fitted.sums[b] = {**fitted.sums[b], "viscoelastic": summ}
     fitted.rheology = rheo
