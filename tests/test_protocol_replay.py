@@ -92,9 +92,9 @@ def test_wait_s_reads_a_cell_simulated_in_time(in_time, tmp_path):
     """The cell of `in_time`: the relaxed-state reading excludes it by the tension filter (the kept
     stress: found 20 %) and,
     the filter lifted, reads β_S 0.158 low and β_B 0.025 high, outside their intervals; `--memory-s 0`
-    is that same reading. The default reads the memory from the drift (found 5970 s, the carried
-    history), keeps the cell and reads both exponents within 0.025 of the truth (found -0.001 and
-    -0.012), each inside its 95 % interval."""
+    is that same reading. The default reads the memory from the drift (found 11970 s, the carried
+    history), keeps the cell and reads both exponents within 0.025 of the truth (found -0.002 and
+    -0.005), each inside its 95 % interval."""
     exp = in_time / "exp"
     truth = json.loads((exp / "truth.json").read_text())["cells"][0]
     runs = {"relaxed": ["--wait-s", "inf"], "lifted": ["--wait-s", "inf", "--tension-tolerance", "inf"],

@@ -70,6 +70,7 @@ from analysis.afm.formats.reader import ImportOptions
 from analysis.afm.formats.reader import open as open_cells
 from analysis.afm.population.figures import FIGURES
 from analysis.afm.protocol_factors import with_memory
+from analysis.afm.fixed_point_span import widened
 from analysis.afm.memory_span import spanned
 from analysis.afm.protocol_reading import corrected, is_on
 from analysis.afm.confinement import warnings as confinement_warnings
@@ -200,11 +201,12 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
     if settings.memory_s is not None and not rec.protocol_aware(settings):
         raise InputError(f"a memory is the protocol-aware reading's, and {rec.name} is read {rec.reading.label()} "
                          "(--wait-s recorded reads it protocol-aware)")
-    measured, ends = measure(rec.cells), list[Measured]()
+    measured, ends, widenings = measure(rec.cells), list[Measured](), dict[str, dict[str, float]]()
     if rec.protocol_aware(settings):
-        measured, ends = corrected(measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending,
-                             settings.errors, rec.reading.wait_s, settings.lags,
-                             usable_cores() if settings.jobs is None else settings.jobs, memory_s=settings.memory_s)
+        measured, ends, widenings = corrected(
+            measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending, settings.errors,
+            rec.reading.wait_s, settings.lags, usable_cores() if settings.jobs is None else settings.jobs,
+            memory_s=settings.memory_s)
     fitted = Fitted(segments=measured.segments)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
@@ -220,6 +222,8 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
             fitted.tables[variant], fitted.sums[variant] = table, summary
     if ends and fitted.rheology is not None:
         fitted.rheology = spanned(fitted.rheology, [_at_end(rec, settings, end) for end in ends])
+    if fitted.rheology is not None:
+        fitted.rheology = widened(fitted.rheology, widenings)
     if rec.protocol_aware(settings):
         fitted.tables = {v: with_memory(t, measured.segments) for v, t in fitted.tables.items()}
     return fitted

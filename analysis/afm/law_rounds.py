@@ -34,12 +34,12 @@ DEPTH = 2                   # rounds mixed beyond the last
 MAX_EXTRAPOLATION = 4.0     # |z_{k+1} - g_k| ≤ this × |f_k|
 
 
-def _z(laws: Laws) -> np.ndarray:
+def in_units(laws: Laws) -> np.ndarray:
     """The laws in the settled units (module docstring)."""
     return np.array([(math.log(laws[k]) if k in LOGS else laws[k]) / tol for k, tol in SETTLED.items()])
 
 
-def _laws(z: np.ndarray, like: Laws) -> Laws:
+def of_units(z: np.ndarray, like: Laws) -> Laws:
     """`like` with the laws of `z`, β clipped to EXPONENT_RANGE."""
     out = dict(like)
     for (k, tol), v in zip(SETTLED.items(), z):
@@ -52,13 +52,13 @@ def next_laws(rounds: list[tuple[Laws, Laws]]) -> Laws:
     first (module docstring); one round: its g."""
     if len(rounds) < 2:
         return dict(rounds[-1][1])
-    tried, found = (np.array([_z(r[i]) for r in rounds]) for i in (0, 1))
+    tried, found = (np.array([in_units(r[i]) for r in rounds]) for i in (0, 1))
     move = mixed(tried, found, DEPTH) - found[-1]
     limit = MAX_EXTRAPOLATION * float(np.linalg.norm(found[-1] - tried[-1]))
     size = float(np.linalg.norm(move))
     if size > limit:
         move *= limit / size
-    return _laws(found[-1] + move, rounds[-1][1])
+    return of_units(found[-1] + move, rounds[-1][1])
 
 
 def moved(old: Laws | None, new: Laws) -> bool:

@@ -54,6 +54,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from analysis.afm.analyze import Measured, inverted
+from analysis.afm.fixed_point_span import MOVED, jacobian, shifted, widening
 from analysis.afm.law_rounds import Laws, moved, next_laws
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
@@ -250,14 +251,46 @@ def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], repla
     return [c.cell_id for c in todo]
 
 
+def _widenings(state: Factors, laws: dict[str, Laws], cells: list[Cell],
+               replay: Callable[[list[Cell], dict[str, Laws], str], dict[str, np.ndarray | str]],
+               fit: Callable[[np.ndarray], pd.DataFrame]) -> dict[str, dict[str, float]]:
+    """Each corrected cell's widening per exponent (`analysis.afm.fixed_point_span`): `replay(todo,
+    laws, label)` its linearised replay at its memory with `laws` and with each of MOVED `shifted`,
+    `fit(factors)` the laws of the segments corrected by `factors` (the reading's own factors plus
+    a replay's difference from the first); a cell a replay fails is not widened."""
+    todo = [c for c in cells if c.cell_id in laws and not state.why[c.cell_id]]
+    ids = [c.cell_id for c in todo]
+    label = f"protocol: the exponents' feedback {{}} (of {len(MOVED) + 1})"
+    base = replay(todo, laws, label.format(1))
+    found = fit(state.factors).set_index("cell_id")
+    moved: dict[str, list[Laws]] = {c: [] for c in ids}
+    refound: dict[str, list[Laws]] = {c: [] for c in ids}
+    usable = set(c for c in ids if isinstance(base[c], np.ndarray) and c in found.index)
+    for k, law in enumerate(MOVED):
+        these = {c: shifted(laws[c], law) for c in ids}
+        again, factors = replay(todo, these, label.format(k + 2)), state.factors.copy()
+        for c in ids:
+            b, a = base[c], again[c]
+            if isinstance(b, np.ndarray) and isinstance(a, np.ndarray):
+                factors[state.rows[c]] += a - b
+            else:
+                usable.discard(c)
+        now = fit(factors).set_index("cell_id")
+        usable &= set(now.index)
+        for c in usable:
+            moved[c].append(these[c])
+            refound[c].append(now.loc[c].to_dict())
+    return {c: widening(jacobian(laws[c], found.loc[c].to_dict(), moved[c], refound[c])) for c in usable}
+
+
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
               jobs: int = 1, full_last: bool = FULL_LAST,
-              memory_s: float | None = None) -> tuple[Measured, list[Measured]]:
-    """`measured` with its segments corrected for the carried stress (module docstring), and the
-    same corrected with each cell's memory at the ends of its 95 % interval (`Factors.ends`; none
-    for a given memory); `memory_s` τ_c (s), None: each cell's own from its data
-    (`analysis.afm.memory_fit`)."""
+              memory_s: float | None = None) -> tuple[Measured, list[Measured], dict[str, dict[str, float]]]:
+    """`measured` with its segments corrected for the carried stress (module docstring), the same
+    corrected with each cell's memory at the ends of its 95 % interval (`Factors.ends`; none for a
+    given memory), and each corrected cell's widening per exponent (`_widenings`); `memory_s` τ_c
+    (s), None: each cell's own from its data (`analysis.afm.memory_fit`)."""
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
@@ -287,9 +320,19 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
             False).items()})
         fulls.update({c.cell_id: fulls[c.cell_id] + 1 for c in todo})
 
+    def at_memory(todo: list[Cell], these: dict[str, Laws], label: str) -> dict[str, np.ndarray | str]:
+        chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
+        return {c: next(iter(f[0].values())) for c, f in _factors(todo, these, bending, wait_s, jobs, label,
+                                                                   chosen).items()}
+
+    def fitted(factors: np.ndarray) -> pd.DataFrame:
+        now = state.measured(volumes, measured, [], replays, fulls, factors)
+        return found(now, now)
+
     moving = _linearised_rounds(state, laws, cells, linearised, refit)
     if full_last:
         moving = _full_rounds(state, laws, cells, full, refit)
     ends = [] if memory_s is not None else state.ends()
+    widenings = _widenings(state, laws, cells, at_memory, fitted)
     return (state.measured(volumes, measured, moving, replays, fulls),
-            [state.measured(volumes, measured, moving, replays, fulls, f) for f in ends])
+            [state.measured(volumes, measured, moving, replays, fulls, f) for f in ends], widenings)
