@@ -4,7 +4,8 @@ read by default, against their truth. Prints one JSON list, one object per exper
 
 - `memory_true_s` (null: ∞; "relaxed history": every height from its own relaxed droplet);
 - `bulk`, `shear`: `bench/time_domain_synth.py`'s exponents (medians against the truth's, the
-  share of cells whose 95 % interval holds the true exponent);
+  share of cells whose 95 % interval holds the true exponent) and the median and largest widening
+  of their intervals by the correction's feedback (`rheology.csv`);
 - `memory`: per source (fitted, pooled, assumed) the cells; over the cells whose memory was
   identified (fitted), the share whose 95 % interval holds the true τ_c, and the median estimate;
   the pooled memory and its interval;
@@ -59,7 +60,12 @@ def one(exp: Path, analysis: Path) -> dict:
     td = truth["time_domain"]
     relaxed = td.get("history") == "relaxed"
     out = {"experiment": str(exp), "memory_true_s": "relaxed history" if relaxed else td.get("memory_s"),
-           "wait_s": td["wait_s"], **exponents(truth, pd.read_csv(analysis / "rheology.csv"))}
+           "wait_s": td["wait_s"], **exponents(truth, rheology := pd.read_csv(analysis / "rheology.csv"))}
+    for name in ("bulk", "shear"):
+        column = f"{name}_exponent_widening"
+        if column in rheology:
+            widening = rheology.loc[rheology[f"{name}_exponent"].notna(), column]
+            out[name]["widening_median"], out[name]["widening_max"] = float(widening.median()), float(widening.max())
     segments = pd.read_csv(analysis / "segments.csv")
     given = td.get("memory_s")
     out["memory"] = memory(math.nan if relaxed else math.inf if given is None else float(given), segments)
