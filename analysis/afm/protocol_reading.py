@@ -24,8 +24,10 @@ at a fixed point biased by that. With `full_last` (FULL_LAST, the default) round
 replay follow, each cell at its chosen memory (held), from the laws the linearised rounds settled
 at, each cell's next laws Anderson's mixing of its full rounds only (`_full_rounds`), until none
 moved or MAX_FULL_ROUNDS: the fixed point of the full replay (on the noiseless ∞ cell of
-tests/test_protocol_replay.py β_S 0.317 and β_B 0.072 for 0.329 and 0.073, where one full correction
-read 0.310 and 0.078).
+tests/test_protocol_replay.py β_S 0.323 and β_B 0.071 for 0.329 and 0.073). Then each corrected
+cell is replayed linearised three times more at its memory, with its laws and with β_B and β_S
+each moved by 0.02 (`_widenings`): the correction's feedback on the exponents, by which their
+intervals are widened (`analysis.afm.fixed_point_span`).
 What follows (every variant with the tension filter on the corrected mean tensions, the
 population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
 in `jobs` processes.
@@ -263,7 +265,7 @@ def _widenings(state: Factors, laws: dict[str, Laws], cells: list[Cell],
     label = f"protocol: the exponents' feedback {{}} (of {len(MOVED) + 1})"
     base = replay(todo, laws, label.format(1))
     found = fit(state.factors).set_index("cell_id")
-    moved: dict[str, list[Laws]] = {c: [] for c in ids}
+    tried: dict[str, list[Laws]] = {c: [] for c in ids}
     refound: dict[str, list[Laws]] = {c: [] for c in ids}
     usable = set(c for c in ids if isinstance(base[c], np.ndarray) and c in found.index)
     for k, law in enumerate(MOVED):
@@ -278,9 +280,9 @@ def _widenings(state: Factors, laws: dict[str, Laws], cells: list[Cell],
         now = fit(factors).set_index("cell_id")
         usable &= set(now.index)
         for c in usable:
-            moved[c].append(these[c])
+            tried[c].append(these[c])
             refound[c].append(now.loc[c].to_dict())
-    return {c: widening(jacobian(laws[c], found.loc[c].to_dict(), moved[c], refound[c])) for c in usable}
+    return {c: widening(jacobian(laws[c], found.loc[c].to_dict(), tried[c], refound[c])) for c in usable}
 
 
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
@@ -313,17 +315,15 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
         state.choose(memory_s)
 
-    def full(todo: list[Cell], i: int) -> None:
-        chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
-        state.full({c: next(iter(f[0].values())) for c, f in _factors(
-            todo, laws, bending, wait_s, jobs, f"protocol: full replay {i + 1} (at most {MAX_FULL_ROUNDS})", chosen,
-            False).items()})
-        fulls.update({c.cell_id: fulls[c.cell_id] + 1 for c in todo})
-
-    def at_memory(todo: list[Cell], these: dict[str, Laws], label: str) -> dict[str, np.ndarray | str]:
+    def at_memory(todo: list[Cell], these: dict[str, Laws], label: str,
+                  linearised: bool = True) -> dict[str, np.ndarray | str]:
         chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
         return {c: next(iter(f[0].values())) for c, f in _factors(todo, these, bending, wait_s, jobs, label,
-                                                                   chosen).items()}
+                                                                   chosen, linearised).items()}
+
+    def full(todo: list[Cell], i: int) -> None:
+        state.full(at_memory(todo, laws, f"protocol: full replay {i + 1} (at most {MAX_FULL_ROUNDS})", False))
+        fulls.update({c.cell_id: fulls[c.cell_id] + 1 for c in todo})
 
     def fitted(factors: np.ndarray) -> pd.DataFrame:
         now = state.measured(volumes, measured, [], replays, fulls, factors)
