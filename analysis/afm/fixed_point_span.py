@@ -33,11 +33,12 @@ import numpy as np
 import pandas as pd
 
 from analysis.afm.law_rounds import MAX_EXTRAPOLATION, SETTLED, Laws, in_units, of_units
+from analysis.afm.memory_span import EXPONENTS
 
 LAWS = tuple(SETTLED)                               # the order of z
-EXPONENT_LAWS = {"bulk_exponent": "bulk_beta", "shear_exponent": "shear_beta"}
+EXPONENT_LAWS = dict(zip(EXPONENTS, ("bulk_beta", "shear_beta")))   # rheology.csv's exponent: its law
 MOVED = tuple(EXPONENT_LAWS.values())               # the laws J is taken over
-WIDENING_COLUMNS = {"bulk_exponent": "bulk_exponent_widening", "shear_exponent": "shear_exponent_widening"}
+WIDENING_COLUMNS = {name: f"{name}_widening" for name in EXPONENTS}
 STEP = 2.0                                          # settled units: β by 0.02, K(1 s) and γ_a by 4 %
 MAX_WIDENING = 1.0 + MAX_EXTRAPOLATION              # 5
 
