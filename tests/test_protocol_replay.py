@@ -3,9 +3,12 @@
 the synthetic experiments' FINE one (`solver.protocol_simulation.simulate`), the power laws it
 is replayed with (`analysis.afm.rheology.cortex_laws`), `afm analyze` (by default with each
 recording's own waits, as a time-domain experiment's provenance asks) on a cell simulated in time against its truth and against `--wait-s inf`,
-the relaxed-state reading; bad values exit 2."""
+the relaxed-state reading, under mpiexec, and killed part way and run again (it resumes from its
+kept replays); bad values exit 2."""
 
 import json
+import signal
+import subprocess
 
 import numpy as np
 import pandas as pd
@@ -18,7 +21,7 @@ from analysis.afm.replayed import cell_correction, replayed_segments
 from analysis.afm.rheology import cortex_laws
 from analysis.afm.synth.time_domain import recording_cell
 from analysis.afm.timeseries import segment_moduli
-from conftest import cortex, first_heights
+from conftest import BIN, ROOT, cortex, first_heights, poll_until
 from cortex.cli import main
 from solver.model import Shell
 from solver.protocol import Oscillate, Protocol, Ramp
@@ -133,6 +136,31 @@ def test_under_mpiexec_the_other_ranks_replay_and_the_reading_is_the_same(in_tim
     bad = cortex("afm", "analyze", in_time / "exp", "--out", in_time / "jobs", "--jobs", "2", mpi=2)
     assert bad.returncode == 2 and bad.stderr.count("--jobs goes without mpiexec") == 1, bad.stderr
     assert not (in_time / "jobs").exists()
+
+
+def test_a_reading_killed_part_way_resumes_to_the_same_files(in_time):
+    """`cortex afm analyze` killed (SIGKILL) once two of its replays are kept in OUT/replays, then
+    run again into OUT: it reads them back (summary.json, stderr) and replays the rest, and writes
+    the files of the reading that was never stopped, byte for byte."""
+    out = in_time / "resumed"
+    args = [str(BIN / "cortex"), "afm", "analyze", str(in_time / "exp"), "--out", str(out)]
+    proc = subprocess.Popen(args, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        kept = poll_until(lambda: len(list((out / "replays").glob("*.npz"))) >= 2 and
+                          len(list((out / "replays").glob("*.npz"))), 600, "two replays kept", proc)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (out / "rheology.csv").exists()
+    again = cortex(*args[1:])
+    assert again.returncode in (0, 1), again.stderr
+    assert "replays read back from" in again.stderr
+    for name in ("cells.csv", "segments.csv", "rheology.csv", "report.md"):
+        assert (out / name).read_bytes() == (in_time / "aware" / name).read_bytes(), name
+    resumed, whole = (json.loads((d / "summary.json").read_text()) for d in (out, in_time / "aware"))
+    assert resumed["protocol"].pop("replays_read_back") >= kept and whole["protocol"].pop("replays_read_back") == 0
+    assert resumed == whole
 
 
 def test_a_cell_relaxed_at_every_height_is_read_so(five_heights, tmp_path):

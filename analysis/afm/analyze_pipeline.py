@@ -45,7 +45,9 @@ phase and the paired test), report.md a section (`analysis.afm.rheology`). With 
 protocol-aware reading the segments are first corrected for the stress each cell keeps from its
 earlier height steps (`analysis.afm.protocol_reading`), every variant reads the corrected segments,
 segments.csv gains the correction's columns, summary.json `protocol` and report.md a section naming
-the cells not corrected or not settled, and why.
+the cells not corrected or not settled, and why. Its replays are kept in DIR/replays as they finish
+(`analysis.afm.replay_store`): the same command run again into DIR reads them back, so a stopped
+reading goes on where it stopped (summary.json's `protocol.replays_read_back`).
 
 The reading follows the data's provenance (`analysis.afm.provenance`, `Settings.as_made`, the
 default): a relaxed synthetic experiment (frequency-domain `afm synth`) in the relaxed state, exactly
@@ -73,6 +75,7 @@ from analysis.afm.protocol_factors import with_memory
 from analysis.afm.fixed_point_span import widened
 from analysis.afm.memory_span import spanned
 from analysis.afm.protocol_reading import corrected, is_on
+from analysis.afm.replay_store import NAME as REPLAYS, ReplayStore
 from analysis.afm.confinement import warnings as confinement_warnings
 from analysis.afm.protocol_reading import markdown as protocol_markdown
 from analysis.afm.protocol_reading import summary as protocol_summary
@@ -155,6 +158,7 @@ class Fitted:
     segments: pd.DataFrame | None = None
     population: dict[str, Any] | None = None          # population.json (`analysis.afm.population.answer`)
     rheology: pd.DataFrame | None = None      # the viscoelastic reading's table, when on
+    replays_read_back: int = 0                # the protocol-aware reading's replays a stopped reading left
 
 
 def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:
@@ -193,11 +197,12 @@ def _variants(measured: Measured, inversion: Inversion, variants: list[str], err
     return [(t, summarise(t)) for t in tables]
 
 
-def fit(rec: Recordings, settings: Settings) -> Fitted:
+def fit(rec: Recordings, settings: Settings, store: ReplayStore | None = None) -> Fitted:
     """Every cell of `rec` with every variant: a `Fitted`. The other variants are inverted in
     a process beside this one (`common.beside`: forked, where two CPUs serve) while this one
     inverts the selected variant and reads its population and viscoelastic behaviour: the
-    numbers, and the first error, of one step after the other."""
+    numbers, and the first error, of one step after the other. The protocol-aware reading's
+    replays are read back from `store` where a stopped reading left them, and kept there."""
     if settings.memory_s is not None and not rec.protocol_aware(settings):
         raise InputError(f"a memory is the protocol-aware reading's, and {rec.name} is read {rec.reading.label()} "
                          "(--wait-s recorded reads it protocol-aware)")
@@ -206,8 +211,8 @@ def fit(rec: Recordings, settings: Settings) -> Fitted:
         measured, ends, widenings = corrected(
             measured, rec.cells, rec.inversion, rec.calibration.viscoelastic, settings.bending, settings.errors,
             rec.reading.wait_s, settings.lags, usable_cores() if settings.jobs is None else settings.jobs,
-            memory_s=settings.memory_s)
-    fitted = Fitted(segments=measured.segments)
+            memory_s=settings.memory_s, store=store)
+    fitted = Fitted(segments=measured.segments, replays_read_back=store.read_back if store is not None else 0)
     selected, others = rec.variants[0], rec.variants[1:]
     tolerance = settings.tension_tolerance
     with beside(_variants, measured, rec.inversion, others, settings.errors, tolerance) as rest:
@@ -299,7 +304,8 @@ def write(out: OutputDir, rec: Recordings, fitted: Fitted, settings: Settings) -
             _write(out, "segments.csv", _csv(fitted.segments))
             _write(out, "cells.csv", _csv(fitted.tables[bending]))
     tolerance = settings.tension_tolerance if math.isfinite(settings.tension_tolerance) else None
-    aware = {"protocol": protocol_summary(fitted.segments, rec.reading.wait_s, settings.memory_s)} if rec.protocol_aware(settings) else {}
+    aware = ({"protocol": {**protocol_summary(fitted.segments, rec.reading.wait_s, settings.memory_s),
+                           "replays_read_back": fitted.replays_read_back}} if rec.protocol_aware(settings) else {})
     made = {"reading": rec.reading.label(), "provenance": rec.provenance.to_dict()}
     parts = {"calibration_parts": rec.calibration.sources}
     _write(out, "summary.json", _json({"bending": bending, "method": rec.method, "tension_tolerance": tolerance,
@@ -342,7 +348,11 @@ def run(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
     if not rec.cells:
         report = _write(folder, "report.md", lambda p: p.write_text(markdown_skipped(rec.name, rec.skipped)))
         return {"report": report, "summary": None, "table": None, "skipped": rec.skipped}
-    fitted = fit(rec, settings)
+    store = ReplayStore(folder) if rec.protocol_aware(settings) else None
+    fitted = fit(rec, settings, store)
+    if fitted.replays_read_back:
+        print(f"protocol: {fitted.replays_read_back} replays read back from {folder.path / REPLAYS} "
+              "(a reading there before replayed them)", file=sys.stderr)
     report = write(folder, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
             "table": fitted.tables[settings.bending], "skipped": rec.skipped, "population": fitted.population}

@@ -30,7 +30,8 @@ each moved by 0.02 (`_widenings`): the correction's feedback on the exponents, b
 intervals are widened (`analysis.afm.fixed_point_span`).
 What follows (every variant with the tension filter on the corrected mean tensions, the
 population, the viscoelastic reading and its intervals) reads the last S. The cells' replays run
-in `jobs` processes.
+in `jobs` processes, each kept in the reading's folder as it is back, and read back by a reading
+run again there (`analysis.afm.replay_store`: a stopped reading resumes).
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
 `protocol_reason`, `protocol_settled`, `protocol_replays` (how often the cell was replayed
@@ -60,6 +61,7 @@ from analysis.afm.fixed_point_span import MOVED, jacobian, shifted, widening
 from analysis.afm.law_rounds import Laws, moved, next_laws
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
+from analysis.afm.replay_store import ReplayStore
 from analysis.afm.replayed import cell_replays
 from analysis.afm.wait_relaxation import Waits
 from analysis.afm.rheology import cortex_laws, point_moduli
@@ -202,18 +204,23 @@ def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Sequence[No
 
 def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str, wait_s: float | None,
              jobs: int, label: str, memories: Mapping[str, Sequence[Node]],
-             linearised: bool = True) -> dict[str, Replays]:
+             linearised: bool = True, store: ReplayStore | None = None) -> dict[str, Replays]:
     """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
-    why not, and its waits; `jobs` processes (one task a cell)."""
-    bar = tqdm(total=len(cells), unit="cell", desc=label)
-    out: dict[str, Replays] = {}
-    with pool(jobs) as workers:
-        for c, f in zip(cells, workers.map(_one, [(c, laws[c.cell_id], bending, wait_s, linearised,
-                                                   memories[c.cell_id]) for c in cells])):
-            out[c.cell_id] = f
-            bar.update()
+    why not, and its waits; `jobs` processes (one task a cell); each read back from `store` where
+    a reading wrote it there, else replayed and written there (`analysis.afm.replay_store`)."""
+    tasks = {c.cell_id: (c, laws[c.cell_id], bending, wait_s, linearised, memories[c.cell_id]) for c in cells}
+    got = {c: store.get(job) for c, job in tasks.items()} if store is not None else {}
+    todo = [c for c in tasks if got.get(c) is None]
+    bar = tqdm(total=len(cells), initial=len(cells) - len(todo), unit="cell", desc=label)
+    if todo:
+        with pool(jobs) as workers:
+            for c, f in zip(todo, workers.map(_one, [tasks[c] for c in todo])):
+                if store is not None:
+                    store.put(tasks[c], f)
+                got[c] = f
+                bar.update()
     bar.close()
-    return out
+    return {c: got[c] for c in tasks}            # type: ignore[misc]  # every cell is there now
 
 
 def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
@@ -287,12 +294,13 @@ def _widenings(state: Factors, laws: dict[str, Laws], cells: list[Cell],
 
 def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model: ComplexModel, bending: str,
               errors: MeasurementErrors | None, wait_s: float | None, lags: dict[float, float] | None = None,
-              jobs: int = 1, full_last: bool = FULL_LAST,
-              memory_s: float | None = None) -> tuple[Measured, list[Measured], dict[str, dict[str, float]]]:
+              jobs: int = 1, full_last: bool = FULL_LAST, memory_s: float | None = None,
+              store: ReplayStore | None = None) -> tuple[Measured, list[Measured], dict[str, dict[str, float]]]:
     """`measured` with its segments corrected for the carried stress (module docstring), the same
     corrected with each cell's memory at the ends of its 95 % interval (`Factors.ends`; none for a
     given memory), and each corrected cell's widening per exponent (`_widenings`); `memory_s` τ_c
-    (s), None: each cell's own from its data (`analysis.afm.memory_fit`)."""
+    (s), None: each cell's own from its data (`analysis.afm.memory_fit`); every replay read back
+    from `store` where a reading wrote it, else written there (`analysis.afm.replay_store`)."""
     volumes = pd.Series({c.cell_id: c.volume_um3 for c in cells})
     raw = measured.segments
     rows = {c.cell_id: np.flatnonzero(raw["cell_id"].to_numpy() == c.cell_id) for c in cells}
@@ -311,7 +319,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
 
     def linearised(todo: list[Cell], i: int) -> None:
         state.replayed(_factors(todo, laws, bending, wait_s, jobs, f"protocol round {i + 1} (at most {MAX_ROUNDS})",
-                                {c.cell_id: nodes for c in todo}))
+                                {c.cell_id: nodes for c in todo}, store=store))
         replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
         state.choose(memory_s)
 
@@ -319,7 +327,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
                   linearised: bool = True) -> dict[str, np.ndarray | str]:
         chosen = {c.cell_id: (node(state.memory[c.cell_id]),) for c in todo}
         return {c: next(iter(f[0].values())) for c, f in _factors(todo, these, bending, wait_s, jobs, label,
-                                                                   chosen, linearised).items()}
+                                                                   chosen, linearised, store).items()}
 
     def full(todo: list[Cell], i: int) -> None:
         state.full(at_memory(todo, laws, f"protocol: full replay {i + 1} (at most {MAX_FULL_ROUNDS})", False))
