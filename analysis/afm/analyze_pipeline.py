@@ -351,7 +351,8 @@ def run(data: str | Path | Sequence[str | Path], calibration: CalibrationFile,
     store = ReplayStore(folder) if rec.protocol_aware(settings) else None
     fitted = fit(rec, settings, store)
     if fitted.replays_read_back:
-        print(f"protocol: {fitted.replays_read_back} replays read back from {folder.path / REPLAYS} "
+        n = fitted.replays_read_back
+        print(f"protocol: {n} replay{'s' if n > 1 else ''} read back from {folder.path / REPLAYS} "
               "(a reading there before replayed them)", file=sys.stderr)
     report = write(folder, rec, fitted, settings)
     return {"report": report, "summary": fitted.sums[settings.bending],
