@@ -82,12 +82,23 @@ def five_heights(monkeypatch):
 @pytest.fixture(scope="module")
 def in_time(tmp_path_factory):
     """A noiseless cell simulated in time with its history carried (100 s waits, its first five
-    heights, τ_c = ∞; exp/) and its default reading (aware/): the folder holding both."""
+    heights, τ_c = ∞; exp/) and its default reading (aware/): the folder holding both. The reading
+    is stopped once: `cortex afm analyze` killed (SIGKILL) as soon as two of its replays are kept
+    in aware/replays, then the same command run again (in this process) goes on from them."""
     root = tmp_path_factory.mktemp("in-time")
     with pytest.MonkeyPatch.context() as patch:
         first_heights(patch, 5)
         assert main(["afm", "synth", "--time-domain", "--cells", "1", "--no-errors", "--out", str(root / "exp")]) == 0
-    assert main(["afm", "analyze", str(root / "exp"), "--out", str(root / "aware")]) in (0, 1)
+    args = ["afm", "analyze", str(root / "exp"), "--out", str(root / "aware")]
+    proc = subprocess.Popen([str(BIN / "cortex"), *args], cwd=ROOT, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        poll_until(lambda: len(list((root / "aware" / "replays").glob("*.npz"))) >= 2, 600, "two replays kept", proc)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert not (root / "aware" / "rheology.csv").exists()
+    assert main(args) in (0, 1)
     return root
 
 
@@ -125,42 +136,22 @@ def test_wait_s_reads_a_cell_simulated_in_time(in_time, tmp_path):
     assert said["reading"] == "protocol-aware (synthetic, time-domain)"      # read as it was made
 
 
-def test_under_mpiexec_the_other_ranks_replay_and_the_reading_is_the_same(in_time):
+def test_under_mpiexec_or_after_a_kill_the_reading_is_the_same(in_time):
     """`mpiexec -n 2 cortex afm analyze` (rank 0 reads and writes, rank 1 replays the cell:
-    `common.pool.ranks`) writes the same files as the reading in one process; --jobs beside
-    mpiexec is one line and exit status 2."""
+    `common.pool.ranks`), never stopped, writes the same files byte for byte as the reading in one
+    process that was killed part way and run again (`in_time`: it read its kept replays back,
+    summary.json says how many, the only difference); --jobs beside mpiexec is one line and exit
+    status 2."""
     run = cortex("afm", "analyze", in_time / "exp", "--out", in_time / "ranks", mpi=2)
     assert run.returncode in (0, 1), run.stderr
-    for name in ("cells.csv", "segments.csv", "rheology.csv", "summary.json", "report.md"):
+    for name in ("cells.csv", "segments.csv", "rheology.csv", "report.md"):
         assert (in_time / "ranks" / name).read_bytes() == (in_time / "aware" / name).read_bytes(), name
+    whole, resumed = (json.loads((in_time / d / "summary.json").read_text()) for d in ("ranks", "aware"))
+    assert whole["protocol"].pop("replays_read_back") == 0 and resumed["protocol"].pop("replays_read_back") >= 2
+    assert whole == resumed
     bad = cortex("afm", "analyze", in_time / "exp", "--out", in_time / "jobs", "--jobs", "2", mpi=2)
     assert bad.returncode == 2 and bad.stderr.count("--jobs goes without mpiexec") == 1, bad.stderr
     assert not (in_time / "jobs").exists()
-
-
-def test_a_reading_killed_part_way_resumes_to_the_same_files(in_time):
-    """`cortex afm analyze` killed (SIGKILL) once two of its replays are kept in OUT/replays, then
-    run again into OUT: it reads them back (summary.json, stderr) and replays the rest, and writes
-    the files of the reading that was never stopped, byte for byte."""
-    out = in_time / "resumed"
-    args = [str(BIN / "cortex"), "afm", "analyze", str(in_time / "exp"), "--out", str(out)]
-    proc = subprocess.Popen(args, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
-    try:
-        kept = poll_until(lambda: len(list((out / "replays").glob("*.npz"))) >= 2 and
-                          len(list((out / "replays").glob("*.npz"))), 600, "two replays kept", proc)
-    finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
-    assert not (out / "rheology.csv").exists()
-    again = cortex(*args[1:])
-    assert again.returncode in (0, 1), again.stderr
-    assert "replays read back from" in again.stderr
-    for name in ("cells.csv", "segments.csv", "rheology.csv", "report.md"):
-        assert (out / name).read_bytes() == (in_time / "aware" / name).read_bytes(), name
-    resumed, whole = (json.loads((d / "summary.json").read_text()) for d in (out, in_time / "aware"))
-    assert resumed["protocol"].pop("replays_read_back") >= kept and whole["protocol"].pop("replays_read_back") == 0
-    assert resumed == whole
 
 
 def test_a_cell_relaxed_at_every_height_is_read_so(five_heights, tmp_path):
