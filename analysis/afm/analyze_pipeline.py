@@ -158,7 +158,7 @@ class Fitted:
     segments: pd.DataFrame | None = None
     population: dict[str, Any] | None = None          # population.json (`analysis.afm.population.answer`)
     rheology: pd.DataFrame | None = None      # the viscoelastic reading's table, when on
-    replays_read_back: int = 0                # the protocol-aware reading's replays a stopped reading left
+    replays_read_back: int = 0                # replays read back from DIR/replays, kept there by a reading before
 
 
 def _inversion(file: CalibrationFile, method: str, bending: str) -> Inversion:

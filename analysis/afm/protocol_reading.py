@@ -61,9 +61,8 @@ from analysis.afm.fixed_point_span import MOVED, jacobian, shifted, widening
 from analysis.afm.law_rounds import Laws, moved, next_laws
 from analysis.afm.memory_fit import MEMORY_GRID_S, RELAXED, Node
 from analysis.afm.protocol_factors import MEMORY_COLUMNS, Factors, node
-from analysis.afm.replay_store import ReplayStore
+from analysis.afm.replay_store import Job, Replays, ReplayStore
 from analysis.afm.replayed import cell_replays
-from analysis.afm.wait_relaxation import Waits
 from analysis.afm.rheology import cortex_laws, point_moduli
 from common.pool import pool
 
@@ -193,10 +192,7 @@ def started(found: pd.DataFrame, segments: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-Replays = tuple[dict[Node, np.ndarray | str], Waits | None]
-
-
-def _one(job: tuple[Cell, dict[str, float], str, float | None, bool, Sequence[Node]]) -> Replays:
+def _one(job: Job) -> Replays:
     """The cell's factors at each memory (a τ_c or RELAXED), or why it is not corrected, and its
     waits (`cell_replays`)."""
     return cell_replays(*job)
@@ -208,19 +204,20 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
     """Per cell of `cells` and memory of `memories[cell]` its (segments, 3) correction factors or
     why not, and its waits; `jobs` processes (one task a cell); each read back from `store` where
     a reading wrote it there, else replayed and written there (`analysis.afm.replay_store`)."""
-    tasks = {c.cell_id: (c, laws[c.cell_id], bending, wait_s, linearised, memories[c.cell_id]) for c in cells}
-    got = {c: store.get(job) for c, job in tasks.items()} if store is not None else {}
-    todo = [c for c in tasks if got.get(c) is None]
-    bar = tqdm(total=len(cells), initial=len(cells) - len(todo), unit="cell", desc=label)
+    tasks: dict[str, Job] = {c.cell_id: (c, laws[c.cell_id], bending, wait_s, linearised, memories[c.cell_id])
+                             for c in cells}
+    out = {c: r for c, job in tasks.items() if (r := store.get(job)) is not None} if store is not None else {}
+    todo = [c for c in tasks if c not in out]
+    bar = tqdm(total=len(cells), initial=len(out), unit="cell", desc=label)
     if todo:
         with pool(jobs) as workers:
             for c, f in zip(todo, workers.map(_one, [tasks[c] for c in todo])):
                 if store is not None:
                     store.put(tasks[c], f)
-                got[c] = f
+                out[c] = f
                 bar.update()
     bar.close()
-    return {c: got[c] for c in tasks}            # type: ignore[misc]  # every cell is there now
+    return {c: out[c] for c in tasks}
 
 
 def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],

@@ -43,8 +43,8 @@ if TYPE_CHECKING:
     from outputs.ownership import OutputDir
 
 NAME = "replays"          # the folder in the reading's output folder
-Job = tuple["Cell", dict[str, float], str, "float | None", bool, Sequence["Node"]]
-Replays = tuple[dict["Node", "np.ndarray | str"], "Waits | None"]
+Job = tuple["Cell", dict[str, float], str, "float | None", bool, Sequence["Node"]]   # `cell_replays`' arguments
+Replays = tuple[dict["Node", "np.ndarray | str"], "Waits | None"]                     # ... and its result
 
 
 @lru_cache(maxsize=1)
