@@ -44,15 +44,18 @@ def _unit(depth, which):
     """ĝ (which 0), Ĥ (which 1) or Â (which 2) of the unit cell at deformations δ̂ (module doc)."""
     depth = np.asarray(depth, float)
     d = np.atleast_1d(depth).ravel()
-    out = np.exp(_tables()[which](np.log(np.clip(d, DEPTH_MIN, DEPTH_MAX))))
-    tiny = (d > 0) & (d < DEPTH_MIN)
+    out = np.full(d.shape, (0.0, 1.0, 4.0 * np.pi)[which])
+    touching = ~(d <= 0)                              # the spline read only where it is needed (and NaN)
+    dt = d[touching]
+    ot = np.exp(_tables()[which](np.log(np.clip(dt, DEPTH_MIN, DEPTH_MAX))))
+    tiny = dt < DEPTH_MIN
     if which == 0 and np.any(tiny):
-        out[tiny] *= d[tiny] / DEPTH_MIN
-    beyond = d > DEPTH_MAX
+        ot[tiny] *= dt[tiny] / DEPTH_MIN
+    beyond = dt > DEPTH_MAX
     if np.any(beyond):
-        exact = droplet(4.0 * np.pi / 3.0, 2.0 - d[beyond])
-        out[beyond] = (exact.force_per_tension_um, exact.mean_curvature_per_um, exact.surface_area_um2)[which]
-    out[d <= 0] = (0.0, 1.0, 4.0 * np.pi)[which]
+        exact = droplet(4.0 * np.pi / 3.0, 2.0 - dt[beyond])
+        ot[beyond] = (exact.force_per_tension_um, exact.mean_curvature_per_um, exact.surface_area_um2)[which]
+    out[touching] = ot
     return out.reshape(depth.shape)
 
 

@@ -85,10 +85,13 @@ class ShellTable:
         """e (module doc) at deformations δ/R for one cell."""
         d = np.asarray(depth_over_radius, float)
         g = np.clip(np.log(gamma_tilde) if gamma_tilde > 0 else -np.inf, *np.log(self.gammas[[0, -1]]))
-        dc = np.clip(d, self.d0, self.max_depth)
+        out = np.zeros(d.shape)
+        touching = d > self.d0                        # the spline read only where it is needed
+        dc = np.clip(d[touching], self.d0, self.max_depth)
         dq = np.clip(dc, self.depths[0], None)
-        q = at_second(self.slice(shear_tilde, radius_um), g, dq.ravel()).reshape(d.shape)
-        return np.where(d > self.d0, q * elastic_scale(dc, self.d0), 0.0)
+        if dq.size:
+            out[touching] = at_second(self.slice(shear_tilde, radius_um), g, dq) * elastic_scale(dc, self.d0)
+        return out
 
 
 def at_second(spline: RectBivariateSpline, y: float, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -97,8 +100,8 @@ def at_second(spline: RectBivariateSpline, y: float, x: npt.NDArray[np.float64])
     spline(x, y, grid=False), in half its time: a fit reads a whole ramp at one γ̃_a)."""
     tx, ty, c = spline.tck
     kx, ky = spline.degrees
-    by = BSpline.design_matrix([y], ty, ky).toarray()[0]
-    return np.asarray(splev(x, (tx, c.reshape(tx.size - kx - 1, ty.size - ky - 1) @ by, kx)), float)
+    in_y = BSpline.construct_fast(ty, c.reshape(tx.size - kx - 1, ty.size - ky - 1).T, ky)
+    return np.asarray(splev(x, (tx, in_y(y), kx)), float)
 
 
 def from_document(doc: dict[str, Any], where: str = "shell ramp table") -> ShellTable:
