@@ -14,7 +14,8 @@ replay, the held-out check):
   force stops at the step where the force crosses it, that step's gap found by regula falsi;
 - a hold grows its steps from `hold_first_s` (FINE: 1/`sample_hz`) by `hold_growth` up
   to `hold_largest_s`; consecutive height holds are one hold. A constant-force hold finds at
-  every step the gap whose force is the hold's (bracketed, then Brent on h, `_at_force`);
+  every step the gap whose force is the hold's (a secant from the creep the last step predicts,
+  with its slope dF/dh, else bracketed and Brent on h: `_at_force`);
 - an oscillation takes `steps_per_period` steps a period. FINE: over all its periods, with
   steps doubling from one sample interval up to the first (the plate's speed jumps at its start
   and the fast Maxwell elements answer within their τ), the force splined to the samples (cubic,
@@ -73,6 +74,7 @@ from solver.time_domain import Cortex, TimeShell
 
 Array = npt.NDArray[np.float64]
 FORCE_TOL_UM = 1e-6       # µm: the gap of a constant-force step, to this
+SECANT_STEPS = 6          # secant steps a constant-force step tries before it brackets
 
 
 @dataclass(frozen=True)
@@ -186,6 +188,40 @@ def _bracket(residual: Callable[[float], float], h0_um: float,
             return (min(h, h0_um), max(h, h0_um))
         step *= 2.0
     return None, None
+
+
+def _secant(residual: Callable[[float], float], guess_um: float, slope: float, steps: int = SECANT_STEPS) -> float | None:
+    """The root of `residual` by secant steps from `guess_um`, the first along `slope`: the last gap
+    tried, once the step it asks for is below FORCE_TOL_UM / 10 (the gap then that near the root:
+    no step more to take, and a force as level as Brent's to FORCE_TOL_UM holds it); None if none
+    is within `steps` (a flat or wrong-signed slope, or a force not smooth in the gap there: the
+    caller brackets)."""
+    if not slope < 0.0:                       # a smaller gap presses harder: dF/dh < 0
+        return None
+    h, r = guess_um, residual(guess_um)
+    step = -r / slope
+    for _ in range(steps):
+        if abs(step) <= 0.1 * FORCE_TOL_UM:
+            return h
+        h_next = h + step
+        r_next = residual(h_next)
+        if r_next == r:
+            return None
+        step = -r_next * (h_next - h) / (r_next - r)
+        h, r = h_next, r_next
+    return None
+
+
+def _slope(seen: list[tuple[float, float]], widest_um: float = 0.1) -> float:
+    """dF/dh of a step's search: between its last gap (the root) and the gap it tried farthest from
+    it within `widest_um` (wide enough that the equilibrium's tolerance does not blur it); nan if
+    it tried no other."""
+    h, r = seen[-1]
+    others = [(abs(g - h), g, q) for g, q in seen[:-1] if 0.0 < abs(g - h) <= widest_um]
+    if not others:
+        return math.nan
+    _, g, q = max(others)
+    return (q - r) / (g - h)
 
 
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
@@ -358,29 +394,49 @@ class _Run:
         self.pending, self.pending_wait = 0.0, False
 
     def _force_hold(self, duration_s: float) -> None:
-        """Hold the force the hold starts with: every step's gap bracketed, then by Brent's method
-        on h; after the first step the bracket is sought around the creep the last step predicts,
-        Δh_k ≈ Δh_(k-1) (Δt_k / Δt_(k-1))^(1/2) (between a creep that slows as t^(β-1) and one
-        that keeps its rate: a guess, the bracket holds the root whatever it is)."""
-        target, last = self.state.force_nN(), None
+        """Hold the force the hold starts with. After the first step, the creep the last step
+        predicts, Δh_k ≈ Δh_(k-1) (Δt_k / Δt_(k-1))^(1/2) (between a creep that slows as t^(β-1)
+        and one that keeps its rate), is the guess a secant starts from with the last step's
+        slope dF/dh (`_secant`); where it does not settle, and at the first step, the gap is
+        bracketed, then found by Brent's method on h (`_at_force`)."""
+        target, last, slope = self.state.force_nN(), None, [math.nan]
         for dt in self._hold_steps(duration_s):
             h0 = self.state.h_um
-            self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]))
+            self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]), slope)
             last = (self.state.h_um - h0, dt)
         self.level = self.state.h_um
         self.kinds.append(("hold", self.t))
 
-    def _at_force(self, force_nN: float, dt_s: float, guess_um: float | None = None) -> None:
-        """One step of Δt to the gap whose plate force is `force_nN`, the bracket sought from
-        `guess_um` (steps of a quarter of its distance from the gap now) or from the gap now."""
+    def _at_force(self, force_nN: float, dt_s: float, guess_um: float | None = None,
+                  slope: list[float] | None = None) -> None:
+        """One step of Δt to the gap whose plate force is `force_nN`: from `guess_um` by a secant
+        where `slope` holds the last step's dF/dh (and gets this step's), else the bracket sought
+        from `guess_um` (steps of a quarter of its distance from the gap now) or from the gap now."""
         saved, h0 = self.state.saved(), self.state.h_um
         last = [math.nan]
+        seen: list[tuple[float, float]] = []
 
         def residual(h: float) -> float:
             self.state.restore(saved)
             self.steps += 1
             last[0] = h
-            return _advance(self.state, h, dt_s) - force_nN
+            seen.append((h, _advance(self.state, h, dt_s) - force_nN))
+            return seen[-1][1]
+        root = None
+        if guess_um is not None and math.isfinite(guess_um) and slope is not None and math.isfinite(slope[0]):
+            root = _secant(residual, guess_um, slope[0])
+        if root is None:
+            root = self._bracketed(residual, h0, guess_um, force_nN)
+        if last[0] != root:
+            residual(root)
+        if slope is not None:
+            slope[0] = _slope(seen)
+        self.t += dt_s
+        self.points.append((self.t, root, self.state.force_nN()))
+
+    @staticmethod
+    def _bracketed(residual: Callable[[float], float], h0: float, guess_um: float | None, force_nN: float) -> float:
+        """The root of `residual` bracketed (from `guess_um` or the gap now `h0`), then by Brent."""
         lo = hi = None
         if guess_um is not None and math.isfinite(guess_um):
             lo, hi = _bracket(residual, guess_um, max(0.25 * abs(guess_um - h0), 10.0 * FORCE_TOL_UM))
@@ -388,16 +444,12 @@ class _Run:
             lo, hi = _bracket(residual, h0)
         if lo is None or hi is None:
             raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
-        root = lo
         if hi > lo:
             found = root_scalar(residual, bracket=(lo, hi), method="brentq", xtol=FORCE_TOL_UM, maxiter=60)
             if not found.converged:
                 raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
-            root = float(found.root)
-        if last[0] != root:
-            residual(root)
-        self.t += dt_s
-        self.points.append((self.t, root, self.state.force_nN()))
+            return float(found.root)
+        return lo
 
     def _close(self) -> None:
         """Sample the stretch of ramps and holds stepped since `_open` (module docstring)."""
