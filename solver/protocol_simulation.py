@@ -424,7 +424,10 @@ class _Run:
             return seen[-1][1]
         root = None
         if guess_um is not None and math.isfinite(guess_um) and slope is not None and math.isfinite(slope[0]):
-            root = _secant(residual, guess_um, slope[0])
+            try:
+                root = _secant(residual, guess_um, slope[0])
+            except SolverError:              # a secant step to a gap with no equilibrium: bracket instead
+                root = None
         if root is None:
             root = self._bracketed(residual, h0, guess_um, force_nN)
         if last[0] != root:
