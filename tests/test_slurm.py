@@ -33,11 +33,13 @@ left:
 - jobs/afm-analyze.sbatch on two tasks: the AFM reading's files, the same as one process writes.
 """
 
+import contextlib
 import fcntl
 import importlib.util
 import json
 import os
 import shutil
+import signal
 import subprocess
 from pathlib import Path
 
@@ -294,7 +296,13 @@ def kill_step_when_started(env, jobid, store, done_before=0):
         return n > done_before and steps(env, jobid) and n
     done = poll_until(started, 300, "finished trial tasks in the store while the campaign step runs", every_s=0.2)
     for step in steps(env, jobid):
-        subprocess.run(["scancel", "--signal=KILL", step], env=env, check=True)
+        # the step's processes killed here, not by `scancel --signal=KILL`: under load scancel can
+        # resend its request after the step died, and the step of the requeued job has the same id
+        listed = subprocess.run(["scontrol", "listpids", step], env=env, capture_output=True, text=True,
+                                check=True).stdout.split("\n")[1:]
+        for pid in (int(line.split()[0]) for line in listed if line.split()):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
     return done
 
 
