@@ -399,19 +399,19 @@ class _Run:
         and one that keeps its rate), is the guess a secant starts from with the last step's
         slope dF/dh (`_secant`); where it does not settle, and at the first step, the gap is
         bracketed, then found by Brent's method on h (`_at_force`)."""
-        target, last, slope = self.state.force_nN(), None, [math.nan]
+        target, last, slope = self.state.force_nN(), None, math.nan
         for dt in self._hold_steps(duration_s):
             h0 = self.state.h_um
-            self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]), slope)
+            slope = self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]), slope)
             last = (self.state.h_um - h0, dt)
         self.level = self.state.h_um
         self.kinds.append(("hold", self.t))
 
     def _at_force(self, force_nN: float, dt_s: float, guess_um: float | None = None,
-                  slope: list[float] | None = None) -> None:
+                  slope: float = math.nan) -> float:
         """One step of Δt to the gap whose plate force is `force_nN`: from `guess_um` by a secant
-        where `slope` holds the last step's dF/dh (and gets this step's), else the bracket sought
-        from `guess_um` (steps of a quarter of its distance from the gap now) or from the gap now."""
+        where `slope` is the last step's dF/dh, else the bracket sought from `guess_um` (steps of a
+        quarter of its distance from the gap now) or from the gap now. Returns this step's dF/dh."""
         saved, h0 = self.state.saved(), self.state.h_um
         last = [math.nan]
         seen: list[tuple[float, float]] = []
@@ -423,19 +423,18 @@ class _Run:
             seen.append((h, _advance(self.state, h, dt_s) - force_nN))
             return seen[-1][1]
         root = None
-        if guess_um is not None and math.isfinite(guess_um) and slope is not None and math.isfinite(slope[0]):
+        if guess_um is not None and math.isfinite(guess_um) and math.isfinite(slope):
             try:
-                root = _secant(residual, guess_um, slope[0])
+                root = _secant(residual, guess_um, slope)
             except SolverError:              # a secant step to a gap with no equilibrium: bracket instead
                 root = None
         if root is None:
             root = self._bracketed(residual, h0, guess_um, force_nN)
         if last[0] != root:
             residual(root)
-        if slope is not None:
-            slope[0] = _slope(seen)
         self.t += dt_s
         self.points.append((self.t, root, self.state.force_nN()))
+        return _slope(seen)
 
     @staticmethod
     def _bracketed(residual: Callable[[float], float], h0: float, guess_um: float | None, force_nN: float) -> float:
