@@ -120,6 +120,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
     fulls = segments.groupby("cell_id")["protocol_full_replays"].first() if "protocol_full_replays" in segments else None
+    at = segments.groupby("cell_id")["protocol_memory_replays"].first() if "protocol_memory_replays" in segments else None
     return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex and memory",
             "wait_s": "recorded" if wait_s is None else wait_s,
             "memory": _memory(cells, memory_s) if "protocol_memory_source" in cells else None,
@@ -128,6 +129,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
             "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]],
             "replays_per_cell": None if replays is None or replays.empty else float(replays.mean()),
+            "memory_replays_per_cell": None if at is None or at.empty else float(at.mean()),
             "full_replays_per_cell": None if fulls is None or fulls.empty else float(fulls.mean())}
 
 
@@ -236,6 +238,19 @@ def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell],
     return todo
 
 
+def _closed(state: Factors, cells: list[Cell], nodes: tuple[Node, ...],
+            replay: Callable[[list[Cell], str, dict[str, tuple[Node, ...]]], None]) -> None:
+    """Every memory a cell's memory and interval rest on replayed at its last laws: the stale
+    ones (carried along since: `analysis.afm.memory_nodes`) replayed (`replay(todo, label,
+    asked)`, the laws unchanged) until none is left (each pass adds fresh nodes, so at most one a
+    node)."""
+    for k in range(len(nodes)):
+        stale = state.stale(nodes)
+        if not stale:
+            return
+        replay([c for c in cells if c.cell_id in stale], f"protocol: the memory's own nodes {k + 1}", stale)
+
+
 def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
                  refit: Callable[[], pd.DataFrame]) -> list[str]:
     """Rounds of the full replay (`replay`: at each cell's chosen memory, into `state`) from the
@@ -314,9 +329,11 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         now = state.measured(volumes, measured, [], replays, fulls)
         return started(found(now, measured), raw) if i == 0 else found(now, now)
 
-    def linearised(todo: list[Cell], i: int) -> None:
-        state.replayed(_factors(todo, laws, bending, wait_s, jobs, f"protocol round {i + 1} (at most {MAX_ROUNDS})",
-                                {c.cell_id: nodes for c in todo}, store=store))
+    def linearised(todo: list[Cell], i: int | str, asked: dict[str, tuple[Node, ...]] | None = None) -> None:
+        asked = asked or {c.cell_id: state.asked(c.cell_id, nodes) for c in todo}
+        label = f"protocol round {i + 1} (at most {MAX_ROUNDS})" if isinstance(i, int) else i
+        state.replayed(_factors(todo, laws, bending, wait_s, jobs, label, asked, store=store),
+                       new_laws=isinstance(i, int))
         replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
         state.choose(memory_s)
 
@@ -335,6 +352,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         return found(now, now)
 
     moving = _linearised_rounds(state, laws, cells, linearised, refit)
+    _closed(state, cells, nodes, linearised)
     if full_last:
         moving = _full_rounds(state, laws, cells, full, refit)
     ends = [] if memory_s is not None else state.ends()
