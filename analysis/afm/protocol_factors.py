@@ -124,10 +124,11 @@ class Factors:
 
     def stale(self, nodes: tuple[Node, ...]) -> dict[str, tuple[Node, ...]]:
         """Per cell the memories its memory and interval rest on (`deciding`) that were not
-        replayed at its last laws (carried along instead); only cells with any."""
+        replayed at its last laws (carried along instead; τ_c = 0 needs no replay); only cells
+        with any."""
         out = {}
         for c in self.grids:
-            missing = tuple(m for m in self.asked(c, nodes) if m not in self.fresh.get(c, set()))
+            missing = tuple(m for m in self.asked(c, nodes) if m != 0 and m not in self.fresh.get(c, set()))
             if missing:
                 out[c] = missing
         return out

@@ -12,12 +12,16 @@ each round the selected variant's inversion of S_i and its complex point fit
 rounds (`analysis.afm.law_rounds`, the policy: a fixed point that contracts slowly is
 extrapolated, not crept towards). Only the cells whose θ_i differs by more than SETTLED from the
 laws of their last replay are replayed again (`proposed`, `law_rounds.moved`; a cell the
-round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. Each
-replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
+round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. A
+cell's first replay is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
 (`memory_s` None, the default) or at the one given; the cell's memory is then chosen from the
 drift of its corrected mean tensions and the relaxation in its waits (fitted, pooled or assumed:
 `analysis.afm.protocol_factors`),
-its factors interpolated there. The
+its factors interpolated there. A later replay of a cell whose memory is its own is made only at
+the memories that decide it and its interval, the others carried along
+(`analysis.afm.memory_nodes`); when the rounds end, every deciding memory not replayed at a cell's
+last laws is (`_closed`), so its memory and interval rest on replays at the laws they are read
+with. The
 rounds replay linearised (`cell_correction`'s default, fast; its arg c is off the full replay's by
 up to 0.017 rad, at 0.02 Hz, and its |c| by up to 1.0 %: bench/linearised_replay.py), and settle
 at a fixed point biased by that. With `full_last` (FULL_LAST, the default) rounds of the full
@@ -35,7 +39,8 @@ run again there (`analysis.afm.replay_store`: a stopped reading resumes).
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
 `protocol_reason`, `protocol_settled`, `protocol_replays` (how often the cell was replayed
-linearised, each time at every memory asked for), `protocol_full_replays` and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
+linearised: its rounds and the closing ones), `protocol_memory_replays` (the linearised replays at
+one memory those made), `protocol_full_replays` and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
 its source). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
 a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`protocol_factors.refused`: the correction is refused,
@@ -115,7 +120,8 @@ def _memory(cells: pd.DataFrame, memory_s: float | None) -> dict[str, object]:
 def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None = None) -> dict[str, object]:
     """summary.json's `protocol`: the wait (s, or "recorded"), the memory (`_memory`), which cells
     were corrected, why the others were not, which did not settle in MAX_ROUNDS, and how often a
-    cell was replayed on average (`replays_per_cell`)."""
+    cell was replayed on average (`replays_per_cell`; `memory_replays_per_cell` counts each memory of
+    those, `full_replays_per_cell` the full ones)."""
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
