@@ -9,8 +9,9 @@ read by default, against their truth. Prints one JSON list, one object per exper
 - `memory`: per source (fitted, pooled, assumed) the cells; over the cells whose memory was
   identified (fitted), the share whose 95 % interval holds the true τ_c, and the median estimate;
   the pooled memory and its interval;
-- `cells_corrected`, `cells_not_settled`, `replays_per_cell` (linearised, each at every candidate
-  memory) and `full_replays_per_cell` (summary.json's `protocol`).
+- `cells_corrected`, `cells_not_settled`, `replays_per_cell` (linearised: rounds and the closing
+  ones), `memory_replays_per_cell` (the linearised replays at one memory they made) and
+  `full_replays_per_cell` (summary.json's `protocol`).
 
 The reading's CPU is the caller's to measure (`/usr/bin/time`).
 
@@ -71,6 +72,7 @@ def one(exp: Path, analysis: Path) -> dict:
     out["memory"] = memory(math.nan if relaxed else math.inf if given is None else float(given), segments)
     said = json.loads((analysis / "summary.json").read_text()).get("protocol", {})
     out["cells_corrected"], out["replays_per_cell"] = said.get("cells_corrected"), said.get("replays_per_cell")
+    out["memory_replays_per_cell"] = said.get("memory_replays_per_cell")
     out["full_replays_per_cell"] = said.get("full_replays_per_cell")
     out["cells_not_settled"] = len(said.get("cells_not_settled", []))
     return out

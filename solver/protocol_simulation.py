@@ -190,6 +190,23 @@ def _bracket(residual: Callable[[float], float], h0_um: float,
     return None, None
 
 
+def _bracketed(residual: Callable[[float], float], h0: float, guess_um: float | None, force_nN: float) -> float:
+    """The root of `residual` bracketed (from `guess_um` or the gap now `h0`), then by Brent."""
+    lo = hi = None
+    if guess_um is not None and math.isfinite(guess_um):
+        lo, hi = _bracket(residual, guess_um, max(0.25 * abs(guess_um - h0), 10.0 * FORCE_TOL_UM))
+    if lo is None or hi is None:
+        lo, hi = _bracket(residual, h0)
+    if lo is None or hi is None:
+        raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
+    if hi > lo:
+        found = root_scalar(residual, bracket=(lo, hi), method="brentq", xtol=FORCE_TOL_UM, maxiter=60)
+        if not found.converged:
+            raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
+        return float(found.root)
+    return lo
+
+
 def _secant(residual: Callable[[float], float], guess_um: float, slope: float, steps: int = SECANT_STEPS) -> float | None:
     """The root of `residual` by secant steps from `guess_um`, the first along `slope`: the last gap
     tried, once the step it asks for is below FORCE_TOL_UM / 10 (the gap then that near the root:
@@ -222,6 +239,23 @@ def _slope(seen: list[tuple[float, float]], widest_um: float = 0.1) -> float:
         return math.nan
     _, g, q = max(others)
     return (q - r) / (g - h)
+
+
+def hold_steps(res: Resolution, sampling: Sampling, duration_s: float, wait: bool = False) -> list[float]:
+    """The steps (s) of a hold of `duration_s` at resolution `res`: growing from the first (module
+    docstring; 1 / `sampling.sample_hz` where `res` sets none); a wait's from `wait_first_s` where
+    `res` sets it."""
+    if wait and res.wait_first_s is not None:
+        first, growth, largest = res.wait_first_s, 2.0, WAIT_LARGEST_S
+    else:
+        first = res.hold_first_s if res.hold_first_s is not None else 1.0 / sampling.sample_hz
+        growth, largest = res.hold_growth, res.hold_largest_s
+    out, dt, done = [], first, 0.0
+    while done < duration_s - 1e-12:
+        out.append(min(dt, duration_s - done))
+        done += out[-1]
+        dt = min(dt * growth, largest)
+    return out
 
 
 def simulate(shell: Shell, cortex: Cortex, protocol: Protocol, resolution: Resolution = FINE,
@@ -366,26 +400,11 @@ class _Run:
         self.level = hi
         self.points.append((self.t, hi, self.state.force_nN()))
 
-    def _hold_steps(self, duration_s: float, wait: bool = False) -> list[float]:
-        """The steps (s) of a hold of `duration_s`: growing from the first (module docstring); a
-        wait's from `wait_first_s` where the resolution sets it."""
-        if wait and self.res.wait_first_s is not None:
-            first, growth, largest = self.res.wait_first_s, 2.0, WAIT_LARGEST_S
-        else:
-            first = self.res.hold_first_s if self.res.hold_first_s is not None else 1.0 / self.sampling.sample_hz
-            growth, largest = self.res.hold_growth, self.res.hold_largest_s
-        out, dt, done = [], first, 0.0
-        while done < duration_s - 1e-12:
-            out.append(min(dt, duration_s - done))
-            done += out[-1]
-            dt = min(dt * growth, largest)
-        return out
-
     def _flush(self) -> None:
         """The height holds pending, as one hold at the plate's level; a wait's steps kept."""
         if self.pending > 0:
             times, forces = [self.t], [self.state.force_nN()]
-            for dt in self._hold_steps(self.pending, self.pending_wait):
+            for dt in hold_steps(self.res, self.sampling, self.pending, self.pending_wait):
                 forces.append(self._step(self.level, dt))
                 times.append(self.t)
             self.kinds.append(("hold", self.t))
@@ -400,7 +419,7 @@ class _Run:
         slope dF/dh (`_secant`); where it does not settle, and at the first step, the gap is
         bracketed, then found by Brent's method on h (`_at_force`)."""
         target, last, slope = self.state.force_nN(), None, math.nan
-        for dt in self._hold_steps(duration_s):
+        for dt in hold_steps(self.res, self.sampling, duration_s):
             h0 = self.state.h_um
             slope = self._at_force(target, dt, None if last is None else h0 + last[0] * math.sqrt(dt / last[1]), slope)
             last = (self.state.h_um - h0, dt)
@@ -429,29 +448,12 @@ class _Run:
             except SolverError:              # a secant step to a gap with no equilibrium: bracket instead
                 root = None
         if root is None:
-            root = self._bracketed(residual, h0, guess_um, force_nN)
+            root = _bracketed(residual, h0, guess_um, force_nN)
         if last[0] != root:
             residual(root)
         self.t += dt_s
         self.points.append((self.t, root, self.state.force_nN()))
         return _slope(seen)
-
-    @staticmethod
-    def _bracketed(residual: Callable[[float], float], h0: float, guess_um: float | None, force_nN: float) -> float:
-        """The root of `residual` bracketed (from `guess_um` or the gap now `h0`), then by Brent."""
-        lo = hi = None
-        if guess_um is not None and math.isfinite(guess_um):
-            lo, hi = _bracket(residual, guess_um, max(0.25 * abs(guess_um - h0), 10.0 * FORCE_TOL_UM))
-        if lo is None or hi is None:
-            lo, hi = _bracket(residual, h0)
-        if lo is None or hi is None:
-            raise SolverError(f"no gap holds the force {force_nN:g} nN near {h0:.6g} um")
-        if hi > lo:
-            found = root_scalar(residual, bracket=(lo, hi), method="brentq", xtol=FORCE_TOL_UM, maxiter=60)
-            if not found.converged:
-                raise SolverError(f"no gap holds the force {force_nN:g} nN ({found.flag})")
-            return float(found.root)
-        return lo
 
     def _close(self) -> None:
         """Sample the stretch of ramps and holds stepped since `_open` (module docstring)."""

@@ -218,8 +218,6 @@ def test_a_constant_force_hold_keeps_its_force_in_a_few_solves_a_step():
 
 
 def _hold_steps_of(duration_s: float) -> list[float]:
-    """The steps FINE takes for a hold of `duration_s` sampled at 10 Hz (`_Run._hold_steps`)."""
-    from solver.protocol_simulation import _Run
-    run = _Run.__new__(_Run)
-    run.res, run.sampling = FINE, Sampling(sample_hz=10.0, approach_hz=10.0)
-    return run._hold_steps(duration_s)
+    """The steps FINE takes for a hold of `duration_s` sampled at 10 Hz."""
+    from solver.protocol_simulation import hold_steps
+    return hold_steps(FINE, Sampling(sample_hz=10.0, approach_hz=10.0), duration_s)

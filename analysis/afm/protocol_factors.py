@@ -30,6 +30,7 @@ import pandas as pd
 
 from analysis.afm.analyze import Measured, measured_of
 from analysis.afm.memory_fit import RELAXED, UNDECIDED, MemoryFit, Node, carried, pooled, profile
+from analysis.afm.memory_nodes import deciding, merged, merged_waits
 from analysis.afm.replayed import apply
 from analysis.afm.wait_relaxation import Waits, excess
 
@@ -91,6 +92,8 @@ class Factors:
     memory: dict[str, MemoryFit] = field(default_factory=dict)
     source: dict[str, str] = field(default_factory=dict)
     fulls: dict[str, np.ndarray] = field(default_factory=dict)
+    fresh: dict[str, set[Node]] = field(default_factory=dict)
+    at_memories: dict[str, int] = field(default_factory=dict)     # replays at one memory (τ_c = 0 needs none)
 
     def __post_init__(self) -> None:
         self.factors = np.full((len(self.raw), 3), np.nan)
@@ -101,10 +104,34 @@ class Factors:
         self.why[cell] = _why(f, self.tension[at])
         self.factors[at] = np.nan if self.why[cell] else f
 
-    def replayed(self, found: dict[str, tuple[Grid, Waits | None]]) -> None:
-        """A round's replays: per cell its factors at every memory and its waits."""
+    def replayed(self, found: dict[str, tuple[Grid, Waits | None]], new_laws: bool = True) -> None:
+        """A round's replays: per cell its factors at the memories replayed and its waits, the
+        others carried along from its last replay (`analysis.afm.memory_nodes.merged`); with
+        `new_laws` only those replayed are fresh, else they join the fresh ones (the same laws)."""
         for c, (grid, waits) in found.items():
-            self.grids[c], self.waits[c] = grid, waits
+            self.grids[c] = merged(self.grids.get(c, {}), grid)
+            self.waits[c] = merged_waits(self.waits.get(c), waits)
+            self.fresh[c] = set(grid) | (set() if new_laws else self.fresh.get(c, set()))
+            self.at_memories[c] = self.at_memories.get(c, 0) + sum(m != 0 for m in grid)
+
+    def asked(self, cell: str, nodes: tuple[Node, ...]) -> tuple[Node, ...]:
+        """The memories of `nodes` the cell's next replay needs: all of them for a cell not yet
+        replayed or whose memory is not its own (`fitted`), else those that decide its memory
+        and interval (`analysis.afm.memory_nodes.deciding`)."""
+        if cell not in self.memory or self.source.get(cell) != "fitted":
+            return nodes
+        return deciding(self.memory[cell], nodes)
+
+    def stale(self, nodes: tuple[Node, ...]) -> dict[str, tuple[Node, ...]]:
+        """Per cell the memories its memory and interval rest on (`deciding`) that were not
+        replayed at its last laws (carried along instead; τ_c = 0 needs no replay); only cells
+        with any."""
+        out = {}
+        for c in self.grids:
+            missing = tuple(m for m in self.asked(c, nodes) if m != 0 and m not in self.fresh.get(c, set()))
+            if missing:
+                out[c] = missing
+        return out
 
     def _profile(self, cell: str) -> MemoryFit:
         """The cell's memory from the drift of its mean tensions and its waits, over the usable nodes."""
@@ -180,6 +207,7 @@ class Factors:
         segments["protocol_reason"] = cells.map(self.why).fillna("").where(~segments["protocol_corrected"], "")
         segments["protocol_settled"] = ~cells.isin(moving)
         segments["protocol_replays"] = cells.map(replays).fillna(0).astype(int)
+        segments["protocol_memory_replays"] = cells.map(self.at_memories).fillna(0).astype(int)
         segments["protocol_full_replays"] = cells.map(fulls).fillna(0).astype(int)
         for name, value in zip(MEMORY_COLUMNS, (lambda f: f.memory_s, lambda f: f.lo95_s, lambda f: f.hi95_s)):
             segments[name] = cells.map({c: value(f) for c, f in self.memory.items()}).astype(float)

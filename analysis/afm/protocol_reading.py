@@ -12,12 +12,16 @@ each round the selected variant's inversion of S_i and its complex point fit
 rounds (`analysis.afm.law_rounds`, the policy: a fixed point that contracts slowly is
 extrapolated, not crept towards). Only the cells whose θ_i differs by more than SETTLED from the
 laws of their last replay are replayed again (`proposed`, `law_rounds.moved`; a cell the
-round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. Each
-replay of a cell is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
+round's fit leaves out keeps its last correction), until none moved or MAX_ROUNDS rounds. A
+cell's first replay is a replay at every memory τ_c of `analysis.afm.memory_fit.MEMORY_GRID_S`
 (`memory_s` None, the default) or at the one given; the cell's memory is then chosen from the
 drift of its corrected mean tensions and the relaxation in its waits (fitted, pooled or assumed:
 `analysis.afm.protocol_factors`),
-its factors interpolated there. The
+its factors interpolated there. A later replay of a cell whose memory is its own is made only at
+the memories that decide it and its interval, the others carried along
+(`analysis.afm.memory_nodes`); when the rounds end, every deciding memory not replayed at a cell's
+last laws is (`_closed`), so its memory and interval rest on replays at the laws they are read
+with. The
 rounds replay linearised (`cell_correction`'s default, fast; its arg c is off the full replay's by
 up to 0.017 rad, at 0.02 Hz, and its |c| by up to 1.0 %: bench/linearised_replay.py), and settle
 at a fixed point biased by that. With `full_last` (FULL_LAST, the default) rounds of the full
@@ -35,7 +39,8 @@ run again there (`analysis.afm.replay_store`: a stopped reading resumes).
 
 The segments gain CORRECTION_COLUMNS (`analysis.afm.replayed`), `protocol_corrected`,
 `protocol_reason`, `protocol_settled`, `protocol_replays` (how often the cell was replayed
-linearised, each time at every memory asked for), `protocol_full_replays` and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
+linearised: its rounds and the closing ones), `protocol_memory_replays` (the linearised replays at
+one memory those made), `protocol_full_replays` and MEMORY_COLUMNS (τ_c in s, its 95 % interval,
 its source). A cell is not corrected (False, the reason beside it)
 without a point fit, without a recorded protocol, where its replay found no equilibrium, or where
 a corrected mean tension <γ_eff>_j - Δγ_j would be ≤ 0 (`protocol_factors.refused`: the correction is refused,
@@ -115,11 +120,13 @@ def _memory(cells: pd.DataFrame, memory_s: float | None) -> dict[str, object]:
 def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None = None) -> dict[str, object]:
     """summary.json's `protocol`: the wait (s, or "recorded"), the memory (`_memory`), which cells
     were corrected, why the others were not, which did not settle in MAX_ROUNDS, and how often a
-    cell was replayed on average (`replays_per_cell`)."""
+    cell was replayed on average (`replays_per_cell`; `memory_replays_per_cell` counts each memory of
+    those, `full_replays_per_cell` the full ones)."""
     cells = _cells(segments)
     left = cells[~cells["corrected"]]
     replays = segments.groupby("cell_id")["protocol_replays"].first() if "protocol_replays" in segments else None
     fulls = segments.groupby("cell_id")["protocol_full_replays"].first() if "protocol_full_replays" in segments else None
+    at = segments.groupby("cell_id")["protocol_memory_replays"].first() if "protocol_memory_replays" in segments else None
     return {"reading": "protocol-aware: each cell's protocol replayed with its fitted power-law cortex and memory",
             "wait_s": "recorded" if wait_s is None else wait_s,
             "memory": _memory(cells, memory_s) if "protocol_memory_source" in cells else None,
@@ -128,6 +135,7 @@ def summary(segments: pd.DataFrame, wait_s: float | None, memory_s: float | None
             "not_corrected_reasons": {str(c): str(r) for c, r in left["reason"].items()},
             "cells_not_settled": [str(c) for c in cells.index[~cells["settled"].to_numpy()]],
             "replays_per_cell": None if replays is None or replays.empty else float(replays.mean()),
+            "memory_replays_per_cell": None if at is None or at.empty else float(at.mean()),
             "full_replays_per_cell": None if fulls is None or fulls.empty else float(fulls.mean())}
 
 
@@ -236,6 +244,19 @@ def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell],
     return todo
 
 
+def _closed(state: Factors, cells: list[Cell], nodes: tuple[Node, ...],
+            replay: Callable[[list[Cell], str, dict[str, tuple[Node, ...]]], None]) -> None:
+    """Every memory a cell's memory and interval rest on replayed at its last laws: the stale
+    ones (carried along since: `analysis.afm.memory_nodes`) replayed (`replay(todo, label,
+    asked)`, the laws unchanged) until none is left (each pass adds fresh nodes, so at most one a
+    node)."""
+    for k in range(len(nodes)):
+        stale = state.stale(nodes)
+        if not stale:
+            return
+        replay([c for c in cells if c.cell_id in stale], f"protocol: the memory's own nodes {k + 1}", stale)
+
+
 def _full_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
                  refit: Callable[[], pd.DataFrame]) -> list[str]:
     """Rounds of the full replay (`replay`: at each cell's chosen memory, into `state`) from the
@@ -314,9 +335,11 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         now = state.measured(volumes, measured, [], replays, fulls)
         return started(found(now, measured), raw) if i == 0 else found(now, now)
 
-    def linearised(todo: list[Cell], i: int) -> None:
-        state.replayed(_factors(todo, laws, bending, wait_s, jobs, f"protocol round {i + 1} (at most {MAX_ROUNDS})",
-                                {c.cell_id: nodes for c in todo}, store=store))
+    def linearised(todo: list[Cell], i: int | str, asked: dict[str, tuple[Node, ...]] | None = None) -> None:
+        asked = asked or {c.cell_id: state.asked(c.cell_id, nodes) for c in todo}
+        label = f"protocol round {i + 1} (at most {MAX_ROUNDS})" if isinstance(i, int) else i
+        state.replayed(_factors(todo, laws, bending, wait_s, jobs, label, asked, store=store),
+                       new_laws=isinstance(i, int))
         replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
         state.choose(memory_s)
 
@@ -335,6 +358,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         return found(now, now)
 
     moving = _linearised_rounds(state, laws, cells, linearised, refit)
+    _closed(state, cells, nodes, linearised)
     if full_last:
         moving = _full_rounds(state, laws, cells, full, refit)
     ends = [] if memory_s is not None else state.ends()
