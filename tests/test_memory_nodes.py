@@ -104,3 +104,10 @@ def test_the_rounds_state_knows_which_nodes_were_replayed_at_the_last_laws():
     state.replayed({"a": ({m: grid[m] for m in (10.0, 300.0, 1000.0)}, None)}, new_laws=False)
     assert state.stale(NODES) == {} and state.at_memories["a"] == len(NODES) - 1 + 5
     assert set(state.grids["a"]) == set(NODES)
+
+
+def test_a_node_whose_replay_failed_carries_nothing_along():
+    """The nearest replayed node found no equilibrium: the next nearest that did moves the stale one."""
+    old = {3.0: np.zeros(2), 10.0: np.ones(2), 100.0: np.full(2, 2.0)}
+    new = {10.0: "the replay found no equilibrium", 100.0: np.full(2, 2.5)}
+    np.testing.assert_allclose(merged(old, new)[3.0], np.full(2, 0.5))

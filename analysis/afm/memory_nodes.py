@@ -40,8 +40,8 @@ from analysis.afm.wait_relaxation import Waits
 V = TypeVar("V")      # a node's entry: its factors (an array) or why not (a string); a wait's force
 
 
-
 def _phi(m: Node) -> float:
+    """φ of a node; RELAXED at φ = 1, beside ∞."""
     return 1.0 if m == RELAXED else float(carried(m))
 
 
@@ -67,7 +67,7 @@ def deciding(fit: MemoryFit, nodes: Sequence[Node]) -> tuple[Node, ...]:
 
 
 def _nearest(m: Node, fresh: Sequence[Node]) -> Node | None:
-    """The replayed node nearest to `m` in φ (RELAXED: ∞ if replayed), None if none is."""
+    """The node of `fresh` nearest to `m` in φ (RELAXED: ∞ if there), None if none is."""
     if m == RELAXED:
         return math.inf if math.inf in fresh else None
     candidates = [n for n in fresh if n != RELAXED and n != 0]
@@ -85,7 +85,7 @@ def _moved(old: Mapping[Node, object], new: Mapping[Node, object], m: Node) -> n
 def _carried_along(old: Mapping[Node, V], new: Mapping[Node, V]) -> dict[Node, V]:
     """`old`'s nodes that `new` lacks, each moved by its nearest replayed node's change."""
     out: dict[Node, V] = {}
-    fresh = list(new)
+    fresh = [n for n, v in new.items() if isinstance(v, np.ndarray)]      # a node that failed moves none
     for m, value in old.items():
         if m in new:
             continue
