@@ -231,7 +231,7 @@ def _factors(cells: list[Cell], laws: dict[str, dict[str, float]], bending: str,
 def _linearised_rounds(state: Factors, laws: dict[str, Laws], cells: list[Cell], replay: Callable[[list[Cell], int], None],
                        refit: Callable[[int], pd.DataFrame]) -> list[str]:
     """The rounds of the module docstring: `refit(i)` the laws found before round i (θ_0: `started`),
-    `replay` the moved cells at every memory (into `state`), until none moved or MAX_ROUNDS; `laws`
+    `replay` the moved cells at the memories each needs (into `state`), until none moved or MAX_ROUNDS; `laws`
     gains the laws replayed; returns the cells still moving."""
     rounds: dict[str, list[tuple[Laws, Laws]]] = {}
     for i in range(MAX_ROUNDS):
