@@ -335,13 +335,17 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         now = state.measured(volumes, measured, [], replays, fulls)
         return started(found(now, measured), raw) if i == 0 else found(now, now)
 
-    def linearised(todo: list[Cell], i: int | str, asked: dict[str, tuple[Node, ...]] | None = None) -> None:
-        asked = asked or {c.cell_id: state.asked(c.cell_id, nodes) for c in todo}
-        label = f"protocol round {i + 1} (at most {MAX_ROUNDS})" if isinstance(i, int) else i
-        state.replayed(_factors(todo, laws, bending, wait_s, jobs, label, asked, store=store),
-                       new_laws=isinstance(i, int))
+    def replayed(todo: list[Cell], label: str, asked: dict[str, tuple[Node, ...]], new_laws: bool) -> None:
+        state.replayed(_factors(todo, laws, bending, wait_s, jobs, label, asked, store=store), new_laws)
         replays.update({c.cell_id: replays[c.cell_id] + 1 for c in todo})
         state.choose(memory_s)
+
+    def linearised(todo: list[Cell], i: int) -> None:
+        replayed(todo, f"protocol round {i + 1} (at most {MAX_ROUNDS})",
+                 {c.cell_id: state.asked(c.cell_id, nodes) for c in todo}, new_laws=True)
+
+    def closing(todo: list[Cell], label: str, asked: dict[str, tuple[Node, ...]]) -> None:
+        replayed(todo, label, asked, new_laws=False)
 
     def at_memory(todo: list[Cell], these: dict[str, Laws], label: str,
                   linearised: bool = True) -> dict[str, np.ndarray | str]:
@@ -358,7 +362,7 @@ def corrected(measured: Measured, cells: list[Cell], inversion: Inversion, model
         return found(now, now)
 
     moving = _linearised_rounds(state, laws, cells, linearised, refit)
-    _closed(state, cells, nodes, linearised)
+    _closed(state, cells, nodes, closing)
     if full_last:
         moving = _full_rounds(state, laws, cells, full, refit)
     ends = [] if memory_s is not None else state.ends()
